@@ -1,0 +1,275 @@
+"""Frame sources: video files, multi-page TIFF, image folders, image lists.
+
+Frames are yielded one at a time as ``(H, W)`` float32 gray images in the
+source's own intensity units; a video is streamed, never loaded whole.  The
+pixel convention is x = column, y = row, with the centre of the top-left pixel
+at (0, 0).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from strain2d.errors import SourceError
+
+__all__ = ["IMAGE_SUFFIXES", "VIDEO_SUFFIXES", "FrameSource", "open_frames", "to_gray"]
+
+VIDEO_SUFFIXES = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".wmv", ".mpg", ".mpeg"})
+TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
+IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".jp2", ".webp"})
+
+
+def _natural_key(path: Path) -> list:
+    return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", path.name)]
+
+
+def to_gray(image: np.ndarray, *, order: str = "rgb") -> np.ndarray:
+    """Convert an ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` image to float32 gray.
+
+    Uses ITU-R BT.601 luma weights; ``order`` is ``"rgb"`` or ``"bgr"`` (OpenCV).
+    """
+    image = np.asarray(image)
+    if image.ndim == 2:
+        return image.astype(np.float32)
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        w = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+        if order == "bgr":
+            w = w[::-1]
+        return (image[..., :3].astype(np.float32) @ w).astype(np.float32)
+    if image.ndim == 3 and image.shape[2] == 1:
+        return image[..., 0].astype(np.float32)
+    raise SourceError(f"cannot convert an image of shape {image.shape} to gray")
+
+
+def _dtype_range(dtype: np.dtype) -> tuple[float, float] | None:
+    if np.issubdtype(dtype, np.integer):
+        info = np.iinfo(dtype)
+        return float(max(info.min, 0)), float(info.max)
+    return None
+
+
+class FrameSource:
+    """A lazy, re-iterable sequence of gray frames.
+
+    Parameters
+    ----------
+    sources : sequence of path-like
+        One video file, one multi-page TIFF, one folder of images, or several
+        image files in frame order.
+    start, stop, step : int, keyword-only
+        Frame range (Python slice semantics on the source's frames).
+
+    Attributes
+    ----------
+    kind : {"video", "tiff", "images"}
+    names : list of str
+        Input file names, for provenance.
+    shape : (int, int)
+        Frame height and width in pixels.
+    value_range : (float, float)
+        Nominal intensity range (from the dtype for integer data, else from the
+        first frame), used to convert to 8 bits without per-frame rescaling.
+
+    Raises
+    ------
+    SourceError
+        Missing, unreadable or empty sources.
+    """
+
+    def __init__(
+        self,
+        sources: Sequence[str | os.PathLike] | str | os.PathLike,
+        *,
+        start: int = 0,
+        stop: int | None = None,
+        step: int = 1,
+    ) -> None:
+        if isinstance(sources, str | os.PathLike):
+            sources = [sources]
+        paths = [Path(s) for s in sources]
+        if not paths:
+            raise SourceError("no frame source given")
+        for p in paths:
+            if not p.exists():
+                raise SourceError(f"no such file or folder: {p}")
+        if step < 1:
+            raise SourceError(f"--step must be >= 1, got {step}")
+        if start < 0 or (stop is not None and stop < 0):
+            raise SourceError("frame range start and stop must be >= 0")
+        self._slice = slice(start, stop, step)
+        if len(paths) == 1 and paths[0].is_dir():
+            files = sorted(
+                (f for f in paths[0].iterdir() if f.suffix.lower() in IMAGE_SUFFIXES),
+                key=_natural_key,
+            )
+            if not files:
+                raise SourceError(f"folder {paths[0]} holds no images")
+            self.kind, self._paths = "images", files
+        elif len(paths) == 1 and paths[0].suffix.lower() in VIDEO_SUFFIXES:
+            self.kind, self._paths = "video", paths
+        elif len(paths) == 1 and paths[0].suffix.lower() in TIFF_SUFFIXES:
+            self.kind, self._paths = "tiff", paths
+        else:
+            bad = [p for p in paths if p.is_dir() or p.suffix.lower() not in IMAGE_SUFFIXES]
+            if bad:
+                raise SourceError(f"not an image, video or TIFF stack: {bad[0]}")
+            self.kind, self._paths = "images", paths
+        self.names = [str(p) for p in paths]
+        self._n_source = self._count()
+        self._indices = range(self._n_source)[self._slice]
+        if len(self._indices) == 0:
+            raise SourceError("the frame range selects no frame")
+        first = next(iter(self))
+        self.shape = first.shape
+        raw_range = self._raw_range
+        if raw_range is None:
+            lo, hi = float(np.min(first)), float(np.max(first))
+            raw_range = (lo, hi if hi > lo else lo + 1.0)
+        self.value_range = raw_range
+
+    # -- source-specific readers -------------------------------------------------
+    def _count(self) -> int:
+        self._raw_range = None
+        if self.kind == "video":
+            import cv2
+
+            cap = cv2.VideoCapture(str(self._paths[0]))
+            try:
+                if not cap.isOpened():
+                    raise SourceError(f"cannot read video {self._paths[0]}")
+                ok, frame = cap.read()
+                if not ok:
+                    raise SourceError(f"cannot read any frame from video {self._paths[0]}")
+                self._raw_range = _dtype_range(frame.dtype)
+                n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
+            finally:
+                cap.release()
+            return n if n > 0 else self._count_video_frames()
+        if self.kind == "tiff":
+            import tifffile
+
+            try:
+                with tifffile.TiffFile(self._paths[0]) as tif:
+                    n = len(tif.pages)
+                    page = tif.pages[0]
+                    self._raw_range = _dtype_range(np.dtype(page.dtype))
+            except Exception as exc:  # tifffile raises many types on corrupt files
+                raise SourceError(f"cannot read TIFF {self._paths[0]}: {exc}") from None
+            return n
+        image = self._read_image(self._paths[0])
+        self._raw_range = _dtype_range(image.dtype)
+        return len(self._paths)
+
+    def _count_video_frames(self) -> int:
+        import cv2
+
+        cap = cv2.VideoCapture(str(self._paths[0]))
+        n = 0
+        while cap.grab():
+            n += 1
+        cap.release()
+        return n
+
+    @staticmethod
+    def _read_image(path: Path) -> np.ndarray:
+        import cv2
+
+        image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
+        if image is None:
+            raise SourceError(f"cannot read image {path}")
+        return image
+
+    def _iter_raw(self) -> Iterator[np.ndarray]:
+        wanted = self._indices
+        if self.kind == "video":
+            import cv2
+
+            cap = cv2.VideoCapture(str(self._paths[0]))
+            try:
+                if wanted.start:
+                    cap.set(cv2.CAP_PROP_POS_FRAMES, wanted.start)
+                i = wanted.start
+                while i < wanted.stop:
+                    ok, frame = cap.read()
+                    if not ok:
+                        break
+                    if (i - wanted.start) % wanted.step == 0:
+                        yield to_gray(frame, order="bgr")
+                    i += 1
+            finally:
+                cap.release()
+        elif self.kind == "tiff":
+            import tifffile
+
+            with tifffile.TiffFile(self._paths[0]) as tif:
+                for i in wanted:
+                    yield to_gray(tif.pages[i].asarray())
+        else:
+            for i in wanted:
+                yield to_gray(self._read_image(self._paths[i]), order="bgr")
+
+    # -- public interface --------------------------------------------------------
+    def __iter__(self) -> Iterator[np.ndarray]:
+        shape = getattr(self, "shape", None)
+        for k, frame in enumerate(self._iter_raw()):
+            if shape is not None and frame.shape != shape:
+                raise SourceError(
+                    f"frame {k} has size {frame.shape[1]}x{frame.shape[0]}, "
+                    f"expected {shape[1]}x{shape[0]}"
+                )
+            yield frame
+
+    def __len__(self) -> int:
+        """Number of selected frames (from the container's frame count for videos)."""
+        return len(self._indices)
+
+    def first(self) -> np.ndarray:
+        """The reference frame."""
+        return next(iter(self))
+
+    def frame(self, index: int) -> np.ndarray:
+        """One selected frame by index (negative counts from the end)."""
+        n = len(self)
+        if not -n <= index < n:
+            raise IndexError(f"frame {index} out of range for {n} frames")
+        index %= n
+        for k, frame in enumerate(self):
+            if k == index:
+                return frame
+        raise SourceError(f"frame {index} could not be read")
+
+    def read_all(self) -> np.ndarray:
+        """All selected frames as one ``(T, H, W)`` float32 array."""
+        return np.stack(list(self))
+
+    def __repr__(self) -> str:
+        return (
+            f"FrameSource({self.kind}, {len(self)} frames of {self.shape[1]}x{self.shape[0]} px, "
+            f"from {self.names[0]}{' ...' if len(self.names) > 1 else ''})"
+        )
+
+
+def open_frames(
+    sources: Sequence[str | os.PathLike] | str | os.PathLike,
+    *,
+    start: int = 0,
+    stop: int | None = None,
+    step: int = 1,
+    min_frames: int = 2,
+) -> FrameSource:
+    """Open a frame source and check it holds at least ``min_frames`` frames.
+
+    See :class:`FrameSource` for the accepted sources.
+    """
+    source = FrameSource(sources, start=start, stop=stop, step=step)
+    if len(source) < min_frames:
+        raise SourceError(
+            f"{source.names[0]} gives {len(source)} frame(s); at least {min_frames} are needed "
+            "(a reference frame and a deformed one)"
+        )
+    return source

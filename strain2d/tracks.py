@@ -1,0 +1,175 @@
+"""``Tracks``: tracked point positions with visibility and quality, and their files.
+
+CSV layout (one row per frame and point)::
+
+    frame,point,x,y,visible,quality
+
+NumPy layouts: ``.npy`` holding positions ``(T, N, 2)``; ``.npz`` with
+``positions`` (or ``tracks``) ``(T, N, 2)`` and optional ``visible`` ``(T, N)``
+and ``quality`` ``(T, N)``.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from strain2d.errors import InputError
+
+__all__ = ["TRACK_COLUMNS", "Tracks", "read_tracks", "write_tracks_csv"]
+
+TRACK_COLUMNS = ("frame", "point", "x", "y", "visible", "quality")
+
+
+@dataclass(frozen=True, repr=False)
+class Tracks:
+    """Positions of N points over T frames.
+
+    Attributes
+    ----------
+    positions : (T, N, 2) float
+        ``(x, y)`` in pixels; frame 0 is the reference.
+    visible : (T, N) bool
+        False where the tracker lost the point.
+    quality : (T, N) float
+        Tracker confidence, higher is better (each tracker documents its scale).
+    meta : dict
+        Tracker name and options, for provenance.
+    """
+
+    positions: np.ndarray
+    visible: np.ndarray
+    quality: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        pos = np.asarray(self.positions, dtype=float)
+        if pos.ndim != 3 or pos.shape[2] != 2:
+            raise InputError(f"track positions must have shape (T, N, 2), got {pos.shape}")
+        vis = np.asarray(self.visible, dtype=bool)
+        qual = np.asarray(self.quality, dtype=float)
+        for name, arr in (("visible", vis), ("quality", qual)):
+            if arr.shape != pos.shape[:2]:
+                raise InputError(f"track {name} must have shape {pos.shape[:2]}, got {arr.shape}")
+        object.__setattr__(self, "positions", pos)
+        object.__setattr__(self, "visible", vis)
+        object.__setattr__(self, "quality", qual)
+
+    @property
+    def n_frames(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_points(self) -> int:
+        return self.positions.shape[1]
+
+    @property
+    def reference(self) -> np.ndarray:
+        """Positions on the reference frame, ``(N, 2)``."""
+        return self.positions[0]
+
+    def __repr__(self) -> str:
+        lost = int((~self.visible[-1]).sum())
+        return (
+            f"Tracks({self.n_frames} frames, {self.n_points} points, "
+            f"{lost} lost on the last frame, tracker={self.meta.get('tracker', '?')})"
+        )
+
+
+def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
+    """Write tracks as CSV with columns ``frame,point,x,y,visible,quality``."""
+    T, N = tracks.positions.shape[:2]
+    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
+    table = np.column_stack(
+        [
+            frame.ravel(),
+            point.ravel(),
+            tracks.positions.reshape(-1, 2),
+            tracks.visible.ravel(),
+            tracks.quality.ravel(),
+        ]
+    )
+    np.savetxt(
+        path,
+        table,
+        fmt=["%d", "%d", "%.6f", "%.6f", "%d", "%.6g"],
+        delimiter=",",
+        header=",".join(TRACK_COLUMNS),
+        comments="",
+    )
+
+
+def _read_csv(path: Path) -> Tracks:
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        fields = [c.strip().lower() for c in (reader.fieldnames or [])]
+        missing = [c for c in ("frame", "point", "x", "y") if c not in fields]
+        if missing:
+            raise InputError(f"{path} lacks column(s) {', '.join(missing)}")
+        reader.fieldnames = fields
+        try:
+            rows = [
+                (
+                    int(r["frame"]),
+                    int(r["point"]),
+                    float(r["x"]),
+                    float(r["y"]),
+                    bool(int(float(r["visible"]))) if r.get("visible") not in (None, "") else True,
+                    float(r["quality"]) if r.get("quality") not in (None, "") else 1.0,
+                )
+                for r in reader
+            ]
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{path}: bad value ({exc})") from None
+    if not rows:
+        raise InputError(f"{path} holds no tracks")
+    a = np.array(rows, dtype=float)
+    frames, points = a[:, 0].astype(int), a[:, 1].astype(int)
+    if frames.min() < 0 or points.min() < 0:
+        raise InputError(f"{path}: frame and point indices must be >= 0")
+    T, N = frames.max() + 1, points.max() + 1
+    if len(a) != T * N or len(set(zip(frames, points, strict=True))) != T * N:
+        raise InputError(f"{path} must hold exactly one row for each of {T} frames x {N} points")
+    pos = np.empty((T, N, 2))
+    vis = np.empty((T, N), dtype=bool)
+    qual = np.empty((T, N))
+    pos[frames, points] = a[:, 2:4]
+    vis[frames, points] = a[:, 4].astype(bool)
+    qual[frames, points] = a[:, 5]
+    return Tracks(pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)})
+
+
+def read_tracks(path: str | os.PathLike) -> Tracks:
+    """Read tracks from ``.csv``, ``.npy`` or ``.npz`` (see the module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"no such tracks file: {path}")
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return _read_csv(path)
+    if suffix in (".npy", ".npz"):
+        try:
+            data = np.load(path, allow_pickle=False)
+        except ValueError as exc:
+            raise InputError(f"cannot read {path}: {exc}") from None
+        if suffix == ".npy":
+            pos, vis, qual = data, None, None
+        else:
+            key = next((k for k in ("positions", "tracks") if k in data.files), None)
+            if key is None:
+                raise InputError(f"{path} needs an array named 'positions' (T, N, 2)")
+            pos = data[key]
+            vis = data["visible"] if "visible" in data.files else None
+            qual = data["quality"] if "quality" in data.files else None
+        pos = np.asarray(pos, dtype=float)
+        if pos.ndim != 3 or pos.shape[2] != 2:
+            raise InputError(f"{path}: positions must have shape (T, N, 2), got {pos.shape}")
+        finite = np.all(np.isfinite(pos), axis=-1)
+        vis = finite if vis is None else np.asarray(vis, dtype=bool) & finite
+        qual = np.ones(pos.shape[:2]) if qual is None else qual
+        return Tracks(pos, vis, qual, {"source": str(path)})
+    raise InputError(f"tracks file must be .csv, .npy or .npz, got {path.name}")
