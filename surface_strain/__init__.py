@@ -6,7 +6,13 @@ averages for triangles in the plane or on curved surfaces in space.  The 2D
 strain pipeline (:mod:`strain2d`) is its planar special case.
 """
 
-from surface_strain.field import StrainField, compute_strain, element_area_ratio, scalar_fields
+from surface_strain.field import (
+    StrainField,
+    compute_strain,
+    element_scalars,
+    nodal_scalars,
+    scalar_fields,
+)
 from surface_strain.kinematics import (
     area_ratio,
     deformation_gradient,
@@ -32,12 +38,13 @@ __all__ = [
     "deformation_gradient",
     "delaunay_triangles",
     "directional_components",
-    "element_area_ratio",
+    "element_scalars",
     "euler_almansi",
     "green_lagrange",
     "grid_triangles",
     "logarithmic_strain",
     "nodal_average",
+    "nodal_scalars",
     "principal_strains",
     "reference_frames",
     "right_cauchy_green",

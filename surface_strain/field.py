@@ -19,7 +19,13 @@ from surface_strain.kinematics import (
 )
 from surface_strain.nodal import nodal_average
 
-__all__ = ["StrainField", "compute_strain", "scalar_fields"]
+__all__ = [
+    "StrainField",
+    "compute_strain",
+    "element_scalars",
+    "nodal_scalars",
+    "scalar_fields",
+]
 
 
 @dataclass(frozen=True, repr=False)
@@ -39,6 +45,8 @@ class StrainField:
         Deformation map; NaN where a triangle has a lost vertex.
     E : (T, M, 2, 2) float
         Green-Lagrange strain in the directional frame (``[[Exx, Exy], [Exy, Eyy]]``).
+    visible : (T, N) bool
+        False where a node is lost (given, or non-finite position).
     element_valid : (T, M) bool
         False where any vertex of the triangle is lost.
     nodal_E : (T, N, 2, 2) float
@@ -54,6 +62,7 @@ class StrainField:
     basis: FloatArray
     F: FloatArray
     E: FloatArray
+    visible: BoolArray
     element_valid: BoolArray
     nodal_E: FloatArray
     reference_areas: FloatArray
@@ -69,6 +78,7 @@ class StrainField:
             "basis": (M, d, 2),
             "F": (T, M, d, 2),
             "E": (T, M, 2, 2),
+            "visible": (T, N),
             "element_valid": (T, M),
             "nodal_E": (T, N, 2, 2),
             "reference_areas": (M,),
@@ -200,6 +210,7 @@ def compute_strain(
         basis=basis,
         F=F,
         E=E,
+        visible=visible,
         element_valid=element_valid,
         nodal_E=nodal_E,
         reference_areas=areas,
@@ -207,6 +218,23 @@ def compute_strain(
     )
 
 
-def element_area_ratio(field: StrainField) -> FloatArray:
-    """Area ratio ``J`` of each triangle, ``(T, M)``."""
-    return area_ratio(field.F)
+def element_scalars(field: StrainField) -> dict[str, FloatArray]:
+    """Per-triangle scalar fields, each ``(T, M)``: those of :func:`scalar_fields`
+    plus the area ratio ``J``."""
+    out = scalar_fields(field.E)
+    out["J"] = area_ratio(field.F)
+    return out
+
+
+def nodal_scalars(field: StrainField) -> dict[str, FloatArray]:
+    """Per-node scalar fields, each ``(T, N)``.
+
+    Tensor components and principal values come from the nodal (averaged)
+    tensor ``nodal_E``; ``J`` is the area-weighted average of the element
+    area ratios.
+    """
+    out = scalar_fields(field.nodal_E)
+    out["J"] = nodal_average(
+        area_ratio(field.F), field.triangles, field.n_points, weights=field.reference_areas, axis=1
+    )
+    return out

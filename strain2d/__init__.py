@@ -1,0 +1,37 @@
+"""Strain fields from videos of deforming tissue, without speckles.
+
+Video -> virtual grid points tracked through every frame -> triangle mesh on
+the reference grid -> deformation gradient and Green-Lagrange strain per
+triangle and node, per frame -> figures, tables and ParaView exports.
+
+Pixel convention: x = column, y = row, the centre of the top-left pixel is
+(0, 0).
+"""
+
+from strain2d.errors import InputError, SourceError
+from strain2d.frames import FrameSource, open_frames
+from strain2d.grid import make_grid, read_points_csv
+from strain2d.pipeline import Analysis, analyze, strain_from_tracks, track
+from strain2d.trackers import available_trackers, register_tracker
+from strain2d.tracks import Tracks, read_tracks, write_tracks_csv
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Analysis",
+    "FrameSource",
+    "InputError",
+    "SourceError",
+    "Tracks",
+    "__version__",
+    "analyze",
+    "available_trackers",
+    "make_grid",
+    "open_frames",
+    "read_points_csv",
+    "read_tracks",
+    "register_tracker",
+    "strain_from_tracks",
+    "track",
+    "write_tracks_csv",
+]

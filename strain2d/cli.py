@@ -1,0 +1,333 @@
+"""Command line: ``python -m strain2d {track,analyze,benchmark}``.
+
+Errors a user can cause end with one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import logging
+import sys
+import time
+from collections.abc import Callable
+from datetime import UTC, datetime
+from pathlib import Path
+
+from strain2d import __version__
+from strain2d.errors import InputError, SourceError
+
+log = logging.getLogger(__name__)
+
+#: CLI flags that map to tracker options (flag dest -> option name).
+_TRACKER_FLAGS = {
+    "window": "window",
+    "levels": "levels",
+    "fb_threshold": "fb_threshold",
+    "tracks_file": "tracks_file",
+}
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # one line, exit 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _add_source_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "source",
+        nargs="+",
+        metavar="SOURCE",
+        help="video file, multi-page TIFF, folder of images, or image files in order; "
+        "the first frame is the reference",
+    )
+    p.add_argument("--start", type=int, default=0, help="first frame to use (default 0)")
+    p.add_argument("--stop", type=int, default=None, help="frame to stop before (default: end)")
+    p.add_argument("--step", type=int, default=1, help="use every STEP-th frame (default 1)")
+
+
+def _add_tracker_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--tracker", default="klt", help="tracker name: klt, imported (default klt)")
+    p.add_argument("--window", type=int, help="klt: window side in pixels (default 31)")
+    p.add_argument("--levels", type=int, help="klt: pyramid levels (default 3)")
+    p.add_argument(
+        "--fb-threshold", type=float, help="klt: forward-backward error in px that marks a "
+        "point lost (default 1.0)"
+    )
+    p.add_argument("--tracks-file", help="imported: tracks from another tool (CSV, NPY or NPZ)")
+
+
+def _add_points_args(p: argparse.ArgumentParser, *, grid_default: str | None) -> None:
+    p.add_argument("--points", help="CSV file of reference points with columns x,y (pixels)")
+    p.add_argument(
+        "--grid", default=grid_default, help="regular grid COLSxROWS over the ROI "
+        f"(default {grid_default or '7x7'})"
+    )
+    p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="strain2d",
+        description="Track virtual grid points in a video and compute the strain field.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log details")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    p = sub.add_parser("track", help="track points and write TRACKS.csv")
+    _add_source_args(p)
+    _add_points_args(p, grid_default=None)
+    _add_tracker_args(p)
+    p.add_argument("--out", required=True, help="output CSV: frame,point,x,y,visible,quality")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.set_defaults(handler=_cmd_track)
+
+    p = sub.add_parser("analyze", help="track a grid and write strain tables, figures, VTK")
+    _add_source_args(p)
+    _add_points_args(p, grid_default="7x7")
+    _add_tracker_args(p)
+    p.add_argument(
+        "--min-triangle-quality", type=float, default=0.1,
+        help="drop mesh triangles whose radius ratio is below this (default 0.1)",
+    )
+    p.add_argument("--fps", type=float, default=None,
+                   help="frame rate for time axes in seconds (default: the frame index)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.set_defaults(handler=_cmd_analyze)
+
+    p = sub.add_parser("benchmark", help="reproduce the paper's Table 1 on synthetic videos")
+    p.add_argument("--quick", action="store_true", help="400x400 px, 11 frames (for tests)")
+    p.add_argument("--cases", help="comma-separated subset of equibiaxial,rotation,shear,tissue")
+    p.add_argument("--trackers", help="comma-separated tracker names (default: all)")
+    p.add_argument("--seed", type=int, default=0, help="random seed of the synthetic videos")
+    p.add_argument("--out", required=True, help="output folder (benchmark.json, benchmark.md)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.set_defaults(handler=_cmd_benchmark)
+    return parser
+
+
+def _progress(args, desc: str) -> tuple[Callable[[int, int | None], None], Callable[[], None]]:
+    from tqdm import tqdm
+
+    bar = tqdm(desc=desc, unit="frame", disable=True if args.quiet else None, leave=False)
+
+    def update(done: int, total: int | None) -> None:
+        if total is not None and bar.total != total:
+            bar.total = total
+        bar.update(done - bar.n)
+
+    return update, bar.close
+
+
+def _tracker_options(args) -> dict:
+    from strain2d.trackers import get_tracker
+
+    spec = get_tracker(args.tracker)
+    accepted = inspect.signature(spec.function).parameters
+    options = {}
+    for dest, name in _TRACKER_FLAGS.items():
+        value = getattr(args, dest, None)
+        if value is None:
+            continue
+        if name not in accepted:
+            flag = "--" + dest.replace("_", "-")
+            raise InputError(f"{flag} does not apply to the {args.tracker} tracker")
+        options[name] = value
+    return options
+
+
+def _reference_points(args, source):
+    from strain2d.grid import make_grid, parse_grid, parse_roi, read_points_csv, validate_points
+
+    if args.points:
+        if args.roi:
+            raise InputError("give either --points or --roi, not both")
+        points = read_points_csv(args.points)
+        return validate_points(points, source.shape), {"points_file": args.points}
+    if args.tracker == "imported" and args.grid is None:
+        return None, {"points": "all points of the imported file"}
+    shape = parse_grid(args.grid or "7x7")
+    roi = parse_roi(args.roi) if args.roi else None
+    points = make_grid(source.shape, shape=shape, roi=roi)
+    x0, y0 = points.min(axis=0)
+    x1, y1 = points.max(axis=0)
+    return points, {"grid": f"{shape[0]}x{shape[1]}", "roi": [x0, y0, x1, y1]}
+
+
+def _open(args):
+    from strain2d.frames import open_frames
+
+    return open_frames(args.source, start=args.start, stop=args.stop, step=args.step)
+
+
+def _cmd_track(args) -> int:
+    from strain2d.atomic import atomic_file, check_writable
+    from strain2d.pipeline import track
+    from strain2d.tracks import write_tracks_csv
+
+    check_writable(args.out, overwrite=args.overwrite)
+    source = _open(args)
+    points, _ = _reference_points(args, source)
+    options = _tracker_options(args)
+    update, close = _progress(args, f"tracking ({args.tracker})")
+    try:
+        tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
+    finally:
+        close()
+    with atomic_file(args.out, overwrite=args.overwrite) as tmp:
+        write_tracks_csv(tmp, tracks)
+    lost = int((~tracks.visible[-1]).sum())
+    log.info("tracked %d points over %d frames, %d lost", tracks.n_points, tracks.n_frames, lost)
+    return 0
+
+
+def _final_stats(field) -> dict:
+    import numpy as np
+
+    from surface_strain import nodal_scalars
+
+    scalars = nodal_scalars(field)
+    last = field.n_frames - 1
+    out = {}
+    for key in ("Exx", "Eyy", "Exy", "E1", "E2", "J"):
+        v = scalars[key][last]
+        v = v[np.isfinite(v)]
+        out[key] = (
+            {"mean": v.mean(), "sd": v.std(), "min": v.min(), "max": v.max(), "n": v.size}
+            if v.size
+            else {"n": 0}
+        )
+    return out
+
+
+def _cmd_analyze(args) -> int:
+    import numpy as np
+
+    from strain2d.atomic import atomic_dir, check_writable
+    from strain2d.export import (
+        write_json,
+        write_pvd,
+        write_strain_elements_csv,
+        write_strain_nodes_csv,
+    )
+    from strain2d.figures import plot_strain_maps, plot_tracked_grid
+    from strain2d.pipeline import strain_from_tracks, track
+    from strain2d.tracks import write_tracks_csv
+
+    t_start = time.perf_counter()
+    check_writable(args.out, overwrite=args.overwrite)
+    source = _open(args)
+    points, point_info = _reference_points(args, source)
+    options = _tracker_options(args)
+    update, close = _progress(args, f"tracking ({args.tracker})")
+    try:
+        tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
+    finally:
+        close()
+    t_tracked = time.perf_counter()
+    if tracks.n_frames != len(source):
+        raise SourceError(f"tracked {tracks.n_frames} frames but the source has {len(source)}")
+    field = strain_from_tracks(tracks, min_triangle_quality=args.min_triangle_quality)
+    t_strain = time.perf_counter()
+    times = np.arange(tracks.n_frames) / args.fps if args.fps else np.arange(tracks.n_frames)
+    last = tracks.n_frames - 1
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
+        write_tracks_csv(tmp / "tracks.csv", tracks)
+        write_strain_nodes_csv(tmp / "strain_nodes.csv", field)
+        write_strain_elements_csv(tmp / "strain_elements.csv", field)
+        write_pvd(tmp, field, name="strain", times=times)
+        figs = tmp / "figures"
+        figs.mkdir()
+        first_img, last_img = source.first(), source.frame(last)
+        plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
+        plot_strain_maps(figs / f"strain_frame{last:04d}.png", last_img, field, last)
+        summary = {
+            "software": {"name": "strain2d", "version": __version__},
+            "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            "command": ["strain2d", *sys.argv[1:]] if sys.argv else [],
+            "inputs": source.names,
+            "source": {
+                "kind": source.kind,
+                "frames_used": len(source),
+                "frame_range": {"start": args.start, "stop": args.stop, "step": args.step},
+                "frame_size_px": [source.shape[1], source.shape[0]],
+            },
+            "tracker": {"name": args.tracker, **tracks.meta},
+            "points": {"n": tracks.n_points, **point_info},
+            "mesh": {
+                "method": "delaunay",
+                "n_triangles": field.n_triangles,
+                "min_triangle_quality": args.min_triangle_quality,
+            },
+            "time_axis": {"fps": args.fps, "unit": "s" if args.fps else "frame"},
+            "lost_points_last_frame": int((~tracks.visible[-1]).sum()),
+            "final_frame": {"index": last, "nodal_strain": _final_stats(field)},
+            "units": {"positions": "px", "strain": "Green-Lagrange, dimensionless"},
+            "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
+            "outputs": sorted(
+                str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()
+            ) + ["summary.json"],
+            "runtime_s": {
+                "tracking": t_tracked - t_start,
+                "strain": t_strain - t_tracked,
+            },
+        }
+        write_json(tmp / "summary.json", summary)
+    return 0
+
+
+def _cmd_benchmark(args) -> int:
+    from strain2d.atomic import atomic_dir, check_writable
+    from strain2d.benchmark import benchmark_markdown, run_benchmark
+    from strain2d.export import write_json
+
+    check_writable(args.out, overwrite=args.overwrite)
+    from sample_data_synth.cases import CASES
+
+    cases = args.cases.split(",") if args.cases else None
+    for c in cases or []:
+        if c not in CASES:
+            raise InputError(f"unknown case {c!r}; choose from {', '.join(CASES)}")
+    trackers = args.trackers.split(",") if args.trackers else None
+    if trackers:
+        from strain2d.trackers import get_tracker
+
+        for name in trackers:
+            if not get_tracker(name).needs_frames:
+                raise InputError(f"the {name} tracker reads files and cannot be benchmarked")
+
+    def say(message: str) -> None:
+        if not args.quiet:
+            print(message, file=sys.stderr, flush=True)
+
+    results = run_benchmark(quick=args.quick, cases=cases, trackers=trackers, seed=args.seed,
+                            progress=say)
+    results["software"] = {"name": "strain2d", "version": __version__}
+    table = benchmark_markdown(results)
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
+        write_json(tmp / "benchmark.json", results)
+        (tmp / "benchmark.md").write_text(table)
+    if not args.quiet:
+        print(table)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s: %(message)s",
+    )
+    try:
+        return args.handler(args)
+    except (InputError, SourceError) as exc:
+        print(f"strain2d {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"strain2d {args.command}: interrupted; no output written", file=sys.stderr)
+        return 130

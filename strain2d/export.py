@@ -1,0 +1,174 @@
+"""Result files: nodal and element strain tables, ParaView time series, summary.
+
+``strain_nodes.csv`` columns::
+
+    frame,point,x,y,u,v,visible,Exx,Eyy,Exy,E1,E2,max_shear,theta1_deg,J
+
+``strain_elements.csv`` columns::
+
+    frame,triangle,p0,p1,p2,valid,Exx,Eyy,Exy,E1,E2,max_shear,theta1_deg,J
+
+Positions and displacements are in pixels (x = column, y = row, centre of the
+top-left pixel at (0, 0)); strains are Green-Lagrange, dimensionless;
+``theta1_deg`` is the angle of the first principal direction from the x axis;
+``J`` is the area ratio.  Lost values are empty (NaN).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from surface_strain import StrainField, element_scalars, nodal_scalars
+
+__all__ = [
+    "ELEMENT_COLUMNS",
+    "NODE_COLUMNS",
+    "write_json",
+    "write_pvd",
+    "write_strain_elements_csv",
+    "write_strain_nodes_csv",
+]
+
+_SCALARS = ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "theta1_deg", "J")
+NODE_COLUMNS = ("frame", "point", "x", "y", "u", "v", "visible", *_SCALARS)
+ELEMENT_COLUMNS = ("frame", "triangle", "p0", "p1", "p2", "valid", *_SCALARS)
+
+
+
+
+def write_strain_nodes_csv(path: str | os.PathLike, field: StrainField) -> None:
+    """Write per-node strain for every frame (see the module docstring)."""
+    T, N = field.n_frames, field.n_points
+    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
+    pos = field.points
+    disp = pos - field.reference
+    scalars = nodal_scalars(field)
+    table = np.column_stack(
+        [
+            frame.ravel(),
+            point.ravel(),
+            pos[..., 0].ravel(),
+            pos[..., 1].ravel(),
+            disp[..., 0].ravel(),
+            disp[..., 1].ravel(),
+            field.visible.ravel(),
+            *(scalars[k].ravel() for k in _SCALARS),
+        ]
+    )
+    fmt = ["%d", "%d", "%.6f", "%.6f", "%.6f", "%.6f", "%d"] + ["%.8g"] * len(_SCALARS)
+    with open(path, "w") as f:
+        f.write(",".join(NODE_COLUMNS) + "\n")
+        np.savetxt(f, table, fmt=fmt, delimiter=",")
+
+
+def write_strain_elements_csv(path: str | os.PathLike, field: StrainField) -> None:
+    """Write per-triangle strain for every frame (see the module docstring)."""
+    T, M = field.n_frames, field.n_triangles
+    frame, tri = np.meshgrid(np.arange(T), np.arange(M), indexing="ij")
+    scalars = element_scalars(field)
+    verts = field.triangles[tri.ravel()]
+    table = np.column_stack(
+        [
+            frame.ravel(),
+            tri.ravel(),
+            verts,
+            field.element_valid.ravel(),
+            *(scalars[k].ravel() for k in _SCALARS),
+        ]
+    )
+    fmt = ["%d"] * 6 + ["%.8g"] * len(_SCALARS)
+    with open(path, "w") as f:
+        f.write(",".join(ELEMENT_COLUMNS) + "\n")
+        np.savetxt(f, table, fmt=fmt, delimiter=",")
+
+
+def write_pvd(
+    folder: str | os.PathLike,
+    field: StrainField,
+    *,
+    name: str = "strain",
+    times: np.ndarray | None = None,
+) -> Path:
+    """Write a ParaView time series: ``folder/name.pvd`` and ``folder/name/name_####.vtp``.
+
+    Each ``.vtp`` holds the triangle mesh at the frame's current positions
+    (z = 0 for 2D input), point data ``displacement`` (vector), the nodal
+    scalars, ``principal_direction_1`` (unit vector of the first principal
+    strain direction, a material direction in the reference frame; 2D only)
+    and ``visible``; cell data with the element scalars and ``valid``.
+
+    Returns
+    -------
+    Path of the ``.pvd`` file.
+    """
+    import pyvista as pv
+
+    folder = Path(folder)
+    sub = folder / name
+    sub.mkdir(parents=True, exist_ok=True)
+    T = field.n_frames
+    times = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
+    d = field.points.shape[2]
+    node = nodal_scalars(field)
+    elem = element_scalars(field)
+    faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
+    theta = np.radians(node["theta1_deg"])
+    entries = []
+    for t in range(T):
+        pts = field.points[t]
+        ref = field.reference
+        if d == 2:
+            pts = np.column_stack([pts, np.zeros(len(pts))])
+            ref = np.column_stack([ref, np.zeros(len(ref))])
+        pts = np.where(np.isfinite(pts), pts, ref)
+        mesh = pv.PolyData(pts, faces=faces)
+        mesh.point_data["displacement"] = field.points[t] - field.reference if d == 3 else (
+            np.column_stack([field.points[t] - field.reference, np.zeros(field.n_points)])
+        )
+        for key, values in node.items():
+            mesh.point_data[key] = values[t]
+        if d == 2:
+            mesh.point_data["principal_direction_1"] = np.column_stack(
+                [np.cos(theta[t]), np.sin(theta[t]), np.zeros(field.n_points)]
+            )
+        mesh.point_data["visible"] = field.visible[t].astype(np.uint8)
+        for key, values in elem.items():
+            mesh.cell_data[key] = values[t]
+        mesh.cell_data["valid"] = field.element_valid[t].astype(np.uint8)
+        fname = f"{name}_{t:04d}.vtp"
+        mesh.save(sub / fname, binary=True)
+        entries.append(f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>')
+    pvd = folder / f"{name}.pvd"
+    pvd.write_text(
+        '<?xml version="1.0"?>\n'
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+        "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
+    )
+    return pvd
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return _jsonable(obj.item())
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def write_json(path: str | os.PathLike, data: dict) -> None:
+    """Write ``data`` as indented JSON (NumPy values converted, NaN as null)."""
+    with open(path, "w") as f:
+        json.dump(_jsonable(data), f, indent=2)
+        f.write("\n")
