@@ -38,7 +38,10 @@ from sample_data_synth.speckle import speckle_pattern
 
 __all__ = ["CASES", "GroundTruth", "SyntheticVideo", "load_ground_truth", "make_case"]
 
-__version__ = "0.1.0"
+def _version() -> str:
+    from sample_data_synth import __version__
+
+    return __version__
 
 
 @dataclass(frozen=True)
@@ -154,7 +157,7 @@ class GroundTruth:
             "time": "linear ramp: frame k has t = k / (n_frames - 1)",
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
             "params": self.params,
-            "software": {"sample_data_synth": __version__},
+            "software": {"sample_data_synth": _version()},
         }
 
     def save(self, path: str | os.PathLike) -> None:

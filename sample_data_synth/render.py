@@ -59,7 +59,7 @@ def render_speckle(
     det = np.linalg.det(cov)
     scale = np.sqrt(det_ref / det)
     inv = np.linalg.inv(cov)
-    reach = 3.5 * np.sqrt(np.linalg.eigvalsh(cov)[:, -1])
+    reach = 4.5 * np.sqrt(np.linalg.eigvalsh(cov)[:, -1])
     half = np.ceil(reach).astype(int)
     keep = (
         (xk[:, 0] > -reach)

@@ -8,6 +8,8 @@ Pixel convention: x = column, y = row, the centre of the top-left pixel is
 (0, 0).
 """
 
+from importlib import metadata as _metadata
+
 from strain2d.errors import InputError, SourceError
 from strain2d.frames import FrameSource, open_frames
 from strain2d.grid import make_grid, read_points_csv
@@ -15,7 +17,10 @@ from strain2d.pipeline import Analysis, analyze, strain_from_tracks, track
 from strain2d.trackers import available_trackers, register_tracker
 from strain2d.tracks import Tracks, read_tracks, write_tracks_csv
 
-__version__ = "0.1.0"
+try:
+    __version__ = _metadata.version("tissue-strain")
+except _metadata.PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "Analysis",

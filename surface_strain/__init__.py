@@ -6,6 +6,8 @@ averages for triangles in the plane or on curved surfaces in space.  The 2D
 strain pipeline (:mod:`strain2d`) is its planar special case.
 """
 
+from importlib import metadata as _metadata
+
 from surface_strain.field import (
     StrainField,
     compute_strain,
@@ -28,7 +30,10 @@ from surface_strain.kinematics import (
 from surface_strain.mesh import best_fit_plane, delaunay_triangles, grid_triangles, triangle_quality
 from surface_strain.nodal import nodal_average
 
-__version__ = "0.1.0"
+try:
+    __version__ = _metadata.version("tissue-strain")
+except _metadata.PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "StrainField",

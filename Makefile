@@ -1,0 +1,64 @@
+# Two commands for users (see README):  make demo   and   make test
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+DEMO   := demo_output
+# Debian packages the core needs at run time (VTK's shared libraries).
+SYSTEM_LIBS := libgl1 libxrender1 libx11-6
+
+.PHONY: setup demo test lint bench system-deps setup-3d setup-torch clean
+
+system-deps:
+	@missing=""; \
+	for lib in libGL.so.1 libXrender.so.1 libX11.so.6; do \
+	  ldconfig -p | grep -q "$$lib" || missing="$$missing $$lib"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get update -qq && apt-get install -y -qq $(SYSTEM_LIBS); \
+	  else \
+	    echo "missing system libraries:$$missing; install them with:"; \
+	    echo "  sudo apt-get install -y $(SYSTEM_LIBS)"; exit 1; fi; fi
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
+	  { echo "Python >= 3.11 is needed (set PYTHON=python3.11)"; exit 1; }
+	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || \
+	  { echo "Python's venv module is missing; install it with:"; \
+	    echo "  sudo apt-get install -y python3-venv"; exit 1; }
+
+$(BIN)/.installed: pyproject.toml | system-deps
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	touch $@
+
+setup: $(BIN)/.installed
+
+# Render a synthetic equibiaxial-stretch video (with ground truth) and analyze it.
+demo: setup
+	$(BIN)/python -m sample_data_synth video --case equibiaxial --out $(DEMO)/data --overwrite
+	$(BIN)/python -m strain2d analyze $(DEMO)/data/equibiaxial.avi --grid 7x7 \
+	    --roi 202,202,597,597 --tracker klt --out $(DEMO)/equibiaxial --overwrite
+	@echo "demo results in $(DEMO)/equibiaxial: tracks.csv, strain_nodes.csv, strain.pvd, figures/"
+
+test: setup
+	$(BIN)/ruff check .
+	$(BIN)/python -m pytest -q
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+bench: setup
+	$(BIN)/python -m strain2d benchmark --out bench/results/table1 --overwrite
+
+# Optional extras: open3d needs the system library libusb-1.0-0.
+setup-3d: setup
+	@ldconfig -p | grep -q libusb-1.0.so.0 || { \
+	  if [ "$$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y -qq libusb-1.0-0; \
+	  else echo "open3d needs libusb: sudo apt-get install -y libusb-1.0-0"; exit 1; fi; }
+	$(BIN)/python -m pip install --quiet -e ".[3d]"
+
+setup-torch: setup
+	$(BIN)/python -m pip install --quiet -e ".[torch]"
+
+clean:
+	rm -rf $(VENV) $(DEMO) .pytest_cache .ruff_cache

@@ -1,0 +1,43 @@
+"""Synthetic inputs with exact ground truth.
+
+Speckle patterns and a tissue photograph deformed by analytic maps, rendered
+with sensor noise and written as real video and TIFF files, each with a
+ground-truth file beside it.  Depends on no other package of the toolkit.
+"""
+
+from importlib import metadata as _metadata
+
+from sample_data_synth.cases import (
+    CASES,
+    GroundTruth,
+    SyntheticVideo,
+    load_ground_truth,
+    make_case,
+    write_video,
+)
+from sample_data_synth.deformations import Homogeneous, equibiaxial, rotation, simple_shear
+from sample_data_synth.render import add_sensor_noise, render_image, render_speckle
+from sample_data_synth.speckle import SpecklePattern, speckle_pattern
+
+try:
+    __version__ = _metadata.version("tissue-strain")
+except _metadata.PackageNotFoundError:  # running from a source tree that is not installed
+    __version__ = "0+unknown"
+
+__all__ = [
+    "CASES",
+    "GroundTruth",
+    "Homogeneous",
+    "SpecklePattern",
+    "SyntheticVideo",
+    "add_sensor_noise",
+    "equibiaxial",
+    "load_ground_truth",
+    "make_case",
+    "render_image",
+    "render_speckle",
+    "rotation",
+    "simple_shear",
+    "speckle_pattern",
+    "write_video",
+]

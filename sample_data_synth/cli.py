@@ -1,0 +1,110 @@
+"""Command line: ``python -m sample_data_synth {video,list}``.
+
+``video`` writes, for each case, ``CASE.avi`` (lossless FFV1) and/or
+``CASE.tif`` / ``CASE.mp4``, ``CASE_truth.json`` (the analytic deformation,
+from which any point's position, F and E at any frame follow; see
+:func:`sample_data_synth.load_ground_truth`) and ``CASE_truth.npz`` (the case's
+grid: ``grid`` (N, 2), ``positions`` (T, N, 2), ``F`` and ``E`` (T, N, 2, 2)).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from sample_data_synth.cases import CASES, make_case, write_video
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="sample_data_synth", description="Synthetic videos with ground truth.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = sub.add_parser("video", help="render benchmark videos with ground truth")
+    p.add_argument("--case", default="equibiaxial",
+                   help=f"one of {', '.join(CASES)}, or 'all' (default equibiaxial)")
+    p.add_argument("--size", type=int, default=800, help="frame width and height in px (800)")
+    p.add_argument("--frames", type=int, default=31, help="number of frames (31)")
+    p.add_argument("--formats", default="avi,tif", help="comma-separated: avi, tif, mp4 (avi,tif)")
+    p.add_argument("--read-noise", type=float, default=1.0, help="read noise in gray levels (1.0)")
+    p.add_argument("--shot-gain", type=float, default=0.02,
+                   help="shot-noise variance per gray level (0.02)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    sub.add_parser("list", help="list the cases")
+    return parser
+
+
+def _cmd_video(args) -> int:
+    cases = list(CASES) if args.case == "all" else [args.case]
+    if any(c not in CASES for c in cases):
+        raise ValueError(f"unknown case {args.case!r}; choose from {', '.join(CASES)} or all")
+    formats = [f.strip().lower() for f in args.formats.split(",") if f.strip()]
+    bad = [f for f in formats if f not in ("avi", "tif", "mp4")]
+    if bad or not formats:
+        raise ValueError(f"--formats must list avi, tif or mp4, got {args.formats!r}")
+    if args.frames < 2 or args.size < 64:
+        raise ValueError("--frames must be >= 2 and --size >= 64")
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise ValueError(f"{out} exists; pass --overwrite to replace it")
+    if not out.absolute().parent.is_dir():
+        raise ValueError(f"output folder {out.absolute().parent} does not exist")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.absolute().parent))
+    try:
+        for case in cases:
+            def progress(done: int, total: int, case=case) -> None:
+                if not args.quiet:
+                    print(f"\r{case}: frame {done}/{total}", end="", file=sys.stderr, flush=True)
+
+            video = make_case(case, size=args.size, n_frames=args.frames, read_noise=args.read_noise,
+                              shot_gain=args.shot_gain, rng=args.seed, progress=progress)
+            if not args.quiet:
+                print(file=sys.stderr)
+            for fmt in formats:
+                write_video(video.frames, tmp / f"{case}.{fmt}")
+            truth = video.truth
+            truth.save(tmp / f"{case}_truth.json")
+            grid = truth.grid((7, 7))
+            np.savez_compressed(
+                tmp / f"{case}_truth.npz",
+                grid=grid,
+                positions=truth.positions(grid),
+                F=np.stack([truth.gradient(grid, k) for k in range(truth.n_frames)]),
+                E=np.stack([truth.strain(grid, k) for k in range(truth.n_frames)]),
+            )
+        if out.exists():
+            shutil.rmtree(out) if out.is_dir() else out.unlink()
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    args = _build_parser().parse_args(argv)
+    if args.command == "list":
+        for name, spec in CASES.items():
+            print(f"{name:12s} {spec.description}")
+        return 0
+    try:
+        return _cmd_video(args)
+    except (ValueError, OSError) as exc:
+        print(f"sample_data_synth {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"sample_data_synth {args.command}: interrupted; no output written", file=sys.stderr)
+        return 130

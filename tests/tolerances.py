@@ -1,0 +1,12 @@
+"""Every numerical tolerance the tests use, in one place."""
+
+#: exact kinematics from exact positions (float64 round-off)
+EXACT = 1e-10
+#: klt on the synthetic equibiaxial video: nodal Exx, Eyy within this of 0.625
+KLT_EQUIBIAXIAL_STRAIN = 0.01
+#: klt on the quick (400 px) paper cases: final tracking RMSE in pixels
+KLT_QUICK_TRACK_RMSE_PX = 0.5
+#: rigid translation video: largest nodal strain magnitude measured by klt
+KLT_RIGID_STRAIN = 2e-3
+#: speckle renderer against brute-force evaluation of the deformed pattern (gray levels)
+RENDER_GRAY_LEVELS = 0.02
