@@ -57,11 +57,11 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tracks-file", help="imported: tracks from another tool (CSV, NPY or NPZ)")
 
 
-def _add_points_args(p: argparse.ArgumentParser, *, grid_default: str | None) -> None:
+def _add_points_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--points", help="CSV file of reference points with columns x,y (pixels)")
     p.add_argument(
-        "--grid", default=grid_default, help="regular grid COLSxROWS over the ROI "
-        f"(default {grid_default or '7x7'})"
+        "--grid", help="regular grid COLSxROWS over the ROI (default 7x7; with --tracker "
+        "imported and no --grid, every imported point)"
     )
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
 
@@ -78,7 +78,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("track", help="track points and write TRACKS.csv")
     _add_source_args(p)
-    _add_points_args(p, grid_default=None)
+    _add_points_args(p)
     _add_tracker_args(p)
     p.add_argument("--out", required=True, help="output CSV: frame,point,x,y,visible,quality")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
@@ -86,7 +86,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("analyze", help="track a grid and write strain tables, figures, VTK")
     _add_source_args(p)
-    _add_points_args(p, grid_default="7x7")
+    _add_points_args(p)
     _add_tracker_args(p)
     p.add_argument(
         "--min-triangle-quality", type=float, default=0.1,
@@ -143,11 +143,11 @@ def _reference_points(args, source):
     from strain2d.grid import make_grid, parse_grid, parse_roi, read_points_csv, validate_points
 
     if args.points:
-        if args.roi:
-            raise InputError("give either --points or --roi, not both")
+        if args.roi or args.grid:
+            raise InputError("give either --points or --grid/--roi, not both")
         points = read_points_csv(args.points)
         return validate_points(points, source.shape), {"points_file": args.points}
-    if args.tracker == "imported" and args.grid is None:
+    if args.tracker == "imported" and args.grid is None and args.roi is None:
         return None, {"points": "all points of the imported file"}
     shape = parse_grid(args.grid or "7x7")
     roi = parse_roi(args.roi) if args.roi else None

@@ -32,11 +32,15 @@ def to_gray(image: np.ndarray, *, order: str = "rgb") -> np.ndarray:
     """Convert an ``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)`` image to float32 gray.
 
     Uses ITU-R BT.601 luma weights; ``order`` is ``"rgb"`` or ``"bgr"`` (OpenCV).
+    Gray data stored in three equal channels is returned exactly.
     """
     image = np.asarray(image)
     if image.ndim == 2:
         return image.astype(np.float32)
     if image.ndim == 3 and image.shape[2] in (3, 4):
+        c = image[..., :3]
+        if np.array_equal(c[..., 0], c[..., 1]) and np.array_equal(c[..., 0], c[..., 2]):
+            return c[..., 0].astype(np.float32)  # gray stored as colour (most videos)
         w = np.array([0.299, 0.587, 0.114], dtype=np.float32)
         if order == "bgr":
             w = w[::-1]

@@ -2,7 +2,7 @@
 
 #: exact kinematics from exact positions (float64 round-off)
 EXACT = 1e-10
-#: klt on the synthetic equibiaxial video: nodal Exx, Eyy within this of 0.625
+#: klt on the synthetic equibiaxial video: mean and RMSE of nodal Exx, Eyy errors (E = 0.625)
 KLT_EQUIBIAXIAL_STRAIN = 0.01
 #: klt on the quick (400 px) paper cases: final tracking RMSE in pixels
 KLT_QUICK_TRACK_RMSE_PX = 0.5

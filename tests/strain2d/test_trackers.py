@@ -1,0 +1,121 @@
+import numpy as np
+import pytest
+
+from sample_data_synth import make_case
+from strain2d import available_trackers, track
+from strain2d.errors import InputError
+from strain2d.grid import make_grid
+from strain2d.pipeline import strain_from_tracks
+from strain2d.tracks import write_tracks_csv
+from tests.tolerances import KLT_EQUIBIAXIAL_STRAIN, KLT_QUICK_TRACK_RMSE_PX, KLT_RIGID_STRAIN
+
+
+def test_registry_lists_the_built_in_trackers():
+    trackers = available_trackers()
+    assert {"klt", "imported"} <= set(trackers)
+    assert trackers["klt"].needs_frames and not trackers["imported"].needs_frames
+    with pytest.raises(InputError, match="unknown tracker"):
+        track(None, None, tracker="nope")
+
+
+def test_klt_recovers_the_paper_equibiaxial_strain(paper_equibiaxial):
+    """Done-when of the foundation: Exx = Eyy = 0.625 within 0.01 on the 800 px video."""
+    from strain2d.frames import open_frames
+
+    path, video = paper_equibiaxial
+    source = open_frames(path)
+    points = video.truth.grid((7, 7))
+    tracks = track(source, points, tracker="klt")
+    field = strain_from_tracks(tracks)
+    assert tracks.visible.all()
+    for comp, true in ((0, 0.625), (1, 0.625)):
+        error = field.nodal_E[-1, :, comp, comp] - true
+        assert abs(error.mean()) < KLT_EQUIBIAXIAL_STRAIN
+        assert np.sqrt(np.mean(error**2)) < KLT_EQUIBIAXIAL_STRAIN
+    assert np.sqrt(np.mean(field.nodal_E[-1, :, 0, 1] ** 2)) < KLT_EQUIBIAXIAL_STRAIN
+
+
+@pytest.mark.parametrize("case", ["rotation", "shear", "tissue"])
+def test_klt_tracks_the_other_paper_cases(case):
+    video = make_case(case, size=400, n_frames=11, rng=2)
+    points = video.truth.grid((7, 7))
+    tracks = track(video.frames, points, tracker="klt")
+    err = np.linalg.norm(tracks.positions[-1] - video.truth.positions(points, 10), axis=1)
+    assert tracks.visible[-1].all()
+    assert np.sqrt(np.mean(err**2)) < KLT_QUICK_TRACK_RMSE_PX
+
+
+def test_window_bias_correction_is_what_makes_klt_accurate():
+    video = make_case("rotation", size=400, n_frames=11, rng=3)
+    points = video.truth.grid((7, 7))
+    truth = video.truth.positions(points, 10)
+
+    def rmse(**opts):
+        tr = track(video.frames, points, tracker="klt", options=opts)
+        return np.sqrt(np.mean(np.sum((tr.positions[-1] - truth) ** 2, axis=1)))
+
+    assert rmse(affine_correction=True) < 0.5 * rmse(affine_correction=False)
+
+
+def test_klt_rigid_translation_gives_zero_strain():
+    rng = np.random.default_rng(0)
+    from scipy import ndimage
+
+    big = ndimage.gaussian_filter(rng.uniform(0, 255, (300, 300)), 1.5)
+    big = (big - big.min()) / np.ptp(big) * 255
+    frames = np.stack([ndimage.shift(big, (0.7 * k, -1.3 * k), order=3)[50:250, 50:250]
+                       for k in range(8)])
+    points = make_grid((200, 200), shape=(5, 5), roi=(50, 50, 150, 150))
+    tracks = track(frames.astype(np.uint8), points, tracker="klt")
+    field = strain_from_tracks(tracks)
+    np.testing.assert_allclose(tracks.positions[-1] - points, [[-1.3 * 7, 0.7 * 7]] * 25, atol=0.1)
+    assert np.abs(field.nodal_E[-1]).max() < KLT_RIGID_STRAIN
+
+
+def test_klt_marks_points_lost_when_texture_vanishes():
+    video = make_case("equibiaxial", size=200, n_frames=6, rng=4)
+    frames = video.frames.copy()
+    frames[3:, :100, :100] = 128  # the top-left quarter loses its texture from frame 3 on
+    points = video.truth.grid((4, 4))
+    tracks = track(frames, points, tracker="klt")
+    lost = ~tracks.visible[-1]
+    in_quarter = (points[:, 0] < 90) & (points[:, 1] < 90)
+    assert lost[in_quarter].all()
+    assert not lost[~in_quarter & ((points[:, 0] > 110) | (points[:, 1] > 110))].any()
+    assert (tracks.quality[-1][lost] == 0).all()
+    field = strain_from_tracks(tracks)
+    assert not np.isnan(field.nodal_E[-1][~lost]).all()
+
+
+def test_klt_bad_options():
+    frames = np.zeros((3, 50, 50), np.uint8)
+    pts = np.array([[10.0, 10], [30, 10], [10, 30]])
+    with pytest.raises(InputError, match="window"):
+        track(frames, pts, tracker="klt", options={"window": 4})
+    with pytest.raises(InputError, match="unexpected keyword"):
+        track(frames, pts, tracker="klt", options={"tracks_file": "x"})
+
+
+def test_imported_tracks_select_requested_points(tmp_path):
+    video = make_case("shear", size=200, n_frames=4, rng=0)
+    grid = video.truth.grid((3, 3))
+    truth = video.truth.positions(grid)
+    from strain2d.tracks import Tracks
+
+    write_tracks_csv(tmp_path / "t.csv", Tracks(truth, np.ones((4, 9), bool), np.ones((4, 9))))
+    all_tracks = track(video.frames, None, tracker="imported",
+                       options={"tracks_file": tmp_path / "t.csv"})
+    np.testing.assert_allclose(all_tracks.positions, truth, atol=1e-6)
+    some = track(video.frames, grid[[4, 0, 2]] + 0.3, tracker="imported",
+                 options={"tracks_file": tmp_path / "t.csv"})
+    np.testing.assert_allclose(some.positions, truth[:, [4, 0, 2]], atol=1e-6)
+    field = strain_from_tracks(all_tracks)
+    np.testing.assert_allclose(field.nodal_E[-1, :, 0, 1], 0.25, atol=1e-6)
+    with pytest.raises(InputError, match="no imported track"):
+        track(video.frames, grid[[0, 1, 3]] + 5, tracker="imported",
+              options={"tracks_file": tmp_path / "t.csv"})
+    with pytest.raises(InputError, match="holds 4 frames"):
+        track(video.frames[:3], None, tracker="imported",
+              options={"tracks_file": tmp_path / "t.csv"})
+    with pytest.raises(InputError, match="tracks-file"):
+        track(video.frames, None, tracker="imported")
