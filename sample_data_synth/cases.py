@@ -38,6 +38,7 @@ from sample_data_synth.speckle import speckle_pattern
 
 __all__ = ["CASES", "GroundTruth", "SyntheticVideo", "load_ground_truth", "make_case"]
 
+
 def _version() -> str:
     from sample_data_synth import __version__
 
@@ -246,8 +247,12 @@ def make_case(
     times = np.linspace(0.0, 1.0, n_frames)
     seq = np.random.SeedSequence(rng)
     pattern_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
-    params: dict = {"texture": spec.texture, "seed": rng, "read_noise": read_noise,
-                    "shot_gain": shot_gain}
+    params: dict = {
+        "texture": spec.texture,
+        "seed": rng,
+        "read_noise": read_noise,
+        "shot_gain": shot_gain,
+    }
     if spec.texture == "speckle":
         bounds = _reference_bounds(deformation, shape, times, margin=6 * speckle_radius)
         pattern = speckle_pattern(
@@ -257,8 +262,12 @@ def make_case(
             contrast=speckle_contrast,
             rng=pattern_rng,
         )
-        params.update(speckle_radius=speckle_radius, speckle_density=speckle_density,
-                      speckle_contrast=speckle_contrast, psf_sigma=0.5)
+        params.update(
+            speckle_radius=speckle_radius,
+            speckle_density=speckle_density,
+            speckle_contrast=speckle_contrast,
+            psf_sigma=0.5,
+        )
 
         def render(t: float) -> np.ndarray:
             return render_speckle(pattern, deformation, t, shape)
@@ -268,15 +277,18 @@ def make_case(
         from sample_data_synth.texture import tissue_photograph
 
         coefficients = ndimage.spline_filter(tissue_photograph(size), order=3, mode="mirror")
-        params.update(photograph="scikit-image ihc.png, gray, resized", interpolation="cubic B-spline")
+        params.update(
+            photograph="scikit-image ihc.png, gray, resized", interpolation="cubic B-spline"
+        )
 
         def render(t: float) -> np.ndarray:
             return render_image(coefficients, deformation, t, shape)
 
     frames = np.empty((n_frames, size, size), dtype=np.uint8)
     for k, t in enumerate(times):
-        frames[k] = add_sensor_noise(render(t), read_noise=read_noise, shot_gain=shot_gain,
-                                     rng=noise_rng)
+        frames[k] = add_sensor_noise(
+            render(t), read_noise=read_noise, shot_gain=shot_gain, rng=noise_rng
+        )
         if progress:
             progress(k + 1, n_frames)
     truth = GroundTruth(name, deformation, n_frames, shape, roi, params)

@@ -30,14 +30,18 @@ def _build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="sample_data_synth", description="Synthetic videos with ground truth.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     p = sub.add_parser("video", help="render benchmark videos with ground truth")
-    p.add_argument("--case", default="equibiaxial",
-                   help=f"one of {', '.join(CASES)}, or 'all' (default equibiaxial)")
+    p.add_argument(
+        "--case",
+        default="equibiaxial",
+        help=f"one of {', '.join(CASES)}, or 'all' (default equibiaxial)",
+    )
     p.add_argument("--size", type=int, default=800, help="frame width and height in px (800)")
     p.add_argument("--frames", type=int, default=31, help="number of frames (31)")
     p.add_argument("--formats", default="avi,tif", help="comma-separated: avi, tif, mp4 (avi,tif)")
     p.add_argument("--read-noise", type=float, default=1.0, help="read noise in gray levels (1.0)")
-    p.add_argument("--shot-gain", type=float, default=0.02,
-                   help="shot-noise variance per gray level (0.02)")
+    p.add_argument(
+        "--shot-gain", type=float, default=0.02, help="shot-noise variance per gray level (0.02)"
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -64,12 +68,20 @@ def _cmd_video(args) -> int:
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.absolute().parent))
     try:
         for case in cases:
+
             def progress(done: int, total: int, case=case) -> None:
                 if not args.quiet:
                     print(f"\r{case}: frame {done}/{total}", end="", file=sys.stderr, flush=True)
 
-            video = make_case(case, size=args.size, n_frames=args.frames, read_noise=args.read_noise,
-                              shot_gain=args.shot_gain, rng=args.seed, progress=progress)
+            video = make_case(
+                case,
+                size=args.size,
+                n_frames=args.frames,
+                read_noise=args.read_noise,
+                shot_gain=args.shot_gain,
+                rng=args.seed,
+                progress=progress,
+            )
             if not args.quiet:
                 print(file=sys.stderr)
             for fmt in formats:

@@ -84,7 +84,12 @@ class Homogeneous:
         return green_lagrange(self.gradient(X, t))
 
     def to_dict(self) -> dict:
-        return {"type": "homogeneous", "kind": self.kind, "center": self.center.tolist(), **self.params}
+        return {
+            "type": "homogeneous",
+            "kind": self.kind,
+            "center": self.center.tolist(),
+            **self.params,
+        }
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v:g}" for k, v in self.params.items())

@@ -72,7 +72,7 @@ def speckle_pattern(
     rng = np.random.default_rng(rng)
     x0, y0, x1, y1 = bounds
     area = (x1 - x0) * (y1 - y0)
-    n = int(round(density * area / (np.pi * (2 * radius) ** 2)))
+    n = round(density * area / (np.pi * (2 * radius) ** 2))
     centers = np.column_stack([rng.uniform(x0, x1, n), rng.uniform(y0, y1, n)])
     sigmas = radius * np.clip(1 + size_spread * rng.standard_normal(n), 0.4, 2.0)
     background = 200.0

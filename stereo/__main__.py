@@ -1,5 +1,7 @@
 import sys
 
-print("stereo: not implemented yet in this version (planned: calibrate, match, reconstruct)",
-      file=sys.stderr)
+print(
+    "stereo: not implemented yet in this version (planned: calibrate, match, reconstruct)",
+    file=sys.stderr,
+)
 sys.exit(2)

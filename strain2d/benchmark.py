@@ -21,14 +21,30 @@ __all__ = ["PAPER_TABLE1", "benchmark_markdown", "error_stats", "run_benchmark"]
 
 #: CoTracker3 results from the paper's Table 1: track (RMSE, SD) px; E (RMSE, SD) per component.
 PAPER_TABLE1 = {
-    "equibiaxial": {"track": (1.31, 0.62), "Exx": (0.0073, 0.0053), "Eyy": (0.0123, 0.0109),
-                    "Exy": (0.0047, 0.004)},
-    "rotation": {"track": (1.29, 0.64), "Exx": (0.0033, 0.0031), "Eyy": (0.0045, 0.0043),
-                 "Exy": (0.0037, 0.0035)},
-    "shear": {"track": (1.21, 0.59), "Exx": (0.0058, 0.0051), "Eyy": (0.0063, 0.0061),
-              "Exy": (0.0045, 0.0041)},
-    "tissue": {"track": (1.48, 0.81), "Exx": (0.0052, 0.0049), "Eyy": (0.0067, 0.0056),
-               "Exy": (0.0042, 0.0039)},
+    "equibiaxial": {
+        "track": (1.31, 0.62),
+        "Exx": (0.0073, 0.0053),
+        "Eyy": (0.0123, 0.0109),
+        "Exy": (0.0047, 0.004),
+    },
+    "rotation": {
+        "track": (1.29, 0.64),
+        "Exx": (0.0033, 0.0031),
+        "Eyy": (0.0045, 0.0043),
+        "Exy": (0.0037, 0.0035),
+    },
+    "shear": {
+        "track": (1.21, 0.59),
+        "Exx": (0.0058, 0.0051),
+        "Eyy": (0.0063, 0.0061),
+        "Exy": (0.0045, 0.0041),
+    },
+    "tissue": {
+        "track": (1.48, 0.81),
+        "Exx": (0.0052, 0.0049),
+        "Eyy": (0.0067, 0.0056),
+        "Exy": (0.0042, 0.0039),
+    },
 }
 
 
@@ -105,7 +121,11 @@ def run_benchmark(
                     "lost_points": int((~vis).sum()),
                     "n_points": len(points),
                     "time_s": {"tracking": t_track, "total": t_total},
-                    "true_E": {"Exx": true_E[0, 0, 0], "Eyy": true_E[0, 1, 1], "Exy": true_E[0, 0, 1]},
+                    "true_E": {
+                        "Exx": true_E[0, 0, 0],
+                        "Eyy": true_E[0, 1, 1],
+                        "Exy": true_E[0, 0, 1],
+                    },
                 }
             )
     return {

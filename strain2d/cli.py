@@ -12,7 +12,6 @@ import sys
 import time
 from collections.abc import Callable
 from datetime import UTC, datetime
-from pathlib import Path
 
 from strain2d import __version__
 from strain2d.errors import InputError, SourceError
@@ -51,8 +50,9 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--window", type=int, help="klt: window side in pixels (default 31)")
     p.add_argument("--levels", type=int, help="klt: pyramid levels (default 3)")
     p.add_argument(
-        "--fb-threshold", type=float, help="klt: forward-backward error in px that marks a "
-        "point lost (default 1.0)"
+        "--fb-threshold",
+        type=float,
+        help="klt: forward-backward error in px that marks a point lost (default 1.0)",
     )
     p.add_argument("--tracks-file", help="imported: tracks from another tool (CSV, NPY or NPZ)")
 
@@ -60,8 +60,9 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
 def _add_points_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--points", help="CSV file of reference points with columns x,y (pixels)")
     p.add_argument(
-        "--grid", help="regular grid COLSxROWS over the ROI (default 7x7; with --tracker "
-        "imported and no --grid, every imported point)"
+        "--grid",
+        help="regular grid COLSxROWS over the ROI (default 7x7; with --tracker "
+        "imported and no --grid, every imported point)",
     )
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
 
@@ -89,11 +90,17 @@ def _build_parser() -> argparse.ArgumentParser:
     _add_points_args(p)
     _add_tracker_args(p)
     p.add_argument(
-        "--min-triangle-quality", type=float, default=0.1,
+        "--min-triangle-quality",
+        type=float,
+        default=0.1,
         help="drop mesh triangles whose radius ratio is below this (default 0.1)",
     )
-    p.add_argument("--fps", type=float, default=None,
-                   help="frame rate for time axes in seconds (default: the frame index)")
+    p.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate for time axes in seconds (default: the frame index)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(handler=_cmd_analyze)
@@ -267,9 +274,10 @@ def _cmd_analyze(args) -> int:
             "final_frame": {"index": last, "nodal_strain": _final_stats(field)},
             "units": {"positions": "px", "strain": "Green-Lagrange, dimensionless"},
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
-            "outputs": sorted(
-                str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()
-            ) + ["summary.json"],
+            "outputs": [
+                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
+                "summary.json",
+            ],
             "runtime_s": {
                 "tracking": t_tracked - t_start,
                 "strain": t_strain - t_tracked,
@@ -303,8 +311,9 @@ def _cmd_benchmark(args) -> int:
         if not args.quiet:
             print(message, file=sys.stderr, flush=True)
 
-    results = run_benchmark(quick=args.quick, cases=cases, trackers=trackers, seed=args.seed,
-                            progress=say)
+    results = run_benchmark(
+        quick=args.quick, cases=cases, trackers=trackers, seed=args.seed, progress=say
+    )
     results["software"] = {"name": "strain2d", "version": __version__}
     table = benchmark_markdown(results)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:

@@ -38,8 +38,6 @@ NODE_COLUMNS = ("frame", "point", "x", "y", "u", "v", "visible", *_SCALARS)
 ELEMENT_COLUMNS = ("frame", "triangle", "p0", "p1", "p2", "valid", *_SCALARS)
 
 
-
-
 def write_strain_nodes_csv(path: str | os.PathLike, field: StrainField) -> None:
     """Write per-node strain for every frame (see the module docstring)."""
     T, N = field.n_frames, field.n_points
@@ -126,8 +124,10 @@ def write_pvd(
             ref = np.column_stack([ref, np.zeros(len(ref))])
         pts = np.where(np.isfinite(pts), pts, ref)
         mesh = pv.PolyData(pts, faces=faces)
-        mesh.point_data["displacement"] = field.points[t] - field.reference if d == 3 else (
-            np.column_stack([field.points[t] - field.reference, np.zeros(field.n_points)])
+        mesh.point_data["displacement"] = (
+            field.points[t] - field.reference
+            if d == 3
+            else (np.column_stack([field.points[t] - field.reference, np.zeros(field.n_points)]))
         )
         for key, values in node.items():
             mesh.point_data[key] = values[t]

@@ -120,13 +120,18 @@ def plot_strain_maps(
         _show_image(ax, image)
         values = scalars[comp][frame]
         good = valid & np.all(np.isfinite(values[field.triangles]), axis=1)
-        lo, hi = (limits or {}).get(comp, _limits(values[np.unique(field.triangles[good])])
-                                   if good.any() else (-1e-3, 1e-3))
+        lo, hi = (limits or {}).get(
+            comp, _limits(values[np.unique(field.triangles[good])]) if good.any() else (-1e-3, 1e-3)
+        )
         if good.any():
             tri = Triangulation(pos[:, 0], pos[:, 1], field.triangles[good])
             levels = np.linspace(lo, hi, 21)
             cs = ax.tricontourf(
-                tri, np.nan_to_num(values), levels=levels, cmap="RdBu_r", alpha=alpha,
+                tri,
+                np.nan_to_num(values),
+                levels=levels,
+                cmap="RdBu_r",
+                alpha=alpha,
                 extend="both",
             )
             ax.triplot(tri, color="k", lw=0.3, alpha=0.4)

@@ -14,7 +14,14 @@ import numpy as np
 
 from strain2d.errors import InputError
 
-__all__ = ["default_roi", "make_grid", "parse_grid", "parse_roi", "read_points_csv", "validate_points"]
+__all__ = [
+    "default_roi",
+    "make_grid",
+    "parse_grid",
+    "parse_roi",
+    "read_points_csv",
+    "validate_points",
+]
 
 
 def parse_grid(text: str) -> tuple[int, int]:
@@ -109,8 +116,11 @@ def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = No
         raise InputError("the points are collinear; strain needs points spanning an area")
     if image_shape is not None:
         h, w = image_shape
-        outside = (points[:, 0] < 0) | (points[:, 0] > w - 1) | (points[:, 1] < 0) | (
-            points[:, 1] > h - 1
+        outside = (
+            (points[:, 0] < 0)
+            | (points[:, 0] > w - 1)
+            | (points[:, 1] < 0)
+            | (points[:, 1] > h - 1)
         )
         if np.any(outside):
             i = int(np.flatnonzero(outside)[0])

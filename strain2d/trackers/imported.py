@@ -71,6 +71,4 @@ def track_imported(
         meta["options"]["match_tolerance"] = match_tolerance
     if progress:
         progress(tracks.n_frames, tracks.n_frames)
-    return Tracks(
-        tracks.positions[:, keep], tracks.visible[:, keep], tracks.quality[:, keep], meta
-    )
+    return Tracks(tracks.positions[:, keep], tracks.visible[:, keep], tracks.quality[:, keep], meta)

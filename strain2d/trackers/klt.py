@@ -41,7 +41,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from strain2d.errors import InputError
@@ -190,9 +189,9 @@ def track_klt(
         )
         if affine_correction:
             step = (nxt - prev).astype(float)
-            nxt = (nxt - _window_bias(prev_img, prev.astype(float), step, near, alive, window)).astype(
-                np.float32
-            )
+            nxt = (
+                nxt - _window_bias(prev_img, prev.astype(float), step, near, alive, window)
+            ).astype(np.float32)
         fb = np.linalg.norm(back - prev, axis=1)
         inside = (
             (nxt[:, 0] >= half)

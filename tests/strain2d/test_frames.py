@@ -65,7 +65,9 @@ def test_colour_is_converted_to_gray(tmp_path):
 
 
 def test_sixteen_bit_range_comes_from_the_dtype(tmp_path):
-    tifffile.imwrite(tmp_path / "s.tif", np.full((3, 8, 8), 1000, np.uint16), photometric="minisblack")
+    tifffile.imwrite(
+        tmp_path / "s.tif", np.full((3, 8, 8), 1000, np.uint16), photometric="minisblack"
+    )
     assert open_frames(tmp_path / "s.tif").value_range == (0.0, 65535.0)
 
 

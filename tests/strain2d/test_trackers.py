@@ -63,8 +63,9 @@ def test_klt_rigid_translation_gives_zero_strain():
 
     big = ndimage.gaussian_filter(rng.uniform(0, 255, (300, 300)), 1.5)
     big = (big - big.min()) / np.ptp(big) * 255
-    frames = np.stack([ndimage.shift(big, (0.7 * k, -1.3 * k), order=3)[50:250, 50:250]
-                       for k in range(8)])
+    frames = np.stack(
+        [ndimage.shift(big, (0.7 * k, -1.3 * k), order=3)[50:250, 50:250] for k in range(8)]
+    )
     points = make_grid((200, 200), shape=(5, 5), roi=(50, 50, 150, 150))
     tracks = track(frames.astype(np.uint8), points, tracker="klt")
     field = strain_from_tracks(tracks)
@@ -103,19 +104,29 @@ def test_imported_tracks_select_requested_points(tmp_path):
     from strain2d.tracks import Tracks
 
     write_tracks_csv(tmp_path / "t.csv", Tracks(truth, np.ones((4, 9), bool), np.ones((4, 9))))
-    all_tracks = track(video.frames, None, tracker="imported",
-                       options={"tracks_file": tmp_path / "t.csv"})
+    all_tracks = track(
+        video.frames, None, tracker="imported", options={"tracks_file": tmp_path / "t.csv"}
+    )
     np.testing.assert_allclose(all_tracks.positions, truth, atol=1e-6)
-    some = track(video.frames, grid[[4, 0, 2]] + 0.3, tracker="imported",
-                 options={"tracks_file": tmp_path / "t.csv"})
+    some = track(
+        video.frames,
+        grid[[4, 0, 2]] + 0.3,
+        tracker="imported",
+        options={"tracks_file": tmp_path / "t.csv"},
+    )
     np.testing.assert_allclose(some.positions, truth[:, [4, 0, 2]], atol=1e-6)
     field = strain_from_tracks(all_tracks)
     np.testing.assert_allclose(field.nodal_E[-1, :, 0, 1], 0.25, atol=1e-6)
     with pytest.raises(InputError, match="no imported track"):
-        track(video.frames, grid[[0, 1, 3]] + 5, tracker="imported",
-              options={"tracks_file": tmp_path / "t.csv"})
+        track(
+            video.frames,
+            grid[[0, 1, 3]] + 5,
+            tracker="imported",
+            options={"tracks_file": tmp_path / "t.csv"},
+        )
     with pytest.raises(InputError, match="holds 4 frames"):
-        track(video.frames[:3], None, tracker="imported",
-              options={"tracks_file": tmp_path / "t.csv"})
+        track(
+            video.frames[:3], None, tracker="imported", options={"tracks_file": tmp_path / "t.csv"}
+        )
     with pytest.raises(InputError, match="tracks-file"):
         track(video.frames, None, tracker="imported")

@@ -47,8 +47,9 @@ def test_paper_cases_exact(A, E_true):
     x = c + (GRID - c) @ A.T
     field = compute_strain(GRID, x[None], TRI)
     np.testing.assert_allclose(field.E[0], np.broadcast_to(E_true, field.E[0].shape), atol=EXACT)
-    np.testing.assert_allclose(field.nodal_E[0], np.broadcast_to(E_true, field.nodal_E[0].shape),
-                               atol=EXACT)
+    np.testing.assert_allclose(
+        field.nodal_E[0], np.broadcast_to(E_true, field.nodal_E[0].shape), atol=EXACT
+    )
     np.testing.assert_allclose(field.F[0], np.broadcast_to(A, field.F[0].shape), atol=EXACT)
 
 
@@ -90,7 +91,7 @@ def test_planar_3d_input_equals_2d():
     cur = np.stack([pts, pts @ A.T + 5, (pts**1.1)])
     f2 = compute_strain(pts, cur, tri)
     z0 = 7.5
-    pad = lambda p: np.concatenate([p, np.full(p.shape[:-1] + (1,), z0)], axis=-1)  # noqa: E731
+    pad = lambda p: np.concatenate([p, np.full((*p.shape[:-1], 1), z0)], axis=-1)  # noqa: E731
     f3 = compute_strain(pad(pts), pad(cur), tri)
     np.testing.assert_allclose(f3.E, f2.E, atol=EXACT)
     np.testing.assert_allclose(f3.nodal_E, f2.nodal_E, atol=EXACT)
@@ -159,8 +160,9 @@ def test_directional_components_rotate_the_tensor():
     a = 0.3
     dirs = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
     R = dirs.T
-    np.testing.assert_allclose(directional_components(E, basis, dirs)[0], R.T @ E[0] @ R,
-                               atol=EXACT)
+    np.testing.assert_allclose(
+        directional_components(E, basis, dirs)[0], R.T @ E[0] @ R, atol=EXACT
+    )
     np.testing.assert_allclose(directional_components(E, basis), E, atol=EXACT)
     with pytest.raises(ValueError, match="parallel"):
         directional_components(E, basis, [[1, 0], [2, 0]])
@@ -176,8 +178,11 @@ affine_maps = arrays(np.float64, (2, 2), elements=st.floats(-0.6, 0.6))
 
 
 @settings(max_examples=60, deadline=None)
-@given(grad_u=affine_maps, shift=arrays(np.float64, 2, elements=st.floats(-50, 50)),
-       angle=st.floats(-np.pi, np.pi))
+@given(
+    grad_u=affine_maps,
+    shift=arrays(np.float64, 2, elements=st.floats(-50, 50)),
+    angle=st.floats(-np.pi, np.pi),
+)
 def test_property_affine_maps_give_their_analytic_strain(grad_u, shift, angle):
     F_true = np.eye(2) + grad_u
     if np.linalg.det(F_true) < 0.2:  # keep orientation-preserving, non-degenerate maps
@@ -185,8 +190,9 @@ def test_property_affine_maps_give_their_analytic_strain(grad_u, shift, angle):
     x = GRID @ F_true.T + shift
     E_true = 0.5 * (F_true.T @ F_true - np.eye(2))
     field = compute_strain(GRID, x[None], TRI)
-    np.testing.assert_allclose(field.nodal_E[0], np.broadcast_to(E_true, (len(GRID), 2, 2)),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        field.nodal_E[0], np.broadcast_to(E_true, (len(GRID), 2, 2)), atol=1e-9
+    )
     # a superposed rigid rotation leaves E unchanged and J = det F
     x_rot = x @ rot2(angle).T
     f_rot = compute_strain(GRID, x_rot[None], TRI)

@@ -1,0 +1,159 @@
+import json
+
+import numpy as np
+import pytest
+
+from sample_data_synth import (
+    CASES,
+    Homogeneous,
+    add_sensor_noise,
+    load_ground_truth,
+    make_case,
+    render_speckle,
+    speckle_pattern,
+)
+from sample_data_synth.cli import main
+from tests.tolerances import EXACT, RENDER_GRAY_LEVELS
+
+
+def brute_force(pattern, deformation, t, shape):
+    """Evaluate the deformed pattern exactly: every dot at every pixel, no PSF."""
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    X = deformation.inverse(np.stack([xx, yy], -1), t)
+    S = np.zeros(shape)
+    for c, s in zip(pattern.centers, pattern.sigmas, strict=True):
+        S += np.exp(-np.sum((X - c) ** 2, -1) / (2 * s**2))
+    return pattern.background - (pattern.background - pattern.ink) * (1 - np.exp(-S))
+
+
+@pytest.mark.parametrize(
+    "deformation",
+    [
+        Homogeneous("stretch", (20, 25), lx=1.5, ly=0.7),
+        Homogeneous("rotation", (30, 20), angle_deg=40),
+        Homogeneous("shear", (10, 10), gamma=0.5),
+    ],
+    ids=["stretch", "rotation", "shear"],
+)
+def test_speckle_render_is_the_exact_deformed_pattern(deformation):
+    pattern = speckle_pattern((-40, -40, 90, 90), radius=2.0, density=0.6, rng=1)
+    shape = (48, 56)
+    fast = render_speckle(pattern, deformation, 0.8, shape, psf_sigma=0.0)
+    exact = brute_force(pattern, deformation, 0.8, shape)
+    assert np.abs(fast - exact).max() < RENDER_GRAY_LEVELS
+
+
+def test_psf_blurs_without_moving_the_pattern():
+    pattern = speckle_pattern((0, 0, 64, 64), radius=2.0, rng=2)
+    d = Homogeneous("stretch", (32, 32), lx=1.0, ly=1.0)
+    sharp = render_speckle(pattern, d, 1.0, (64, 64), psf_sigma=0.0)
+    blurred = render_speckle(pattern, d, 1.0, (64, 64), psf_sigma=1.0)
+    assert blurred.std() < sharp.std()
+    yy, xx = np.mgrid[0:64, 0:64]
+    w1, w2 = 200 - sharp, 200 - blurred
+    np.testing.assert_allclose(
+        [(w1 * xx).sum() / w1.sum(), (w1 * yy).sum() / w1.sum()],
+        [(w2 * xx).sum() / w2.sum(), (w2 * yy).sum() / w2.sum()],
+        atol=0.05,
+    )
+
+
+def test_deformation_inverse_and_strain():
+    d = Homogeneous("shear", (5, 7), gamma=0.5)
+    X = np.random.default_rng(0).uniform(0, 100, (10, 2))
+    np.testing.assert_allclose(d.inverse(d.forward(X, 0.6), 0.6), X, atol=EXACT)
+    np.testing.assert_allclose(d.strain(X, 1.0)[0], [[0, 0.25], [0.25, 0.125]], atol=EXACT)
+    np.testing.assert_allclose(d.forward(X, 0.0), X)
+
+
+def test_noise_statistics_and_quantization():
+    img = np.full((400, 400), 200.0)
+    noisy = add_sensor_noise(img, read_noise=1.0, shot_gain=0.02, rng=0)
+    assert noisy.dtype == np.uint8
+    assert noisy.astype(float).std() == pytest.approx(np.sqrt(1 + 0.02 * 200), rel=0.05)
+    assert noisy.astype(float).mean() == pytest.approx(200, abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("case", "paper_px"), [("equibiaxial", 140), ("rotation", 105), ("shear", 200)]
+)
+def test_paper_geometry_matches_the_papers_displacements(case, paper_px):
+    video = make_case(case, size=800, n_frames=2, rng=0)
+    grid = video.truth.grid((7, 7))
+    disp = np.linalg.norm(video.truth.positions(grid, 1) - grid, axis=1).max()
+    assert disp == pytest.approx(paper_px, rel=0.02)
+    assert video.frames.shape == (2, 800, 800)
+
+
+def test_ground_truth_round_trip(tmp_path):
+    video = make_case("tissue", size=128, n_frames=3, rng=0)
+    video.truth.save(tmp_path / "t.json")
+    back = load_ground_truth(tmp_path / "t.json")
+    pts = np.array([[10.0, 20.0], [100.0, 50.0]])
+    for k in range(3):
+        np.testing.assert_allclose(back.positions(pts, k), video.truth.positions(pts, k))
+        np.testing.assert_allclose(back.strain(pts, k), video.truth.strain(pts, k))
+    d = json.loads((tmp_path / "t.json").read_text())
+    assert d["final_E"]["Exx"] == pytest.approx(-0.32)
+
+
+def test_tissue_frames_are_the_photograph_warped_by_the_map():
+    """Frame k equals the photograph resampled by an independent affine transform.
+
+    ``scipy.ndimage.affine_transform`` works in (row, col) order; the matrix is
+    built here by hand, which checks the renderer's x/y convention and centre.
+    """
+    from scipy.ndimage import affine_transform
+
+    from sample_data_synth.texture import tissue_photograph
+
+    video = make_case("tissue", size=128, n_frames=3, read_noise=0, shot_gain=0, rng=0)
+    photo = tissue_photograph(128)
+    np.testing.assert_allclose(video.frames[0], np.rint(photo), atol=0.51)
+    A = video.truth.deformation.matrix(0.5)
+    c = video.truth.deformation.center
+    Ainv = np.linalg.inv(A)[::-1, ::-1]  # (row, col) order
+    crc = c[::-1]
+    expected = affine_transform(photo, Ainv, offset=crc - Ainv @ crc, order=3, mode="mirror")
+    inner = (slice(20, 108), slice(20, 108))
+    np.testing.assert_allclose(video.frames[1][inner], expected[inner], atol=0.51)
+
+
+def test_cli_writes_videos_and_truth(tmp_path, capsys):
+    out = tmp_path / "syn"
+    assert (
+        main(
+            [
+                "video",
+                "--case",
+                "rotation",
+                "--size",
+                "96",
+                "--frames",
+                "3",
+                "-q",
+                "--formats",
+                "avi,tif,mp4",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [
+        "rotation.avi",
+        "rotation.mp4",
+        "rotation.tif",
+        "rotation_truth.json",
+        "rotation_truth.npz",
+    ]
+    npz = np.load(out / "rotation_truth.npz")
+    assert npz["positions"].shape == (3, 49, 2) and npz["E"].shape == (3, 49, 2, 2)
+    np.testing.assert_allclose(npz["E"], 0, atol=EXACT)
+    assert main(["video", "--case", "rotation", "--out", str(out)]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main(["video", "--case", "bogus", "--out", str(tmp_path / "x")]) == 2
+    assert main(["list"]) == 0
+    assert set(CASES) <= set(capsys.readouterr().out.split())
