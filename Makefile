@@ -34,6 +34,7 @@ setup: $(BIN)/.installed
 
 # Render a synthetic equibiaxial-stretch video (with ground truth) and analyze it.
 demo: setup
+	mkdir -p $(DEMO)
 	$(BIN)/python -m sample_data_synth video --case equibiaxial --out $(DEMO)/data --overwrite
 	$(BIN)/python -m strain2d analyze $(DEMO)/data/equibiaxial.avi --grid 7x7 \
 	    --roi 202,202,597,597 --tracker klt --out $(DEMO)/equibiaxial --overwrite

@@ -39,8 +39,8 @@ class SpecklePattern:
 def speckle_pattern(
     bounds: tuple[float, float, float, float],
     *,
-    radius: float = 2.5,
-    density: float = 0.5,
+    radius: float = 2.0,
+    density: float = 1.0,
     contrast: float = 0.8,
     size_spread: float = 0.25,
     rng: int | np.random.Generator | None = None,

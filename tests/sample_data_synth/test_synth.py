@@ -44,19 +44,22 @@ def test_speckle_render_is_the_exact_deformed_pattern(deformation):
     assert np.abs(fast - exact).max() < RENDER_GRAY_LEVELS
 
 
-def test_psf_blurs_without_moving_the_pattern():
-    pattern = speckle_pattern((0, 0, 64, 64), radius=2.0, rng=2)
-    d = Homogeneous("stretch", (32, 32), lx=1.0, ly=1.0)
-    sharp = render_speckle(pattern, d, 1.0, (64, 64), psf_sigma=0.0)
-    blurred = render_speckle(pattern, d, 1.0, (64, 64), psf_sigma=1.0)
-    assert blurred.std() < sharp.std()
+def test_psf_is_the_analytic_gaussian_convolution():
+    """One dot, stretched and blurred: its ink density is the exact convolved Gaussian."""
+    from sample_data_synth import SpecklePattern
+
+    center, sigma, psf = np.array([31.3, 30.7]), 2.0, 1.0
+    pattern = SpecklePattern(center[None], np.array([sigma]))
+    d = Homogeneous("stretch", (32, 32), lx=1.4, ly=0.8)
+    image = render_speckle(pattern, d, 1.0, (64, 64), psf_sigma=psf)
+    ink = -np.log(1 - (pattern.background - image) / (pattern.background - pattern.ink))
+    F = d.matrix(1.0)
+    cov = sigma**2 * F @ F.T + psf**2 * np.eye(2)
+    amplitude = sigma**2 * np.linalg.det(F) / np.sqrt(np.linalg.det(cov))
     yy, xx = np.mgrid[0:64, 0:64]
-    w1, w2 = 200 - sharp, 200 - blurred
-    np.testing.assert_allclose(
-        [(w1 * xx).sum() / w1.sum(), (w1 * yy).sum() / w1.sum()],
-        [(w2 * xx).sum() / w2.sum(), (w2 * yy).sum() / w2.sum()],
-        atol=0.05,
-    )
+    r = np.stack([xx, yy], -1) - d.forward(center, 1.0)
+    expected = amplitude * np.exp(-0.5 * np.einsum("...i,ij,...j->...", r, np.linalg.inv(cov), r))
+    np.testing.assert_allclose(ink, expected, atol=1e-4)
 
 
 def test_deformation_inverse_and_strain():
