@@ -49,6 +49,7 @@ lint: setup
 	$(BIN)/ruff format --check .
 
 bench: setup
+	mkdir -p bench/results
 	$(BIN)/python -m strain2d benchmark --out bench/results/table1 --overwrite
 
 # Optional extras: open3d needs the system library libusb-1.0-0.

@@ -93,7 +93,8 @@ def _build_parser() -> argparse.ArgumentParser:
         "--min-triangle-quality",
         type=float,
         default=0.1,
-        help="drop mesh triangles whose radius ratio is below this (default 0.1)",
+        help="Delaunay meshes (with --points or imported tracks) drop triangles whose "
+        "radius ratio is below this (default 0.1); grids are meshed cell by cell",
     )
     p.add_argument(
         "--fps",
@@ -161,7 +162,7 @@ def _reference_points(args, source):
     points = make_grid(source.shape, shape=shape, roi=roi)
     x0, y0 = points.min(axis=0)
     x1, y1 = points.max(axis=0)
-    return points, {"grid": f"{shape[0]}x{shape[1]}", "roi": [x0, y0, x1, y1]}
+    return points, {"grid": f"{shape[0]}x{shape[1]}", "grid_shape": shape, "roi": [x0, y0, x1, y1]}
 
 
 def _open(args):
@@ -237,7 +238,10 @@ def _cmd_analyze(args) -> int:
     t_tracked = time.perf_counter()
     if tracks.n_frames != len(source):
         raise SourceError(f"tracked {tracks.n_frames} frames but the source has {len(source)}")
-    field = strain_from_tracks(tracks, min_triangle_quality=args.min_triangle_quality)
+    grid_shape = point_info.get("grid_shape")
+    field = strain_from_tracks(
+        tracks, grid_shape=grid_shape, min_triangle_quality=args.min_triangle_quality
+    )
     t_strain = time.perf_counter()
     times = np.arange(tracks.n_frames) / args.fps if args.fps else np.arange(tracks.n_frames)
     last = tracks.n_frames - 1
@@ -265,9 +269,9 @@ def _cmd_analyze(args) -> int:
             "tracker": {"name": args.tracker, **tracks.meta},
             "points": {"n": tracks.n_points, **point_info},
             "mesh": {
-                "method": "delaunay",
+                "method": "grid, alternating diagonals" if grid_shape else "delaunay",
                 "n_triangles": field.n_triangles,
-                "min_triangle_quality": args.min_triangle_quality,
+                "min_triangle_quality": None if grid_shape else args.min_triangle_quality,
             },
             "time_axis": {"fps": args.fps, "unit": "s" if args.fps else "frame"},
             "lost_points_last_frame": int((~tracks.visible[-1]).sum()),

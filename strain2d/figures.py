@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
 from strain2d.tracks import Tracks
@@ -68,17 +69,18 @@ def plot_tracked_grid(
             ax.plot(pos[~vis, 0], pos[~vis, 1], "x", ms=7, color="red", mew=2, label="lost")
             ax.legend(loc="upper right", fontsize=8)
         ax.set_title(f"{title}: {int(vis.sum())}/{len(vis)} points tracked")
-    fig.savefig(path, dpi=dpi)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")
 
 
-def _limits(values: np.ndarray) -> tuple[float, float]:
+def _limits(values: np.ndarray, min_span: float) -> tuple[float, float]:
+    """This frame's range, widened about its middle to at least ``min_span``."""
     finite = values[np.isfinite(values)]
     if finite.size == 0:
-        return -1e-3, 1e-3
+        return -0.5 * min_span, 0.5 * min_span
     lo, hi = float(finite.min()), float(finite.max())
-    if hi - lo < 1e-6:
-        pad = max(1e-3, 0.05 * abs(hi))
-        lo, hi = lo - pad, hi + pad
+    if hi - lo < min_span:
+        mid = 0.5 * (lo + hi)
+        lo, hi = mid - 0.5 * min_span, mid + 0.5 * min_span
     return lo, hi
 
 
@@ -90,6 +92,7 @@ def plot_strain_maps(
     *,
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
     limits: dict[str, tuple[float, float]] | None = None,
+    min_span: float = 0.01,
     alpha: float = 0.75,
     dpi: int = 120,
 ) -> None:
@@ -107,6 +110,9 @@ def plot_strain_maps(
         Names from :func:`surface_strain.nodal_scalars`.
     limits : dict, keyword-only
         Colour limits per component (default: this frame's range).
+    min_span : float, keyword-only
+        Smallest colour range, so that a uniform field with tracking noise of
+        a few 1e-4 does not fill the whole colour scale.
     """
     scalars = nodal_scalars(field)
     unknown = [c for c in components if c not in scalars]
@@ -120,9 +126,8 @@ def plot_strain_maps(
         _show_image(ax, image)
         values = scalars[comp][frame]
         good = valid & np.all(np.isfinite(values[field.triangles]), axis=1)
-        lo, hi = (limits or {}).get(
-            comp, _limits(values[np.unique(field.triangles[good])]) if good.any() else (-1e-3, 1e-3)
-        )
+        used = values[np.unique(field.triangles[good])] if good.any() else values[:0]
+        lo, hi = (limits or {}).get(comp) or _limits(used, min_span)
         if good.any():
             tri = Triangulation(pos[:, 0], pos[:, 1], field.triangles[good])
             levels = np.linspace(lo, hi, 21)
@@ -135,9 +140,11 @@ def plot_strain_maps(
                 extend="both",
             )
             ax.triplot(tri, color="k", lw=0.3, alpha=0.4)
-            cbar = fig.colorbar(cs, ax=ax, shrink=0.85)
+            ticks = MaxNLocator(6).tick_values(lo, hi)
+            ticks = ticks[(ticks >= lo - 1e-12) & (ticks <= hi + 1e-12)]
+            cbar = fig.colorbar(cs, ax=ax, shrink=0.85, ticks=ticks)
             cbar.set_label(f"{_LABELS.get(comp, comp)} (Green-Lagrange, -)")
         ax.set_title(f"{_LABELS.get(comp, comp)}, frame {frame}")
         ax.set_xlim(-0.5, image.shape[1] - 0.5)
         ax.set_ylim(image.shape[0] - 0.5, -0.5)
-    fig.savefig(path, dpi=dpi)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")

@@ -11,7 +11,7 @@ from strain2d.errors import InputError
 from strain2d.grid import validate_points
 from strain2d.trackers import get_tracker
 from strain2d.tracks import Tracks
-from surface_strain import StrainField, compute_strain, delaunay_triangles
+from surface_strain import StrainField, compute_strain, delaunay_triangles, grid_triangles
 
 __all__ = ["Analysis", "analyze", "strain_from_tracks", "track"]
 
@@ -66,14 +66,36 @@ def strain_from_tracks(
     tracks: Tracks,
     *,
     triangles: np.ndarray | None = None,
+    grid_shape: tuple[int, int] | None = None,
     min_triangle_quality: float = 0.1,
 ) -> StrainField:
-    """Mesh the reference positions (Delaunay) and compute strain on every frame.
+    """Mesh the reference positions and compute strain on every frame.
+
+    Parameters
+    ----------
+    tracks : Tracks
+    triangles : (M, 3) int, keyword-only
+        A mesh to use as is.
+    grid_shape : (n_cols, n_rows), keyword-only
+        The points form a row-major grid (as from :func:`strain2d.grid.make_grid`):
+        mesh it with alternating diagonals
+        (:func:`surface_strain.grid_triangles`), which is symmetric, unlike a
+        Delaunay mesh of a square grid whose diagonals are arbitrary.
+    min_triangle_quality : float, keyword-only
+        Delaunay meshes (the default without ``triangles`` or ``grid_shape``)
+        drop triangles with a smaller radius ratio.
 
     Points the tracker lost (``visible`` False) leave their triangles out of
     that frame (NaN) and out of the nodal averages.
     """
     reference = validate_points(tracks.reference)
+    if triangles is None and grid_shape is not None:
+        n_cols, n_rows = grid_shape
+        if n_cols * n_rows != tracks.n_points:
+            raise InputError(
+                f"a {n_cols}x{n_rows} grid needs {n_cols * n_rows} points, got {tracks.n_points}"
+            )
+        triangles = grid_triangles(n_rows, n_cols)
     if triangles is None:
         try:
             triangles = delaunay_triangles(reference, min_quality=min_triangle_quality)

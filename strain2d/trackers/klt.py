@@ -75,7 +75,8 @@ def _window_bias(
     cx, cy = np.clip(cx, 0, w - 1), np.clip(cy, 0, h - 1)
     g = np.stack([gx[cy, cx], gy[cy, cx]], axis=-1).astype(float) * inside[..., None]
     rel = np.stack([cx - points[:, :1], cy - points[:, 1:]], axis=-1)
-    H = np.einsum("nwi,nwj->nij", g, g)
+    gT = np.swapaxes(g, 1, 2)
+    H = gT @ g  # (N, 2, 2)
 
     use = alive[neighbours].astype(float)[..., None]  # (N, k, 1)
     offsets = points[neighbours] - points[:, None]  # (N, k, 2)
@@ -83,8 +84,8 @@ def _window_bias(
     coef = np.linalg.pinv(A) @ (steps[neighbours] * use)  # (N, 3, 2): rows a, dG^T
     dG = np.swapaxes(coef[:, 1:, :], 1, 2)
     rank_ok = np.linalg.matrix_rank(A) == 3
-    s = np.einsum("nwi,nij,nwj->nw", g, dG, rel)
-    b = np.einsum("nwi,nw->ni", g, s)
+    s = np.sum((g @ dG) * rel, axis=-1)  # g^T dG (x - p) per pixel, (N, W)
+    b = (gT @ s[..., None])[..., 0]
     det = np.linalg.det(H)
     ok = rank_ok & (det > 1e-6 * np.einsum("nii->n", H) ** 2)
     bias = np.zeros_like(points, dtype=float)

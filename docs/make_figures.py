@@ -1,0 +1,100 @@
+"""Make the pictures the README shows (run after ``make demo``).
+
+    python docs/make_figures.py
+
+Writes docs/images/: the demo's tracked grid and strain maps (copied from
+demo_output/), the four synthetic benchmark cases, and a 3D membrane-strain
+example computed by surface_strain.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from sample_data_synth import CASES, make_case
+from surface_strain import compute_strain, delaunay_triangles, nodal_scalars
+
+ROOT = Path(__file__).resolve().parents[1]
+OUT = ROOT / "docs" / "images"
+
+
+def demo_figures() -> None:
+    """The demo run's figures again, at a resolution fit for the README."""
+    from strain2d import open_frames, read_tracks, strain_from_tracks
+    from strain2d.figures import plot_strain_maps, plot_tracked_grid
+
+    run = ROOT / "demo_output" / "equibiaxial"
+    if not run.is_dir():
+        raise SystemExit("run `make demo` first")
+    source = open_frames(ROOT / "demo_output" / "data" / "equibiaxial.avi")
+    tracks = read_tracks(run / "tracks.csv")
+    field = strain_from_tracks(tracks, grid_shape=(7, 7))
+    last = tracks.n_frames - 1
+    first_img, last_img = source.first(), source.frame(last)
+    plot_tracked_grid(OUT / "demo_tracked_grid.png", first_img, last_img, tracks,
+                      field.triangles, dpi=60)
+    plot_strain_maps(OUT / "demo_strain_maps.png", last_img, field, last, dpi=60)
+
+
+def synthetic_cases() -> None:
+    fig = Figure(figsize=(12, 6.2), layout="constrained")
+    axes = fig.subplots(2, 4)
+    for col, case in enumerate(CASES):
+        video = make_case(case, size=400, n_frames=11, rng=0)
+        grid = video.truth.grid((7, 7))
+        for row, k in enumerate((0, 10)):
+            ax = axes[row, col]
+            ax.imshow(video.frames[k], cmap="gray", vmin=0, vmax=255)
+            pos = video.truth.positions(grid, k)
+            ax.plot(pos[:, 0], pos[:, 1], "o", ms=3, mfc="#ffd000", mec="k", mew=0.4)
+            ax.set_title(f"{case}, frame {k}", fontsize=10)
+            ax.set_xlabel("x (px)")
+            ax.set_ylabel("y (px)")
+    fig.savefig(OUT / "synthetic_cases.png", dpi=80)
+
+
+def membrane_3d() -> None:
+    """A flat sheet rolled onto a cylinder (no stretch) while stretched 1.2 along its axis."""
+    u, v = np.meshgrid(np.linspace(0, 1, 15), np.linspace(0, 1, 15))
+    ref = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)]) * [3.0, 2.0, 0.0]
+    tri = delaunay_triangles(ref)
+    radius = 1.5
+    angle = ref[:, 0] / radius
+    cur = np.column_stack([radius * np.sin(angle), 1.2 * ref[:, 1], radius * (1 - np.cos(angle))])
+    field = compute_strain(ref, np.stack([ref, cur]), tri)
+    eyy = nodal_scalars(field)["Eyy"][1]
+    exx = nodal_scalars(field)["Exx"][1]
+    fig = Figure(figsize=(10, 4.2), layout="constrained")
+    for i, (values, name) in enumerate(
+        ((exx, "E_xx (around the roll)"), (eyy, "E_yy (along the axis)"))
+    ):
+        ax = fig.add_subplot(1, 2, i + 1, projection="3d")
+        surf = ax.plot_trisurf(
+            cur[:, 0],
+            cur[:, 1],
+            cur[:, 2],
+            triangles=tri,
+            cmap="viridis",
+            vmin=-0.01,
+            vmax=0.23,
+            linewidth=0.2,
+            edgecolor="k",
+        )
+        surf.set_array(values[tri].mean(axis=1))
+        ax.set_title(f"{name}: {values.mean():.4f}", fontsize=10)
+        ax.set_xlabel("X (mm)")
+        ax.set_ylabel("Y (mm)")
+        ax.set_zlabel("Z (mm)")
+        fig.colorbar(surf, ax=ax, shrink=0.6, label="Green-Lagrange strain (-)")
+    fig.savefig(OUT / "surface_strain_3d.png", dpi=80)
+
+
+if __name__ == "__main__":
+    OUT.mkdir(parents=True, exist_ok=True)
+    demo_figures()
+    synthetic_cases()
+    membrane_3d()
+    print(f"figures written to {OUT}")
