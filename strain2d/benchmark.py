@@ -104,7 +104,7 @@ def run_benchmark(
             t0 = time.perf_counter()
             tracks = track(video.frames, points, tracker=name)
             t_track = time.perf_counter() - t0
-            field = strain_from_tracks(tracks)
+            field = strain_from_tracks(tracks, grid_shape=grid)
             t_total = time.perf_counter() - t0
             vis = tracks.visible[last]
             dist = np.linalg.norm(tracks.positions[last] - true_pos, axis=1)

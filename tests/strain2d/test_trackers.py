@@ -130,3 +130,16 @@ def test_imported_tracks_select_requested_points(tmp_path):
         )
     with pytest.raises(InputError, match="tracks-file"):
         track(video.frames, None, tracker="imported")
+
+
+def test_grid_meshes_cell_by_cell():
+    from strain2d.errors import InputError as Err
+    from strain2d.tracks import Tracks
+
+    grid = make_grid((100, 100), shape=(4, 3), roi=(10, 10, 70, 50))
+    tracks = Tracks(np.stack([grid, grid * 1.1]), np.ones((2, 12), bool), np.ones((2, 12)))
+    field = strain_from_tracks(tracks, grid_shape=(4, 3))
+    assert field.n_triangles == 2 * 3 * 2
+    np.testing.assert_allclose(field.nodal_E[1, :, 0, 0], 0.5 * (1.1**2 - 1))
+    with pytest.raises(Err, match="4x4 grid needs 16"):
+        strain_from_tracks(tracks, grid_shape=(4, 4))
