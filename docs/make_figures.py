@@ -34,8 +34,9 @@ def demo_figures() -> None:
     field = strain_from_tracks(tracks, grid_shape=(7, 7))
     last = tracks.n_frames - 1
     first_img, last_img = source.first(), source.frame(last)
-    plot_tracked_grid(OUT / "demo_tracked_grid.png", first_img, last_img, tracks,
-                      field.triangles, dpi=60)
+    plot_tracked_grid(
+        OUT / "demo_tracked_grid.png", first_img, last_img, tracks, field.triangles, dpi=60
+    )
     plot_strain_maps(OUT / "demo_strain_maps.png", last_img, field, last, dpi=60)
 
 

@@ -171,20 +171,29 @@ def _open(args):
     return open_frames(args.source, start=args.start, stop=args.stop, step=args.step)
 
 
-def _cmd_track(args) -> int:
-    from strain2d.atomic import atomic_file, check_writable
+def _track_source(args):
+    """Open the frames, place the points and track them: (source, point_info, tracks)."""
     from strain2d.pipeline import track
-    from strain2d.tracks import write_tracks_csv
 
-    check_writable(args.out, overwrite=args.overwrite)
     source = _open(args)
-    points, _ = _reference_points(args, source)
+    points, point_info = _reference_points(args, source)
     options = _tracker_options(args)
     update, close = _progress(args, f"tracking ({args.tracker})")
     try:
         tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
     finally:
         close()
+    if tracks.n_frames != len(source):
+        raise SourceError(f"tracked {tracks.n_frames} frames but the source has {len(source)}")
+    return source, point_info, tracks
+
+
+def _cmd_track(args) -> int:
+    from strain2d.atomic import atomic_file, check_writable
+    from strain2d.tracks import write_tracks_csv
+
+    check_writable(args.out, overwrite=args.overwrite)
+    _, _, tracks = _track_source(args)
     with atomic_file(args.out, overwrite=args.overwrite) as tmp:
         write_tracks_csv(tmp, tracks)
     lost = int((~tracks.visible[-1]).sum())
@@ -222,22 +231,13 @@ def _cmd_analyze(args) -> int:
         write_strain_nodes_csv,
     )
     from strain2d.figures import plot_strain_maps, plot_tracked_grid
-    from strain2d.pipeline import strain_from_tracks, track
+    from strain2d.pipeline import strain_from_tracks
     from strain2d.tracks import write_tracks_csv
 
     t_start = time.perf_counter()
     check_writable(args.out, overwrite=args.overwrite)
-    source = _open(args)
-    points, point_info = _reference_points(args, source)
-    options = _tracker_options(args)
-    update, close = _progress(args, f"tracking ({args.tracker})")
-    try:
-        tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
-    finally:
-        close()
+    source, point_info, tracks = _track_source(args)
     t_tracked = time.perf_counter()
-    if tracks.n_frames != len(source):
-        raise SourceError(f"tracked {tracks.n_frames} frames but the source has {len(source)}")
     grid_shape = point_info.get("grid_shape")
     field = strain_from_tracks(
         tracks, grid_shape=grid_shape, min_triangle_quality=args.min_triangle_quality
