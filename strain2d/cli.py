@@ -266,7 +266,7 @@ def _cmd_analyze(args) -> int:
                 "frame_range": {"start": args.start, "stop": args.stop, "step": args.step},
                 "frame_size_px": [source.shape[1], source.shape[0]],
             },
-            "tracker": {"name": args.tracker, **tracks.meta},
+            "tracker": {"name": args.tracker, "options": tracks.meta.get("options", {})},
             "points": {"n": tracks.n_points, **point_info},
             "mesh": {
                 "method": "grid, alternating diagonals" if grid_shape else "delaunay",
