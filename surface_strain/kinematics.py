@@ -229,6 +229,9 @@ def logarithmic_strain(F: FloatArray) -> FloatArray:
 def principal_strains(E: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Principal values and directions of a symmetric 2x2 strain tensor.
 
+    Closed form: ``E1,2 = (Exx + Eyy)/2 +- sqrt(((Exx - Eyy)/2)^2 + Exy^2)`` and
+    the ``E1`` direction at ``theta = atan2(2 Exy, Exx - Eyy) / 2`` from the x axis.
+
     Parameters
     ----------
     E : (..., 2, 2) float
@@ -236,20 +239,23 @@ def principal_strains(E: FloatArray) -> tuple[FloatArray, FloatArray]:
     Returns
     -------
     values : (..., 2) float
-        ``E1 >= E2``.
+        ``E1 >= E2``; NaN where ``E`` holds NaN.
     directions : (..., 2, 2) float
-        Unit eigenvectors as columns, ``directions[..., :, 0]`` belongs to ``E1``,
-        in the same basis as ``E`` (global x, y for 2D input; multiply by the
-        tangent basis of :func:`reference_frames` for 3D vectors).
+        Unit eigenvectors as columns, ``directions[..., :, 0]`` belongs to ``E1``
+        and lies at an angle in (-90, 90] degrees from the x axis, in the same
+        basis as ``E`` (global x, y for 2D input; multiply by the tangent basis
+        of :func:`reference_frames` for 3D vectors).
     """
     E = np.asarray(E, dtype=float)
-    nan = np.isnan(E).any(axis=(-2, -1))
-    w, v = np.linalg.eigh(np.where(nan[..., None, None], 0.0, E))
-    w = w[..., ::-1].copy()
-    v = v[..., :, ::-1].copy()
-    w[nan] = np.nan
-    v[nan] = np.nan
-    return w, v
+    a, b, d = E[..., 0, 0], 0.5 * (E[..., 0, 1] + E[..., 1, 0]), E[..., 1, 1]
+    mean = 0.5 * (a + d)
+    radius = np.hypot(0.5 * (a - d), b)
+    theta = 0.5 * np.arctan2(2 * b, a - d)
+    theta = np.where(theta <= -np.pi / 2, theta + np.pi, theta)
+    c, s = np.cos(theta), np.sin(theta)
+    values = np.stack([mean + radius, mean - radius], axis=-1)
+    directions = np.stack([np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)], axis=-1)
+    return values, directions
 
 
 def directional_components(

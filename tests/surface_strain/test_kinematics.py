@@ -198,3 +198,16 @@ def test_property_affine_maps_give_their_analytic_strain(grad_u, shift, angle):
     f_rot = compute_strain(GRID, x_rot[None], TRI)
     np.testing.assert_allclose(f_rot.E, field.E, atol=1e-9)
     np.testing.assert_allclose(area_ratio(f_rot.F), np.linalg.det(F_true), rtol=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, (3,), elements=st.floats(-2, 2)))
+def test_property_principal_pairs_solve_the_eigen_problem(abd):
+    a, b, d = abd
+    E = np.array([[a, b], [b, d]])
+    values, vectors = principal_strains(E)
+    assert values[0] >= values[1]
+    for k in range(2):
+        np.testing.assert_allclose(E @ vectors[:, k], values[k] * vectors[:, k], atol=1e-12)
+    np.testing.assert_allclose(vectors.T @ vectors, np.eye(2), atol=1e-12)
+    assert -np.pi / 2 < np.arctan2(vectors[1, 0], vectors[0, 0]) <= np.pi / 2 + 1e-12
