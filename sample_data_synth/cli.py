@@ -60,6 +60,10 @@ def _cmd_video(args) -> int:
         raise ValueError(f"--formats must list avi, tif or mp4, got {args.formats!r}")
     if args.frames < 2 or args.size < 64:
         raise ValueError("--frames must be >= 2 and --size >= 64")
+    for name in ("read_noise", "shot_gain"):
+        value = getattr(args, name)
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"--{name.replace('_', '-')} must be a number >= 0, got {value}")
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise ValueError(f"{out} exists; pass --overwrite to replace it")
@@ -96,6 +100,9 @@ def _cmd_video(args) -> int:
                 F=np.stack([truth.gradient(grid, k) for k in range(truth.n_frames)]),
                 E=np.stack([truth.strain(grid, k) for k in range(truth.n_frames)]),
             )
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o777 & ~mask)  # mkdtemp made it private
         if out.exists():
             shutil.rmtree(out) if out.is_dir() else out.unlink()
         os.replace(tmp, out)

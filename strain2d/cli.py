@@ -165,6 +165,12 @@ def _reference_points(args, source):
     return points, {"grid": f"{shape[0]}x{shape[1]}", "grid_shape": shape, "roi": [x0, y0, x1, y1]}
 
 
+def _inputs(args) -> list[str]:
+    """Every file the command reads, so no output may replace one."""
+    extra = [getattr(args, name, None) for name in ("points", "tracks_file")]
+    return [*args.source, *(e for e in extra if e)]
+
+
 def _open(args):
     from strain2d.frames import open_frames
 
@@ -192,9 +198,9 @@ def _cmd_track(args) -> int:
     from strain2d.atomic import atomic_file, check_writable
     from strain2d.tracks import write_tracks_csv
 
-    check_writable(args.out, overwrite=args.overwrite)
+    check_writable(args.out, overwrite=args.overwrite, kind="file", inputs=_inputs(args))
     _, _, tracks = _track_source(args)
-    with atomic_file(args.out, overwrite=args.overwrite) as tmp:
+    with atomic_file(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         write_tracks_csv(tmp, tracks)
     lost = int((~tracks.visible[-1]).sum())
     log.info("tracked %d points over %d frames, %d lost", tracks.n_points, tracks.n_frames, lost)
@@ -235,7 +241,9 @@ def _cmd_analyze(args) -> int:
     from strain2d.tracks import write_tracks_csv
 
     t_start = time.perf_counter()
-    check_writable(args.out, overwrite=args.overwrite)
+    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
+        raise InputError(f"--fps must be a positive number, got {args.fps}")
+    check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     source, point_info, tracks = _track_source(args)
     t_tracked = time.perf_counter()
     grid_shape = point_info.get("grid_shape")
@@ -245,7 +253,9 @@ def _cmd_analyze(args) -> int:
     t_strain = time.perf_counter()
     times = np.arange(tracks.n_frames) / args.fps if args.fps else np.arange(tracks.n_frames)
     last = tracks.n_frames - 1
-    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
+    if not np.isfinite(field.nodal_E[-1]).any():
+        log.warning("no node has a valid strain on the last frame: every triangle lost a point")
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         write_tracks_csv(tmp / "tracks.csv", tracks)
         write_strain_nodes_csv(tmp / "strain_nodes.csv", field)
         write_strain_elements_csv(tmp / "strain_elements.csv", field)
@@ -339,6 +349,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.handler(args)
     except (InputError, SourceError) as exc:
+        print(f"strain2d {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # permissions, full disk, paths the checks above did not foresee
         print(f"strain2d {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

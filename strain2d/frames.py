@@ -51,10 +51,24 @@ def to_gray(image: np.ndarray, *, order: str = "rgb") -> np.ndarray:
 
 
 def _dtype_range(dtype: np.dtype) -> tuple[float, float] | None:
-    if np.issubdtype(dtype, np.integer):
-        info = np.iinfo(dtype)
-        return float(max(info.min, 0)), float(info.max)
+    """(0, 255) for 8-bit data; None where the range must come from the data."""
+    if np.dtype(dtype) == np.uint8:
+        return 0.0, 255.0
     return None
+
+
+def _data_range(frame: np.ndarray, dtype: np.dtype | None) -> tuple[float, float]:
+    """The first frame's range widened by a quarter of its span on each side
+    (clipped to an integer dtype's limits), so later, brighter or darker frames
+    keep their contrast when converted to 8 bits; 10- and 12-bit data stored in
+    16 bits keep all their gray levels' worth of contrast."""
+    lo, hi = float(np.min(frame)), float(np.max(frame))
+    span = hi - lo if hi > lo else 1.0
+    lo, hi = lo - 0.25 * span, hi + 0.25 * span
+    if dtype is not None and np.issubdtype(dtype, np.integer):
+        info = np.iinfo(dtype)
+        lo, hi = max(lo, float(info.min)), min(hi, float(info.max))
+    return lo, hi
 
 
 class FrameSource:
@@ -76,8 +90,9 @@ class FrameSource:
     shape : (int, int)
         Frame height and width in pixels.
     value_range : (float, float)
-        Nominal intensity range (from the dtype for integer data, else from the
-        first frame), used to convert to 8 bits without per-frame rescaling.
+        Intensity range mapped to 0-255 for trackers that work on 8-bit images,
+        the same for every frame: (0, 255) for 8-bit sources, else the first
+        frame's range widened by a quarter of its span on each side.
 
     Raises
     ------
@@ -130,15 +145,12 @@ class FrameSource:
             raise SourceError("the frame range selects no frame")
         first = next(iter(self))
         self.shape = first.shape
-        raw_range = self._raw_range
-        if raw_range is None:
-            lo, hi = float(np.min(first)), float(np.max(first))
-            raw_range = (lo, hi if hi > lo else lo + 1.0)
-        self.value_range = raw_range
+        self.value_range = self._raw_range or _data_range(first, self._dtype)
 
     # -- source-specific readers -------------------------------------------------
     def _count(self) -> int:
         self._raw_range = None
+        self._dtype = None
         if self.kind == "video":
             import cv2
 
@@ -149,6 +161,7 @@ class FrameSource:
                 ok, frame = cap.read()
                 if not ok:
                     raise SourceError(f"cannot read any frame from video {self._paths[0]}")
+                self._dtype = frame.dtype
                 self._raw_range = _dtype_range(frame.dtype)
                 n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
             finally:
@@ -160,12 +173,20 @@ class FrameSource:
             try:
                 with tifffile.TiffFile(self._paths[0]) as tif:
                     n = len(tif.pages)
-                    page = tif.pages[0]
-                    self._raw_range = _dtype_range(np.dtype(page.dtype))
+                    series = tif.series[0]
+                    axes = dict(zip(series.axes, series.shape, strict=True))
+                    self._dtype = np.dtype(tif.pages[0].dtype)
+                    self._raw_range = _dtype_range(self._dtype)
             except Exception as exc:  # tifffile raises many types on corrupt files
                 raise SourceError(f"cannot read TIFF {self._paths[0]}: {exc}") from None
+            if axes.get("C", 1) > 1:
+                raise SourceError(
+                    f"{self._paths[0]} has {axes['C']} channels (axes {''.join(axes)}); "
+                    "save the channel to track as its own TIFF"
+                )
             return n
         image = self._read_image(self._paths[0])
+        self._dtype = image.dtype
         self._raw_range = _dtype_range(image.dtype)
         return len(self._paths)
 

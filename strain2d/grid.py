@@ -102,7 +102,8 @@ def make_grid(
 
 
 def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = None) -> np.ndarray:
-    """Check a point set can carry a mesh: finite, at least 3, not collinear, inside the image."""
+    """Check a point set can carry a mesh: finite, distinct, at least 3, not collinear,
+    inside the image."""
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 2:
         raise InputError(f"points must have shape (N, 2), got {points.shape}")
@@ -110,6 +111,10 @@ def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = No
         raise InputError(f"at least 3 points are needed to compute strain, got {len(points)}")
     if not np.all(np.isfinite(points)):
         raise InputError("points must be finite numbers")
+    unique, first = np.unique(points, axis=0, return_index=True)
+    if len(unique) < len(points):
+        dup = sorted(set(range(len(points))) - set(first.tolist()))[0]
+        raise InputError(f"point {dup} at ({points[dup, 0]:g}, {points[dup, 1]:g}) is given twice")
     centred = points - points.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[1] <= 1e-9 * max(s[0], 1e-300):
@@ -134,12 +139,14 @@ def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = No
 def read_points_csv(path: str | os.PathLike) -> np.ndarray:
     """Read points from a CSV file with a header holding columns ``x`` and ``y``.
 
+    A byte-order mark (as spreadsheet programs write) is accepted.
+
     Returns
     -------
     points : (N, 2) float
     """
     try:
-        with open(path, newline="") as f:
+        with open(path, newline="", encoding="utf-8-sig") as f:
             reader = csv.DictReader(f)
             fields = [c.strip().lower() for c in (reader.fieldnames or [])]
             if "x" not in fields or "y" not in fields:
@@ -148,6 +155,10 @@ def read_points_csv(path: str | os.PathLike) -> np.ndarray:
             rows = [(float(r["x"]), float(r["y"])) for r in reader]
     except FileNotFoundError:
         raise InputError(f"no such points file: {path}") from None
+    except IsADirectoryError:
+        raise InputError(f"{path} is a folder, not a points CSV file") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path} is not a text CSV file") from None
     except (TypeError, ValueError) as exc:
         if isinstance(exc, InputError):
             raise

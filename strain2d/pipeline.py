@@ -110,10 +110,15 @@ def analyze(
     *,
     tracker: str = "klt",
     options: dict | None = None,
+    grid_shape: tuple[int, int] | None = None,
     min_triangle_quality: float = 0.1,
     progress: Callable[[int, int | None], None] | None = None,
 ) -> Analysis:
     """Track points and compute the strain field.
+
+    ``grid_shape`` (n_cols, n_rows) says the points are a row-major grid and
+    meshes it cell by cell (see :func:`strain_from_tracks`); otherwise the
+    points get a Delaunay mesh.
 
     Examples
     --------
@@ -122,10 +127,13 @@ def analyze(
     >>> from strain2d.grid import make_grid
     >>> video = make_case("equibiaxial", size=200, n_frames=6)
     >>> grid = make_grid((200, 200), shape=(4, 4), roi=video.truth.roi)
-    >>> result = analyze(video.frames, grid, tracker="klt", options={"window": 21})
+    >>> result = analyze(video.frames, grid, tracker="klt", options={"window": 21},
+    ...                  grid_shape=(4, 4))
     >>> bool(abs(np.nanmean(result.field.nodal_E[-1, :, 0, 0]) - 0.625) < 0.02)
     True
     """
     tracks = track(frames, points, tracker=tracker, options=options, progress=progress)
-    field = strain_from_tracks(tracks, min_triangle_quality=min_triangle_quality)
+    field = strain_from_tracks(
+        tracks, grid_shape=grid_shape, min_triangle_quality=min_triangle_quality
+    )
     return Analysis(tracks, field)

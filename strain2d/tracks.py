@@ -104,29 +104,41 @@ def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
 
 
 def _read_csv(path: Path) -> Tracks:
-    with open(path, newline="") as f:
+    try:
+        rows = _read_csv_rows(path)
+    except UnicodeDecodeError:
+        raise InputError(f"{path} is not a text CSV file") from None
+    except (TypeError, ValueError, OverflowError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{path}: bad value ({exc})") from None
+    if not rows:
+        raise InputError(f"{path} holds no tracks")
+    return _tracks_from_rows(path, rows)
+
+
+def _read_csv_rows(path: Path) -> list[tuple]:
+    with open(path, newline="", encoding="utf-8-sig") as f:
         reader = csv.DictReader(f)
         fields = [c.strip().lower() for c in (reader.fieldnames or [])]
         missing = [c for c in ("frame", "point", "x", "y") if c not in fields]
         if missing:
             raise InputError(f"{path} lacks column(s) {', '.join(missing)}")
         reader.fieldnames = fields
-        try:
-            rows = [
-                (
-                    int(r["frame"]),
-                    int(r["point"]),
-                    float(r["x"]),
-                    float(r["y"]),
-                    bool(int(float(r["visible"]))) if r.get("visible") not in (None, "") else True,
-                    float(r["quality"]) if r.get("quality") not in (None, "") else 1.0,
-                )
-                for r in reader
-            ]
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"{path}: bad value ({exc})") from None
-    if not rows:
-        raise InputError(f"{path} holds no tracks")
+        return [
+            (
+                int(r["frame"]),
+                int(r["point"]),
+                float(r["x"]),
+                float(r["y"]),
+                bool(int(float(r["visible"]))) if r.get("visible") not in (None, "") else True,
+                float(r["quality"]) if r.get("quality") not in (None, "") else 1.0,
+            )
+            for r in reader
+        ]
+
+
+def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
     a = np.array(rows, dtype=float)
     frames, points = a[:, 0].astype(int), a[:, 1].astype(int)
     if frames.min() < 0 or points.min() < 0:
@@ -154,20 +166,27 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
     if suffix in (".npy", ".npz"):
         try:
             data = np.load(path, allow_pickle=False)
-        except ValueError as exc:
+            if suffix == ".npy":
+                pos, vis, qual = data, None, None
+            else:
+                key = next((k for k in ("positions", "tracks") if k in data.files), None)
+                if key is None:
+                    raise InputError(f"{path} needs an array named 'positions' (T, N, 2)")
+                pos = data[key]
+                vis = data["visible"] if "visible" in data.files else None
+                qual = data["quality"] if "quality" in data.files else None
+            pos = np.asarray(pos, dtype=float)
+        except (ValueError, TypeError, OSError, EOFError) as exc:
+            if isinstance(exc, InputError):
+                raise
             raise InputError(f"cannot read {path}: {exc}") from None
-        if suffix == ".npy":
-            pos, vis, qual = data, None, None
-        else:
-            key = next((k for k in ("positions", "tracks") if k in data.files), None)
-            if key is None:
-                raise InputError(f"{path} needs an array named 'positions' (T, N, 2)")
-            pos = data[key]
-            vis = data["visible"] if "visible" in data.files else None
-            qual = data["quality"] if "quality" in data.files else None
-        pos = np.asarray(pos, dtype=float)
         if pos.ndim != 3 or pos.shape[2] != 2:
             raise InputError(f"{path}: positions must have shape (T, N, 2), got {pos.shape}")
+        for name, arr in (("visible", vis), ("quality", qual)):
+            if arr is not None and np.shape(arr) != pos.shape[:2]:
+                raise InputError(
+                    f"{path}: {name} must have shape {pos.shape[:2]}, got {np.shape(arr)}"
+                )
         finite = np.all(np.isfinite(pos), axis=-1)
         vis = finite if vis is None else np.asarray(vis, dtype=bool) & finite
         qual = np.ones(pos.shape[:2]) if qual is None else qual

@@ -28,6 +28,10 @@ __all__ = [
 ]
 
 
+#: Principal directions are undefined where E1 - E2 is below this.
+ISOTROPIC_TOLERANCE = 1e-9
+
+
 @dataclass(frozen=True, repr=False)
 class StrainField:
     """Per-triangle and per-node strain over time on one mesh.
@@ -122,10 +126,13 @@ def scalar_fields(E: FloatArray) -> dict[str, FloatArray]:
     dict
         ``Exx, Eyy, Exy, E1, E2`` (principal, ``E1 >= E2``), ``max_shear``
         (``(E1 - E2) / 2``) and ``theta1_deg`` (angle of the ``E1`` direction from
-        the frame's x axis, in (-90, 90]), each of shape ``(...)``.
+        the frame's x axis, in (-90, 90]; NaN where ``E1 - E2 < 1e-9``, i.e.
+        where the strain is isotropic and no direction is principal), each of
+        shape ``(...)``.
     """
     values, vectors = principal_strains(E)
     theta = np.degrees(np.arctan2(vectors[..., 1, 0], vectors[..., 0, 0]))  # in (-90, 90]
+    theta = np.where(values[..., 0] - values[..., 1] < ISOTROPIC_TOLERANCE, np.nan, theta)
     return {
         "Exx": E[..., 0, 0],
         "Eyy": E[..., 1, 1],

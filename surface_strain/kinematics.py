@@ -201,7 +201,7 @@ def area_ratio(F: FloatArray) -> FloatArray:
 
 
 def euler_almansi(F: FloatArray) -> FloatArray:
-    """Euler-Almansi strain ``e = F^+T E F^+`` in current coordinates.
+    """Euler-Almansi strain ``e = F^+T E F^+`` in current coordinates (NaN where F is).
 
     For 2D input this is the classical ``e = (I - (F F^T)^-1) / 2``; for a membrane
     in 3D (``F`` of shape ``(3, 2)``) the pseudo-inverse gives the in-plane
@@ -212,18 +212,26 @@ def euler_almansi(F: FloatArray) -> FloatArray:
     e : (..., d, d) float
     """
     F = np.asarray(F, dtype=float)
+    lost = np.isnan(F).any(axis=(-2, -1))
+    F = np.where(lost[..., None, None], np.eye(*F.shape[-2:]), F)
     E = green_lagrange(F)
     Fp = np.linalg.pinv(F)  # (..., 2, d)
-    return np.einsum("...ki,...kl,...lj->...ij", Fp, E, Fp)
+    e = np.einsum("...ki,...kl,...lj->...ij", Fp, E, Fp)
+    e[lost] = np.nan
+    return e
 
 
 def logarithmic_strain(F: FloatArray) -> FloatArray:
-    """Material (Hencky) logarithmic strain ``ln U = ln(C) / 2``, shape ``(..., 2, 2)``."""
+    """Material (Hencky) logarithmic strain ``ln U = ln(C) / 2``, shape ``(..., 2, 2)``
+    (NaN where F is)."""
     C = right_cauchy_green(F)
-    w, v = np.linalg.eigh(C)
+    lost = np.isnan(C).any(axis=(-2, -1))
+    w, v = np.linalg.eigh(np.where(lost[..., None, None], np.eye(2), C))
     with np.errstate(divide="ignore", invalid="ignore"):
         lw = 0.5 * np.log(w)
-    return np.einsum("...ik,...k,...jk->...ij", v, lw, v)
+    out = np.einsum("...ik,...k,...jk->...ij", v, lw, v)
+    out[lost] = np.nan
+    return out
 
 
 def principal_strains(E: FloatArray) -> tuple[FloatArray, FloatArray]:

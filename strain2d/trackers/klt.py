@@ -145,8 +145,8 @@ def track_klt(
 
     if window < 5 or window % 2 == 0:
         raise InputError(f"--window must be an odd number >= 5, got {window}")
-    if levels < 0 or fb_threshold <= 0:
-        raise InputError("levels must be >= 0 and fb_threshold > 0")
+    if levels < 0 or not (np.isfinite(fb_threshold) and fb_threshold > 0):
+        raise InputError("--levels must be >= 0 and --fb-threshold a positive number")
     points = np.asarray(points, dtype=np.float32).reshape(-1, 2)
     total = len(frames) if hasattr(frames, "__len__") else None
     if value_range is None:
@@ -162,6 +162,8 @@ def track_klt(
         lo, hi = float(ref.min()), float(ref.max())
         value_range = (lo, hi if hi > lo else lo + 1.0)
     h, w = ref.shape
+    if window >= min(h, w):
+        raise InputError(f"--window {window} must be smaller than the {w}x{h} px frames")
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, max_iterations, epsilon)
     lk = {"winSize": (window, window), "maxLevel": levels, "criteria": criteria}
     half = window // 2

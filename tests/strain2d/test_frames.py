@@ -64,11 +64,32 @@ def test_colour_is_converted_to_gray(tmp_path):
     np.testing.assert_allclose(to_gray(rgb[0, ..., ::-1], order="bgr"), 0.299 * 100, rtol=1e-6)
 
 
-def test_sixteen_bit_range_comes_from_the_dtype(tmp_path):
-    tifffile.imwrite(
-        tmp_path / "s.tif", np.full((3, 8, 8), 1000, np.uint16), photometric="minisblack"
-    )
-    assert open_frames(tmp_path / "s.tif").value_range == (0.0, 65535.0)
+def test_ten_bit_data_in_sixteen_bits_keeps_its_contrast(tmp_path):
+    """Microscopy cameras store 10/12-bit data in uint16: the 8-bit conversion must not
+    squash it into a few gray levels, and tracking must work as on the 8-bit original."""
+    from sample_data_synth import make_case
+    from strain2d import track
+    from strain2d.trackers._convert import to_uint8
+
+    video = make_case("equibiaxial", size=200, n_frames=5, rng=3)
+    ten_bit = (video.frames.astype(np.uint16) * 4)[:, None]  # 0..1020, saved as T pages
+    tifffile.imwrite(tmp_path / "s.tif", ten_bit[:, 0], photometric="minisblack")
+    source = open_frames(tmp_path / "s.tif")
+    lo, hi = source.value_range
+    assert 0 <= lo and hi <= 1400
+    assert len(np.unique(to_uint8(source.first(), source.value_range))) > 100
+    points = video.truth.grid((4, 4))
+    tracks = track(source, points, tracker="klt", options={"window": 21})
+    assert tracks.visible.all()
+    err = np.linalg.norm(tracks.positions[-1] - video.truth.positions(points, 4), axis=1)
+    assert err.max() < 0.5
+
+
+def test_multichannel_tiff_is_refused(tmp_path):
+    data = np.zeros((3, 2, 16, 16), np.uint16)
+    tifffile.imwrite(tmp_path / "c.tif", data, imagej=True, metadata={"axes": "TCYX"})
+    with pytest.raises(SourceError, match="2 channels"):
+        open_frames(tmp_path / "c.tif")
 
 
 def test_errors(tmp_path, smooth_frames):
