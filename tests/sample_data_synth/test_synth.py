@@ -158,5 +158,9 @@ def test_cli_writes_videos_and_truth(tmp_path, capsys):
     assert main(["video", "--case", "rotation", "--out", str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert main(["video", "--case", "bogus", "--out", str(tmp_path / "x")]) == 2
+    assert main(["video", "--shot-gain", "-1", "--out", str(tmp_path / "x")]) == 2
+    assert main(["video", "--read-noise", "nan", "--out", str(tmp_path / "x")]) == 2
+    assert "--read-noise" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
     assert main(["list"]) == 0
     assert set(CASES) <= set(capsys.readouterr().out.split())

@@ -276,3 +276,213 @@ def test_benchmark_quick(tmp_path):
     assert (
         main(["-q", "benchmark", "--quick", "--cases", "nope", "--out", str(tmp_path / "b2")]) == 2
     )
+
+
+def test_output_columns_hold_the_exact_values(small_case, tmp_path):
+    """Exact simple-shear tracks through the CLI: every column has its analytic value."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    from sample_data_synth import make_case, write_video
+    from strain2d.tracks import Tracks, write_tracks_csv
+
+    video = make_case("shear", size=128, n_frames=3, rng=0)
+    write_video(video.frames, tmp_path / "shear.tif")
+    grid = video.truth.grid((4, 4))
+    true = video.truth.positions(grid)
+    write_tracks_csv(tmp_path / "t.csv", Tracks(true, np.ones((3, 16), bool), np.ones((3, 16))))
+    out = tmp_path / "run"
+    assert (
+        main(
+            [
+                "-q",
+                "analyze",
+                str(tmp_path / "shear.tif"),
+                "--tracker",
+                "imported",
+                "--tracks-file",
+                str(tmp_path / "t.csv"),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    last = [r for r in _read_csv(out / "strain_nodes.csv") if r["frame"] == "2"]
+    col = {k: np.array([float(r[k]) for r in last]) for k in last[0]}
+    np.testing.assert_allclose(col["u"], true[2, :, 0] - grid[:, 0], atol=1e-5)
+    np.testing.assert_allclose(col["v"], true[2, :, 1] - grid[:, 1], atol=1e-5)
+    E = np.array([[0.0, 0.25], [0.25, 0.125]])
+    e1, e2 = 0.0625 + np.hypot(0.0625, 0.25), 0.0625 - np.hypot(0.0625, 0.25)
+    theta = 0.5 * np.degrees(np.arctan2(0.5, -0.125))  # 52.02 degrees
+    expected = {
+        "Exx": E[0, 0],
+        "Eyy": E[1, 1],
+        "Exy": E[0, 1],
+        "E1": e1,
+        "E2": e2,
+        "max_shear": 0.5 * (e1 - e2),
+        "theta1_deg": theta,
+        "J": 1.0,
+    }
+    for key, value in expected.items():
+        np.testing.assert_allclose(col[key], value, atol=1e-6, err_msg=key)
+    elements = [r for r in _read_csv(out / "strain_elements.csv") if r["frame"] == "2"]
+    for key, value in expected.items():
+        got = np.array([float(r[key]) for r in elements])
+        np.testing.assert_allclose(got, value, atol=1e-6, err_msg=f"element {key}")
+    # reference frame: zero strain, no principal direction
+    first = [r for r in _read_csv(out / "strain_nodes.csv") if r["frame"] == "0"]
+    assert all(r["theta1_deg"] == "nan" and abs(float(r["Exx"])) < 1e-12 for r in first)
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(out / "strain" / "strain_0002.vtp"))
+    reader.Update()
+    direction = vtk_to_numpy(reader.GetOutput().GetPointData().GetArray("principal_direction_1"))
+    np.testing.assert_allclose(
+        direction[:, :2], [[np.cos(np.radians(theta)), np.sin(np.radians(theta))]] * 16, atol=1e-6
+    )
+
+
+def test_outputs_never_replace_inputs_or_the_working_directory(
+    small_case, tmp_path, monkeypatch, capsys
+):
+    folder, _ = small_case
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    import shutil
+
+    src = tmp_path / "eq.avi"
+    shutil.copy(folder / "eq.avi", src)
+    monkeypatch.chdir(tmp_path)
+    cases = [
+        ["analyze", str(src), "--out", str(tmp_path), "--overwrite"],
+        ["analyze", str(src), "--out", ".", "--overwrite"],
+        ["track", str(src), "--out", str(src), "--overwrite"],
+        ["track", str(src), "--out", str(frames), "--overwrite"],
+    ]
+    for argv in cases:
+        assert main(["-q", *argv]) == 2, argv
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert src.is_file() and frames.is_dir()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["eq.avi", "frames"]
+
+
+def test_outputs_get_normal_permissions(small_case, tmp_path):
+    import os
+    import stat
+
+    folder, _ = small_case
+    old = os.umask(0o022)
+    try:
+        assert (
+            main(
+                [
+                    "-q",
+                    "analyze",
+                    str(folder / "eq.tif"),
+                    "--grid",
+                    "3x3",
+                    "--out",
+                    str(tmp_path / "run"),
+                ]
+            )
+            == 0
+        )
+        assert (
+            main(
+                [
+                    "-q",
+                    "track",
+                    str(folder / "eq.tif"),
+                    "--grid",
+                    "3x3",
+                    "--out",
+                    str(tmp_path / "t.csv"),
+                ]
+            )
+            == 0
+        )
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o755
+    assert stat.S_IMODE((tmp_path / "t.csv").stat().st_mode) == 0o644
+
+
+def _bad_files(tmp_path):
+    """Malformed points and tracks files, each with the words its error must contain."""
+    files = {}
+    (tmp_path / "adir").mkdir()
+    files["points folder"] = ("--points", tmp_path / "adir", "folder")
+    p = tmp_path / "bin.csv"
+    p.write_bytes(b"\xff\xfe\x00\x81garbage")
+    files["binary points"] = ("--points", p, "not a text")
+    p = tmp_path / "dup.csv"
+    p.write_text("x,y\n50,50\n80,50\n50,80\n50,50\n")
+    files["duplicate points"] = ("--points", p, "twice")
+    p = tmp_path / "inf.csv"
+    p.write_text("frame,point,x,y,visible\n0,0,1,1,inf\n")
+    files["infinite flag"] = ("--tracks-file", p, "bad value")
+    p = tmp_path / "vis.npz"
+    np.savez(p, positions=np.zeros((6, 3, 2)), visible=np.ones((6, 4), bool))
+    files["misshaped visible"] = ("--tracks-file", p, "visible must have shape")
+    p = tmp_path / "obj.npz"
+    np.savez(p, positions=np.array([None, 1], dtype=object))
+    files["object array"] = ("--tracks-file", p, "cannot read")
+    p = tmp_path / "nan0.npy"
+    pos = np.random.default_rng(0).uniform(20, 100, (6, 4, 2))
+    pos[0, 1] = np.nan
+    np.save(p, pos)
+    files["lost on frame 0"] = ("--tracks-file", p, "visible on the reference")
+    return files
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "points folder",
+        "binary points",
+        "duplicate points",
+        "infinite flag",
+        "misshaped visible",
+        "object array",
+        "lost on frame 0",
+    ],
+)
+def test_malformed_files_exit_2_with_one_line(name, small_case, tmp_path, capsys):
+    folder, _ = small_case
+    flag, path, expected = _bad_files(tmp_path)[name]
+    argv = [
+        "-q",
+        "analyze",
+        str(folder / "eq.avi"),
+        flag,
+        str(path),
+        "--out",
+        str(tmp_path / "out"),
+    ]
+    if flag == "--tracks-file":
+        argv += ["--tracker", "imported"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1, err
+    assert expected in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    ("options", "expected"),
+    [
+        (["--window", "301"], "smaller than"),
+        (["--fb-threshold", "nan"], "fb-threshold"),
+        (["--fps", "-5"], "--fps"),
+        (["--window", "-3"], "--window"),
+    ],
+)
+def test_bad_numbers_exit_2(options, expected, small_case, tmp_path, capsys):
+    folder, _ = small_case
+    assert (
+        main(["-q", "analyze", str(folder / "eq.avi"), *options, "--out", str(tmp_path / "out")])
+        == 2
+    )
+    err = capsys.readouterr().err
+    assert expected in err and len(err.strip().splitlines()) == 1

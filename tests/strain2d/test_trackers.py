@@ -85,7 +85,11 @@ def test_klt_marks_points_lost_when_texture_vanishes():
     assert not lost[~in_quarter & ((points[:, 0] > 110) | (points[:, 1] > 110))].any()
     assert (tracks.quality[-1][lost] == 0).all()
     field = strain_from_tracks(tracks)
-    assert not np.isnan(field.nodal_E[-1][~lost]).all()
+    has_valid_triangle = np.zeros(len(points), bool)
+    has_valid_triangle[field.triangles[field.element_valid[-1]].ravel()] = True
+    assert has_valid_triangle.any()
+    assert np.isfinite(field.nodal_E[-1][has_valid_triangle]).all()
+    assert np.isnan(field.nodal_E[-1][~has_valid_triangle]).all()
 
 
 def test_klt_bad_options():
@@ -143,3 +147,42 @@ def test_grid_meshes_cell_by_cell():
     np.testing.assert_allclose(field.nodal_E[1, :, 0, 0], 0.5 * (1.1**2 - 1))
     with pytest.raises(Err, match="4x4 grid needs 16"):
         strain_from_tracks(tracks, grid_shape=(4, 4))
+
+
+def _speckle(size, seed):
+    from scipy import ndimage
+
+    rng = np.random.default_rng(seed)
+    img = ndimage.gaussian_filter(rng.uniform(0, 255, (size, size)), 1.5)
+    return (img - img.min()) / np.ptp(img) * 255
+
+
+def test_klt_loses_points_whose_window_leaves_the_image():
+    from scipy import ndimage
+
+    big = _speckle(400, 5)
+    frames = np.stack(
+        [ndimage.shift(big, (0, 3.0 * k), order=3)[100:300, 100:300] for k in range(20)]
+    ).astype(np.uint8)
+    points = np.array([[150.0, 60], [150, 140], [100, 100], [40, 100]])
+    tracks = track(frames, points, tracker="klt", options={"window": 21})
+    # x + 3 k passes 200 - 1 - 10 (the window's half) for the first two points
+    assert not tracks.visible[-1, :2].any()
+    assert tracks.visible[-1, 2:].all()
+    first_lost = np.argmax(~tracks.visible[:, 0])
+    assert 150 + 3 * first_lost > 189 >= 150 + 3 * (first_lost - 1)
+
+
+def test_klt_velocity_prediction_follows_accelerating_motion():
+    """Without a pyramid, 2 px more per frame is only trackable from the predicted position."""
+    from scipy import ndimage
+
+    big = _speckle(400, 6)
+    shifts = np.cumsum([0, 1, 3, 5, 7, 9, 11])  # steps grow by 2 px
+    frames = np.stack(
+        [ndimage.shift(big, (0, s), order=3)[50:350, 20 : 380 - 40] for s in shifts]
+    ).astype(np.uint8)
+    points = make_grid(frames.shape[1:], shape=(3, 3), roi=(40, 60, 120, 240))
+    tracks = track(frames, points, tracker="klt", options={"levels": 0, "window": 15})
+    assert tracks.visible.all()
+    np.testing.assert_allclose(tracks.positions[-1, :, 0] - points[:, 0], shifts[-1], atol=0.1)

@@ -211,3 +211,14 @@ def test_property_principal_pairs_solve_the_eigen_problem(abd):
         np.testing.assert_allclose(E @ vectors[:, k], values[k] * vectors[:, k], atol=1e-12)
     np.testing.assert_allclose(vectors.T @ vectors, np.eye(2), atol=1e-12)
     assert -np.pi / 2 < np.arctan2(vectors[1, 0], vectors[0, 0]) <= np.pi / 2 + 1e-12
+
+
+def test_alternative_strain_measures_keep_lost_triangles_nan():
+    F = np.array([[[1.3, 0.2], [-0.1, 0.9]], [[np.nan, 0], [0, 1]]])
+    for measure in (euler_almansi, logarithmic_strain):
+        out = measure(F)
+        assert np.isnan(out[1]).all()
+        assert np.isfinite(out[0]).all()
+    F3 = np.full((2, 3, 2), np.nan)
+    F3[0] = [[1, 0], [0, 1], [0, 0]]
+    assert np.isnan(euler_almansi(F3)[1]).all() and np.allclose(euler_almansi(F3)[0], 0)
