@@ -11,7 +11,8 @@
 Positions and displacements are in pixels (x = column, y = row, centre of the
 top-left pixel at (0, 0)); strains are Green-Lagrange, dimensionless;
 ``theta1_deg`` is the angle of the first principal direction from the x axis;
-``J`` is the area ratio.  Lost values are empty (NaN).
+``J`` is the area ratio.  Lost values, and ``theta1_deg`` where ``E1 = E2``, are
+``nan``.
 """
 
 from __future__ import annotations
