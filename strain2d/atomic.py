@@ -27,6 +27,24 @@ def _umask() -> int:
     return mask
 
 
+@contextlib.contextmanager
+def _no_interrupt() -> Iterator[None]:
+    """Hold back Ctrl-C (SIGINT) for the duration of the block, where the OS allows."""
+    import signal
+    import threading
+
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not (
+        threading.main_thread()
+    ):
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def check_writable(
     path: str | os.PathLike,
     *,
@@ -79,8 +97,9 @@ def atomic_dir(
         os.chmod(tmp, 0o777 & ~_umask())
         if path.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=parent))
-            os.replace(path, old / path.name)
-            os.replace(tmp, path)
+            with _no_interrupt():  # never leave the old result moved and the new one not
+                os.replace(path, old / path.name)
+                os.replace(tmp, path)
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, path)

@@ -192,8 +192,9 @@ def track_klt(
         )
         if affine_correction:
             step = (nxt - prev).astype(float)
+            moved = alive & (st.ravel() == 1)  # neighbours LK followed in this frame
             nxt = (
-                nxt - _window_bias(prev_img, prev.astype(float), step, near, alive, window)
+                nxt - _window_bias(prev_img, prev.astype(float), step, near, moved, window)
             ).astype(np.float32)
         fb = np.linalg.norm(back - prev, axis=1)
         inside = (
