@@ -24,6 +24,8 @@ _TRACKER_FLAGS = {
     "levels": "levels",
     "fb_threshold": "fb_threshold",
     "tracks_file": "tracks_file",
+    "subset": "subset",
+    "zncc_min": "zncc_min",
 }
 
 
@@ -46,7 +48,13 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--tracker", default="klt", help="tracker name: klt, imported (default klt)")
+    p.add_argument(
+        "--tracker", default="klt", help="tracker name: dic, klt, imported (default klt)"
+    )
+    p.add_argument("--subset", type=int, help="dic: subset side in pixels (default 31)")
+    p.add_argument(
+        "--zncc-min", type=float, help="dic: correlation below which a point is lost (default 0.75)"
+    )
     p.add_argument("--window", type=int, help="klt: window side in pixels (default 31)")
     p.add_argument("--levels", type=int, help="klt: pyramid levels (default 3)")
     p.add_argument(

@@ -10,3 +10,7 @@ KLT_QUICK_TRACK_RMSE_PX = 0.5
 KLT_RIGID_STRAIN = 2e-3
 #: speckle renderer against brute-force evaluation of the deformed pattern (gray levels)
 RENDER_GRAY_LEVELS = 0.02
+#: dic on the quick (400 px, 11 frames) paper cases: final tracking RMSE in pixels
+DIC_QUICK_TRACK_RMSE_PX = 0.05
+#: dic on the quick paper cases: nodal strain RMSE of every component
+DIC_QUICK_STRAIN_RMSE = 0.001

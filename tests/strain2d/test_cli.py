@@ -267,12 +267,13 @@ def test_benchmark_quick(tmp_path):
     )
     results = json.loads((out / "benchmark.json").read_text())
     rows = {(r["case"], r["tracker"]): r for r in results["results"]}
-    assert set(rows) == {("rotation", "klt"), ("tissue", "klt")}
-    for row in rows.values():
-        assert row["track_px"]["rmse"] < 0.5
-        assert row["Exx"]["rmse"] < 0.005
+    assert set(rows) == {(c, t) for c in ("rotation", "tissue") for t in ("dic", "klt")}
+    for (_, tracker), row in rows.items():
+        assert row["track_px"]["rmse"] < (0.05 if tracker == "dic" else 0.5)
+        assert row["Exx"]["rmse"] < (0.001 if tracker == "dic" else 0.005)
     table = (out / "benchmark.md").read_text()
-    assert "| rotation | klt |" in table and "paper (CoTracker3)" in table
+    assert "| rotation | klt |" in table and "| rotation | dic |" in table
+    assert "paper (CoTracker3)" in table
     assert (
         main(["-q", "benchmark", "--quick", "--cases", "nope", "--out", str(tmp_path / "b2")]) == 2
     )

@@ -1,0 +1,409 @@
+"""``dic``: subset digital image correlation against the reference frame.
+
+Each point carries a square subset of the reference image (``subset`` pixels a
+side). On every frame the subset's warp is found by inverse-compositional
+Gauss-Newton (IC-GN) with an affine shape function, minimizing the zero-mean
+normalized sum of squared differences (ZNSSD). ZNSSD is insensitive to
+brightness and contrast changes. The search starts from the previous frame's
+warp plus its velocity. Tracking against the reference frame, instead of
+from frame to frame, means errors do not accumulate.
+
+Robustness, in order, for points whose IC-GN fails (not converged, ZNCC below
+``zncc_min``, or subset outside the image):
+
+1. reliability-guided restart: the point is moved as its best-correlated
+   successful neighbour moved since the point was last matched, and IC-GN
+   restarts there;
+2. integer-pixel search: normalized cross-correlation (OpenCV
+   ``matchTemplate``) of the reference subset, deformed by the point's last
+   shape, within ``search_radius`` pixels of the prediction, then IC-GN from
+   the best match;
+3. otherwise the point is flagged ``visible = False`` for that frame and
+   searched for again on the next.
+
+Incremental mode: when a visible point's ZNCC drops below ``update_below``
+(the subset has changed a lot since its reference, e.g. under large strain),
+its reference subset is re-sampled from the current frame around the current
+position, and later frames are matched against it. The updates are counted
+in ``Tracks.meta``.
+
+``quality`` is the ZNCC (1 = perfect match) against the point's current
+reference subset, and 0 where the point is lost.
+
+Interpolation is by cubic B-splines: each frame is prefiltered once
+(``scipy.ndimage.spline_filter``) and then evaluated exactly at the warped
+subset coordinates. A cubic B-spline interpolates with far less
+position-dependent bias than the Keys cubic convolution (OpenCV's
+``INTER_CUBIC``). On the paper's speckle cases it gives 0.010-0.013 px
+tracking RMSE, against 0.04-0.06 px with Keys.
+
+References
+----------
+.. [1] Pan, B., Li, K., & Tong, W. (2013). Fast, robust and accurate digital
+   image correlation calculation without redundant computations.
+   Experimental Mechanics 53, 1277-1289. https://doi.org/10.1007/s11340-013-9717-6
+.. [2] Pan, B. (2009). Reliability-guided digital image correlation for image
+   deformation measurement. Applied Optics 48, 1535-1542.
+   https://doi.org/10.1364/AO.48.001535
+.. [3] Unser, M. (1999). Splines: a perfect fit for signal and image
+   processing. IEEE Signal Processing Magazine 16, 22-38.
+   https://doi.org/10.1109/79.799930
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from strain2d.errors import InputError
+from strain2d.trackers import register_tracker
+from strain2d.tracks import Tracks
+
+# Warp parameters p = (u, v, du/dx, du/dy, dv/dx, dv/dy): x' = x0 + u + (1 + ux) dx + uy dy, etc.
+_NP = 6
+
+
+def _coefficients(frame: np.ndarray) -> np.ndarray:
+    return ndimage.spline_filter(np.asarray(frame, dtype=np.float64), order=3, mode="mirror")
+
+
+def _sample(coefficients: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    return ndimage.map_coordinates(coefficients, [y, x], order=3, mode="mirror", prefilter=False)
+
+
+def _matrix(p: np.ndarray) -> np.ndarray:
+    """Affine warps ``(n, 3, 3)`` from parameters ``(n, 6)``."""
+    M = np.zeros((len(p), 3, 3))
+    M[:, 0] = np.stack([1 + p[:, 2], p[:, 3], p[:, 0]], axis=-1)
+    M[:, 1] = np.stack([p[:, 4], 1 + p[:, 5], p[:, 1]], axis=-1)
+    M[:, 2, 2] = 1.0
+    return M
+
+
+def _params(M: np.ndarray) -> np.ndarray:
+    return np.stack(
+        [M[:, 0, 2], M[:, 1, 2], M[:, 0, 0] - 1, M[:, 0, 1], M[:, 1, 0], M[:, 1, 1] - 1], axis=-1
+    )
+
+
+@dataclass
+class _Subsets:
+    """Reference subsets of all points (rows are points)."""
+
+    centers: np.ndarray  # (N, 2) reference centre of each subset
+    f: np.ndarray  # (N, S2) zero-mean intensities
+    norm: np.ndarray  # (N, 1) sqrt(sum f^2)
+    J: np.ndarray  # (N, S2, 6) steepest-descent images
+    Hinv: np.ndarray  # (N, 6, 6)
+    template: np.ndarray  # (N, S, S) float32, for the integer search
+
+
+class _Correlator:
+    """IC-GN machinery for one subset size."""
+
+    def __init__(self, subset: int, max_iterations: int, tolerance: float) -> None:
+        self.half = subset // 2
+        self.size = subset
+        o = np.arange(-self.half, self.half + 1, dtype=float)
+        ey, ex = np.meshgrid(o, o, indexing="ij")
+        self.ex, self.ey = ex.ravel(), ey.ravel()
+        ob = np.arange(-self.half - 1, self.half + 2, dtype=float)
+        by, bx = np.meshgrid(ob, ob, indexing="ij")
+        self.bx, self.by = bx.ravel(), by.ravel()
+        self.max_iterations = max_iterations
+        self.tolerance = tolerance
+
+    def reference(self, coefficients: np.ndarray, centers: np.ndarray) -> _Subsets:
+        """Sample subsets (with a 1 px border for central-difference gradients)."""
+        n, s = len(centers), self.size
+        patch = _sample(coefficients, centers[:, :1] + self.bx, centers[:, 1:] + self.by).reshape(
+            n, s + 2, s + 2
+        )
+        f = patch[:, 1:-1, 1:-1].reshape(n, -1)
+        fx = 0.5 * (patch[:, 1:-1, 2:] - patch[:, 1:-1, :-2]).reshape(n, -1)
+        fy = 0.5 * (patch[:, 2:, 1:-1] - patch[:, :-2, 1:-1]).reshape(n, -1)
+        ex, ey = self.ex, self.ey
+        J = np.stack([fx, fy, fx * ex, fx * ey, fy * ex, fy * ey], axis=-1)
+        H = np.swapaxes(J, 1, 2) @ J
+        # textureless subsets have a singular Hessian: keep them, they simply never match
+        Hinv = np.linalg.pinv(H)
+        fm = f - f.mean(axis=1, keepdims=True)
+        norm = np.sqrt(np.sum(fm**2, axis=1, keepdims=True))
+        template = patch[:, 1:-1, 1:-1].astype(np.float32)
+        return _Subsets(centers.copy(), fm, norm, J, Hinv, template)
+
+    def warped_coordinates(self, centers: np.ndarray, p: np.ndarray):
+        x = centers[:, :1] + p[:, :1] + (1 + p[:, 2:3]) * self.ex + p[:, 3:4] * self.ey
+        y = centers[:, 1:] + p[:, 1:2] + p[:, 4:5] * self.ex + (1 + p[:, 5:6]) * self.ey
+        return x, y
+
+    def match(
+        self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged)."""
+        p = p0.copy()
+        f, norm, J, Hinv = ref.f[idx], ref.norm[idx], ref.J[idx], ref.Hinv[idx]
+        centers = ref.centers[idx]
+        active = np.ones(len(idx), dtype=bool)
+        converged = np.zeros(len(idx), dtype=bool)
+        zncc = np.full(len(idx), -1.0)
+        h = self.half
+        for _ in range(self.max_iterations):
+            a = np.flatnonzero(active)
+            if a.size == 0:
+                break
+            x, y = self.warped_coordinates(centers[a], p[a])
+            g = _sample(coefficients, x, y)
+            gm = g - g.mean(axis=1, keepdims=True)
+            gnorm = np.sqrt(np.sum(gm**2, axis=1, keepdims=True))
+            flat = gnorm[:, 0] < 1e-9
+            gnorm[flat] = 1.0
+            r = f[a] - norm[a] / gnorm * gm
+            zncc[a] = 1.0 - 0.5 * np.sum((f[a] / norm[a] - gm / gnorm) ** 2, axis=1)
+            zncc[a[flat]] = -1.0
+            b = (np.swapaxes(J[a], 1, 2) @ r[..., None])[..., 0]
+            dp = -(Hinv[a] @ b[..., None])[..., 0]
+            M = _matrix(p[a]) @ np.linalg.inv(_matrix(dp))
+            p[a] = _params(M)
+            step = np.sqrt(dp[:, 0] ** 2 + dp[:, 1] ** 2 + np.sum((h * dp[:, 2:]) ** 2, axis=1))
+            done = (step < self.tolerance) | ~np.isfinite(step)
+            converged[a[done & np.isfinite(step)]] = True
+            active[a[done]] = False
+            # a warp running away (huge displacement or shape change) has failed
+            wild = (np.abs(p[a, 2:]) > 2.0).any(axis=1) | ~np.isfinite(p[a]).all(axis=1)
+            active[a[wild]] = False
+            converged[a[wild]] = False
+        # ZNCC at the final warp
+        x, y = self.warped_coordinates(centers, np.nan_to_num(p))
+        g = _sample(coefficients, x, y)
+        gm = g - g.mean(axis=1, keepdims=True)
+        gnorm = np.sqrt(np.sum(gm**2, axis=1, keepdims=True))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            zncc = np.where(
+                gnorm[:, 0] > 1e-9, 1.0 - 0.5 * np.sum((f / norm - gm / gnorm) ** 2, axis=1), -1.0
+            )
+        return p, np.nan_to_num(zncc, nan=-1.0), converged
+
+    def inside(self, centers: np.ndarray, p: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+        """Whether each warped subset lies in the image (with a 1 px spline margin)."""
+        h = self.half
+        corners = np.array([[-h, -h], [h, -h], [-h, h], [h, h]], dtype=float)
+        cx = (
+            centers[:, None, 0]
+            + p[:, None, 0]
+            + (1 + p[:, None, 2]) * corners[:, 0]
+            + (p[:, None, 3] * corners[:, 1])
+        )
+        cy = (
+            centers[:, None, 1]
+            + p[:, None, 1]
+            + p[:, None, 4] * corners[:, 0]
+            + (1 + p[:, None, 5]) * corners[:, 1]
+        )
+        H, W = shape
+        return np.all((cx >= 1) & (cx <= W - 2) & (cy >= 1) & (cy <= H - 2), axis=1)
+
+
+def _search(
+    frame: np.ndarray, template: np.ndarray, guess: np.ndarray, radius: int
+) -> tuple[np.ndarray, float]:
+    """Integer position of the best normalized correlation of ``template`` near ``guess``."""
+    import cv2
+
+    s = template.shape[0]
+    h = s // 2
+    H, W = frame.shape
+    gx, gy = round(float(guess[0])), round(float(guess[1]))
+    x0, x1 = max(gx - radius - h, 0), min(gx + radius + h + 1, W)
+    y0, y1 = max(gy - radius - h, 0), min(gy + radius + h + 1, H)
+    if x1 - x0 < s or y1 - y0 < s or template.std() < 1e-6:
+        return guess, -1.0
+    window = np.ascontiguousarray(frame[y0:y1, x0:x1], dtype=np.float32)
+    score = cv2.matchTemplate(window, template, cv2.TM_CCOEFF_NORMED)
+    iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
+    return np.array([x0 + ix + h, y0 + iy + h], dtype=float), float(score[iy, ix])
+
+
+def _warp_template(template: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The reference subset as the shape part of warp ``p`` deforms it (about its centre)."""
+    import cv2
+
+    s = template.shape[0]
+    c = (s - 1) / 2
+    A = np.array([[1 + p[2], p[3]], [p[4], 1 + p[5]]])
+    M = np.column_stack([A, [c, c] - A @ [c, c]]).astype(np.float64)
+    return cv2.warpAffine(
+        template, M, (s, s), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT
+    )
+
+
+@register_tracker(
+    "dic",
+    description="subset DIC against the reference frame: ZNSSD, IC-GN affine, cubic B-splines",
+)
+def track_dic(
+    frames: Iterable[np.ndarray],
+    points: np.ndarray,
+    *,
+    subset: int = 31,
+    zncc_min: float = 0.75,
+    update_below: float = 0.9,
+    search_radius: int | None = None,
+    neighbours: int = 8,
+    max_iterations: int = 30,
+    tolerance: float = 1e-3,
+    progress: Callable[[int, int | None], None] | None = None,
+) -> Tracks:
+    """Track points by subset correlation (see the module docstring).
+
+    Parameters
+    ----------
+    frames : iterable of (H, W) float
+        Frame 0 is the reference.
+    points : (N, 2) float
+        Reference positions (x, y) in pixels.
+    subset : int, keyword-only
+        Side of the square subset in pixels (odd, >= 7).
+    zncc_min : float, keyword-only
+        Correlation below which a match counts as failed (point not visible).
+    update_below : float, keyword-only
+        Correlation below which a visible point's reference subset is renewed
+        from the current frame (incremental mode); 0 disables it.
+    search_radius : int, keyword-only
+        Half-size in pixels of the integer search for failed points
+        (default: the subset size).
+    neighbours : int, keyword-only
+        Neighbours considered for the reliability-guided restart.
+    max_iterations, tolerance : keyword-only
+        IC-GN stops when the warp update moves every subset pixel by less than
+        ``tolerance`` pixels, or after ``max_iterations``.
+    progress : callable(done, total), keyword-only
+
+    Returns
+    -------
+    Tracks
+        ``meta["reference_updates"]`` is the number of incremental reference
+        updates per point.
+    """
+    if subset < 7 or subset % 2 == 0:
+        raise InputError(f"--subset must be an odd number >= 7, got {subset}")
+    if not (-1 < zncc_min < 1) or not (-1 <= update_below < 1):
+        raise InputError("zncc_min and update_below must lie between -1 and 1")
+    if max_iterations < 1 or not (np.isfinite(tolerance) and tolerance > 0):
+        raise InputError("max_iterations must be >= 1 and tolerance a positive number")
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(points)
+    radius = subset if search_radius is None else int(search_radius)
+    total = len(frames) if hasattr(frames, "__len__") else None
+    it = iter(frames)
+    try:
+        ref_frame = np.asarray(next(it), dtype=np.float64)
+    except StopIteration:
+        raise InputError("no frames to track") from None
+    shape = ref_frame.shape
+    if subset >= min(shape):
+        raise InputError(f"--subset {subset} must be smaller than the {shape[1]}x{shape[0]} frames")
+    corr = _Correlator(subset, max_iterations, tolerance)
+    ref = corr.reference(_coefficients(ref_frame), points)
+    inside0 = corr.inside(points, np.zeros((n, _NP)), shape)
+    k = min(neighbours + 1, n)
+    _, near = cKDTree(points).query(points, k)
+    near = near.reshape(n, k)[:, 1:]
+
+    p = np.zeros((n, _NP))  # warp of each point relative to its current reference subset
+    velocity = np.zeros((n, 2))
+    updates = np.zeros(n, dtype=int)
+    last_seen = np.zeros(n, dtype=int)  # frame index where each point was last matched
+    positions = [points.copy()]
+    visible = [inside0.copy()]
+    quality = [np.where(inside0, 1.0, 0.0)]
+    if progress:
+        progress(1, total)
+    for frame in it:
+        frame = np.asarray(frame, dtype=np.float64)
+        coeff = _coefficients(frame)
+        guess = p.copy()
+        guess[:, :2] += velocity
+        all_idx = np.arange(n)
+        p_new, zncc, conv = corr.match(coeff, ref, all_idx, guess)
+        ok = conv & (zncc >= zncc_min) & corr.inside(ref.centers, p_new, shape)
+
+        # 1. reliability-guided restart from the best successful neighbour
+        failed = np.flatnonzero(~ok)
+        if failed.size and ok.any():
+            cand = near[failed]
+            score = np.where(ok[cand], zncc[cand], -np.inf)
+            best = cand[np.arange(len(failed)), np.argmax(score, axis=1)]
+            usable = np.isfinite(score.max(axis=1))
+            f_idx, b_idx = failed[usable], best[usable]
+            if f_idx.size:
+                # move the point as its neighbour moved since the point was last seen
+                # (independent of either point's reference subset)
+                history = np.stack(positions)
+                then = history[last_seen[f_idx], b_idx]
+                motion = ref.centers[b_idx] + p_new[b_idx, :2] - then
+                guess_n = p[f_idx].copy()
+                guess_n[:, :2] = history[last_seen[f_idx], f_idx] + motion - ref.centers[f_idx]
+                p2, z2, c2 = corr.match(coeff, ref, f_idx, guess_n)
+                good = c2 & (z2 >= zncc_min) & corr.inside(ref.centers[f_idx], p2, shape)
+                p_new[f_idx[good]], zncc[f_idx[good]] = p2[good], z2[good]
+                ok[f_idx[good]] = True
+
+        # 2. integer search around the prediction
+        failed = np.flatnonzero(~ok)
+        for i in failed:  # only the (few) points that failed twice
+            predicted = ref.centers[i] + guess[i, :2]
+            template = _warp_template(ref.template[i], guess[i])
+            found, score = _search(frame, template, predicted, radius)
+            if score < zncc_min:
+                continue
+            start = guess[i : i + 1].copy()
+            start[0, :2] = found - ref.centers[i]
+            p3, z3, c3 = corr.match(coeff, ref, np.array([i]), start)
+            if c3[0] and z3[0] >= zncc_min and corr.inside(ref.centers[i : i + 1], p3, shape)[0]:
+                p_new[i], zncc[i], ok[i] = p3[0], z3[0], True
+
+        moved = ref.centers + p_new[:, :2]
+        previous = ref.centers + p[:, :2]
+        velocity = np.where(ok[:, None], moved - previous, 0.0)
+        p = np.where(ok[:, None], p_new, p)
+        pos = ref.centers + p[:, :2]
+        last_seen[ok] = len(positions)
+
+        # incremental mode: renew the reference subsets that no longer resemble the frame
+        renew = np.flatnonzero(ok & (zncc < update_below))
+        if renew.size:
+            fresh = corr.reference(coeff, pos[renew])
+            for name in ("centers", "f", "norm", "J", "Hinv", "template"):
+                getattr(ref, name)[renew] = getattr(fresh, name)
+            p[renew] = 0.0
+            updates[renew] += 1
+
+        positions.append(pos.copy())
+        visible.append(ok.copy())
+        quality.append(np.where(ok, np.clip(zncc, 0.0, 1.0), 0.0))
+        if progress:
+            progress(len(positions), total)
+    if len(positions) < 2:
+        raise InputError("tracking needs at least 2 frames")
+    options = {
+        "subset": subset,
+        "zncc_min": zncc_min,
+        "update_below": update_below,
+        "search_radius": radius,
+        "neighbours": neighbours,
+        "max_iterations": max_iterations,
+        "tolerance": tolerance,
+        "interpolation": "cubic B-spline",
+        "shape_function": "affine",
+    }
+    return Tracks(
+        np.stack(positions),
+        np.stack(visible),
+        np.stack(quality),
+        {"tracker": "dic", "options": options, "reference_updates": updates.tolist()},
+    )

@@ -1,0 +1,102 @@
+import numpy as np
+import pytest
+
+from sample_data_synth import make_case
+from strain2d import track
+from strain2d.errors import InputError
+from strain2d.pipeline import strain_from_tracks
+from tests.tolerances import DIC_QUICK_STRAIN_RMSE, DIC_QUICK_TRACK_RMSE_PX
+
+
+def _rmse(tracks, video, points):
+    last = video.truth.n_frames - 1
+    err = tracks.positions[-1] - video.truth.positions(points, last)
+    return np.sqrt(np.mean(np.sum(err**2, axis=1)))
+
+
+@pytest.mark.parametrize("case", ["equibiaxial", "rotation", "shear", "tissue"])
+def test_dic_tracks_the_paper_cases(case):
+    video = make_case(case, size=400, n_frames=11, rng=7)
+    points = video.truth.grid((7, 7))
+    tracks = track(video.frames, points, tracker="dic")
+    assert tracks.visible.all()
+    assert _rmse(tracks, video, points) < DIC_QUICK_TRACK_RMSE_PX
+    field = strain_from_tracks(tracks, grid_shape=(7, 7))
+    error = field.nodal_E[-1] - video.truth.strain(points, 10)
+    assert np.sqrt(np.mean(error**2, axis=0)).max() < DIC_QUICK_STRAIN_RMSE
+    assert tracks.quality[-1].min() > 0.9
+
+
+def test_dic_ignores_brightness_and_contrast_changes():
+    video = make_case("rotation", size=300, n_frames=6, rng=8)
+    points = video.truth.grid((5, 5))
+    gain = np.linspace(1.0, 0.6, 6)[:, None, None]
+    dimmed = video.frames * gain + np.linspace(0, 40, 6)[:, None, None]
+    plain = track(video.frames, points, tracker="dic")
+    changed = track(dimmed, points, tracker="dic")
+    assert changed.visible.all()
+    assert _rmse(changed, video, points) < DIC_QUICK_TRACK_RMSE_PX
+    np.testing.assert_allclose(changed.positions, plain.positions, atol=0.01)
+
+
+def test_dic_flags_occluded_and_blank_points_and_recovers_after_occlusion():
+    video = make_case("shear", size=300, n_frames=10, rng=9)
+    frames = video.frames.astype(float).copy()
+    points = video.truth.grid((3, 3))  # spaced so each patch hides one subset only
+    true = video.truth.positions(points)
+    # a blank patch appears under point 0 from frame 3 on (texture lost for good)
+    x, y = np.rint(true[3:, 0]).astype(int).T
+    for k, (xi, yi) in enumerate(zip(x, y, strict=True), start=3):
+        frames[k, yi - 25 : yi + 26, xi - 25 : xi + 26] = 128.0
+    # an occluder hides point 4 on frames 4-5 only
+    for k in (4, 5):
+        xi, yi = np.rint(true[k, 4]).astype(int)
+        frames[k, yi - 20 : yi + 21, xi - 20 : xi + 21] = 255.0
+    tracks = track(frames, points, tracker="dic")
+    assert not tracks.visible[3:, 0].any()
+    assert (tracks.quality[3:, 0] == 0).all()
+    assert not tracks.visible[4:6, 4].any()
+    assert tracks.visible[6:, 4].all()  # found again once the occluder has gone
+    err = np.linalg.norm(tracks.positions[-1, 4] - true[-1, 4])
+    assert err < DIC_QUICK_TRACK_RMSE_PX
+    others = np.setdiff1d(np.arange(9), [0, 4])
+    assert tracks.visible[:, others].all()
+
+
+def test_dic_integer_search_catches_a_sudden_jump():
+    from scipy import ndimage
+
+    rng = np.random.default_rng(10)
+    big = ndimage.gaussian_filter(rng.uniform(0, 255, (360, 360)), 2.0)
+    shifts = [0, 1, 2, 3, 21, 22]  # the 18 px jump defeats the velocity prediction
+    frames = np.stack([ndimage.shift(big, (0, s), order=3)[30:330, 30:330] for s in shifts])
+    points = np.array([[100.0, 100], [150, 120], [120, 180], [180, 170]])
+    tracks = track(frames, points, tracker="dic", options={"subset": 41})
+    assert tracks.visible.all()
+    np.testing.assert_allclose(tracks.positions[-1, :, 0] - points[:, 0], 22, atol=0.05)
+
+
+def test_dic_incremental_reference_updates():
+    video = make_case("equibiaxial", size=300, n_frames=8, rng=11)
+    points = video.truth.grid((4, 4))
+    tracks = track(video.frames, points, tracker="dic", options={"zncc_min": 0.5})
+    forced = track(
+        video.frames, points, tracker="dic", options={"zncc_min": 0.5, "update_below": 0.9999}
+    )
+    assert sum(tracks.meta["reference_updates"]) == 0
+    assert sum(forced.meta["reference_updates"]) >= 16
+    assert forced.visible.all()
+    # updating the reference every frame accumulates error, but only a little
+    assert _rmse(forced, video, points) < 3 * DIC_QUICK_TRACK_RMSE_PX
+
+
+def test_dic_bad_options():
+    frames = np.zeros((3, 60, 60))
+    pts = np.array([[20.0, 20], [40, 20], [20, 40]])
+    for options, match in (
+        ({"subset": 30}, "odd"),
+        ({"subset": 61}, "smaller"),
+        ({"zncc_min": 2.0}, "between"),
+    ):
+        with pytest.raises(InputError, match=match):
+            track(frames, pts, tracker="dic", options=options)
