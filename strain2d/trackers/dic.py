@@ -52,7 +52,11 @@ References
 
 from __future__ import annotations
 
+import functools
+import itertools
+import os
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -67,12 +71,51 @@ from strain2d.tracks import Tracks
 _NP = 6
 
 
+_WORKERS = max(1, min(os.cpu_count() or 1, 8))
+
+
+@functools.cache
+def _pool() -> ThreadPoolExecutor:
+    """Threads for SciPy's spline routines, which release the GIL (made on first use)."""
+    return ThreadPoolExecutor(_WORKERS, thread_name_prefix="dic")
+
+
+def _blocks(n: int, parts: int) -> list[slice]:
+    edges = np.linspace(0, n, min(parts, n) + 1).astype(int)
+    return [slice(a, b) for a, b in itertools.pairwise(edges)]
+
+
 def _coefficients(frame: np.ndarray) -> np.ndarray:
-    return ndimage.spline_filter(np.asarray(frame, dtype=np.float64), order=3, mode="mirror")
+    """Cubic B-spline coefficients of a frame (mirror boundaries).
+
+    The 1D filter runs along x on blocks of rows, then along y on blocks of
+    columns, in threads; every line is filtered whole, so the result equals
+    ``scipy.ndimage.spline_filter(frame, order=3, mode="mirror")``.
+    """
+    c = np.array(frame, dtype=np.float64)
+    if _WORKERS == 1:
+        return ndimage.spline_filter(c, order=3, mode="mirror")
+    for axis in (1, 0):
+
+        def run(block: slice, axis: int = axis) -> None:
+            view = c[block] if axis == 1 else c[:, block]
+            ndimage.spline_filter1d(view, order=3, axis=axis, mode="mirror", output=view)
+
+        list(_pool().map(run, _blocks(c.shape[1 - axis], _WORKERS)))
+    return c
 
 
 def _sample(coefficients: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    return ndimage.map_coordinates(coefficients, [y, x], order=3, mode="mirror", prefilter=False)
+    """Cubic B-spline values at (x, y) (any equal shapes), rows split over threads."""
+
+    def run(rows: slice) -> np.ndarray:
+        return ndimage.map_coordinates(
+            coefficients, [y[rows], x[rows]], order=3, mode="mirror", prefilter=False
+        )
+
+    if _WORKERS == 1 or x.size < 20_000:
+        return run(slice(None))
+    return np.concatenate(list(_pool().map(run, _blocks(len(x), _WORKERS))))
 
 
 def _matrix(p: np.ndarray) -> np.ndarray:
@@ -95,17 +138,21 @@ class _Subsets:
     """Reference subsets of all points (rows are points)."""
 
     centers: np.ndarray  # (N, 2) reference centre of each subset
-    f: np.ndarray  # (N, S2) zero-mean intensities
-    norm: np.ndarray  # (N, 1) sqrt(sum f^2)
-    J: np.ndarray  # (N, S2, 6) steepest-descent images
-    Hinv: np.ndarray  # (N, 6, 6)
+    frame: np.ndarray  # (N,) index of the frame each subset was sampled from
+    f: np.ndarray  # (N, S2) zero-mean intensities divided by their norm
+    norm: np.ndarray  # (N, 1) sqrt(sum (f - mean f)^2)
+    G: np.ndarray  # (N, 6, S2) Gauss-Newton step operator H^-1 J^T
     template: np.ndarray  # (N, S, S) float32, for the integer search
+
+    def replace(self, rows: np.ndarray, other: _Subsets) -> None:
+        for name in ("centers", "frame", "f", "norm", "G", "template"):
+            getattr(self, name)[rows] = getattr(other, name)
 
 
 class _Correlator:
     """IC-GN machinery for one subset size."""
 
-    def __init__(self, subset: int, max_iterations: int, tolerance: float) -> None:
+    def __init__(self, subset: int, max_iterations: int, tolerance: float, zncc_min: float):
         self.half = subset // 2
         self.size = subset
         o = np.arange(-self.half, self.half + 1, dtype=float)
@@ -116,8 +163,9 @@ class _Correlator:
         self.bx, self.by = bx.ravel(), by.ravel()
         self.max_iterations = max_iterations
         self.tolerance = tolerance
+        self.zncc_min = zncc_min
 
-    def reference(self, coefficients: np.ndarray, centers: np.ndarray) -> _Subsets:
+    def reference(self, coefficients: np.ndarray, centers: np.ndarray, frame: int) -> _Subsets:
         """Sample subsets (with a 1 px border for central-difference gradients)."""
         n, s = len(centers), self.size
         patch = _sample(coefficients, centers[:, :1] + self.bx, centers[:, 1:] + self.by).reshape(
@@ -127,14 +175,14 @@ class _Correlator:
         fx = 0.5 * (patch[:, 1:-1, 2:] - patch[:, 1:-1, :-2]).reshape(n, -1)
         fy = 0.5 * (patch[:, 2:, 1:-1] - patch[:, :-2, 1:-1]).reshape(n, -1)
         ex, ey = self.ex, self.ey
-        J = np.stack([fx, fy, fx * ex, fx * ey, fy * ex, fy * ey], axis=-1)
-        H = np.swapaxes(J, 1, 2) @ J
+        J = np.stack([fx, fy, fx * ex, fx * ey, fy * ex, fy * ey], axis=1)  # (n, 6, S2)
         # textureless subsets have a singular Hessian: keep them, they simply never match
-        Hinv = np.linalg.pinv(H)
+        Hinv = np.linalg.pinv(J @ np.swapaxes(J, 1, 2))
         fm = f - f.mean(axis=1, keepdims=True)
         norm = np.sqrt(np.sum(fm**2, axis=1, keepdims=True))
+        norm[norm == 0] = 1.0
         template = patch[:, 1:-1, 1:-1].astype(np.float32)
-        return _Subsets(centers.copy(), fm, norm, J, Hinv, template)
+        return _Subsets(centers.copy(), np.full(n, frame), fm / norm, norm, Hinv @ J, template)
 
     def warped_coordinates(self, centers: np.ndarray, p: np.ndarray):
         x = centers[:, :1] + p[:, :1] + (1 + p[:, 2:3]) * self.ex + p[:, 3:4] * self.ey
@@ -144,68 +192,62 @@ class _Correlator:
     def match(
         self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged)."""
+        """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged).
+
+        ``zncc`` is measured at the last iterate before the final (sub-tolerance)
+        update.  A point whose correlation is still below ``zncc_min`` after 8
+        iterations is abandoned: it is not converging to the right match.
+        """
         p = p0.copy()
-        f, norm, J, Hinv = ref.f[idx], ref.norm[idx], ref.J[idx], ref.Hinv[idx]
-        centers = ref.centers[idx]
-        active = np.ones(len(idx), dtype=bool)
+        full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
+        f = ref.f if full else ref.f[idx]
+        G = ref.G if full else ref.G[idx]
+        norm = ref.norm if full else ref.norm[idx]
+        centers = ref.centers if full else ref.centers[idx]
+        active = np.arange(len(idx))
         converged = np.zeros(len(idx), dtype=bool)
         zncc = np.full(len(idx), -1.0)
         h = self.half
-        for _ in range(self.max_iterations):
-            a = np.flatnonzero(active)
-            if a.size == 0:
+        for iteration in range(self.max_iterations):
+            if active.size == 0:
                 break
-            x, y = self.warped_coordinates(centers[a], p[a])
+            every = active.size == len(idx)
+            pa = p if every else p[active]
+            x, y = self.warped_coordinates(centers if every else centers[active], pa)
             g = _sample(coefficients, x, y)
             gm = g - g.mean(axis=1, keepdims=True)
             gnorm = np.sqrt(np.sum(gm**2, axis=1, keepdims=True))
             flat = gnorm[:, 0] < 1e-9
             gnorm[flat] = 1.0
-            r = f[a] - norm[a] / gnorm * gm
-            zncc[a] = 1.0 - 0.5 * np.sum((f[a] / norm[a] - gm / gnorm) ** 2, axis=1)
-            zncc[a[flat]] = -1.0
-            b = (np.swapaxes(J[a], 1, 2) @ r[..., None])[..., 0]
-            dp = -(Hinv[a] @ b[..., None])[..., 0]
-            M = _matrix(p[a]) @ np.linalg.inv(_matrix(dp))
-            p[a] = _params(M)
+            gn = gm / gnorm
+            fa = f if every else f[active]
+            za = np.where(flat, -1.0, 1.0 - 0.5 * np.sum((fa - gn) ** 2, axis=1))
+            zncc[active] = za
+            r = (fa - gn) * (norm if every else norm[active])  # ZNSSD residual, f's scale
+            dp = -((G if every else G[active]) @ r[..., None])[..., 0]
+            p[active] = _params(_matrix(pa) @ np.linalg.inv(_matrix(dp)))
             step = np.sqrt(dp[:, 0] ** 2 + dp[:, 1] ** 2 + np.sum((h * dp[:, 2:]) ** 2, axis=1))
-            done = (step < self.tolerance) | ~np.isfinite(step)
-            converged[a[done & np.isfinite(step)]] = True
-            active[a[done]] = False
-            # a warp running away (huge displacement or shape change) has failed
-            wild = (np.abs(p[a, 2:]) > 2.0).any(axis=1) | ~np.isfinite(p[a]).all(axis=1)
-            active[a[wild]] = False
-            converged[a[wild]] = False
-        # ZNCC at the final warp
-        x, y = self.warped_coordinates(centers, np.nan_to_num(p))
-        g = _sample(coefficients, x, y)
-        gm = g - g.mean(axis=1, keepdims=True)
-        gnorm = np.sqrt(np.sum(gm**2, axis=1, keepdims=True))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            zncc = np.where(
-                gnorm[:, 0] > 1e-9, 1.0 - 0.5 * np.sum((f / norm - gm / gnorm) ** 2, axis=1), -1.0
-            )
-        return p, np.nan_to_num(zncc, nan=-1.0), converged
+            finite = np.isfinite(step) & np.isfinite(p[active]).all(axis=1)
+            done = finite & (step < self.tolerance)
+            failed = ~finite | (np.abs(p[active, 2:]) > 2.0).any(axis=1)
+            if iteration >= 7:
+                failed |= za < self.zncc_min
+            converged[active[done & ~failed]] = True
+            active = active[~(done | failed)]
+        return np.nan_to_num(p), zncc, converged
 
-    def inside(self, centers: np.ndarray, p: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-        """Whether each warped subset lies in the image (with a 1 px spline margin)."""
-        h = self.half
-        corners = np.array([[-h, -h], [h, -h], [-h, h], [h, h]], dtype=float)
-        cx = (
-            centers[:, None, 0]
-            + p[:, None, 0]
-            + (1 + p[:, None, 2]) * corners[:, 0]
-            + (p[:, None, 3] * corners[:, 1])
-        )
-        cy = (
-            centers[:, None, 1]
-            + p[:, None, 1]
-            + p[:, None, 4] * corners[:, 0]
-            + (1 + p[:, None, 5]) * corners[:, 1]
-        )
-        H, W = shape
-        return np.all((cx >= 1) & (cx <= W - 2) & (cy >= 1) & (cy <= H - 2), axis=1)
+
+def _inside(
+    corr: _Correlator, centers: np.ndarray, p: np.ndarray, shape: tuple[int, int]
+) -> np.ndarray:
+    """Whether each warped subset lies in the image (with a 1 px spline margin)."""
+    h = corr.half
+    cx = np.array([-h, h, -h, h], dtype=float)
+    cy = np.array([-h, -h, h, h], dtype=float)
+    x = centers[:, None, 0] + p[:, None, 0] + (1 + p[:, None, 2]) * cx + p[:, None, 3] * cy
+    y = centers[:, None, 1] + p[:, None, 1] + p[:, None, 4] * cx + (1 + p[:, None, 5]) * cy
+    H, W = shape
+    return np.all((x >= 1) & (x <= W - 2) & (y >= 1) & (y <= H - 2), axis=1)
 
 
 def _search(
@@ -226,6 +268,36 @@ def _search(
     score = cv2.matchTemplate(window, template, cv2.TM_CCOEFF_NORMED)
     iy, ix = np.unravel_index(int(np.argmax(score)), score.shape)
     return np.array([x0 + ix + h, y0 + iy + h], dtype=float), float(score[iy, ix])
+
+
+def _neighbour_guess(
+    ref: _Subsets,
+    p: np.ndarray,
+    p_new: np.ndarray,
+    history: np.ndarray,
+    last_seen: np.ndarray,
+    targets: np.ndarray,
+    sources: np.ndarray,
+) -> np.ndarray:
+    """Initial warps of failed ``targets`` from matched neighbours ``sources``.
+
+    Where both subsets come from the same frame, the neighbour's affine warp is
+    extrapolated to the target (exact for a homogeneous deformation).
+    Otherwise the target moves as the neighbour moved since the target was
+    last matched.
+    """
+    guess = p[targets].copy()
+    same = ref.frame[targets] == ref.frame[sources]
+    d = ref.centers[targets] - ref.centers[sources]
+    ps = p_new[sources]
+    affine = ps.copy()
+    affine[:, 0] = ps[:, 0] + ps[:, 2] * d[:, 0] + ps[:, 3] * d[:, 1]
+    affine[:, 1] = ps[:, 1] + ps[:, 4] * d[:, 0] + ps[:, 5] * d[:, 1]
+    then = history[last_seen[targets], sources]
+    moved = history[last_seen[targets], targets] + ref.centers[sources] + ps[:, :2] - then
+    guess[:, :2] = moved - ref.centers[targets]
+    guess[same] = affine[same]
+    return guess
 
 
 def _warp_template(template: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -307,15 +379,15 @@ def track_dic(
     shape = ref_frame.shape
     if subset >= min(shape):
         raise InputError(f"--subset {subset} must be smaller than the {shape[1]}x{shape[0]} frames")
-    corr = _Correlator(subset, max_iterations, tolerance)
-    ref = corr.reference(_coefficients(ref_frame), points)
-    inside0 = corr.inside(points, np.zeros((n, _NP)), shape)
+    corr = _Correlator(subset, max_iterations, tolerance, zncc_min)
+    ref = corr.reference(_coefficients(ref_frame), points, 0)
+    inside0 = _inside(corr, points, np.zeros((n, _NP)), shape)
     k = min(neighbours + 1, n)
     _, near = cKDTree(points).query(points, k)
     near = near.reshape(n, k)[:, 1:]
 
     p = np.zeros((n, _NP))  # warp of each point relative to its current reference subset
-    velocity = np.zeros((n, 2))
+    rate = np.zeros((n, _NP))  # change of p over the last frame, for the next guess
     updates = np.zeros(n, dtype=int)
     last_seen = np.zeros(n, dtype=int)  # frame index where each point was last matched
     positions = [points.copy()]
@@ -323,39 +395,38 @@ def track_dic(
     quality = [np.where(inside0, 1.0, 0.0)]
     if progress:
         progress(1, total)
-    for frame in it:
+    for t, frame in enumerate(it, start=1):
         frame = np.asarray(frame, dtype=np.float64)
         coeff = _coefficients(frame)
-        guess = p.copy()
-        guess[:, :2] += velocity
-        all_idx = np.arange(n)
-        p_new, zncc, conv = corr.match(coeff, ref, all_idx, guess)
-        ok = conv & (zncc >= zncc_min) & corr.inside(ref.centers, p_new, shape)
+        guess = p + rate
+        p_new, zncc, conv = corr.match(coeff, ref, np.arange(n), guess)
+        ok = conv & (zncc >= zncc_min) & _inside(corr, ref.centers, p_new, shape)
 
-        # 1. reliability-guided restart from the best successful neighbour
-        failed = np.flatnonzero(~ok)
-        if failed.size and ok.any():
+        # 1. reliability-guided propagation: restart failed points from their best
+        #    matched neighbour, round after round while the matched region grows
+        history = np.stack(positions)
+        for _ in range(n):
+            failed = np.flatnonzero(~ok)
+            if failed.size == 0 or not ok.any():
+                break
             cand = near[failed]
             score = np.where(ok[cand], zncc[cand], -np.inf)
             best = cand[np.arange(len(failed)), np.argmax(score, axis=1)]
             usable = np.isfinite(score.max(axis=1))
             f_idx, b_idx = failed[usable], best[usable]
-            if f_idx.size:
-                # move the point as its neighbour moved since the point was last seen
-                # (independent of either point's reference subset)
-                history = np.stack(positions)
-                then = history[last_seen[f_idx], b_idx]
-                motion = ref.centers[b_idx] + p_new[b_idx, :2] - then
-                guess_n = p[f_idx].copy()
-                guess_n[:, :2] = history[last_seen[f_idx], f_idx] + motion - ref.centers[f_idx]
-                p2, z2, c2 = corr.match(coeff, ref, f_idx, guess_n)
-                good = c2 & (z2 >= zncc_min) & corr.inside(ref.centers[f_idx], p2, shape)
-                p_new[f_idx[good]], zncc[f_idx[good]] = p2[good], z2[good]
-                ok[f_idx[good]] = True
+            if f_idx.size == 0:
+                break
+            start = _neighbour_guess(ref, p, p_new, history, last_seen, f_idx, b_idx)
+            p2, z2, c2 = corr.match(coeff, ref, f_idx, start)
+            good = c2 & (z2 >= zncc_min) & _inside(corr, ref.centers[f_idx], p2, shape)
+            p_new[f_idx[good]], zncc[f_idx[good]] = p2[good], z2[good]
+            ok[f_idx[good]] = True
+            near_failed = np.setdiff1d(failed, f_idx[good])
+            if good.sum() == 0 or near_failed.size == 0:
+                break
 
-        # 2. integer search around the prediction
-        failed = np.flatnonzero(~ok)
-        for i in failed:  # only the (few) points that failed twice
+        # 2. integer search around the prediction, for the few points still failing
+        for i in np.flatnonzero(~ok):
             predicted = ref.centers[i] + guess[i, :2]
             template = _warp_template(ref.template[i], guess[i])
             found, score = _search(frame, template, predicted, radius)
@@ -364,23 +435,20 @@ def track_dic(
             start = guess[i : i + 1].copy()
             start[0, :2] = found - ref.centers[i]
             p3, z3, c3 = corr.match(coeff, ref, np.array([i]), start)
-            if c3[0] and z3[0] >= zncc_min and corr.inside(ref.centers[i : i + 1], p3, shape)[0]:
+            if c3[0] and z3[0] >= zncc_min and _inside(corr, ref.centers[i : i + 1], p3, shape)[0]:
                 p_new[i], zncc[i], ok[i] = p3[0], z3[0], True
 
-        moved = ref.centers + p_new[:, :2]
-        previous = ref.centers + p[:, :2]
-        velocity = np.where(ok[:, None], moved - previous, 0.0)
+        rate = np.where((ok & (last_seen == t - 1))[:, None], p_new - p, 0.0)
         p = np.where(ok[:, None], p_new, p)
         pos = ref.centers + p[:, :2]
-        last_seen[ok] = len(positions)
+        last_seen[ok] = t
 
         # incremental mode: renew the reference subsets that no longer resemble the frame
         renew = np.flatnonzero(ok & (zncc < update_below))
         if renew.size:
-            fresh = corr.reference(coeff, pos[renew])
-            for name in ("centers", "f", "norm", "J", "Hinv", "template"):
-                getattr(ref, name)[renew] = getattr(fresh, name)
+            ref.replace(renew, corr.reference(coeff, pos[renew], t))
             p[renew] = 0.0
+            rate[renew] = 0.0
             updates[renew] += 1
 
         positions.append(pos.copy())
