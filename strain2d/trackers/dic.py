@@ -85,6 +85,16 @@ def _blocks(n: int, parts: int) -> list[slice]:
     return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
 
+@functools.cache
+def _compiled_kernel():
+    """The numba IC-GN kernel, or None where numba cannot be imported."""
+    try:
+        from strain2d.trackers._icgn_kernel import icgn
+    except ImportError:
+        return None
+    return icgn
+
+
 def _coefficients(frame: np.ndarray) -> np.ndarray:
     """Cubic B-spline coefficients of a frame (mirror boundaries).
 
@@ -152,7 +162,16 @@ class _Subsets:
 class _Correlator:
     """IC-GN machinery for one subset size."""
 
-    def __init__(self, subset: int, max_iterations: int, tolerance: float, zncc_min: float):
+    def __init__(
+        self,
+        subset: int,
+        max_iterations: int,
+        tolerance: float,
+        zncc_min: float,
+        *,
+        compiled: bool = True,
+    ) -> None:
+        self.compiled = compiled
         self.half = subset // 2
         self.size = subset
         o = np.arange(-self.half, self.half + 1, dtype=float)
@@ -193,6 +212,34 @@ class _Correlator:
         self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged).
+
+        Runs the compiled kernel (:mod:`strain2d.trackers._icgn_kernel`) when
+        numba is available, else :meth:`match_numpy`; both give the same result.
+        """
+        kernel = _compiled_kernel()
+        if kernel is None or not self.compiled:
+            return self.match_numpy(coefficients, ref, idx, p0)
+        full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
+        rows = slice(None) if full else idx
+        return kernel(
+            coefficients,
+            np.ascontiguousarray(ref.centers[rows]),
+            np.ascontiguousarray(ref.f[rows]),
+            np.ascontiguousarray(ref.norm[rows, 0]),
+            np.ascontiguousarray(ref.G[rows]),
+            np.ascontiguousarray(p0, dtype=np.float64),
+            self.ex,
+            self.ey,
+            self.half,
+            self.tolerance,
+            self.max_iterations,
+            self.zncc_min,
+        )
+
+    def match_numpy(
+        self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """NumPy implementation of :meth:`match` (vectorized over points).
 
         ``zncc`` is measured at the last iterate before the final (sub-tolerance)
         update.  A point whose correlation is still below ``zncc_min`` after 8

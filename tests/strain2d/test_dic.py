@@ -100,3 +100,36 @@ def test_dic_bad_options():
     ):
         with pytest.raises(InputError, match=match):
             track(frames, pts, tracker="dic", options=options)
+
+
+def test_compiled_kernel_equals_the_numpy_implementation():
+    from strain2d.trackers import dic
+
+    assert dic._compiled_kernel() is not None  # numba is a core dependency
+    video = make_case("shear", size=300, n_frames=3, rng=12)
+    points = video.truth.grid((5, 5))
+    corr = dic._Correlator(31, 30, 1e-3, 0.75)
+    ref = corr.reference(dic._coefficients(video.frames[0]), points, 0)
+    coeff = dic._coefficients(video.frames[2])
+    guess = np.zeros((25, 6))
+    guess[:, :2] = video.truth.positions(points, 2) - points + 0.4  # a start 0.4 px off
+    for idx in (np.arange(25), np.array([3, 7, 20])):
+        fast = corr.match(coeff, ref, idx, guess[idx])
+        slow = corr.match_numpy(coeff, ref, idx, guess[idx])
+        np.testing.assert_allclose(fast[0], slow[0], atol=1e-10)
+        np.testing.assert_allclose(fast[1], slow[1], atol=1e-12)
+        np.testing.assert_array_equal(fast[2], slow[2])
+        assert fast[2].all()
+
+
+def test_coefficients_equal_scipys_spline_filter():
+    from scipy import ndimage
+
+    from strain2d.trackers import dic
+
+    image = np.random.default_rng(13).uniform(0, 255, (97, 131))
+    np.testing.assert_allclose(
+        dic._coefficients(image),
+        ndimage.spline_filter(image, order=3, mode="mirror"),
+        atol=1e-9,
+    )
