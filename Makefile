@@ -37,7 +37,7 @@ demo: setup
 	mkdir -p $(DEMO)
 	$(BIN)/python -m sample_data_synth video --case equibiaxial --out $(DEMO)/data --overwrite
 	$(BIN)/python -m strain2d analyze $(DEMO)/data/equibiaxial.avi --grid 7x7 \
-	    --roi 202,202,597,597 --tracker klt --out $(DEMO)/equibiaxial --overwrite
+	    --roi 202,202,597,597 --tracker dic --out $(DEMO)/equibiaxial --overwrite
 	@echo "demo results in $(DEMO)/equibiaxial: tracks.csv, strain_nodes.csv, strain.pvd, figures/"
 
 test: setup

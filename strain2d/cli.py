@@ -49,7 +49,7 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
 
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--tracker", default="klt", help="tracker name: dic, klt, imported (default klt)"
+        "--tracker", default="dic", help="tracker name: dic, klt, imported (default dic)"
     )
     p.add_argument("--subset", type=int, help="dic: subset side in pixels (default 31)")
     p.add_argument(

@@ -28,7 +28,7 @@ def track(
     frames: Iterable[np.ndarray] | None,
     points: np.ndarray | None,
     *,
-    tracker: str = "klt",
+    tracker: str = "dic",
     options: dict | None = None,
     progress: Callable[[int, int | None], None] | None = None,
 ) -> Tracks:
@@ -108,7 +108,7 @@ def analyze(
     frames: Iterable[np.ndarray] | None,
     points: np.ndarray | None,
     *,
-    tracker: str = "klt",
+    tracker: str = "dic",
     options: dict | None = None,
     grid_shape: tuple[int, int] | None = None,
     min_triangle_quality: float = 0.1,

@@ -473,10 +473,13 @@ def test_malformed_files_exit_2_with_one_line(name, small_case, tmp_path, capsys
 @pytest.mark.parametrize(
     ("options", "expected"),
     [
-        (["--window", "301"], "smaller than"),
-        (["--fb-threshold", "nan"], "fb-threshold"),
+        (["--tracker", "klt", "--window", "301"], "smaller than"),
+        (["--tracker", "klt", "--fb-threshold", "nan"], "fb-threshold"),
+        (["--tracker", "klt", "--window", "-3"], "--window"),
+        (["--subset", "301"], "smaller than"),
+        (["--subset", "30"], "odd"),
+        (["--zncc-min", "1.5"], "between"),
         (["--fps", "-5"], "--fps"),
-        (["--window", "-3"], "--window"),
     ],
 )
 def test_bad_numbers_exit_2(options, expected, small_case, tmp_path, capsys):
