@@ -30,9 +30,11 @@ def main() -> None:
     points = video.truth.grid((args.grid, args.grid))
     truth = video.truth.positions(points, video.truth.n_frames - 1)
     n = len(points) * video.truth.n_frames
-    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
-          f"{len(points)} points x {video.truth.n_frames} frames of 800x800 px, "
-          f"{args.subset} px subsets/windows")
+    print(
+        f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores; "
+        f"{len(points)} points x {video.truth.n_frames} frames of 800x800 px, "
+        f"{args.subset} px subsets/windows"
+    )
     options = {"dic": {"subset": args.subset}, "klt": {"window": args.subset}}
     speed = {}
     for name in ("klt", "dic"):
@@ -44,8 +46,10 @@ def main() -> None:
             best = min(best, time.perf_counter() - t0)
         rmse = np.sqrt(np.mean(np.sum((tracks.positions[-1] - truth) ** 2, axis=1)))
         speed[name] = n / best
-        print(f"{name:4s} {best:7.3f} s  {n / best:10,.0f} point-frames/s  "
-              f"final RMSE {rmse:.4f} px  lost {int((~tracks.visible[-1]).sum())}")
+        print(
+            f"{name:4s} {best:7.3f} s  {n / best:10,.0f} point-frames/s  "
+            f"final RMSE {rmse:.4f} px  lost {int((~tracks.visible[-1]).sum())}"
+        )
     print(f"dic takes {speed['klt'] / speed['dic']:.2f}x the time of klt")
 
 

@@ -15,7 +15,7 @@ from sample_data_synth.cases import (
     make_case,
     write_video,
 )
-from sample_data_synth.deformations import Homogeneous, equibiaxial, rotation, simple_shear
+from sample_data_synth.deformations import Field, Homogeneous, equibiaxial, rotation, simple_shear
 from sample_data_synth.render import add_sensor_noise, render_image, render_speckle
 from sample_data_synth.speckle import SpecklePattern, speckle_pattern
 
@@ -26,6 +26,7 @@ except _metadata.PackageNotFoundError:  # running from a source tree that is not
 
 __all__ = [
     "CASES",
+    "Field",
     "GroundTruth",
     "Homogeneous",
     "SpecklePattern",

@@ -9,6 +9,11 @@ shear          x = X + 0.5 (Y - Y0), y = Y                  Eyy = 0.125, Exy = 0
 tissue         x = c + 0.6 (X - c) on a tissue photograph   Exx = Eyy = -0.32
 =============  ===========================================  ====================
 
+Beyond the paper, three heterogeneous fields with analytic truth (see
+:class:`sample_data_synth.deformations.Field`): ``gaussian`` (a local
+contraction), ``sinusoid`` (strain varying periodically) and ``fold`` (a narrow
+compression band, a fold-like strain concentration).
+
 Geometry follows the paper (800 x 800 px, 7 x 7 grid): each case's grid
 region is placed so the largest grid displacement matches the paper's (about
 140, 105 and 200 px for equibiaxial, rotation and shear).  Every frame ramps
@@ -27,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from sample_data_synth.deformations import (
+    Field,
     Homogeneous,
     deformation_from_dict,
     equibiaxial,
@@ -52,7 +58,7 @@ class _CaseSpec:
     # fractions of the image size: grid region (x0, y0, x1, y1) and fixed point
     roi: tuple[float, float, float, float]
     center: tuple[float, float]
-    make: Callable[[tuple[float, float]], Homogeneous]
+    make: Callable[[tuple[float, float], float], Homogeneous | Field]  # (centre px, size px)
     paper_max_displacement_px: float | None
 
 
@@ -66,7 +72,7 @@ CASES: dict[str, _CaseSpec] = {
         "speckle",
         _sym(0.2475),
         (0.5, 0.5),
-        lambda c: equibiaxial(1.5, c),
+        lambda c, size: equibiaxial(1.5, c),
         140.0,
     ),
     "rotation": _CaseSpec(
@@ -74,7 +80,7 @@ CASES: dict[str, _CaseSpec] = {
         "speckle",
         _sym(0.1794),
         (0.5, 0.5),
-        lambda c: rotation(30.0, c),
+        lambda c, size: rotation(30.0, c),
         105.0,
     ),
     "shear": _CaseSpec(
@@ -82,7 +88,7 @@ CASES: dict[str, _CaseSpec] = {
         "speckle",
         (0.2, 0.25, 0.55, 0.75),
         (0.375, 0.25),
-        lambda c: simple_shear(0.5, c),
+        lambda c, size: simple_shear(0.5, c),
         200.0,
     ),
     "tissue": _CaseSpec(
@@ -90,7 +96,35 @@ CASES: dict[str, _CaseSpec] = {
         "tissue",
         _sym(0.3125),
         (0.5, 0.5),
-        lambda c: equibiaxial(0.6, c),
+        lambda c, size: equibiaxial(0.6, c),
+        None,
+    ),
+    # heterogeneous fields (beyond the paper); sizes scale with the frame
+    "gaussian": _CaseSpec(
+        "local Gaussian contraction of a speckle pattern (a = 0.3, s = 8% of the frame; "
+        "E = -0.255 at the centre)",
+        "speckle",
+        _sym(0.3),
+        (0.5, 0.5),
+        lambda c, size: Field("gaussian", c, a=0.3, s=0.08 * size),
+        None,
+    ),
+    "sinusoid": _CaseSpec(
+        "sinusoidal displacement of a speckle pattern (amplitude 1%, wavelength 40% of "
+        "the frame; Exx, Eyy between -0.15 and 0.17)",
+        "speckle",
+        _sym(0.3),
+        (0.5, 0.5),
+        lambda c, size: Field("sinusoid", c, amplitude=0.01 * size, wavelength=0.4 * size),
+        None,
+    ),
+    "fold": _CaseSpec(
+        "fold-like compression band across x of a speckle pattern (a = 0.4, half-width "
+        "4% of the frame; Exx = -0.32 on its axis)",
+        "speckle",
+        _sym(0.3),
+        (0.5, 0.5),
+        lambda c, size: Field("fold", c, a=0.4, width=0.04 * size),
         None,
     ),
 }
@@ -103,7 +137,7 @@ class GroundTruth:
     Attributes
     ----------
     case : str
-    deformation : Homogeneous
+    deformation : Homogeneous or Field
         Positions, gradient and strain at any reference point and time.
     n_frames : int
     image_size : (H, W)
@@ -114,7 +148,7 @@ class GroundTruth:
     """
 
     case: str
-    deformation: Homogeneous
+    deformation: Homogeneous | Field
     n_frames: int
     image_size: tuple[int, int]
     roi: tuple[float, float, float, float]
@@ -146,7 +180,8 @@ class GroundTruth:
         return np.column_stack([gx.ravel(), gy.ravel()])
 
     def to_dict(self) -> dict:
-        final_E = self.strain(np.zeros((1, 2)), self.n_frames - 1)[0]
+        # at the deformation's centre (the strain is uniform for the paper's cases)
+        final_E = self.strain(self.deformation.center[None], self.n_frames - 1)[0]
         return {
             "case": self.case,
             "description": CASES[self.case].description if self.case in CASES else "",
@@ -213,7 +248,7 @@ def make_case(
 
     Parameters
     ----------
-    name : {"equibiaxial", "rotation", "shear", "tissue"}
+    name : {"equibiaxial", "rotation", "shear", "tissue", "gaussian", "sinusoid", "fold"}
     size : int, keyword-only
         Frame width and height in pixels (the paper: 800).  The geometry
         scales with it; speckle size does not.
@@ -242,7 +277,7 @@ def make_case(
     scale = size - 1
     roi = tuple(f * scale for f in spec.roi)
     center = (spec.center[0] * scale, spec.center[1] * scale)
-    deformation = spec.make(center)
+    deformation = spec.make(center, size)
     shape = (size, size)
     times = np.linspace(0.0, 1.0, n_frames)
     seq = np.random.SeedSequence(rng)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "Field",
     "Homogeneous",
     "deformation_from_dict",
     "equibiaxial",
@@ -111,12 +112,99 @@ def simple_shear(gamma: float, center: tuple[float, float]) -> Homogeneous:
     return Homogeneous("shear", center, gamma=gamma)
 
 
-def deformation_from_dict(d: dict) -> Homogeneous:
-    """Rebuild a deformation from :meth:`Homogeneous.to_dict` output."""
+class Field:
+    """A heterogeneous displacement field ramped in time: ``x = X + t u(X)``.
+
+    Parameters
+    ----------
+    kind : {"gaussian", "sinusoid", "fold"}
+        ``gaussian``: local contraction towards ``center``,
+        ``u = -a (X - c) exp(-|X - c|^2 / (2 s^2))``; at the centre
+        ``F = (1 - a) I``.
+        ``sinusoid``: ``u = (A sin(k (X - cx)), A sin(k (Y - cy)))`` with
+        ``k = 2 pi / wavelength``: Exx varies along x and Eyy along y.
+        ``fold``: a compression band across x (a fold-like strain
+        concentration), ``u_x = -a w tanh((X - cx) / w)``, ``u_y = 0``:
+        ``F_xx = 1 - a sech^2((X - cx) / w)``.
+    center : (cx, cy)
+    params : dict
+        ``a, s`` (gaussian); ``amplitude, wavelength`` (sinusoid); ``a, width`` (fold).
+    """
+
+    def __init__(self, kind: str, center: tuple[float, float], **params: float) -> None:
+        if kind not in ("gaussian", "sinusoid", "fold"):
+            raise ValueError(f"kind must be gaussian, sinusoid or fold, got {kind!r}")
+        self.kind = kind
+        self.center = np.asarray(center, dtype=float)
+        self.params = {k: float(v) for k, v in params.items()}
+
+    def displacement(self, X: np.ndarray) -> np.ndarray:
+        """``u(X)`` at t = 1, shape ``(..., 2)``."""
+        d = np.asarray(X, dtype=float) - self.center
+        p = self.params
+        if self.kind == "gaussian":
+            w = np.exp(-np.sum(d**2, axis=-1) / (2 * p["s"] ** 2))
+            return -p["a"] * d * w[..., None]
+        if self.kind == "sinusoid":
+            k = 2 * np.pi / p["wavelength"]
+            return p["amplitude"] * np.sin(k * d)
+        ux = -p["a"] * p["width"] * np.tanh(d[..., 0] / p["width"])
+        return np.stack([ux, np.zeros_like(ux)], axis=-1)
+
+    def displacement_gradient(self, X: np.ndarray) -> np.ndarray:
+        """``grad u`` at t = 1, shape ``(..., 2, 2)`` (``[i, j] = du_i / dX_j``)."""
+        d = np.asarray(X, dtype=float) - self.center
+        p = self.params
+        out = np.zeros((*d.shape[:-1], 2, 2))
+        if self.kind == "gaussian":
+            w = np.exp(-np.sum(d**2, axis=-1) / (2 * p["s"] ** 2))
+            outer = d[..., :, None] * d[..., None, :] / p["s"] ** 2
+            return -p["a"] * w[..., None, None] * (np.eye(2) - outer)
+        if self.kind == "sinusoid":
+            k = 2 * np.pi / p["wavelength"]
+            out[..., 0, 0] = p["amplitude"] * k * np.cos(k * d[..., 0])
+            out[..., 1, 1] = p["amplitude"] * k * np.cos(k * d[..., 1])
+            return out
+        out[..., 0, 0] = -p["a"] / np.cosh(d[..., 0] / p["width"]) ** 2
+        return out
+
+    def forward(self, X: np.ndarray, t: float) -> np.ndarray:
+        X = np.asarray(X, dtype=float)
+        return X + t * self.displacement(X)
+
+    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Reference positions by Newton's method on ``X + t u(X) = x`` (to 1e-10 px)."""
+        x = np.asarray(x, dtype=float)
+        X = x.copy()
+        for _ in range(50):
+            residual = self.forward(X, t) - x
+            if np.abs(residual).max() < 1e-10:
+                break
+            F = self.gradient(X, t)
+            X = X - np.linalg.solve(F, residual[..., None])[..., 0]
+        return X
+
+    def gradient(self, X: np.ndarray, t: float) -> np.ndarray:
+        return np.eye(2) + t * self.displacement_gradient(X)
+
+    def strain(self, X: np.ndarray, t: float) -> np.ndarray:
+        return green_lagrange(self.gradient(X, t))
+
+    def to_dict(self) -> dict:
+        return {"type": "field", "kind": self.kind, "center": self.center.tolist(), **self.params}
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v:g}" for k, v in self.params.items())
+        return f"Field({self.kind}, center={tuple(self.center)}, {args})"
+
+
+def deformation_from_dict(d: dict) -> Homogeneous | Field:
+    """Rebuild a deformation from its ``to_dict()`` output."""
     d = dict(d)
     kind_type = d.pop("type", None)
-    if kind_type != "homogeneous":
+    if kind_type not in ("homogeneous", "field"):
         raise ValueError(f"unknown deformation type {kind_type!r}")
     kind = d.pop("kind")
     center = tuple(d.pop("center"))
-    return Homogeneous(kind, center, **d)
+    cls = Homogeneous if kind_type == "homogeneous" else Field
+    return cls(kind, center, **d)

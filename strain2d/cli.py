@@ -116,9 +116,15 @@ def _build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("benchmark", help="reproduce the paper's Table 1 on synthetic videos")
     p.add_argument("--quick", action="store_true", help="400x400 px, 11 frames (for tests)")
-    p.add_argument("--cases", help="comma-separated subset of equibiaxial,rotation,shear,tissue")
+    p.add_argument(
+        "--cases",
+        help="comma-separated subset of equibiaxial,rotation,shear,tissue (the paper's) "
+        "and gaussian,sinusoid,fold (heterogeneous); default all",
+    )
     p.add_argument("--trackers", help="comma-separated tracker names (default: all)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the synthetic videos")
+    p.add_argument("--grid", default="7x7", help="grid COLSxROWS on each case's region (7x7)")
+    p.add_argument("--no-figures", action="store_true", help="skip the error-contour figures")
     p.add_argument("--out", required=True, help="output folder (benchmark.json, benchmark.md)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(handler=_cmd_benchmark)
@@ -333,12 +339,24 @@ def _cmd_benchmark(args) -> int:
         if not args.quiet:
             print(message, file=sys.stderr, flush=True)
 
-    results = run_benchmark(
-        quick=args.quick, cases=cases, trackers=trackers, seed=args.seed, progress=say
-    )
-    results["software"] = {"name": "strain2d", "version": __version__}
-    table = benchmark_markdown(results)
+    from strain2d.grid import parse_grid
+
+    grid = parse_grid(args.grid)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
+        figures = None if args.no_figures else tmp / "figures"
+        if figures:
+            figures.mkdir()
+        results = run_benchmark(
+            quick=args.quick,
+            cases=cases,
+            trackers=trackers,
+            seed=args.seed,
+            grid=grid,
+            figures=figures,
+            progress=say,
+        )
+        results["software"] = {"name": "strain2d", "version": __version__}
+        table = benchmark_markdown(results)
         write_json(tmp / "benchmark.json", results)
         (tmp / "benchmark.md").write_text(table)
     if not args.quiet:

@@ -18,7 +18,7 @@ from matplotlib.tri import Triangulation
 from strain2d.tracks import Tracks
 from surface_strain import StrainField, nodal_scalars
 
-__all__ = ["plot_strain_maps", "plot_tracked_grid"]
+__all__ = ["plot_strain_errors", "plot_strain_maps", "plot_tracked_grid"]
 
 _LABELS = {
     "Exx": r"$E_{xx}$",
@@ -147,4 +147,57 @@ def plot_strain_maps(
         ax.set_title(f"{_LABELS.get(comp, comp)}, frame {frame}")
         ax.set_xlim(-0.5, image.shape[1] - 0.5)
         ax.set_ylim(image.shape[0] - 0.5, -0.5)
+    fig.savefig(path, dpi=dpi, bbox_inches="tight")
+
+
+def plot_strain_errors(
+    path: str | os.PathLike,
+    image: np.ndarray,
+    field: StrainField,
+    frame: int,
+    errors: np.ndarray,
+    *,
+    title: str = "",
+    dpi: int = 100,
+) -> None:
+    """Save contour maps of the signed nodal strain error (cf. the source paper's Figs. 5-9).
+
+    Parameters
+    ----------
+    errors : (N, 2, 2) float
+        Measured minus true nodal strain on ``frame``.
+
+    Each panel uses symmetric colour limits and states the component's RMSE.
+    """
+    pos = field.points[frame]
+    valid = field.element_valid[frame]
+    fig = Figure(figsize=(15.6, 5.0), layout="constrained")
+    axes = fig.subplots(1, 3)
+    for ax, (name, (i, j)) in zip(
+        axes, (("Exx", (0, 0)), ("Eyy", (1, 1)), ("Exy", (0, 1))), strict=True
+    ):
+        _show_image(ax, image)
+        values = errors[:, i, j]
+        good = valid & np.all(np.isfinite(values[field.triangles]), axis=1)
+        finite = values[np.isfinite(values)]
+        rmse = float(np.sqrt(np.mean(finite**2))) if finite.size else float("nan")
+        if good.any():
+            bound = max(float(np.abs(finite).max()), 1e-4)
+            tri = Triangulation(pos[:, 0], pos[:, 1], field.triangles[good])
+            cs = ax.tricontourf(
+                tri,
+                np.nan_to_num(values),
+                levels=np.linspace(-bound, bound, 21),
+                cmap="PuOr_r",
+                alpha=0.8,
+            )
+            ax.plot(pos[:, 0], pos[:, 1], ".", ms=2, color="k")
+            ticks = MaxNLocator(6, symmetric=True).tick_values(-bound, bound)
+            ticks = ticks[np.abs(ticks) <= bound + 1e-15]
+            fig.colorbar(cs, ax=ax, shrink=0.85, ticks=ticks, label=f"error in {_LABELS[name]} (-)")
+        ax.set_title(f"{_LABELS[name]} error, RMSE {rmse:.2g}")
+        ax.set_xlim(-0.5, image.shape[1] - 0.5)
+        ax.set_ylim(image.shape[0] - 0.5, -0.5)
+    if title:
+        fig.suptitle(title)
     fig.savefig(path, dpi=dpi, bbox_inches="tight")

@@ -267,10 +267,15 @@ def test_benchmark_quick(tmp_path):
     )
     results = json.loads((out / "benchmark.json").read_text())
     rows = {(r["case"], r["tracker"]): r for r in results["results"]}
-    assert set(rows) == {(c, t) for c in ("rotation", "tissue") for t in ("dic", "klt")}
+    trackers = ("dic", "klt", "exact positions")
+    assert set(rows) == {(c, t) for c in ("rotation", "tissue") for t in trackers}
     for (_, tracker), row in rows.items():
+        if tracker == "exact positions":  # homogeneous fields: no discretization error
+            assert row["Exx"]["rmse"] < 1e-9
+            continue
         assert row["track_px"]["rmse"] < (0.05 if tracker == "dic" else 0.5)
         assert row["Exx"]["rmse"] < (0.001 if tracker == "dic" else 0.005)
+    assert len(list((out / "figures").glob("*.png"))) == 4
     table = (out / "benchmark.md").read_text()
     assert "| rotation | klt |" in table and "| rotation | dic |" in table
     assert "paper (CoTracker3)" in table
@@ -490,3 +495,32 @@ def test_bad_numbers_exit_2(options, expected, small_case, tmp_path, capsys):
     )
     err = capsys.readouterr().err
     assert expected in err and len(err.strip().splitlines()) == 1
+
+
+def test_benchmark_heterogeneous_case_separates_grid_and_tracking_error(tmp_path):
+    out = tmp_path / "bench"
+    assert (
+        main(
+            [
+                "-q",
+                "benchmark",
+                "--quick",
+                "--cases",
+                "gaussian",
+                "--trackers",
+                "dic",
+                "--grid",
+                "9x9",
+                "--no-figures",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    rows = {r["tracker"]: r for r in json.loads((out / "benchmark.json").read_text())["results"]}
+    floor, dic = rows["exact positions"], rows["dic"]
+    assert floor["Exx"]["rmse"] > 0.01  # a 9x9 grid cannot resolve the local contraction
+    assert dic["Exx"]["rmse"] < floor["Exx"]["rmse"] + 0.005  # tracking adds little
+    assert dic["track_px"]["rmse"] < 0.3
+    assert not (out / "figures").exists()
