@@ -232,3 +232,110 @@ def benchmark_markdown(results: dict) -> str:
                 f" | {' | '.join(cells)} | - | - |"
             )
     return "\n".join(lines) + "\n"
+
+
+#: What each sweep varies, its values, and the cases it runs on.
+SWEEPS = {
+    "grid": ("grid points per side", (7, 11, 15, 21, 31), ("gaussian", "fold")),
+    "noise": ("read noise (gray levels)", (0.0, 1.0, 2.0, 4.0, 8.0), ("equibiaxial",)),
+    "contrast": ("speckle contrast", (0.1, 0.2, 0.4, 0.8), ("equibiaxial",)),
+    "density": ("speckle density", (0.25, 0.5, 1.0, 1.5), ("equibiaxial",)),
+}
+
+
+def run_sweep(
+    kind: str,
+    *,
+    quick: bool = False,
+    trackers: Sequence[str] | None = None,
+    seed: int = 0,
+    progress: Callable[[str], None] | None = None,
+) -> dict:
+    """Errors as one parameter varies (see :data:`SWEEPS`), beyond the paper.
+
+    ``grid`` re-tracks one video per case with denser and denser grids and
+    shows the spatial-resolution trade-off together with the grid floor
+    (strain from exact positions); ``noise``, ``contrast`` and ``density``
+    re-render the equibiaxial case with the changed image and track a 7 x 7
+    grid.  Errors are on the final frame, as in :func:`run_benchmark`.
+    """
+    from sample_data_synth.cases import make_case
+
+    if kind not in SWEEPS:
+        raise ValueError(f"unknown sweep {kind!r}; choose from {', '.join(SWEEPS)}")
+    label, values, cases = SWEEPS[kind]
+    registry = available_trackers()
+    if trackers is None:
+        trackers = [name for name, spec in registry.items() if spec.needs_frames]
+    size, n_frames = (400, 11) if quick else (800, 31)
+    last = n_frames - 1
+    rows = []
+    for case in cases:
+        video = None
+        for value in values:
+            if progress:
+                progress(f"sweep {kind}: {case}, {label} = {value}")
+            render = {"read_noise": value} if kind == "noise" else {}
+            if kind == "contrast":
+                render = {"speckle_contrast": value}
+            elif kind == "density":
+                render = {"speckle_density": value}
+            if video is None or kind != "grid":
+                video = make_case(case, size=size, n_frames=n_frames, rng=seed, **render)
+            grid = (int(value), int(value)) if kind == "grid" else (7, 7)
+            points = video.truth.grid(grid)
+            true_E = video.truth.strain(points, last)
+            true_pos = video.truth.positions(points, last)
+            ones = np.ones((n_frames, len(points)))
+            exact = Tracks(video.truth.positions(points), ones.astype(bool), ones)
+            runs = [("exact positions", exact, 0.0)]
+            for name in trackers:
+                t0 = time.perf_counter()
+                runs.append(
+                    (name, track(video.frames, points, tracker=name), time.perf_counter() - t0)
+                )
+            for name, tracks, seconds in runs:
+                field = strain_from_tracks(tracks, grid_shape=grid)
+                vis = tracks.visible[last]
+                dist = np.linalg.norm(tracks.positions[last] - true_pos, axis=1)
+                row = _row(
+                    case,
+                    name,
+                    np.where(vis, dist, np.nan),
+                    field.nodal_E[last] - true_E,
+                    true_pos - points,
+                    vis,
+                    seconds,
+                    seconds,
+                    true_E,
+                )
+                row["value"] = value
+                rows.append(row)
+    return {
+        "sweep": kind,
+        "parameter": label,
+        "setup": {"image_size": [size, size], "n_frames": n_frames, "seed": seed, "quick": quick},
+        "results": rows,
+    }
+
+
+def sweep_markdown(results: dict) -> str:
+    """A Markdown table of a sweep: one row per case, value and tracker."""
+    setup = results["setup"]
+    lines = [
+        f"Sweep of {results['parameter']}, {setup['image_size'][0]} px, {setup['n_frames']} "
+        "frames, final frame, RMSE of the tracking error (px) and of each strain component.",
+        "",
+        f"| case | {results['parameter']} | tracker | tracking (px) | Exx | Eyy | Exy | lost |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for row in results["results"]:
+        track_cell = (
+            "0" if row["tracker"] == "exact positions" else f"{row['track_px']['rmse']:.3f}"
+        )
+        cells = " | ".join(f"{row[k]['rmse']:.4f}" for k in ("Exx", "Eyy", "Exy"))
+        lines.append(
+            f"| {row['case']} | {row['value']:g} | {row['tracker']} | {track_cell} | {cells} | "
+            f"{row['lost_points']}/{row['n_points']} |"
+        )
+    return "\n".join(lines) + "\n"

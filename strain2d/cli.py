@@ -125,6 +125,11 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="random seed of the synthetic videos")
     p.add_argument("--grid", default="7x7", help="grid COLSxROWS on each case's region (7x7)")
     p.add_argument("--no-figures", action="store_true", help="skip the error-contour figures")
+    p.add_argument(
+        "--sweep",
+        help="also run sweeps, comma-separated: grid, noise, contrast, density "
+        "(writes sweep_KIND.json and .md)",
+    )
     p.add_argument("--out", required=True, help="output folder (benchmark.json, benchmark.md)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(handler=_cmd_benchmark)
@@ -317,7 +322,13 @@ def _cmd_analyze(args) -> int:
 
 def _cmd_benchmark(args) -> int:
     from strain2d.atomic import atomic_dir, check_writable
-    from strain2d.benchmark import benchmark_markdown, run_benchmark
+    from strain2d.benchmark import (
+        SWEEPS,
+        benchmark_markdown,
+        run_benchmark,
+        run_sweep,
+        sweep_markdown,
+    )
     from strain2d.export import write_json
 
     check_writable(args.out, overwrite=args.overwrite)
@@ -342,6 +353,10 @@ def _cmd_benchmark(args) -> int:
     from strain2d.grid import parse_grid
 
     grid = parse_grid(args.grid)
+    sweeps = [k.strip() for k in args.sweep.split(",")] if args.sweep else []
+    for kind in sweeps:
+        if kind not in SWEEPS:
+            raise InputError(f"unknown sweep {kind!r}; choose from {', '.join(SWEEPS)}")
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         figures = None if args.no_figures else tmp / "figures"
         if figures:
@@ -359,6 +374,13 @@ def _cmd_benchmark(args) -> int:
         table = benchmark_markdown(results)
         write_json(tmp / "benchmark.json", results)
         (tmp / "benchmark.md").write_text(table)
+        for kind in sweeps:
+            sweep = run_sweep(
+                kind, quick=args.quick, trackers=trackers, seed=args.seed, progress=say
+            )
+            sweep["software"] = results["software"]
+            write_json(tmp / f"sweep_{kind}.json", sweep)
+            (tmp / f"sweep_{kind}.md").write_text(sweep_markdown(sweep))
     if not args.quiet:
         print(table)
     return 0

@@ -524,3 +524,33 @@ def test_benchmark_heterogeneous_case_separates_grid_and_tracking_error(tmp_path
     assert dic["Exx"]["rmse"] < floor["Exx"]["rmse"] + 0.005  # tracking adds little
     assert dic["track_px"]["rmse"] < 0.3
     assert not (out / "figures").exists()
+
+
+def test_sweeps_write_tables_and_show_the_expected_trends(tmp_path):
+    from strain2d.benchmark import run_sweep, sweep_markdown
+
+    sweep = run_sweep("contrast", quick=True, trackers=["dic"])
+    dic = {r["value"]: r for r in sweep["results"] if r["tracker"] == "dic"}
+    assert set(dic) == {0.1, 0.2, 0.4, 0.8}
+    assert dic[0.1]["track_px"]["rmse"] > dic[0.8]["track_px"]["rmse"]  # faint pattern: worse
+    assert "| equibiaxial | 0.8 | dic |" in sweep_markdown(sweep)
+    out = tmp_path / "b"
+    assert (
+        main(
+            [
+                "-q",
+                "benchmark",
+                "--quick",
+                "--cases",
+                "rotation",
+                "--trackers",
+                "dic",
+                "--no-figures",
+                "--sweep",
+                "bogus",
+                "--out",
+                str(out),
+            ]
+        )
+        == 2
+    )
