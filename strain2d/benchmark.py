@@ -240,6 +240,7 @@ SWEEPS = {
     "noise": ("read noise (gray levels)", (0.0, 1.0, 2.0, 4.0, 8.0), ("equibiaxial",)),
     "contrast": ("speckle contrast", (0.1, 0.2, 0.4, 0.8), ("equibiaxial",)),
     "density": ("speckle density", (0.25, 0.5, 1.0, 1.5), ("equibiaxial",)),
+    "subset": ("subset / window size (px)", (15, 21, 31, 41), ("gaussian", "equibiaxial")),
 }
 
 
@@ -255,9 +256,11 @@ def run_sweep(
 
     ``grid`` re-tracks one video per case with denser and denser grids and
     shows the spatial-resolution trade-off together with the grid floor
-    (strain from exact positions); ``noise``, ``contrast`` and ``density``
-    re-render the equibiaxial case with the changed image and track a 7 x 7
-    grid.  Errors are on the final frame, as in :func:`run_benchmark`.
+    (strain from exact positions); ``subset`` re-tracks a 15 x 15 grid with
+    smaller and larger subsets (``dic``) and windows (``klt``), the other
+    half of that trade-off; ``noise``, ``contrast`` and ``density`` re-render
+    the equibiaxial case with the changed image and track a 7 x 7 grid.  Errors are
+    on the final frame, as in :func:`run_benchmark`.
     """
     from sample_data_synth.cases import make_case
 
@@ -280,9 +283,9 @@ def run_sweep(
                 render = {"speckle_contrast": value}
             elif kind == "density":
                 render = {"speckle_density": value}
-            if video is None or kind != "grid":
+            if video is None or kind not in ("grid", "subset"):
                 video = make_case(case, size=size, n_frames=n_frames, rng=seed, **render)
-            grid = (int(value), int(value)) if kind == "grid" else (7, 7)
+            grid = {"grid": (int(value), int(value)), "subset": (15, 15)}.get(kind, (7, 7))
             points = video.truth.grid(grid)
             true_E = video.truth.strain(points, last)
             true_pos = video.truth.positions(points, last)
@@ -290,10 +293,13 @@ def run_sweep(
             exact = Tracks(video.truth.positions(points), ones.astype(bool), ones)
             runs = [("exact positions", exact, 0.0)]
             for name in trackers:
+                options = {}
+                if kind == "subset":
+                    by_tracker = {"dic": {"subset": int(value)}, "klt": {"window": int(value)}}
+                    options = by_tracker.get(name, {})
                 t0 = time.perf_counter()
-                runs.append(
-                    (name, track(video.frames, points, tracker=name), time.perf_counter() - t0)
-                )
+                tracks = track(video.frames, points, tracker=name, options=options)
+                runs.append((name, tracks, time.perf_counter() - t0))
             for name, tracks, seconds in runs:
                 field = strain_from_tracks(tracks, grid_shape=grid)
                 vis = tracks.visible[last]

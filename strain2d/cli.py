@@ -127,7 +127,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="skip the error-contour figures")
     p.add_argument(
         "--sweep",
-        help="also run sweeps, comma-separated: grid, noise, contrast, density "
+        help="also run sweeps, comma-separated: grid, subset, noise, contrast, density "
         "(writes sweep_KIND.json and .md)",
     )
     p.add_argument("--out", required=True, help="output folder (benchmark.json, benchmark.md)")

@@ -11,6 +11,8 @@ from frame to frame, means errors do not accumulate.
 Robustness, in order, for points whose IC-GN fails (not converged, ZNCC below
 ``zncc_min``, or subset outside the image):
 
+0. a match whose motion since the last frame disagrees with its neighbours'
+   (the normalized median test of PIV) is a false match and fails too;
 1. reliability-guided restart: the point is moved as its best-correlated
    successful neighbour moved since the point was last matched, and IC-GN
    restarts there;
@@ -317,6 +319,36 @@ def _search(
     return np.array([x0 + ix + h, y0 + iy + h], dtype=float), float(score[iy, ix])
 
 
+def _median_outliers(
+    step: np.ndarray,
+    valid: np.ndarray,
+    near: np.ndarray,
+    *,
+    threshold: float = 2.0,
+    epsilon: float = 0.1,
+) -> np.ndarray:
+    """Normalized median test on each point's motion ``step`` ``(N, 2)`` (pixels).
+
+    ``r = |step - median(neighbours)| / (median |neighbours - their median| + epsilon)``
+    per component; a ``valid`` point with ``r > threshold`` and at least three
+    valid neighbours is an outlier.  Westerweel, J. & Scarano, F. (2005),
+    Experiments in Fluids 39, 1096-1100, https://doi.org/10.1007/s00348-005-0016-6.
+    """
+    if near.shape[1] < 3:
+        return np.zeros(len(step), dtype=bool)
+    neighbour = np.where(valid[near][..., None], step[near], np.nan)  # (N, k, 2)
+    enough = valid[near].sum(axis=1) >= 3
+    out = np.zeros(len(step), dtype=bool)
+    if not enough.any():
+        return out
+    nb = neighbour[enough]
+    median = np.nanmedian(nb, axis=1)
+    spread = np.nanmedian(np.abs(nb - median[:, None, :]), axis=1)
+    residual = np.abs(step[enough] - median) / (spread + epsilon)
+    out[enough] = valid[enough] & (residual.max(axis=1) > threshold)
+    return out
+
+
 def _neighbour_guess(
     ref: _Subsets,
     p: np.ndarray,
@@ -448,6 +480,10 @@ def track_dic(
         guess = p + rate
         p_new, zncc, conv = corr.match(coeff, ref, np.arange(n), guess)
         ok = conv & (zncc >= zncc_min) & _inside(corr, ref.centers, p_new, shape)
+        # a match whose frame-to-frame motion disagrees with its neighbours' is a false
+        # match (the normalized median test); it restarts from its neighbours below
+        step = ref.centers + p_new[:, :2] - positions[-1]
+        ok &= ~_median_outliers(step, ok & (last_seen == t - 1), near)
 
         # 1. reliability-guided propagation: restart failed points from their best
         #    matched neighbour, round after round while the matched region grows

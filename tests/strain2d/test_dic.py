@@ -133,3 +133,27 @@ def test_coefficients_equal_scipys_spline_filter():
         ndimage.spline_filter(image, order=3, mode="mirror"),
         atol=1e-9,
     )
+
+
+def test_false_matches_are_caught_by_the_median_test():
+    """Small subsets and 7 px first steps invite false matches (once locked in by a
+    reference update): the normalized median test sends them back to their neighbours."""
+    video = make_case("equibiaxial", size=400, n_frames=11, rng=0)
+    points = video.truth.grid((15, 15))
+    tracks = track(video.frames, points, tracker="dic", options={"subset": 15})
+    err = np.linalg.norm(tracks.positions[-1] - video.truth.positions(points, 10), axis=1)
+    assert err.max() < 0.5
+    assert np.sqrt(np.mean(err**2)) < 0.1
+
+
+def test_median_outlier_test():
+    from strain2d.trackers.dic import _median_outliers
+
+    g = np.stack(np.meshgrid(np.arange(5.0), np.arange(5.0)), -1).reshape(-1, 2) * 20
+    step = 0.05 * g  # a smooth (stretching) motion field
+    step[12] += [3.0, 0.0]  # one false match in the middle
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(g).query(g, 9)[1][:, 1:]
+    out = _median_outliers(step, np.ones(25, bool), near)
+    assert out[12] and out.sum() == 1
