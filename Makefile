@@ -50,7 +50,8 @@ lint: setup
 
 bench: setup
 	mkdir -p bench/results
-	$(BIN)/python -m strain2d benchmark --out bench/results/table1 --overwrite
+	$(BIN)/python -m strain2d benchmark --sweep grid,subset,noise,contrast,density \
+	    --out bench/results/table1 --overwrite
 
 # Optional extras: open3d needs the system library libusb-1.0-0.
 setup-3d: setup

@@ -2,9 +2,10 @@
 
     python docs/make_figures.py
 
-Writes docs/images/: the demo's tracked grid and strain maps (copied from
-demo_output/), the four synthetic benchmark cases, and a 3D membrane-strain
-example computed by surface_strain.
+Writes docs/images/: the demo's tracked grid and strain maps (from
+demo_output/), the four synthetic benchmark cases, a 3D membrane-strain
+example computed by surface_strain, and dic's strain-error maps on two
+heterogeneous fields with a coarse and a fine grid.
 """
 
 from __future__ import annotations
@@ -41,8 +42,8 @@ def demo_figures() -> None:
 
 
 def synthetic_cases() -> None:
-    fig = Figure(figsize=(12, 6.2), layout="constrained")
-    axes = fig.subplots(2, 4)
+    fig = Figure(figsize=(3 * len(CASES), 6.2), layout="constrained")
+    axes = fig.subplots(2, len(CASES))
     for col, case in enumerate(CASES):
         video = make_case(case, size=400, n_frames=11, rng=0)
         grid = video.truth.grid((7, 7))
@@ -93,9 +94,33 @@ def membrane_3d() -> None:
     fig.savefig(OUT / "surface_strain_3d.png", dpi=80)
 
 
+def error_figures() -> None:
+    """dic's nodal strain error on two heterogeneous fields, 7x7 and 21x21 grids."""
+    from strain2d import strain_from_tracks, track
+    from strain2d.figures import plot_strain_errors
+
+    for case in ("gaussian", "fold"):
+        video = make_case(case, size=800, n_frames=31, rng=0)
+        for n in (7, 21):
+            points = video.truth.grid((n, n))
+            tracks = track(video.frames, points, tracker="dic")
+            field = strain_from_tracks(tracks, grid_shape=(n, n))
+            err = field.nodal_E[-1] - video.truth.strain(points, 30)
+            plot_strain_errors(
+                OUT / f"errors_{case}_{n}x{n}.png",
+                video.frames[-1],
+                field,
+                30,
+                err,
+                title=f"{case}, dic, {n}x{n} grid: nodal strain error on the last frame",
+                dpi=55,
+            )
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     demo_figures()
     synthetic_cases()
     membrane_3d()
+    error_figures()
     print(f"figures written to {OUT}")

@@ -26,6 +26,7 @@ _TRACKER_FLAGS = {
     "tracks_file": "tracks_file",
     "subset": "subset",
     "zncc_min": "zncc_min",
+    "shape_function": "shape_function",
 }
 
 
@@ -52,6 +53,11 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
         "--tracker", default="dic", help="tracker name: dic, klt, imported (default dic)"
     )
     p.add_argument("--subset", type=int, help="dic: subset side in pixels (default 31)")
+    p.add_argument(
+        "--shape-function",
+        choices=["affine", "quadratic"],
+        help="dic: subset warp, first or second order (default affine)",
+    )
     p.add_argument(
         "--zncc-min", type=float, help="dic: correlation below which a point is lost (default 0.75)"
     )

@@ -140,3 +140,133 @@ def icgn(
         for k in range(6):
             p_out[i, k] = p[k] if np.isfinite(p[k]) else 0.0
     return p_out, zncc_out, conv_out
+
+
+@njit(cache=True, inline="always")
+def _matrix2(p: np.ndarray) -> np.ndarray:
+    """6 x 6 matrix of a second-order warp (see ``dic._matrix2``)."""
+    u, v, ux, uy, vx, vy = p[0], p[1], p[2], p[3], p[4], p[5]
+    uxx, uxy, uyy, vxx, vxy, vyy = p[6], p[7], p[8], p[9], p[10], p[11]
+    a1, a2, b1, b2 = 1 + ux, uy, vx, 1 + vy
+    M = np.zeros((6, 6))
+    M[0, 0] = a1 * a1 + u * uxx
+    M[0, 1] = 2 * a1 * a2 + 2 * u * uxy
+    M[0, 2] = a2 * a2 + u * uyy
+    M[0, 3] = 2 * u * a1
+    M[0, 4] = 2 * u * a2
+    M[0, 5] = u * u
+    M[1, 0] = a1 * b1 + 0.5 * (u * vxx + v * uxx)
+    M[1, 1] = a1 * b2 + a2 * b1 + u * vxy + v * uxy
+    M[1, 2] = a2 * b2 + 0.5 * (u * vyy + v * uyy)
+    M[1, 3] = u * b1 + v * a1
+    M[1, 4] = u * b2 + v * a2
+    M[1, 5] = u * v
+    M[2, 0] = b1 * b1 + v * vxx
+    M[2, 1] = 2 * b1 * b2 + 2 * v * vxy
+    M[2, 2] = b2 * b2 + v * vyy
+    M[2, 3] = 2 * v * b1
+    M[2, 4] = 2 * v * b2
+    M[2, 5] = v * v
+    M[3, 0] = 0.5 * uxx
+    M[3, 1] = uxy
+    M[3, 2] = 0.5 * uyy
+    M[3, 3] = a1
+    M[3, 4] = a2
+    M[3, 5] = u
+    M[4, 0] = 0.5 * vxx
+    M[4, 1] = vxy
+    M[4, 2] = 0.5 * vyy
+    M[4, 3] = b1
+    M[4, 4] = b2
+    M[4, 5] = v
+    M[5, 5] = 1.0
+    return M
+
+
+@njit(cache=True, parallel=True)
+def icgn2(
+    coeff: np.ndarray,
+    centers: np.ndarray,
+    f: np.ndarray,
+    norm: np.ndarray,
+    G: np.ndarray,
+    p0: np.ndarray,
+    ex: np.ndarray,
+    ey: np.ndarray,
+    half: int,
+    tolerance: float,
+    max_iterations: int,
+    zncc_min: float,
+):
+    """IC-GN with the second-order shape function (12 parameters), as :func:`icgn`."""
+    n, s2 = f.shape
+    p_out = p0.copy()
+    zncc_out = np.full(n, -1.0)
+    conv_out = np.zeros(n, dtype=np.bool_)
+    for i in prange(n):
+        p = p_out[i].copy()
+        g = np.empty(s2)
+        b = np.empty(12)
+        cx = centers[i, 0]
+        cy = centers[i, 1]
+        for iteration in range(max_iterations):
+            mean = 0.0
+            for j in range(s2):
+                qx = 0.5 * ex[j] * ex[j]
+                qxy = ex[j] * ey[j]
+                qy = 0.5 * ey[j] * ey[j]
+                x = cx + p[0] + (1 + p[2]) * ex[j] + p[3] * ey[j] + p[6] * qx + p[7] * qxy
+                x += p[8] * qy
+                y = cy + p[1] + p[4] * ex[j] + (1 + p[5]) * ey[j] + p[9] * qx + p[10] * qxy
+                y += p[11] * qy
+                g[j] = _bspline(coeff, x, y)
+                mean += g[j]
+            mean /= s2
+            ss = 0.0
+            for j in range(s2):
+                g[j] -= mean
+                ss += g[j] * g[j]
+            if ss < 1e-18:
+                zncc_out[i] = -1.0
+                break
+            gnorm = np.sqrt(ss)
+            dist = 0.0
+            b[:] = 0.0
+            for j in range(s2):
+                d = f[i, j] - g[j] / gnorm
+                dist += d * d
+                r = d * norm[i]
+                for k in range(12):
+                    b[k] += G[i, k, j] * r
+            zncc = 1.0 - 0.5 * dist
+            zncc_out[i] = zncc
+            dp = -b
+            Md = _matrix2(dp)
+            if not np.all(np.isfinite(Md)):
+                break
+            M = _matrix2(p) @ np.linalg.inv(Md)
+            p[0], p[1] = M[3, 5], M[4, 5]
+            p[2], p[3], p[4], p[5] = M[3, 3] - 1, M[3, 4], M[4, 3], M[4, 4] - 1
+            p[6], p[7], p[8] = 2 * M[3, 0], M[3, 1], 2 * M[3, 2]
+            p[9], p[10], p[11] = 2 * M[4, 0], M[4, 1], 2 * M[4, 2]
+            first = dp[2] ** 2 + dp[3] ** 2 + dp[4] ** 2 + dp[5] ** 2
+            second = 0.0
+            for k in range(6, 12):
+                second += dp[k] ** 2
+            step = np.sqrt(dp[0] ** 2 + dp[1] ** 2 + half * half * first + 0.25 * half**4 * second)
+            finite = np.isfinite(step)
+            for k in range(12):
+                finite = finite and np.isfinite(p[k])
+            wild = False
+            for k in range(2, 6):
+                wild = wild or abs(p[k]) > 2.0
+            if not finite or wild:
+                break
+            if step < tolerance:
+                conv_out[i] = True
+                break
+            if iteration >= 7 and zncc < zncc_min:
+                break
+        for k in range(12):
+            p_out[i, k] = p[k] if np.isfinite(p[k]) else 0.0
+    return p_out, zncc_out, conv_out

@@ -2,7 +2,8 @@
 
 Each point carries a square subset of the reference image (``subset`` pixels a
 side). On every frame the subset's warp is found by inverse-compositional
-Gauss-Newton (IC-GN) with an affine shape function, minimizing the zero-mean
+Gauss-Newton (IC-GN) with an affine shape function (a second-order one on
+request), minimizing the zero-mean
 normalized sum of squared differences (ZNSSD). ZNSSD is insensitive to
 brightness and contrast changes. The search starts from the previous frame's
 warp plus its velocity. Tracking against the reference frame, instead of
@@ -12,7 +13,9 @@ Robustness, in order, for points whose IC-GN fails (not converged, ZNCC below
 ``zncc_min``, or subset outside the image):
 
 0. a match whose motion since the last frame disagrees with its neighbours'
-   (the normalized median test of PIV) is a false match and fails too;
+   (the normalized median test of PIV) is a false match and fails too; a
+   weak match (correlation below ``update_below``) is restarted from its best
+   neighbour and the better of the two results is kept;
 1. reliability-guided restart: the point is moved as its best-correlated
    successful neighbour moved since the point was last matched, and IC-GN
    restarts there;
@@ -69,8 +72,8 @@ from strain2d.errors import InputError
 from strain2d.trackers import register_tracker
 from strain2d.tracks import Tracks
 
-# Warp parameters p = (u, v, du/dx, du/dy, dv/dx, dv/dy): x' = x0 + u + (1 + ux) dx + uy dy, etc.
-_NP = 6
+# Warp parameters p = (u, v, du/dx, du/dy, dv/dx, dv/dy[, uxx, uxy, uyy, vxx, vxy, vyy]):
+# x' = x0 + u + (1 + ux) dx + uy dy [+ uxx dx^2 / 2 + uxy dx dy + uyy dy^2 / 2], etc.
 
 
 _WORKERS = max(1, min(os.cpu_count() or 1, 8))
@@ -88,13 +91,13 @@ def _blocks(n: int, parts: int) -> list[slice]:
 
 
 @functools.cache
-def _compiled_kernel():
-    """The numba IC-GN kernel, or None where numba cannot be imported."""
+def _compiled_kernel(order: int = 1):
+    """The numba IC-GN kernel for a shape-function order, or None without numba."""
     try:
-        from strain2d.trackers._icgn_kernel import icgn
+        from strain2d.trackers._icgn_kernel import icgn, icgn2
     except ImportError:
         return None
-    return icgn
+    return icgn if order == 1 else icgn2
 
 
 def _coefficients(frame: np.ndarray) -> np.ndarray:
@@ -145,6 +148,64 @@ def _params(M: np.ndarray) -> np.ndarray:
     )
 
 
+def _matrix2(p: np.ndarray) -> np.ndarray:
+    """Second-order warps ``(n, 6, 6)`` from parameters ``(n, 12)``.
+
+    The warp acts on ``(dx^2, dx dy, dy^2, dx, dy, 1)``; rows 3-4 are the exact
+    quadratic map and rows 0-2 its products truncated at second order, so that
+    composition and inversion are matrix products (Gao, Y., Cheng, T., Su, Y.,
+    Xu, X., Zhang, Y., & Zhang, Q. (2015). High-efficiency and high-accuracy
+    digital image correlation for three-dimensional measurement. Optics and
+    Lasers in Engineering 65, 73-80. https://doi.org/10.1016/j.optlaseng.2014.05.013).
+    """
+    u, v, ux, uy, vx, vy, uxx, uxy, uyy, vxx, vxy, vyy = p.T
+    a1, a2, b1, b2 = 1 + ux, uy, vx, 1 + vy
+    M = np.zeros((len(p), 6, 6))
+    M[:, 0] = np.stack(
+        [a1**2 + u * uxx, 2 * a1 * a2 + 2 * u * uxy, a2**2 + u * uyy, 2 * u * a1, 2 * u * a2, u**2],
+        axis=-1,
+    )
+    M[:, 1] = np.stack(
+        [
+            a1 * b1 + 0.5 * (u * vxx + v * uxx),
+            a1 * b2 + a2 * b1 + u * vxy + v * uxy,
+            a2 * b2 + 0.5 * (u * vyy + v * uyy),
+            u * b1 + v * a1,
+            u * b2 + v * a2,
+            u * v,
+        ],
+        axis=-1,
+    )
+    M[:, 2] = np.stack(
+        [b1**2 + v * vxx, 2 * b1 * b2 + 2 * v * vxy, b2**2 + v * vyy, 2 * v * b1, 2 * v * b2, v**2],
+        axis=-1,
+    )
+    M[:, 3] = np.stack([0.5 * uxx, uxy, 0.5 * uyy, a1, a2, u], axis=-1)
+    M[:, 4] = np.stack([0.5 * vxx, vxy, 0.5 * vyy, b1, b2, v], axis=-1)
+    M[:, 5, 5] = 1.0
+    return M
+
+
+def _params2(M: np.ndarray) -> np.ndarray:
+    return np.stack(
+        [
+            M[:, 3, 5],
+            M[:, 4, 5],
+            M[:, 3, 3] - 1,
+            M[:, 3, 4],
+            M[:, 4, 3],
+            M[:, 4, 4] - 1,
+            2 * M[:, 3, 0],
+            M[:, 3, 1],
+            2 * M[:, 3, 2],
+            2 * M[:, 4, 0],
+            M[:, 4, 1],
+            2 * M[:, 4, 2],
+        ],
+        axis=-1,
+    )
+
+
 @dataclass
 class _Subsets:
     """Reference subsets of all points (rows are points)."""
@@ -153,7 +214,7 @@ class _Subsets:
     frame: np.ndarray  # (N,) index of the frame each subset was sampled from
     f: np.ndarray  # (N, S2) zero-mean intensities divided by their norm
     norm: np.ndarray  # (N, 1) sqrt(sum (f - mean f)^2)
-    G: np.ndarray  # (N, 6, S2) Gauss-Newton step operator H^-1 J^T
+    G: np.ndarray  # (N, P, S2) Gauss-Newton step operator H^-1 J^T (P = 6 or 12)
     template: np.ndarray  # (N, S, S) float32, for the integer search
 
     def replace(self, rows: np.ndarray, other: _Subsets) -> None:
@@ -171,9 +232,12 @@ class _Correlator:
         tolerance: float,
         zncc_min: float,
         *,
+        order: int = 1,
         compiled: bool = True,
     ) -> None:
         self.compiled = compiled
+        self.order = order
+        self.n_params = 6 if order == 1 else 12
         self.half = subset // 2
         self.size = subset
         o = np.arange(-self.half, self.half + 1, dtype=float)
@@ -196,7 +260,11 @@ class _Correlator:
         fx = 0.5 * (patch[:, 1:-1, 2:] - patch[:, 1:-1, :-2]).reshape(n, -1)
         fy = 0.5 * (patch[:, 2:, 1:-1] - patch[:, :-2, 1:-1]).reshape(n, -1)
         ex, ey = self.ex, self.ey
-        J = np.stack([fx, fy, fx * ex, fx * ey, fy * ex, fy * ey], axis=1)  # (n, 6, S2)
+        columns = [fx, fy, fx * ex, fx * ey, fy * ex, fy * ey]
+        if self.order == 2:
+            q = (0.5 * ex * ex, ex * ey, 0.5 * ey * ey)
+            columns += [fx * q[0], fx * q[1], fx * q[2], fy * q[0], fy * q[1], fy * q[2]]
+        J = np.stack(columns, axis=1)  # (n, P, S2)
         # textureless subsets have a singular Hessian: keep them, they simply never match
         Hinv = np.linalg.pinv(J @ np.swapaxes(J, 1, 2))
         fm = f - f.mean(axis=1, keepdims=True)
@@ -206,9 +274,7 @@ class _Correlator:
         return _Subsets(centers.copy(), np.full(n, frame), fm / norm, norm, Hinv @ J, template)
 
     def warped_coordinates(self, centers: np.ndarray, p: np.ndarray):
-        x = centers[:, :1] + p[:, :1] + (1 + p[:, 2:3]) * self.ex + p[:, 3:4] * self.ey
-        y = centers[:, 1:] + p[:, 1:2] + p[:, 4:5] * self.ex + (1 + p[:, 5:6]) * self.ey
-        return x, y
+        return _warp(centers, p, self.ex, self.ey)
 
     def match(
         self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
@@ -218,7 +284,7 @@ class _Correlator:
         Runs the compiled kernel (:mod:`strain2d.trackers._icgn_kernel`) when
         numba is available, else :meth:`match_numpy`; both give the same result.
         """
-        kernel = _compiled_kernel()
+        kernel = _compiled_kernel(self.order)
         if kernel is None or not self.compiled:
             return self.match_numpy(coefficients, ref, idx, p0)
         full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
@@ -274,11 +340,21 @@ class _Correlator:
             zncc[active] = za
             r = (fa - gn) * (norm if every else norm[active])  # ZNSSD residual, f's scale
             dp = -((G if every else G[active]) @ r[..., None])[..., 0]
-            p[active] = _params(_matrix(pa) @ np.linalg.inv(_matrix(dp)))
-            step = np.sqrt(dp[:, 0] ** 2 + dp[:, 1] ** 2 + np.sum((h * dp[:, 2:]) ** 2, axis=1))
+            if self.order == 1:
+                p[active] = _params(_matrix(pa) @ np.linalg.inv(_matrix(dp)))
+            else:
+                p[active] = _params2(_matrix2(pa) @ np.linalg.inv(_matrix2(dp)))
+            # largest move of a subset pixel (first-order terms at the edge, second-order
+            # terms at the corner)
+            step = np.sqrt(
+                dp[:, 0] ** 2
+                + dp[:, 1] ** 2
+                + np.sum((h * dp[:, 2:6]) ** 2, axis=1)
+                + np.sum((0.5 * h * h * dp[:, 6:]) ** 2, axis=1)
+            )
             finite = np.isfinite(step) & np.isfinite(p[active]).all(axis=1)
             done = finite & (step < self.tolerance)
-            failed = ~finite | (np.abs(p[active, 2:]) > 2.0).any(axis=1)
+            failed = ~finite | (np.abs(p[active, 2:6]) > 2.0).any(axis=1)
             if iteration >= 7:
                 failed |= za < self.zncc_min
             converged[active[done & ~failed]] = True
@@ -286,15 +362,28 @@ class _Correlator:
         return np.nan_to_num(p), zncc, converged
 
 
+def _warp(centers: np.ndarray, p: np.ndarray, ex: np.ndarray, ey: np.ndarray):
+    """Warped coordinates ``(n, len(ex))`` of offsets ``(ex, ey)`` for warps ``p`` (6 or 12)."""
+    x = centers[:, :1] + p[:, :1] + (1 + p[:, 2:3]) * ex + p[:, 3:4] * ey
+    y = centers[:, 1:] + p[:, 1:2] + p[:, 4:5] * ex + (1 + p[:, 5:6]) * ey
+    if p.shape[1] == 12:
+        qx, qxy, qy = 0.5 * ex * ex, ex * ey, 0.5 * ey * ey
+        x = x + p[:, 6:7] * qx + p[:, 7:8] * qxy + p[:, 8:9] * qy
+        y = y + p[:, 9:10] * qx + p[:, 10:11] * qxy + p[:, 11:12] * qy
+    return x, y
+
+
 def _inside(
     corr: _Correlator, centers: np.ndarray, p: np.ndarray, shape: tuple[int, int]
 ) -> np.ndarray:
-    """Whether each warped subset lies in the image (with a 1 px spline margin)."""
+    """Whether each warped subset lies in the image (with a 1 px spline margin).
+
+    Checks the corners and edge midpoints (a quadratic warp can bulge an edge).
+    """
     h = corr.half
-    cx = np.array([-h, h, -h, h], dtype=float)
-    cy = np.array([-h, -h, h, h], dtype=float)
-    x = centers[:, None, 0] + p[:, None, 0] + (1 + p[:, None, 2]) * cx + p[:, None, 3] * cy
-    y = centers[:, None, 1] + p[:, None, 1] + p[:, None, 4] * cx + (1 + p[:, None, 5]) * cy
+    cx = np.array([-h, 0, h, -h, h, -h, 0, h], dtype=float)
+    cy = np.array([-h, -h, -h, 0, 0, h, h, h], dtype=float)
+    x, y = _warp(centers, p, cx, cy)
     H, W = shape
     return np.all((x >= 1) & (x <= W - 2) & (y >= 1) & (y <= H - 2), axis=1)
 
@@ -401,6 +490,7 @@ def track_dic(
     points: np.ndarray,
     *,
     subset: int = 31,
+    shape_function: str = "affine",
     zncc_min: float = 0.75,
     update_below: float = 0.9,
     search_radius: int | None = None,
@@ -419,6 +509,10 @@ def track_dic(
         Reference positions (x, y) in pixels.
     subset : int, keyword-only
         Side of the square subset in pixels (odd, >= 7).
+    shape_function : {"affine", "quadratic"}, keyword-only
+        First-order (6 parameters) or second-order (12) subset warp.  The
+        quadratic one follows strain that varies within a subset (folds,
+        local contractions) with less bias, at about twice the cost.
     zncc_min : float, keyword-only
         Correlation below which a match counts as failed (point not visible).
     update_below : float, keyword-only
@@ -440,6 +534,8 @@ def track_dic(
         ``meta["reference_updates"]`` is the number of incremental reference
         updates per point.
     """
+    if shape_function not in ("affine", "quadratic"):
+        raise InputError(f"--shape-function must be affine or quadratic, got {shape_function!r}")
     if subset < 7 or subset % 2 == 0:
         raise InputError(f"--subset must be an odd number >= 7, got {subset}")
     if not (-1 < zncc_min < 1) or not (-1 <= update_below < 1):
@@ -458,15 +554,16 @@ def track_dic(
     shape = ref_frame.shape
     if subset >= min(shape):
         raise InputError(f"--subset {subset} must be smaller than the {shape[1]}x{shape[0]} frames")
-    corr = _Correlator(subset, max_iterations, tolerance, zncc_min)
+    order = 1 if shape_function == "affine" else 2
+    corr = _Correlator(subset, max_iterations, tolerance, zncc_min, order=order)
     ref = corr.reference(_coefficients(ref_frame), points, 0)
-    inside0 = _inside(corr, points, np.zeros((n, _NP)), shape)
+    inside0 = _inside(corr, points, np.zeros((n, corr.n_params)), shape)
     k = min(neighbours + 1, n)
     _, near = cKDTree(points).query(points, k)
     near = near.reshape(n, k)[:, 1:]
 
-    p = np.zeros((n, _NP))  # warp of each point relative to its current reference subset
-    rate = np.zeros((n, _NP))  # change of p over the last frame, for the next guess
+    p = np.zeros((n, corr.n_params))  # warp of each point relative to its current reference subset
+    rate = np.zeros((n, corr.n_params))  # change of p over the last frame, for the next guess
     updates = np.zeros(n, dtype=int)
     last_seen = np.zeros(n, dtype=int)  # frame index where each point was last matched
     positions = [points.copy()]
@@ -485,9 +582,27 @@ def track_dic(
         step = ref.centers + p_new[:, :2] - positions[-1]
         ok &= ~_median_outliers(step, ok & (last_seen == t - 1), near)
 
+        history = np.stack(positions)
+        # weak matches (correlation below update_below) may be false optima: restart them
+        # from their best matched neighbour and keep whichever correlates better, before
+        # a reference update could lock a wrong match in
+        weak = np.flatnonzero(ok & (zncc < update_below))
+        if weak.size:
+            strong = ok.copy()
+            strong[weak] = False
+            cand = near[weak]
+            score = np.where(strong[cand], zncc[cand], -np.inf)
+            usable = np.isfinite(score.max(axis=1))
+            w_idx = weak[usable]
+            b_idx = cand[usable][np.arange(usable.sum()), np.argmax(score[usable], axis=1)]
+            if w_idx.size:
+                start = _neighbour_guess(ref, p, p_new, history, last_seen, w_idx, b_idx)
+                p2, z2, c2 = corr.match(coeff, ref, w_idx, start)
+                better = c2 & (z2 > zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p2, shape)
+                p_new[w_idx[better]], zncc[w_idx[better]] = p2[better], z2[better]
+
         # 1. reliability-guided propagation: restart failed points from their best
         #    matched neighbour, round after round while the matched region grows
-        history = np.stack(positions)
         for _ in range(n):
             failed = np.flatnonzero(~ok)
             if failed.size == 0 or not ok.any():
@@ -550,7 +665,7 @@ def track_dic(
         "max_iterations": max_iterations,
         "tolerance": tolerance,
         "interpolation": "cubic B-spline",
-        "shape_function": "affine",
+        "shape_function": shape_function,
     }
     return Tracks(
         np.stack(positions),

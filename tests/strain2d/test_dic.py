@@ -157,3 +157,54 @@ def test_median_outlier_test():
     near = cKDTree(g).query(g, 9)[1][:, 1:]
     out = _median_outliers(step, np.ones(25, bool), near)
     assert out[12] and out.sum() == 1
+
+
+def test_quadratic_kernel_equals_numpy_and_follows_curved_fields():
+    from strain2d.trackers import dic
+
+    video = make_case("fold", size=300, n_frames=3, rng=14)
+    points = video.truth.grid((5, 5))
+    corr = dic._Correlator(31, 30, 1e-3, 0.75, order=2)
+    ref = corr.reference(dic._coefficients(video.frames[0]), points, 0)
+    coeff = dic._coefficients(video.frames[2])
+    guess = np.zeros((25, 12))
+    guess[:, :2] = video.truth.positions(points, 2) - points + 0.3
+    fast = corr.match(coeff, ref, np.arange(25), guess)
+    slow = corr.match_numpy(coeff, ref, np.arange(25), guess)
+    np.testing.assert_allclose(fast[0], slow[0], atol=1e-10)
+    np.testing.assert_array_equal(fast[2], slow[2])
+    assert fast[2].all()
+    # the quadratic warp composes like the affine one where second-order terms vanish
+    p = np.random.default_rng(0).normal(scale=0.05, size=(4, 12))
+    p[:, 6:] = 0
+    q = np.random.default_rng(1).normal(scale=0.05, size=(4, 12))
+    q[:, 6:] = 0
+    affine = dic._params(dic._matrix(p[:, :6]) @ np.linalg.inv(dic._matrix(q[:, :6])))
+    quad = dic._params2(dic._matrix2(p) @ np.linalg.inv(dic._matrix2(q)))
+    np.testing.assert_allclose(quad[:, :6], affine, atol=1e-12)
+    np.testing.assert_allclose(quad[:, 6:], 0, atol=1e-12)
+
+
+@pytest.mark.parametrize("case", ["gaussian", "fold"])
+def test_quadratic_shape_function_beats_affine_on_curved_fields(case):
+    video = make_case(case, size=400, n_frames=11, rng=15)
+    points = video.truth.grid((15, 15))
+    rmse = {}
+    for shape_function in ("affine", "quadratic"):
+        tracks = track(
+            video.frames, points, tracker="dic", options={"shape_function": shape_function}
+        )
+        assert tracks.visible.all()
+        rmse[shape_function] = _rmse(tracks, video, points)
+    assert rmse["quadratic"] < 0.06
+    assert rmse["quadratic"] < 0.4 * rmse["affine"]
+
+
+def test_quadratic_shape_function_on_the_paper_cases():
+    video = make_case("equibiaxial", size=400, n_frames=11, rng=16)
+    points = video.truth.grid((15, 15))
+    tracks = track(video.frames, points, tracker="dic", options={"shape_function": "quadratic"})
+    assert tracks.visible.all()
+    assert _rmse(tracks, video, points) < 2 * DIC_QUICK_TRACK_RMSE_PX
+    with pytest.raises(InputError, match="shape-function"):
+        track(video.frames, points, tracker="dic", options={"shape_function": "cubic"})
