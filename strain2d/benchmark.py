@@ -17,6 +17,7 @@ row is what tracking adds.
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -56,6 +57,16 @@ PAPER_TABLE1 = {
         "Exy": (0.0042, 0.0039),
     },
 }
+
+
+def _tracker_runs(trackers: Sequence[str]) -> list[tuple[str, str, dict]]:
+    """(label, tracker, options) for each tracker; dic also with its quadratic warp."""
+    runs = []
+    for name in trackers:
+        runs.append((name, name, {}))
+        if name == "dic":
+            runs.append(("dic (quadratic)", "dic", {"shape_function": "quadratic"}))
+    return runs
 
 
 def error_stats(errors: np.ndarray) -> dict[str, float]:
@@ -127,11 +138,11 @@ def run_benchmark(
                 true_E,
             )
         )
-        for name in trackers:
+        for name, tracker, options in _tracker_runs(trackers):
             if progress:
                 progress(f"  {case}: tracking with {name}")
             t0 = time.perf_counter()
-            tracks = track(video.frames, points, tracker=name)
+            tracks = track(video.frames, points, tracker=tracker, options=options)
             t_track = time.perf_counter() - t0
             field = strain_from_tracks(tracks, grid_shape=grid)
             t_total = time.perf_counter() - t0
@@ -155,7 +166,7 @@ def run_benchmark(
                 from strain2d.figures import plot_strain_errors
 
                 plot_strain_errors(
-                    Path(figures) / f"{case}_{name}.png",
+                    Path(figures) / f"{case}_{re.sub(r'[^0-9a-z]+', '_', name).strip('_')}.png",
                     video.frames[last],
                     field,
                     last,
@@ -292,13 +303,12 @@ def run_sweep(
             ones = np.ones((n_frames, len(points)))
             exact = Tracks(video.truth.positions(points), ones.astype(bool), ones)
             runs = [("exact positions", exact, 0.0)]
-            for name in trackers:
-                options = {}
+            for name, tracker, options in _tracker_runs(trackers):
                 if kind == "subset":
-                    by_tracker = {"dic": {"subset": int(value)}, "klt": {"window": int(value)}}
-                    options = by_tracker.get(name, {})
+                    size_option = {"dic": "subset", "klt": "window"}.get(tracker)
+                    options = {**options, size_option: int(value)} if size_option else options
                 t0 = time.perf_counter()
-                tracks = track(video.frames, points, tracker=name, options=options)
+                tracks = track(video.frames, points, tracker=tracker, options=options)
                 runs.append((name, tracks, time.perf_counter() - t0))
             for name, tracks, seconds in runs:
                 field = strain_from_tracks(tracks, grid_shape=grid)

@@ -267,15 +267,17 @@ def test_benchmark_quick(tmp_path):
     )
     results = json.loads((out / "benchmark.json").read_text())
     rows = {(r["case"], r["tracker"]): r for r in results["results"]}
-    trackers = ("dic", "klt", "exact positions")
+    trackers = ("dic", "dic (quadratic)", "klt", "exact positions")
     assert set(rows) == {(c, t) for c in ("rotation", "tissue") for t in trackers}
+    limits = {"dic": (0.05, 0.001), "dic (quadratic)": (0.1, 0.002), "klt": (0.5, 0.005)}
     for (_, tracker), row in rows.items():
         if tracker == "exact positions":  # homogeneous fields: no discretization error
             assert row["Exx"]["rmse"] < 1e-9
             continue
-        assert row["track_px"]["rmse"] < (0.05 if tracker == "dic" else 0.5)
-        assert row["Exx"]["rmse"] < (0.001 if tracker == "dic" else 0.005)
-    assert len(list((out / "figures").glob("*.png"))) == 4
+        assert row["track_px"]["rmse"] < limits[tracker][0]
+        assert row["Exx"]["rmse"] < limits[tracker][1]
+    figures = sorted(p.name for p in (out / "figures").glob("*.png"))
+    assert "rotation_dic_quadratic.png" in figures and len(figures) == 6
     table = (out / "benchmark.md").read_text()
     assert "| rotation | klt |" in table and "| rotation | dic |" in table
     assert "paper (CoTracker3)" in table
@@ -531,6 +533,7 @@ def test_sweeps_write_tables_and_show_the_expected_trends(tmp_path):
 
     sweep = run_sweep("contrast", quick=True, trackers=["dic"])
     dic = {r["value"]: r for r in sweep["results"] if r["tracker"] == "dic"}
+    assert {r["tracker"] for r in sweep["results"]} == {"exact positions", "dic", "dic (quadratic)"}
     assert set(dic) == {0.1, 0.2, 0.4, 0.8}
     assert dic[0.1]["track_px"]["rmse"] > dic[0.8]["track_px"]["rmse"]  # faint pattern: worse
     assert "| equibiaxial | 0.8 | dic |" in sweep_markdown(sweep)
