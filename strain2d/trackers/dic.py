@@ -13,7 +13,9 @@ Robustness, in order, for points whose IC-GN fails (not converged, ZNCC below
 ``zncc_min``, or subset outside the image):
 
 0. a match whose motion since the last frame disagrees with its neighbours'
-   (the normalized median test of PIV) is a false match and fails too; a
+   (the normalized median test of PIV) is suspect: it is restarted from its
+   neighbours and keeps its own match only where the restart finds a worse
+   one; where the restart finds nothing it goes on to the integer search; a
    weak match (correlation below ``update_below``) is restarted from its best
    neighbour and the better of the two results is kept;
 1. reliability-guided restart: the point is moved as its best-correlated
@@ -29,7 +31,9 @@ Robustness, in order, for points whose IC-GN fails (not converged, ZNCC below
 Incremental mode: when a visible point's ZNCC drops below ``update_below``
 (the subset has changed a lot since its reference, e.g. under large strain),
 its reference subset is re-sampled from the current frame around the current
-position, and later frames are matched against it. The updates are counted
+position, and later frames are matched against it.  A sudden drop (more than
+0.05 in one frame) does not renew the reference: it marks a false match or an
+occlusion, not deformation. The updates are counted
 in ``Tracks.meta``.
 
 ``quality`` is the ZNCC (1 = perfect match) against the point's current
@@ -458,9 +462,18 @@ def _neighbour_guess(
     same = ref.frame[targets] == ref.frame[sources]
     d = ref.centers[targets] - ref.centers[sources]
     ps = p_new[sources]
-    affine = ps.copy()
+    affine = ps.copy()  # the neighbour's warp evaluated at the target (Taylor, exact)
     affine[:, 0] = ps[:, 0] + ps[:, 2] * d[:, 0] + ps[:, 3] * d[:, 1]
     affine[:, 1] = ps[:, 1] + ps[:, 4] * d[:, 0] + ps[:, 5] * d[:, 1]
+    if ps.shape[1] == 12:
+        dx, dy = d[:, 0], d[:, 1]
+        quadratic = np.stack([0.5 * dx * dx, dx * dy, 0.5 * dy * dy], axis=-1)
+        affine[:, 0] += np.sum(ps[:, 6:9] * quadratic, axis=1)
+        affine[:, 1] += np.sum(ps[:, 9:12] * quadratic, axis=1)
+        affine[:, 2] += ps[:, 6] * dx + ps[:, 7] * dy
+        affine[:, 3] += ps[:, 7] * dx + ps[:, 8] * dy
+        affine[:, 4] += ps[:, 9] * dx + ps[:, 10] * dy
+        affine[:, 5] += ps[:, 10] * dx + ps[:, 11] * dy
     then = history[last_seen[targets], sources]
     moved = history[last_seen[targets], targets] + ref.centers[sources] + ps[:, :2] - then
     guess[:, :2] = moved - ref.centers[targets]
@@ -512,7 +525,9 @@ def track_dic(
     shape_function : {"affine", "quadratic"}, keyword-only
         First-order (6 parameters) or second-order (12) subset warp.  The
         quadratic one follows strain that varies within a subset (folds,
-        local contractions) with less bias, at about twice the cost.
+        local contractions) with less bias, at about twice the noise where
+        strain is uniform.  Give it subsets of 21 px or more: 12 parameters
+        from a 15 px subset are poorly determined and false matches appear.
     zncc_min : float, keyword-only
         Correlation below which a match counts as failed (point not visible).
     update_below : float, keyword-only
@@ -566,6 +581,7 @@ def track_dic(
     rate = np.zeros((n, corr.n_params))  # change of p over the last frame, for the next guess
     updates = np.zeros(n, dtype=int)
     last_seen = np.zeros(n, dtype=int)  # frame index where each point was last matched
+    previous_zncc = np.ones(n)  # correlation at the last match, against the current reference
     positions = [points.copy()]
     visible = [inside0.copy()]
     quality = [np.where(inside0, 1.0, 0.0)]
@@ -574,13 +590,15 @@ def track_dic(
     for t, frame in enumerate(it, start=1):
         frame = np.asarray(frame, dtype=np.float64)
         coeff = _coefficients(frame)
-        guess = p + rate
+        guess = p + rate  # rate holds first-order terms only (see below)
         p_new, zncc, conv = corr.match(coeff, ref, np.arange(n), guess)
         ok = conv & (zncc >= zncc_min) & _inside(corr, ref.centers, p_new, shape)
         # a match whose frame-to-frame motion disagrees with its neighbours' is a false
         # match (the normalized median test); it restarts from its neighbours below
         step = ref.centers + p_new[:, :2] - positions[-1]
-        ok &= ~_median_outliers(step, ok & (last_seen == t - 1), near)
+        suspect = np.flatnonzero(_median_outliers(step, ok & (last_seen == t - 1), near))
+        own_p, own_zncc = p_new[suspect].copy(), zncc[suspect].copy()
+        ok[suspect] = False
 
         history = np.stack(positions)
         # weak matches (correlation below update_below) may be false optima: restart them
@@ -600,6 +618,10 @@ def track_dic(
                 p2, z2, c2 = corr.match(coeff, ref, w_idx, start)
                 better = c2 & (z2 > zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p2, shape)
                 p_new[w_idx[better]], zncc[w_idx[better]] = p2[better], z2[better]
+                # and from the last frame's warp as it was, without extrapolation
+                p3, z3, c3 = corr.match(coeff, ref, w_idx, p[w_idx])
+                better = c3 & (z3 > zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p3, shape)
+                p_new[w_idx[better]], zncc[w_idx[better]] = p3[better], z3[better]
 
         # 1. reliability-guided propagation: restart failed points from their best
         #    matched neighbour, round after round while the matched region grows
@@ -623,6 +645,12 @@ def track_dic(
             if good.sum() == 0 or near_failed.size == 0:
                 break
 
+        # a suspect whose restart from its neighbours found a worse match keeps its own one;
+        # if the restart found nothing, the suspect goes on to the integer search
+        keep_own = ok[suspect] & (own_zncc > zncc[suspect])
+        p_new[suspect[keep_own]], zncc[suspect[keep_own]] = own_p[keep_own], own_zncc[keep_own]
+        ok[suspect[keep_own]] = True
+
         # 2. integer search around the prediction, for the few points still failing
         for i in np.flatnonzero(~ok):
             predicted = ref.centers[i] + guess[i, :2]
@@ -637,18 +665,25 @@ def track_dic(
                 p_new[i], zncc[i], ok[i] = p3[0], z3[0], True
 
         rate = np.where((ok & (last_seen == t - 1))[:, None], p_new - p, 0.0)
+        rate[:, 6:] = 0.0  # second-order terms are too noisy to extrapolate
         p = np.where(ok[:, None], p_new, p)
         pos = ref.centers + p[:, :2]
         last_seen[ok] = t
 
         # incremental mode: renew the reference subsets that no longer resemble the frame
-        renew = np.flatnonzero(ok & (zncc < update_below))
+        # ... but not on a sudden drop of correlation, the mark of a false match or an
+        # occlusion rather than of deformation, which lowers it gradually
+        steady = previous_zncc - zncc < 0.05
+        renew = np.flatnonzero(ok & (zncc < update_below) & steady)
         if renew.size:
             ref.replace(renew, corr.reference(coeff, pos[renew], t))
             p[renew] = 0.0
             rate[renew] = 0.0
             updates[renew] += 1
 
+        previous_zncc = np.where(ok, zncc, previous_zncc)
+        if renew.size:
+            previous_zncc[renew] = 1.0
         positions.append(pos.copy())
         visible.append(ok.copy())
         quality.append(np.where(ok, np.clip(zncc, 0.0, 1.0), 0.0))
