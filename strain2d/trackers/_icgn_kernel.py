@@ -50,6 +50,46 @@ def _bspline(c: np.ndarray, x: float, y: float) -> float:
     return total
 
 
+@njit(cache=True, inline="always")
+def _residual(coeff, cx, cy, p, ex, ey, f_row, norm_i, G_row, g, b):
+    """Sample the warped subset into ``g``, set ``b = G (f - g_normalized) norm``.
+
+    The warp is affine for ``len(p) == 6`` and quadratic for 12.  Returns the
+    ZNCC, or -2 where the warped subset is flat (no texture).
+    """
+    s2 = g.shape[0]
+    quadratic = p.shape[0] == 12
+    mean = 0.0
+    for j in range(s2):
+        x = cx + p[0] + (1 + p[2]) * ex[j] + p[3] * ey[j]
+        y = cy + p[1] + p[4] * ex[j] + (1 + p[5]) * ey[j]
+        if quadratic:
+            qx = 0.5 * ex[j] * ex[j]
+            qxy = ex[j] * ey[j]
+            qy = 0.5 * ey[j] * ey[j]
+            x += p[6] * qx + p[7] * qxy + p[8] * qy
+            y += p[9] * qx + p[10] * qxy + p[11] * qy
+        g[j] = _bspline(coeff, x, y)
+        mean += g[j]
+    mean /= s2
+    ss = 0.0
+    for j in range(s2):
+        g[j] -= mean
+        ss += g[j] * g[j]
+    if ss < 1e-18:
+        return -2.0
+    gnorm = np.sqrt(ss)
+    dist = 0.0
+    b[:] = 0.0
+    for j in range(s2):
+        d = f_row[j] - g[j] / gnorm
+        dist += d * d
+        r = d * norm_i
+        for k in range(b.shape[0]):
+            b[k] += G_row[k, j] * r
+    return 1.0 - 0.5 * dist
+
+
 @njit(cache=True, parallel=True)
 def icgn(
     coeff: np.ndarray,
@@ -73,38 +113,16 @@ def icgn(
     for i in prange(n):
         p = p_out[i].copy()
         g = np.empty(s2)
+        b = np.empty(6)
         cx = centers[i, 0]
         cy = centers[i, 1]
         for iteration in range(max_iterations):
-            mean = 0.0
-            for j in range(s2):
-                x = cx + p[0] + (1 + p[2]) * ex[j] + p[3] * ey[j]
-                y = cy + p[1] + p[4] * ex[j] + (1 + p[5]) * ey[j]
-                g[j] = _bspline(coeff, x, y)
-                mean += g[j]
-            mean /= s2
-            ss = 0.0
-            for j in range(s2):
-                g[j] -= mean
-                ss += g[j] * g[j]
-            if ss < 1e-18:
+            zncc = _residual(coeff, cx, cy, p, ex, ey, f[i], norm[i], G[i], g, b)
+            if zncc == -2.0:
                 zncc_out[i] = -1.0
                 break
-            gnorm = np.sqrt(ss)
-            dist = 0.0
-            b0 = b1 = b2 = b3 = b4 = b5 = 0.0
-            for j in range(s2):
-                d = f[i, j] - g[j] / gnorm
-                dist += d * d
-                r = d * norm[i]
-                b0 += G[i, 0, j] * r
-                b1 += G[i, 1, j] * r
-                b2 += G[i, 2, j] * r
-                b3 += G[i, 3, j] * r
-                b4 += G[i, 4, j] * r
-                b5 += G[i, 5, j] * r
-            zncc = 1.0 - 0.5 * dist
             zncc_out[i] = zncc
+            b0, b1, b2, b3, b4, b5 = b[0], b[1], b[2], b[3], b[4], b[5]
             # dp = -b; W(p) <- W(p) o W(dp)^-1
             a, bb, c, dd = 1 - b2, -b3, -b4, 1 - b5
             det = a * dd - bb * c
@@ -210,35 +228,10 @@ def icgn2(
         cx = centers[i, 0]
         cy = centers[i, 1]
         for iteration in range(max_iterations):
-            mean = 0.0
-            for j in range(s2):
-                qx = 0.5 * ex[j] * ex[j]
-                qxy = ex[j] * ey[j]
-                qy = 0.5 * ey[j] * ey[j]
-                x = cx + p[0] + (1 + p[2]) * ex[j] + p[3] * ey[j] + p[6] * qx + p[7] * qxy
-                x += p[8] * qy
-                y = cy + p[1] + p[4] * ex[j] + (1 + p[5]) * ey[j] + p[9] * qx + p[10] * qxy
-                y += p[11] * qy
-                g[j] = _bspline(coeff, x, y)
-                mean += g[j]
-            mean /= s2
-            ss = 0.0
-            for j in range(s2):
-                g[j] -= mean
-                ss += g[j] * g[j]
-            if ss < 1e-18:
+            zncc = _residual(coeff, cx, cy, p, ex, ey, f[i], norm[i], G[i], g, b)
+            if zncc == -2.0:
                 zncc_out[i] = -1.0
                 break
-            gnorm = np.sqrt(ss)
-            dist = 0.0
-            b[:] = 0.0
-            for j in range(s2):
-                d = f[i, j] - g[j] / gnorm
-                dist += d * d
-                r = d * norm[i]
-                for k in range(12):
-                    b[k] += G[i, k, j] * r
-            zncc = 1.0 - 0.5 * dist
             zncc_out[i] = zncc
             dp = -b
             Md = _matrix2(dp)
