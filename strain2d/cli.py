@@ -301,7 +301,11 @@ def _cmd_analyze(args) -> int:
                 "frame_range": {"start": args.start, "stop": args.stop, "step": args.step},
                 "frame_size_px": [source.shape[1], source.shape[0]],
             },
-            "tracker": {"name": args.tracker, "options": tracks.meta.get("options", {})},
+            # name, options, and whatever else the tracker reports (dic: reference updates)
+            "tracker": {
+                "name": args.tracker,
+                **{k: v for k, v in tracks.meta.items() if k != "tracker"},
+            },
             "points": {"n": tracks.n_points, **point_info},
             "mesh": {
                 "method": "grid, alternating diagonals" if grid_shape else "delaunay",

@@ -77,6 +77,7 @@ def test_analyze_writes_the_contracted_outputs(small_case, tmp_path):
     assert summary["software"]["version"]
     assert summary["inputs"] == [str(src)]
     assert summary["tracker"]["options"]["window"] == 21
+    assert summary["tracker"]["name"] == "klt"
     assert summary["points"]["grid"] == "5x5"
     assert summary["final_frame"]["nodal_strain"]["Exx"]["n"] == 25
     assert _hash(src) == before  # inputs are never modified
@@ -557,3 +558,13 @@ def test_sweeps_write_tables_and_show_the_expected_trends(tmp_path):
         )
         == 2
     )
+
+
+def test_dic_summary_records_reference_updates(small_case, tmp_path):
+    folder, _ = small_case
+    out = tmp_path / "run"
+    assert main(["-q", "analyze", str(folder / "eq.tif"), "--grid", "3x3", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["tracker"]["name"] == "dic"
+    assert summary["tracker"]["options"]["shape_function"] == "affine"
+    assert len(summary["tracker"]["reference_updates"]) == 9
