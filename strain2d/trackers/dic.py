@@ -446,7 +446,7 @@ def _neighbour_guess(
     ref: _Subsets,
     p: np.ndarray,
     p_new: np.ndarray,
-    history: np.ndarray,
+    positions: list[np.ndarray],
     last_seen: np.ndarray,
     targets: np.ndarray,
     sources: np.ndarray,
@@ -474,8 +474,11 @@ def _neighbour_guess(
         affine[:, 3] += ps[:, 7] * dx + ps[:, 8] * dy
         affine[:, 4] += ps[:, 9] * dx + ps[:, 10] * dy
         affine[:, 5] += ps[:, 10] * dx + ps[:, 11] * dy
-    then = history[last_seen[targets], sources]
-    moved = history[last_seen[targets], targets] + ref.centers[sources] + ps[:, :2] - then
+    # positions of both points on the frame the target was last matched (few pairs)
+    frames = last_seen[targets]
+    then = np.array([positions[k][j] for k, j in zip(frames, sources, strict=True)])
+    where = np.array([positions[k][j] for k, j in zip(frames, targets, strict=True)])
+    moved = where + ref.centers[sources] + ps[:, :2] - then
     guess[:, :2] = moved - ref.centers[targets]
     guess[same] = affine[same]
     return guess
@@ -600,7 +603,6 @@ def track_dic(
         own_p, own_zncc = p_new[suspect].copy(), zncc[suspect].copy()
         ok[suspect] = False
 
-        history = np.stack(positions)
         # weak matches (correlation below update_below) may be false optima: restart them
         # from their best matched neighbour and keep whichever correlates better, before
         # a reference update could lock a wrong match in
@@ -614,7 +616,7 @@ def track_dic(
             w_idx = weak[usable]
             b_idx = cand[usable][np.arange(usable.sum()), np.argmax(score[usable], axis=1)]
             if w_idx.size:
-                start = _neighbour_guess(ref, p, p_new, history, last_seen, w_idx, b_idx)
+                start = _neighbour_guess(ref, p, p_new, positions, last_seen, w_idx, b_idx)
                 p2, z2, c2 = corr.match(coeff, ref, w_idx, start)
                 better = c2 & (z2 > zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p2, shape)
                 p_new[w_idx[better]], zncc[w_idx[better]] = p2[better], z2[better]
@@ -636,7 +638,7 @@ def track_dic(
             f_idx, b_idx = failed[usable], best[usable]
             if f_idx.size == 0:
                 break
-            start = _neighbour_guess(ref, p, p_new, history, last_seen, f_idx, b_idx)
+            start = _neighbour_guess(ref, p, p_new, positions, last_seen, f_idx, b_idx)
             p2, z2, c2 = corr.match(coeff, ref, f_idx, start)
             good = c2 & (z2 >= zncc_min) & _inside(corr, ref.centers[f_idx], p2, shape)
             p_new[f_idx[good]], zncc[f_idx[good]] = p2[good], z2[good]
