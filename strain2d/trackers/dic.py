@@ -237,9 +237,7 @@ class _Correlator:
         zncc_min: float,
         *,
         order: int = 1,
-        compiled: bool = True,
     ) -> None:
-        self.compiled = compiled
         self.order = order
         self.n_params = 6 if order == 1 else 12
         self.half = subset // 2
@@ -289,7 +287,7 @@ class _Correlator:
         numba is available, else :meth:`match_numpy`; both give the same result.
         """
         kernel = _compiled_kernel(self.order)
-        if kernel is None or not self.compiled:
+        if kernel is None:
             return self.match_numpy(coefficients, ref, idx, p0)
         full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
         rows = slice(None) if full else idx
@@ -643,8 +641,7 @@ def track_dic(
             good = c2 & (z2 >= zncc_min) & _inside(corr, ref.centers[f_idx], p2, shape)
             p_new[f_idx[good]], zncc[f_idx[good]] = p2[good], z2[good]
             ok[f_idx[good]] = True
-            near_failed = np.setdiff1d(failed, f_idx[good])
-            if good.sum() == 0 or near_failed.size == 0:
+            if not good.any():  # the matched region stopped growing
                 break
 
         # a suspect whose restart from its neighbours found a worse match keeps its own one;
