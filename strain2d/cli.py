@@ -203,10 +203,14 @@ def _open(args):
 
 
 def _track_source(args):
-    """Open the frames, place the points and track them: (source, point_info, tracks)."""
+    """Open the frames, place the points and track them: (source, point_info, tracks).
+
+    ``source`` is an :class:`~strain2d.frames.EndFrames` wrapper, so the first and
+    last frames need not be decoded again afterwards."""
+    from strain2d.frames import EndFrames
     from strain2d.pipeline import track
 
-    source = _open(args)
+    source = EndFrames(_open(args))  # keeps the first and last frames for the figures
     points, point_info = _reference_points(args, source)
     options = _tracker_options(args)
     update, close = _progress(args, f"tracking ({args.tracker})")
@@ -287,7 +291,7 @@ def _cmd_analyze(args) -> int:
         write_pvd(tmp, field, name="strain", times=times)
         figs = tmp / "figures"
         figs.mkdir()
-        first_img, last_img = source.first(), source.frame(last)
+        first_img, last_img = source.ends()
         plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
         plot_strain_maps(figs / f"strain_frame{last:04d}.png", last_img, field, last)
         summary = {

@@ -17,7 +17,7 @@ import numpy as np
 
 from strain2d.errors import SourceError
 
-__all__ = ["IMAGE_SUFFIXES", "VIDEO_SUFFIXES", "FrameSource", "open_frames", "to_gray"]
+__all__ = ["IMAGE_SUFFIXES", "VIDEO_SUFFIXES", "EndFrames", "FrameSource", "open_frames", "to_gray"]
 
 VIDEO_SUFFIXES = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".wmv", ".mpg", ".mpeg"})
 TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
@@ -298,3 +298,42 @@ def open_frames(
             "(a reference frame and a deformed one)"
         )
     return source
+
+
+class EndFrames:
+    """A frame source that keeps its first and last frames as it is iterated.
+
+    Trackers stream through a source once; wrapping it lets the caller use the
+    reference and the final frame afterwards (for figures) without decoding the
+    video again.  Everything else (``len``, ``shape``, ``value_range``, ...)
+    is the wrapped source's.
+
+    Attributes
+    ----------
+    first, last : (H, W) float32 or None
+        Set once iteration has reached them.
+    """
+
+    def __init__(self, source: FrameSource) -> None:
+        self.source = source
+        self.first: np.ndarray | None = None
+        self.last: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.source)
+
+    def __getattr__(self, name: str):
+        return getattr(self.source, name)
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        for k, frame in enumerate(self.source):
+            if k == 0:
+                self.first = frame
+            self.last = frame
+            yield frame
+
+    def ends(self) -> tuple[np.ndarray, np.ndarray]:
+        """First and last frames, read from the source if iteration did not reach them."""
+        first = self.first if self.first is not None else self.source.first()
+        last = self.last if self.last is not None else self.source.frame(-1)
+        return first, last
