@@ -1,0 +1,600 @@
+"""Read multiphoton z-stacks from TIFF files with their voxel spacing.
+
+A stack is returned as a ``(Z, C, Y, X)`` array with its spacing
+``(dz, dy, dx)`` in micrometres; slice 0 is the slice nearest the objective,
+as acquired.  Three kinds of file are understood, through tifffile_:
+
+* ImageJ hyperstacks: axes from the hyperstack layout, the Z step from the
+  ``spacing`` entry of the ImageJ description, the pixel size from the
+  ``XResolution`` / ``YResolution`` tags, all in the description's ``unit``
+  (or, without one, in the TIFF ``ResolutionUnit``); channel names from the
+  slice ``Labels`` when they name the channels consistently.
+* OME-TIFF: axes from the OME ``DimensionOrder``, ``PhysicalSizeX/Y/Z`` with
+  their units (micrometres when no unit is given) and the ``Name`` of each
+  ``Channel``.
+* Plain multi-page TIFF: pages are Z slices; the pixel size comes from the
+  resolution tags when ``ResolutionUnit`` is physical, but such files carry
+  no Z step, so their spacing must be passed by the caller.
+
+Uncompressed, contiguous files (what ImageJ and tifffile write by default) are
+memory-mapped read-only; other files are decoded into memory once.
+
+.. _tifffile: https://github.com/cgohlke/tifffile
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import struct
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Literal, get_args
+
+import numpy as np
+
+from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
+
+__all__ = ["SpacingSource", "Stack", "parse_spacing", "read_stack", "select_channel"]
+
+logger = logging.getLogger(__name__)
+
+#: where :attr:`Stack.spacing` came from
+SpacingSource = Literal["imagej", "ome", "tiff-resolution", "user", "none"]
+
+Spacing = tuple[float, float, float]
+
+#: micrometres per unit, exact, keyed by lower-case unit text as written by
+#: ImageJ (including its escaped ``\\u00B5m``), OME and other software
+_UM_PER_UNIT: dict[str, Fraction] = {
+    **dict.fromkeys(
+        (
+            "um",
+            "µm",  # MICRO SIGN, U+00B5
+            "μm",  # GREEK SMALL LETTER MU, U+03BC
+            "\\u00b5m",  # ImageJ's escape for the micro sign
+            "micron",
+            "microns",
+            "micrometer",
+            "micrometre",
+            "micrometers",
+            "micrometres",
+        ),
+        Fraction(1),
+    ),
+    "nm": Fraction(1, 1000),
+    "å": Fraction(1, 10_000),
+    "mm": Fraction(1000),
+    "cm": Fraction(10_000),
+    "m": Fraction(1_000_000),
+    "inch": Fraction(25_400),
+    "in": Fraction(25_400),
+}
+
+#: micrometres per TIFF ``ResolutionUnit`` (2 INCH, 3 CENTIMETER, and
+#: tifffile's non-standard 4 MILLIMETER and 5 MICROMETER); 1 NONE is absent
+_UM_PER_RESUNIT: dict[int, Fraction] = {
+    2: Fraction(25_400),
+    3: Fraction(10_000),
+    4: Fraction(1000),
+    5: Fraction(1),
+}
+
+#: axes tifffile gives to a run of pages it knows nothing more about
+_PAGE_AXES = ("Q", "I")
+
+#: voxels sampled per channel to estimate its intensity range
+_RANGE_SAMPLE_VOXELS = 1_000_000
+#: percentiles of a channel's intensity that map to 0 and 65535 in a combination
+_RANGE_PERCENTILES = (0.1, 99.9)
+#: float32 bytes per channel per z-chunk while combining channels
+_CHUNK_BYTES = 32 * 2**20
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Stack:
+    """A z-stack in ``(Z, C, Y, X)`` order with its voxel spacing.
+
+    A thin container: it checks that its fields agree and prints a summary.
+    Build one with :func:`read_stack`.
+
+    Attributes
+    ----------
+    data : (Z, C, Y, X) ndarray
+        Intensities in the file's own dtype and units.  A read-only view of
+        a :class:`numpy.memmap` when ``memmapped``, else an in-memory array;
+        either way possibly a transposed view of the file's axis order.
+    spacing : (3,) tuple of float
+        Voxel size ``(dz, dy, dx)`` in micrometres.  ``(1.0, 1.0, 1.0)``
+        when the spacing is unknown (``spacing_source == "none"``).
+    spacing_source : {"imagej", "ome", "tiff-resolution", "user", "none"}
+        Where ``spacing`` came from.  ``"tiff-resolution"`` means an ImageJ
+        file whose units came from the TIFF ``ResolutionUnit`` tag because
+        its description gives none.
+    channel_names : tuple of str
+        One name per channel, from the metadata, else ``("0", "1", ...)``.
+    path : str
+        The file read.
+    axes : str
+        The file's axes as tifffile reports them, singleton axes dropped,
+        e.g. ``"ZCYX"`` (ImageJ), ``"CZYX"`` (OME), ``"ZYX"``, ``"IYX"``.
+    memmapped : bool
+        True when ``data`` is memory-mapped from the file, False when the
+        file had to be decoded (compressed or fragmented data).
+    """
+
+    data: np.ndarray
+    spacing: Spacing
+    spacing_source: SpacingSource
+    channel_names: tuple[str, ...]
+    path: str
+    axes: str
+    memmapped: bool = False
+
+    def __post_init__(self) -> None:
+        if self.data.ndim != 4:
+            raise InputError(f"Stack data must be (Z, C, Y, X), got shape {self.data.shape}")
+        object.__setattr__(self, "spacing", _check_spacing(self.spacing, "spacing"))
+        if self.spacing_source not in get_args(SpacingSource):
+            raise InputError(
+                f"spacing_source must be one of {get_args(SpacingSource)}, "
+                f"got {self.spacing_source!r}"
+            )
+        names = tuple(str(name) for name in self.channel_names)
+        if len(names) != self.data.shape[1]:
+            raise InputError(
+                f"channel_names has {len(names)} names for {self.data.shape[1]} channels"
+            )
+        object.__setattr__(self, "channel_names", names)
+
+    @property
+    def shape(self) -> tuple[int, int, int, int]:
+        """``(Z, C, Y, X)``."""
+        return self.data.shape
+
+    def __repr__(self) -> str:
+        z, c, y, x = self.data.shape
+        dz, dy, dx = self.spacing
+        how = "memory-mapped" if self.memmapped else "in memory"
+        return "\n".join(
+            (
+                "<mpm3d Stack>",
+                f"  Path: {self.path}",
+                f"  Shape (Z, C, Y, X): ({z}, {c}, {y}, {x}) {self.data.dtype}, {how}",
+                f"  File axes: {self.axes}",
+                f"  Spacing (dz, dy, dx): ({dz:g}, {dy:g}, {dx:g}) um from {self.spacing_source}",
+                f"  Channels: {', '.join(self.channel_names)}",
+            )
+        )
+
+
+def parse_spacing(text: str) -> Spacing:
+    """Parse ``"Z,Y,X"`` voxel spacing in micrometres, as given on a command line.
+
+    Parameters
+    ----------
+    text : str
+        Three comma-separated positive numbers ``dz,dy,dx`` in micrometres.
+
+    Returns
+    -------
+    spacing : (3,) tuple of float
+        ``(dz, dy, dx)`` in micrometres.
+
+    Raises
+    ------
+    InputError
+        When ``text`` is not three finite positive numbers.
+
+    Examples
+    --------
+    >>> parse_spacing("4,1.24,1.24")
+    (4.0, 1.24, 1.24)
+    >>> parse_spacing(" 2, 0.5 ,0.5")
+    (2.0, 0.5, 0.5)
+    """
+    message = f"--spacing must be Z,Y,X in micrometres, got {text!r}"
+    parts = str(text).split(",")
+    if len(parts) != 3:
+        raise InputError(message)
+    try:
+        values = tuple(float(part) for part in parts)
+    except ValueError:
+        raise InputError(message) from None
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise InputError(message)
+    return values
+
+
+def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = None) -> Stack:
+    """Read a z-stack from a TIFF, ImageJ hyperstack or OME-TIFF file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The TIFF file.  Its first image series is read.
+    spacing : (3,) sequence of float, optional
+        Voxel size ``(dz, dy, dx)`` in micrometres.  Overrides the file's
+        metadata (``spacing_source == "user"``).
+
+    Returns
+    -------
+    Stack
+        ``data`` is ``(Z, C, Y, X)``: a view of the file's axes in their
+        stored order, memory-mapped when the file is uncompressed and
+        contiguous, else decoded into memory once.
+
+    Raises
+    ------
+    SourceError
+        When the file is missing, a folder, or not a readable TIFF.
+    InputError
+        When ``spacing`` is not three finite positive numbers, or the file
+        is not a single z-stack: a 2D image, a time series (``T > 1``), RGB
+        samples, or axes that cannot be told apart.
+
+    Warns
+    -----
+    MissingSpacingWarning
+        When neither the metadata nor ``spacing`` gives the full voxel size;
+        the stack then has ``spacing == (1.0, 1.0, 1.0)`` and
+        ``spacing_source == "none"``.
+
+    Notes
+    -----
+    Axes are identified from tifffile's ``series.axes``.  Singleton axes are
+    dropped.  Pages without further metadata (axes ``"IYX"`` or ``"QYX"``)
+    are taken as Z slices; a stack without a channel axis gets ``C == 1``.
+    """
+    user_spacing = None if spacing is None else _check_spacing(spacing, "spacing")
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise SourceError(f"stack file not found: {name}")
+    if os.path.isdir(name):
+        raise SourceError(f"stack path is a folder, not a TIFF file: {name}")
+
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(name) as tif:
+            series = tif.series[0]
+            axes, shape = series.axes, tuple(series.shape)
+            order = _zcyx_order(axes, shape, name)
+            meta_spacing, source, names, found = _metadata(tif, axes, shape)
+            memmapped = series.dataoffset is not None
+            if not memmapped:
+                array = series.asarray()
+        if memmapped:
+            array = tifffile.memmap(name, series=0, mode="r")
+    except (tifffile.TiffFileError, ValueError, struct.error, OSError, IndexError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise SourceError(f"cannot read {name} as a TIFF stack: {exc}") from None
+
+    data = _to_zcyx(array.reshape(shape), axes, order)
+    if names is None or len(names) != data.shape[1]:
+        names = tuple(str(i) for i in range(data.shape[1]))
+
+    if user_spacing is not None:
+        if meta_spacing is not None and not np.allclose(meta_spacing, user_spacing):
+            logger.info(
+                "%s: spacing %s um from %s metadata overridden by %s um",
+                name,
+                meta_spacing,
+                source,
+                user_spacing,
+            )
+        meta_spacing, source = user_spacing, "user"
+    elif meta_spacing is None:
+        detail = f" (found {found})" if found else ""
+        warnings.warn(
+            MissingSpacingWarning(
+                f"{name}: no voxel spacing in metadata{detail}; assuming 1 um voxels; "
+                "pass --spacing Z,Y,X"
+            ),
+            stacklevel=2,
+        )
+        meta_spacing, source = (1.0, 1.0, 1.0), "none"
+
+    return Stack(
+        data=data,
+        spacing=meta_spacing,
+        spacing_source=source,
+        channel_names=names,
+        path=name,
+        axes=axes,
+        memmapped=memmapped,
+    )
+
+
+def select_channel(stack: Stack, channel: int | str | None = None) -> tuple[np.ndarray, str]:
+    """One channel of a stack, or all of them combined.
+
+    Parameters
+    ----------
+    stack : Stack
+        The stack, ``data`` of shape ``(Z, C, Y, X)``.
+    channel : int or str, optional
+        A channel index ``0 .. C-1``, a channel name (case-insensitive) or
+        an index written as text (``"1"``).  ``None`` takes the only channel
+        of a one-channel stack and combines the channels of a multi-channel
+        stack.
+
+    Returns
+    -------
+    volume : (Z, Y, X) ndarray
+        For one channel, a view ``stack.data[:, c]`` (no copy, file dtype).
+        For a combination, a new uint16 array: each channel scaled so its
+        0.1th..99.9th percentiles (estimated on a strided subsample) span
+        0..65535, clipped, then the voxelwise maximum over channels.  A
+        channel with no intensity range contributes zeros.
+    label : str
+        The channel's name, or ``"max of NAME, NAME, ..."``.
+
+    Raises
+    ------
+    InputError
+        When the channel does not exist.
+
+    Examples
+    --------
+    >>> data = np.zeros((2, 2, 3, 3), np.uint8)
+    >>> stack = Stack(data, (4.0, 1.0, 1.0), "user", ("collagen", "urothelium"), "s.tif", "ZCYX")
+    >>> volume, label = select_channel(stack, "Urothelium")
+    >>> volume.shape, label
+    ((2, 3, 3), 'urothelium')
+    >>> select_channel(stack)[1]
+    'max of collagen, urothelium'
+    """
+    names = stack.channel_names
+    if channel is None:
+        if len(names) == 1:
+            return stack.data[:, 0], names[0]
+        return _combine_channels(stack.data), "max of " + ", ".join(names)
+    index = _channel_index(channel, names)
+    return stack.data[:, index], names[index]
+
+
+def _channel_index(channel: int | str, names: tuple[str, ...]) -> int:
+    listing = ", ".join(names)
+    if isinstance(channel, str):
+        key = channel.strip().casefold()
+        matches = [i for i, name in enumerate(names) if name.casefold() == key]
+        if len(matches) > 1:
+            raise InputError(
+                f"channel {channel!r} is ambiguous: channels {matches} all have that name"
+            )
+        if matches:
+            return matches[0]
+        if key.isdecimal():
+            channel = int(key)
+        else:
+            raise InputError(f"channel {channel!r} not found; the stack has channels: {listing}")
+    if isinstance(channel, bool) or not isinstance(channel, int | np.integer):
+        raise InputError(f"channel must be an index or a name, got {channel!r}")
+    if not 0 <= channel < len(names):
+        raise InputError(
+            f"channel {channel} out of range: the stack has {len(names)} "
+            f"channel{'s' if len(names) != 1 else ''} ({listing})"
+        )
+    return int(channel)
+
+
+def _combine_channels(data: np.ndarray) -> np.ndarray:
+    """Voxelwise maximum of robustly normalised channels, ``(Z, C, Y, X)`` -> uint16."""
+    z, c, y, x = data.shape
+    step = max(1, math.ceil((z * y * x / _RANGE_SAMPLE_VOXELS) ** (1 / 3)))
+    ranges = []
+    for k in range(c):
+        sample = np.asarray(data[::step, k, ::step, ::step], dtype=np.float64).ravel()
+        sample = sample[np.isfinite(sample)]
+        if sample.size == 0:
+            ranges.append((0.0, 0.0))
+            continue
+        lo, hi = np.percentile(sample, _RANGE_PERCENTILES)
+        ranges.append((float(lo), float(hi)))
+
+    out = np.empty((z, y, x), dtype=np.uint16)
+    chunk = max(1, _CHUNK_BYTES // (4 * y * x))
+    for z0 in range(0, z, chunk):
+        block = np.zeros((min(chunk, z - z0), y, x), dtype=np.float32)
+        for k, (lo, hi) in enumerate(ranges):
+            if not hi > lo:
+                continue
+            scaled = data[z0 : z0 + chunk, k].astype(np.float32)
+            scaled -= lo
+            scaled *= 1.0 / (hi - lo)
+            np.fmax(block, scaled, out=block)  # fmax ignores NaN voxels
+        np.clip(block, 0.0, 1.0, out=block)
+        block *= 65535.0
+        out[z0 : z0 + chunk] = np.rint(block)
+    return out
+
+
+def _check_spacing(spacing: Sequence[float], argument: str) -> Spacing:
+    message = (
+        f"{argument} must be three finite positive numbers (dz, dy, dx) in micrometres, "
+        f"got {spacing!r}"
+    )
+    if isinstance(spacing, str | bytes):
+        raise InputError(message)
+    try:
+        values = tuple(float(v) for v in spacing)
+    except (TypeError, ValueError):
+        raise InputError(message) from None
+    if len(values) != 3 or not all(math.isfinite(v) and v > 0 for v in values):
+        raise InputError(message)
+    return values
+
+
+def _zcyx_order(axes: str, shape: tuple[int, ...], path: str) -> dict[str, str]:
+    """Map each of ``Z, C, Y, X`` to the file axis holding it, checking the stack is 3D.
+
+    Raises InputError for time series, RGB samples, 2D images and unknown axes.
+    """
+    sizes = dict(zip(axes, shape, strict=True))
+    described = f"axes {axes!r}, shape {shape}"
+    if sizes.get("T", 1) > 1:
+        raise InputError(
+            f"{path} has a time axis (T={sizes['T']}); pass one time point as a z-stack"
+        )
+    if sizes.get("S", 1) > 1:
+        raise InputError(
+            f"{path} stores RGB colour samples ({described}), not channels; "
+            "save the channels as a separate C axis (ImageJ: Image > Color > Make Composite)"
+        )
+    if "Y" not in sizes or "X" not in sizes:
+        raise InputError(f"{path} has no Y and X image axes ({described})")
+    order = {"Y": "Y", "X": "X"}
+    if sizes.get("C", 1) > 1:
+        order["C"] = "C"
+    others = [a for a in axes if a not in "CYX" and sizes[a] > 1]
+    if others == ["Z"] or (len(others) == 1 and others[0] in _PAGE_AXES):
+        order["Z"] = others[0]
+    elif others:
+        raise InputError(
+            f"{path}: cannot tell the Z axis apart in {described}; "
+            "save it with ImageJ hyperstack or OME axes"
+        )
+    else:
+        raise InputError(f"{path} is a 2D image ({described}), not a z-stack")
+    return order
+
+
+def _to_zcyx(array: np.ndarray, axes: str, order: dict[str, str]) -> np.ndarray:
+    """View ``array`` (axes ``axes``) as ``(Z, C, Y, X)``: drop singletons, move axes."""
+    keep = set(order.values())
+    array = array[tuple(slice(None) if a in keep else 0 for a in axes)]
+    axes = "".join(a for a in axes if a in keep)
+    if "C" not in order:  # one channel: add a C axis in front, moved into place below
+        array, axes, order = array[np.newaxis], "C" + axes, {**order, "C": "C"}
+    source = [axes.index(order[a]) for a in "ZCYX"]
+    return np.moveaxis(array, source, [0, 1, 2, 3])
+
+
+def _metadata(tif, axes: str, shape: tuple[int, ...]):
+    """Spacing, its source, channel names and a note on partial spacing, from metadata.
+
+    Never raises on malformed metadata: what cannot be read counts as absent.
+    Returns ``(spacing or None, source, names or None, found)``, where
+    ``found`` describes a partial spacing for the warning ("" if none).
+    """
+    if tif.is_ome and tif.ome_metadata:
+        spacing, names, found = _ome_metadata(tif.ome_metadata)
+        return spacing, "ome", names, found
+    page = tif.pages[0]
+    pixel, resunit = _resolution(page)
+    if tif.is_imagej and tif.imagej_metadata is not None:
+        return _imagej_metadata(tif.imagej_metadata, pixel, resunit, axes, shape)
+    if pixel is not None and resunit is not None:
+        dy, dx = (float(p * resunit) for p in pixel)
+        return None, "none", None, f"a pixel size of {dy:g} x {dx:g} um but no Z step"
+    return None, "none", None, ""
+
+
+def _resolution(page) -> tuple[tuple[Fraction, Fraction] | None, Fraction | None]:
+    """Pixel size ``(dy, dx)`` in resolution units, and micrometres per such unit."""
+    try:
+        pixel = tuple(
+            Fraction(*page.tags[tag].value[::-1]) for tag in ("YResolution", "XResolution")
+        )
+    except (KeyError, TypeError, ValueError, ZeroDivisionError):
+        pixel = None
+    tag = page.tags.get("ResolutionUnit")
+    resunit = _UM_PER_RESUNIT.get(int(tag.value)) if tag is not None else None
+    return pixel, resunit
+
+
+def _um_per_unit(unit) -> Fraction | None:
+    if not isinstance(unit, str):
+        return None
+    return _UM_PER_UNIT.get(unit.strip().lower())
+
+
+def _to_um(value, per_unit: Fraction | None) -> float | None:
+    """``value`` (number or Fraction) in micrometres; None if unknown or not positive."""
+    if per_unit is None or value is None:
+        return None
+    try:
+        um = float(Fraction(value) * per_unit)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return um if math.isfinite(um) and um > 0 else None
+
+
+def _imagej_metadata(md: Mapping, pixel, resunit, axes: str, shape: tuple[int, ...]):
+    unit = md.get("unit")
+    source = "imagej"
+    if unit is None and resunit is not None:
+        per_x = per_y = per_z = resunit
+        source = "tiff-resolution"
+    else:
+        per_x = _um_per_unit(unit)
+        per_y = _um_per_unit(md.get("yunit", unit))
+        per_z = _um_per_unit(md.get("zunit", unit))
+    dz = _to_um(md.get("spacing"), per_z)
+    dy, dx = (None, None) if pixel is None else (_to_um(pixel[0], per_y), _to_um(pixel[1], per_x))
+    names = _imagej_channel_names(md.get("Labels"), axes, shape)
+    if None in (dz, dy, dx):
+        found = ""
+        if dy is not None and dx is not None:
+            found = f"a pixel size of {dy:g} x {dx:g} um but no Z step"
+        elif md.get("spacing") is not None or unit is not None:
+            found = f"ImageJ spacing={md.get('spacing')!r} unit={unit!r}, not usable"
+        return None, "none", names, found
+    return (dz, dy, dx), source, names, ""
+
+
+def _imagej_channel_names(labels, axes: str, shape: tuple[int, ...]) -> tuple[str, ...] | None:
+    """Channel names from ImageJ slice labels, if every slice of a channel has the same one.
+
+    ImageJ stores planes with C varying fastest, then Z, then T.
+    """
+    if not isinstance(labels, list | tuple):
+        return None
+    channels = dict(zip(axes, shape, strict=True)).get("C", 1)
+    planes = math.prod(n for a, n in zip(axes, shape, strict=True) if a not in "YXS")
+    if len(labels) != planes or planes % channels:
+        return None
+    table = np.asarray([str(label).strip() for label in labels], dtype=object)
+    table = table.reshape(-1, channels)
+    if not (table == table[0]).all() or not all(table[0]):
+        return None
+    return tuple(table[0])
+
+
+def _ome_metadata(xml: str):
+    """Spacing, channel names and a partial-spacing note from OME-XML (first image)."""
+    from xml.etree import ElementTree
+
+    try:
+        root = ElementTree.fromstring(xml)
+    except ElementTree.ParseError:
+        logger.debug("unparseable OME-XML ignored")
+        return None, None, ""
+    pixels = root.find("{*}Image/{*}Pixels")
+    if pixels is None:
+        return None, None, ""
+    sizes = []
+    for axis in "ZYX":
+        value = pixels.get(f"PhysicalSize{axis}")
+        per_unit = _um_per_unit(pixels.get(f"PhysicalSize{axis}Unit", "µm"))
+        try:
+            sizes.append(_to_um(None if value is None else float(value), per_unit))
+        except ValueError:
+            sizes.append(None)
+    names = tuple(
+        channel.get("Name") or str(i) for i, channel in enumerate(pixels.findall("{*}Channel"))
+    )
+    dz, dy, dx = sizes
+    if None in sizes:
+        found = ""
+        if dy is not None and dx is not None:
+            found = f"a pixel size of {dy:g} x {dx:g} um but no Z step"
+        elif any(pixels.get(f"PhysicalSize{a}") for a in "ZYX"):
+            found = "OME PhysicalSize with missing or unknown units"
+        return None, names or None, found
+    return (dz, dy, dx), names or None, ""
