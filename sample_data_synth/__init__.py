@@ -1,8 +1,10 @@
 """Synthetic inputs with exact ground truth.
 
 Speckle patterns and a tissue photograph deformed by analytic maps, rendered
-with sensor noise and written as real video and TIFF files, each with a
-ground-truth file beside it.  Depends on no other package of the toolkit.
+with sensor noise and written as real video and TIFF files, and multiphoton
+z-stacks of a folded lumen whose surface is known exactly
+(:mod:`sample_data_synth.stacks`), each with a ground-truth file beside it.
+Depends on no other package of the toolkit.
 """
 
 from importlib import metadata as _metadata
@@ -18,6 +20,15 @@ from sample_data_synth.cases import (
 from sample_data_synth.deformations import Field, Homogeneous, equibiaxial, rotation, simple_shear
 from sample_data_synth.render import add_sensor_noise, render_image, render_speckle
 from sample_data_synth.speckle import SpecklePattern, speckle_pattern
+from sample_data_synth.stacks import (
+    STACK_CASES,
+    SyntheticStack,
+    fold_height_field,
+    make_stack_case,
+    render_stack,
+    save_stack_truth,
+    write_stack,
+)
 
 try:
     __version__ = _metadata.version("tissue-strain")
@@ -26,19 +37,26 @@ except _metadata.PackageNotFoundError:  # running from a source tree that is not
 
 __all__ = [
     "CASES",
+    "STACK_CASES",
     "Field",
     "GroundTruth",
     "Homogeneous",
     "SpecklePattern",
+    "SyntheticStack",
     "SyntheticVideo",
     "add_sensor_noise",
     "equibiaxial",
+    "fold_height_field",
     "load_ground_truth",
     "make_case",
+    "make_stack_case",
     "render_image",
     "render_speckle",
+    "render_stack",
     "rotation",
+    "save_stack_truth",
     "simple_shear",
     "speckle_pattern",
+    "write_stack",
     "write_video",
 ]

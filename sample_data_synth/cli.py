@@ -1,24 +1,37 @@
-"""Command line: ``python -m sample_data_synth {video,list}``.
+"""Command line: ``python -m sample_data_synth {video,stack,list}``.
 
 ``video`` writes, for each case, ``CASE.avi`` (lossless FFV1) and/or
 ``CASE.tif`` / ``CASE.mp4``, ``CASE_truth.json`` (the analytic deformation,
 from which any point's position, F and E at any frame follow; see
 :func:`sample_data_synth.load_ground_truth`) and ``CASE_truth.npz`` (the case's
 grid: ``grid`` (N, 2), ``positions`` (T, N, 2), ``F`` and ``E`` (T, N, 2, 2)).
+
+``stack`` writes, for ``before``, ``after`` or both (``pair``), a two-channel
+MPM z-stack ``CASE.tif`` (ImageJ hyperstack) or ``CASE.ome.tif`` (OME-TIFF),
+``CASE_truth.json`` (fold geometry, per-fold heights, conventions) and
+``CASE_truth.npz`` (``depth_um`` and ``height_um``, (Y, X) float32); see
+:mod:`sample_data_synth.stacks`.
+
+Every command writes into a temporary folder beside ``--out`` and renames it
+only when everything is written.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import shutil
 import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from sample_data_synth.cases import CASES, make_case, write_video
+from sample_data_synth.stacks import STACK_CASES, make_stack_case, save_stack_truth, write_stack
 
 
 class _Parser(argparse.ArgumentParser):
@@ -27,7 +40,9 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="sample_data_synth", description="Synthetic videos with ground truth.")
+    parser = _Parser(
+        prog="sample_data_synth", description="Synthetic videos and z-stacks with ground truth."
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     p = sub.add_parser("video", help="render benchmark videos with ground truth")
     p.add_argument(
@@ -46,8 +61,48 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p = sub.add_parser("stack", help="render MPM z-stacks of a folded lumen with ground truth")
+    p.add_argument(
+        "--case",
+        default="pair",
+        help=f"one of {', '.join(STACK_CASES)}, or 'pair' for both (default pair)",
+    )
+    p.add_argument("--size", type=int, default=512, help="width and height in px (512)")
+    p.add_argument(
+        "--slices",
+        type=int,
+        default=None,
+        help="number of slices (default: the fewest that fit the folds)",
+    )
+    p.add_argument("--spacing", default="4,2.5,2.5", help="DZ,DY,DX in um (4,2.5,2.5)")
+    p.add_argument("--format", default="imagej", help="imagej or ome (imagej)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     sub.add_parser("list", help="list the cases")
     return parser
+
+
+@contextmanager
+def _output_folder(out: Path, overwrite: bool) -> Iterator[Path]:
+    """A temporary folder beside ``out`` that replaces it once the body succeeds."""
+    if out.exists() and not overwrite:
+        raise ValueError(f"{out} exists; pass --overwrite to replace it")
+    if not out.absolute().parent.is_dir():
+        raise ValueError(f"output folder {out.absolute().parent} does not exist")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.absolute().parent))
+    try:
+        yield tmp
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o777 & ~mask)  # mkdtemp made it private
+        if out.exists():
+            shutil.rmtree(out) if out.is_dir() else out.unlink()
+        os.replace(tmp, out)
+    finally:
+        if tmp.exists():
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _cmd_video(args) -> int:
@@ -64,13 +119,7 @@ def _cmd_video(args) -> int:
         value = getattr(args, name)
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"--{name.replace('_', '-')} must be a number >= 0, got {value}")
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise ValueError(f"{out} exists; pass --overwrite to replace it")
-    if not out.absolute().parent.is_dir():
-        raise ValueError(f"output folder {out.absolute().parent} does not exist")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.absolute().parent))
-    try:
+    with _output_folder(Path(args.out), args.overwrite) as tmp:
         for case in cases:
 
             def progress(done: int, total: int, case=case) -> None:
@@ -100,15 +149,53 @@ def _cmd_video(args) -> int:
                 F=np.stack([truth.gradient(grid, k) for k in range(truth.n_frames)]),
                 E=np.stack([truth.strain(grid, k) for k in range(truth.n_frames)]),
             )
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o777 & ~mask)  # mkdtemp made it private
-        if out.exists():
-            shutil.rmtree(out) if out.is_dir() else out.unlink()
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
+    return 0
+
+
+def _parse_spacing(text: str) -> tuple[float, float, float]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(math.isfinite(v) and v > 0 for v in values):
+        raise ValueError(f"--spacing must be DZ,DY,DX: three numbers > 0 in um, got {text!r}")
+    return values
+
+
+def _cmd_stack(args) -> int:
+    cases = list(STACK_CASES) if args.case == "pair" else [args.case]
+    if any(c not in STACK_CASES for c in cases):
+        raise ValueError(
+            f"unknown case {args.case!r}; choose from {', '.join(STACK_CASES)} or pair"
+        )
+    if args.format not in ("imagej", "ome"):
+        raise ValueError(f"--format must be imagej or ome, got {args.format!r}")
+    spacing = _parse_spacing(args.spacing)
+    if args.size < 16:
+        raise ValueError(f"--size must be >= 16, got {args.size}")
+    if args.slices is not None and args.slices < 2:
+        raise ValueError(f"--slices must be >= 2, got {args.slices}")
+    suffix = ".tif" if args.format == "imagej" else ".ome.tif"
+    with _output_folder(Path(args.out), args.overwrite) as tmp:
+        for case in cases:
+
+            def progress(done: int, total: int, case=case) -> None:
+                if not args.quiet:
+                    print(f"\r{case}: slice {done}/{total}", end="", file=sys.stderr, flush=True)
+
+            stack = make_stack_case(
+                case,
+                size=args.size,
+                spacing=spacing,
+                n_slices=args.slices,
+                rng=args.seed,
+                progress=progress,
+            )
+            if not args.quiet:
+                print(file=sys.stderr)
+            write_stack(tmp / f"{case}{suffix}", stack, format=args.format)
+            save_stack_truth(tmp / case, stack)
+            del stack
     return 0
 
 
@@ -118,9 +205,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "list":
         for name, spec in CASES.items():
             print(f"{name:12s} {spec.description}")
+        for name, spec in STACK_CASES.items():
+            print(f"{name:12s} {spec.description}")
         return 0
     try:
-        return _cmd_video(args)
+        return {"video": _cmd_video, "stack": _cmd_stack}[args.command](args)
     except (ValueError, OSError) as exc:
         print(f"sample_data_synth {args.command}: error: {exc}", file=sys.stderr)
         return 2
