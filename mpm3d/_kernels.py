@@ -1,0 +1,98 @@
+"""Compiled inner loops for the height map and the isosurface volume (numba).
+
+Each loop reads the stack where it lies (a memory map or an array, any
+strides) and writes small outputs, so no floating-point copy of the stack is
+ever made.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+__all__ = ["bin_lateral", "first_crossing"]
+
+
+@njit(cache=True, inline="always")
+def _mean3x3(vol, z, y, x, ny, nx):
+    """Mean of the 3 x 3 lateral neighbourhood of voxel (z, y, x), clamped at the borders."""
+    total = 0.0
+    count = 0
+    for yy in range(max(y - 1, 0), min(y + 2, ny)):
+        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+            total += vol[z, yy, xx]
+            count += 1
+    return total / count
+
+
+@njit(parallel=True, cache=True)
+def first_crossing(vol, level, background, window, depth, peak):  # pragma: no cover - compiled
+    """Sub-voxel depth of the first rise of each column above ``level``.
+
+    Scanning each column ``vol[:, y, x]`` (3 x 3 laterally averaged) from
+    slice 0, find the first slice at or above ``level``, then the brightest
+    slice within ``window`` slices below it (the surface layer's peak), and
+    locate where the rising edge crosses half-way between ``background`` and
+    that peak, interpolating linearly between slices.  The half-maximum of a
+    blurred step lies on the step whatever the blur, so the depth does not
+    depend on ``level`` or on how bright the layer is.
+
+    Writes ``depth[y, x]`` in slice units (NaN where no slice reaches
+    ``level``) and ``peak[y, x]`` (NaN likewise).
+    """
+    nz, ny, nx = vol.shape
+    for y in prange(ny):
+        done = np.zeros(nx, np.bool_)
+        start = np.full(nx, -1, np.int64)
+        remaining = nx
+        for z in range(nz):
+            for x in range(nx):
+                if not done[x] and _mean3x3(vol, z, y, x, ny, nx) >= level:
+                    done[x] = True
+                    start[x] = z
+                    remaining -= 1
+            if remaining == 0:
+                break
+        for x in range(nx):
+            z0 = start[x]
+            if z0 < 0:
+                depth[y, x] = np.nan
+                peak[y, x] = np.nan
+                continue
+            top = _mean3x3(vol, z0, y, x, ny, nx)
+            zp = z0
+            for z in range(z0 + 1, min(nz, z0 + window + 1)):
+                v = _mean3x3(vol, z, y, x, ny, nx)
+                if v > top:
+                    top = v
+                    zp = z
+            half = background + 0.5 * (top - background)
+            # walk up from the peak to the last slice below the half level
+            j = zp
+            below = top
+            while j > 0:
+                j -= 1
+                below = _mean3x3(vol, j, y, x, ny, nx)
+                if below < half:
+                    break
+            if below >= half:  # bright from the first slice on: the surface is cut off
+                depth[y, x] = 0.0
+            else:
+                above = _mean3x3(vol, j + 1, y, x, ny, nx)
+                depth[y, x] = j + (half - below) / (above - below)
+            peak[y, x] = top
+
+
+@njit(parallel=True, cache=True)
+def bin_lateral(vol, factor, out):  # pragma: no cover - compiled
+    """Mean over ``factor`` x ``factor`` lateral blocks: ``out[z, i, j]`` (float32)."""
+    nz, by, bx = out.shape
+    scale = 1.0 / (factor * factor)
+    for z in prange(nz):
+        for i in range(by):
+            for j in range(bx):
+                total = 0.0
+                for yy in range(i * factor, (i + 1) * factor):
+                    for xx in range(j * factor, (j + 1) * factor):
+                        total += vol[z, yy, xx]
+                out[z, i, j] = total * scale
