@@ -170,14 +170,15 @@ def height_map(
 
     Examples
     --------
-    A tilted bright slab below a dark lumen:
+    A tilted bright slab below a dark lumen, found to a few hundredths of
+    its 2 um z-step:
 
     >>> import numpy as np
     >>> z = np.arange(40.0)[:, None, None]
     >>> true_depth = 10.0 + 0.05 * np.arange(32.0)[None, None, :]  # slices
     >>> vol = 100 + 1000 / (1 + np.exp(-(z - true_depth) / 0.8))
     >>> hm = height_map(vol, spacing=(2.0, 1.0, 1.0), smooth_um=0)
-    >>> bool(np.abs(hm.depth_um - 2.0 * true_depth[0]).max() < 0.05)
+    >>> bool(np.abs(hm.depth_um - 2.0 * true_depth[0]).max() < 0.1)
     True
     """
     from scipy import ndimage

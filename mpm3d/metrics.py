@@ -141,7 +141,7 @@ def roughness(
     A 45 degree roof has Sdr = sqrt(2) - 1:
 
     >>> x = np.arange(50.0)
-    >>> r = roughness(np.tile(np.abs(x - 24.5), (40, 1)), spacing=(1, 1))
+    >>> r = roughness(np.tile(np.abs(x - 24), (40, 1)), spacing=(1, 1))
     >>> round(r["Sdr_percent"], 2)
     41.42
     """
