@@ -1,8 +1,21 @@
-"""Multiphoton z-stacks to lumen surface and fold metrics (not implemented yet).
+"""Multiphoton z-stacks to the lumen surface and its folds.
 
-This package will read microscopy stacks ``(Z, Y, X)`` or ``(Z, C, Y, X)`` with
-their voxel spacing in micrometres, extract the lumen surface (height map and
-isosurface mesh) and measure folds (height, wavelength, orientation,
-roughness).  Nothing in it works yet; ``python -m mpm3d`` says so and exits
-with status 2.
+Read a stack ``(Z, Y, X)`` or ``(Z, C, Y, X)`` with its voxel spacing in
+micrometres (:mod:`mpm3d.io`), find the lumen surface as a sub-voxel height
+map (:mod:`mpm3d.heightmap`) and as a mesh (:mod:`mpm3d.surface`), measure
+its folds and roughness (:mod:`mpm3d.metrics`), compare two stacks
+(:mod:`mpm3d.compare`).  From the shell: ``python -m mpm3d analyze
+STACK.tif --out DIR`` and ``python -m mpm3d compare BEFORE.tif AFTER.tif
+--out DIR``.
 """
+
+from importlib import metadata as _metadata
+
+from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
+
+try:
+    __version__ = _metadata.version("tissue-strain")
+except _metadata.PackageNotFoundError:  # pragma: no cover - source tree without install
+    __version__ = "0+unknown"
+
+__all__ = ["InputError", "MissingSpacingWarning", "SourceError", "__version__"]

@@ -1,4 +1,5 @@
 import sys
 
-print("mpm3d: not implemented yet in this version (planned: analyze, compare)", file=sys.stderr)
-sys.exit(2)
+from mpm3d.cli import main
+
+sys.exit(main())

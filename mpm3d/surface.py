@@ -148,8 +148,8 @@ def isosurface(
     depth_um: np.ndarray | None = None,
     band_um: float = 100.0,
     bin: int | None = None,
-    smooth_iterations: int = 15,
-    pass_band: float = 0.1,
+    smooth_iterations: int = 40,
+    pass_band: float = 0.02,
     decimate: float = 0.0,
 ):
     """The lumen surface as a VTK flying-edges isosurface of the stack.

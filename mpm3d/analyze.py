@@ -1,0 +1,247 @@
+"""One stack to a lumen surface, fold metrics and their files.
+
+:func:`analyze_stack` is what ``python -m mpm3d analyze`` runs: read the
+stack (:mod:`mpm3d.io`), find the surface (:mod:`mpm3d.heightmap`), mesh it
+(:mod:`mpm3d.surface`), measure it (:mod:`mpm3d.metrics`) and, with
+:func:`write_analysis`, write::
+
+    OUT/metrics.json      every metric, the spacing, input, parameters, version
+    OUT/folds.csv         one row per fold (height, position, width)
+    OUT/crests.csv        one row per crest and profile
+    OUT/surface.vtp       the isosurface (ParaView), points (x, y, depth) um
+    OUT/surface.ply       the same mesh for other tools
+    OUT/heightmap.tif     float32 height (um) with its pixel size (ImageJ)
+    OUT/figures/          heightmap.png, surface3d.png, profiles.png, spectrum.png
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mpm3d.heightmap import HeightMap, height_map
+from mpm3d.io import Stack, read_stack, select_channel
+from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
+
+__all__ = ["Analysis", "analyze_stack", "write_analysis"]
+
+log = logging.getLogger(__name__)
+
+METRICS_VERSION = 1
+
+
+def _version() -> str:
+    from mpm3d import __version__
+
+    return __version__
+
+
+@dataclass(eq=False)
+class Analysis:
+    """Everything measured on one stack.
+
+    Attributes
+    ----------
+    metrics : dict
+        The contents of ``metrics.json``.
+    heightmap : HeightMap
+    spectrum : FoldSpectrum
+    folds : FoldTable
+    surface : pyvista.PolyData or None
+        The isosurface (None when not asked for).
+    """
+
+    metrics: dict
+    heightmap: HeightMap
+    spectrum: FoldSpectrum
+    folds: FoldTable
+    surface: object = None
+    params: dict = field(default_factory=dict)
+
+    @property
+    def height_um(self) -> np.ndarray:
+        return self.heightmap.height_um
+
+
+def analyze_stack(
+    source: str | os.PathLike | Stack,
+    *,
+    channel: int | str | None = None,
+    spacing: Sequence[float] | None = None,
+    threshold: float | None = None,
+    smooth_um: float | None = None,
+    min_fold_height_um: float | None = None,
+    surface: bool = True,
+    iso_bin: int | None = None,
+    band_um: float = 100.0,
+    decimate: float = 0.0,
+    progress: Callable[[str], None] | None = None,
+) -> Analysis:
+    """Measure the lumen surface and its folds in one z-stack.
+
+    Parameters
+    ----------
+    source : path or Stack
+        A TIFF z-stack (see :func:`mpm3d.io.read_stack`) or a stack already read.
+    channel : int or str, optional
+        Channel index or name; by default every channel, each scaled to its
+        own range, combined by their maximum.
+    spacing : (dz, dy, dx) um, optional
+        Overrides the file's voxel spacing.
+    threshold, smooth_um : see :func:`mpm3d.heightmap.height_map`
+    min_fold_height_um : see :func:`mpm3d.metrics.fold_profiles`
+    surface : bool
+        Also build the isosurface mesh.
+    iso_bin, band_um, decimate : see :func:`mpm3d.surface.isosurface`
+    progress : callable, optional
+        Called with a short message before each step.
+
+    Returns
+    -------
+    Analysis
+    """
+    say = progress or (lambda message: None)
+    stack = source if isinstance(source, Stack) else read_stack(source, spacing=spacing)
+    say("choosing the channel")
+    volume, channel_label = select_channel(stack, channel)
+    say("finding the surface")
+    hm = height_map(volume, spacing=stack.spacing, threshold=threshold, smooth_um=smooth_um)
+    say("measuring the folds")
+    metrics, spectrum, folds = fold_metrics(
+        hm.height_um,
+        spacing=stack.spacing,
+        mask=hm.valid,
+        min_fold_height_um=min_fold_height_um,
+    )
+    mesh = None
+    if surface:
+        from mpm3d.surface import isosurface
+
+        say("building the isosurface")
+        mesh = isosurface(
+            volume,
+            spacing=stack.spacing,
+            level=hm.level,
+            depth_um=hm.depth_um,
+            bin=iso_bin,
+            band_um=band_um,
+            decimate=decimate,
+        )
+    del volume
+    params = {
+        "channel": channel,
+        "threshold": threshold,
+        "smooth_um": smooth_um,
+        "min_fold_height_um": min_fold_height_um,
+        "surface": surface,
+        "iso_bin": iso_bin,
+        "band_um": band_um,
+        "decimate": decimate,
+    }
+    record = {
+        "input": os.path.basename(stack.path),
+        "input_path": str(stack.path),
+        **{k: metrics[k] for k in metrics},
+        "spacing_um": {"z": stack.spacing[0], "y": stack.spacing[1], "x": stack.spacing[2]},
+        "spacing_source": stack.spacing_source,
+        "shape_zcyx": list(stack.shape),
+        "channel": channel_label,
+        "threshold": hm.threshold,
+        "background": hm.background,
+        "surface_level": hm.level,
+        "surface_coverage": hm.coverage,
+        "surface_depth_range_um": [float(hm.depth_um.min()), float(hm.depth_um.max())],
+        "n_surface_triangles": int(mesh.n_cells) if mesh is not None else None,
+        "conventions": {
+            "height": "elevation above the deepest slice, um (crests high)",
+            "orientation": "crest direction, degrees from the image x axis (columns) "
+            "towards y (rows), in [0, 180)",
+            "mesh": "points (x, y, depth below slice 0) in um, normals into the lumen",
+            "fold_height_um": "median over folds of each fold's median crest-to-trough height",
+            "max_fold_height_um": "the highest fold's median crest-to-trough height",
+            "roughness": "ISO 25178-2 on the height map with its least-squares plane removed",
+        },
+        "parameters": {**params, **hm.params},
+        "software": {"package": "tissue-strain", "module": "mpm3d", "version": _version()},
+        "metrics_version": METRICS_VERSION,
+    }
+    return Analysis(
+        metrics=record, heightmap=hm, spectrum=spectrum, folds=folds, surface=mesh, params=params
+    )
+
+
+def _write_table(path: Path, table: dict) -> None:
+    keys = list(table)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(keys)
+        for row in zip(*(table[k] for k in keys), strict=True):
+            w.writerow([f"{v:.6g}" if isinstance(v, float | np.floating) else v for v in row])
+
+
+def _clean(value):
+    """JSON-safe: NaN and infinity become null, numpy scalars plain numbers."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
+def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bool = True) -> None:
+    """Write an :class:`Analysis` into an existing, empty ``folder``."""
+    import tifffile
+
+    folder = Path(folder)
+    hm = analysis.heightmap
+    with open(folder / "metrics.json", "w", encoding="utf-8") as f:
+        json.dump(_clean(analysis.metrics), f, indent=2)
+        f.write("\n")
+    _write_table(folder / "folds.csv", analysis.folds.folds)
+    _write_table(folder / "crests.csv", analysis.folds.crests)
+    _, dy, dx = hm.spacing
+    tifffile.imwrite(
+        folder / "heightmap.tif",
+        np.stack([hm.height_um, hm.valid]).astype(np.float32),
+        imagej=True,
+        resolution=(1 / dx, 1 / dy),
+        metadata={
+            "unit": "um",
+            "axes": "CYX",
+            "Labels": ["height_um", "measured"],
+            "info": "channel 0: surface height above the deepest slice (um); "
+            "channel 1: 1 where measured, 0 where filled",
+        },
+    )
+    if analysis.surface is not None:
+        analysis.surface.save(folder / "surface.vtp")
+        analysis.surface.save(folder / "surface.ply", binary=True)
+    if not figures:
+        return
+    from mpm3d import figures as fg
+
+    fig_dir = folder / "figures"
+    fig_dir.mkdir()
+    name = analysis.metrics["input"]
+    fg.plot_height_map(
+        hm.height_um,
+        spacing=hm.spacing,
+        valid=hm.valid,
+        folds=analysis.folds,
+        title=f"{name}: lumen surface height",
+    ).savefig(fig_dir / "heightmap.png")
+    fg.plot_profiles(analysis.folds).savefig(fig_dir / "profiles.png")
+    fg.plot_spectrum(analysis.spectrum).savefig(fig_dir / "spectrum.png")
+    if analysis.surface is not None:
+        fg.render_surface(analysis.surface, fig_dir / "surface3d.png", title=name)

@@ -1,0 +1,229 @@
+"""Command line: ``python -m mpm3d {analyze,compare}``.
+
+``analyze STACK.tif --out DIR`` measures one stack (see
+:mod:`mpm3d.analyze` for the files it writes); ``compare BEFORE.tif
+AFTER.tif --out DIR`` measures two and reports the change of every metric
+(see :mod:`mpm3d.compare`).  Errors a user can cause end with one line on
+stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+import warnings
+
+from mpm3d.errors import InputError, SourceError
+
+__all__ = ["main"]
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def _spacing(text: str):
+    from mpm3d.io import parse_spacing
+
+    try:
+        return parse_spacing(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _channel(text: str) -> int | str:
+    return int(text) if text.isdigit() else text
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", required=True, help="output folder (must not exist, see --overwrite)")
+    p.add_argument(
+        "--channel",
+        type=_channel,
+        help="channel index or name (default: all channels, each scaled, combined by maximum)",
+    )
+    p.add_argument(
+        "--spacing", type=_spacing, help="voxel spacing Z,Y,X in um (overrides metadata)"
+    )
+    p.add_argument(
+        "--threshold", type=_number, help="surface detection level in grey values (default Otsu)"
+    )
+    p.add_argument(
+        "--smooth", type=_number, metavar="UM", help="height-map smoothing sigma, um (1 pixel)"
+    )
+    p.add_argument(
+        "--min-fold-height",
+        type=_number,
+        metavar="UM",
+        help="least crest-to-trough height of a fold, um (a fifth of the height range)",
+    )
+    p.add_argument(
+        "--iso-bin",
+        type=int,
+        metavar="N",
+        help="average N x N pixels before the isosurface (default: voxels near cubic)",
+    )
+    p.add_argument(
+        "--decimate",
+        type=_number,
+        default=0.0,
+        metavar="F",
+        help="fraction of the surface's triangles to remove (0)",
+    )
+    p.add_argument("--no-surface", action="store_true", help="skip the isosurface mesh")
+    p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.add_argument("-v", "--verbose", action="store_true", help="log details")
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="mpm3d", description="Multiphoton z-stacks to the lumen surface and its folds."
+    )
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = sub.add_parser("analyze", help="measure the lumen surface and folds of one stack")
+    p.add_argument("stack", help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF")
+    _common(p)
+    p.set_defaults(handler=_cmd_analyze)
+    p = sub.add_parser("compare", help="compare two stacks (before / after)")
+    p.add_argument("before", help="the first stack (e.g. before contraction)")
+    p.add_argument("after", help="the second stack")
+    p.add_argument(
+        "--icp",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="refine the alignment by ICP with open3d (auto: when installed)",
+    )
+    _common(p)
+    p.set_defaults(handler=_cmd_compare)
+    return parser
+
+
+def _options(args) -> dict:
+    if args.iso_bin is not None and args.iso_bin < 1:
+        raise InputError(f"--iso-bin must be >= 1, got {args.iso_bin}")
+    if not 0 <= args.decimate < 1:
+        raise InputError(f"--decimate must be in [0, 1), got {args.decimate}")
+    for name in ("smooth", "min_fold_height"):
+        value = getattr(args, name)
+        if value is not None and value < 0:
+            raise InputError(f"--{name.replace('_', '-')} must be >= 0, got {value}")
+    return {
+        "channel": args.channel,
+        "spacing": args.spacing,
+        "threshold": args.threshold,
+        "smooth_um": args.smooth,
+        "min_fold_height_um": args.min_fold_height,
+        "surface": not args.no_surface,
+        "iso_bin": args.iso_bin,
+        "decimate": args.decimate,
+    }
+
+
+def _progress(args):
+    start = time.perf_counter()
+
+    def say(message: str) -> None:
+        if not args.quiet:
+            print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def _summary(metrics: dict) -> str:
+    def fmt(key: str, unit: str) -> str:
+        value = metrics.get(key)
+        return "-" if value is None else f"{value:.1f}{unit}"
+
+    return (
+        f"folds: wavelength {fmt('fold_wavelength_um', ' um')}, "
+        f"height {fmt('fold_height_um', ' um')} (max {fmt('max_fold_height_um', ' um')}), "
+        f"crests at {fmt('fold_orientation_deg', ' deg')}, "
+        f"coherency {metrics['fold_coherency']:.2f}; "
+        f"Sa {fmt('Sa_um', ' um')}, Sq {fmt('Sq_um', ' um')}, Sdr {fmt('Sdr_percent', ' %')}"
+    )
+
+
+def _cmd_analyze(args) -> int:
+    from mpm3d._output import output_folder
+    from mpm3d.analyze import analyze_stack, write_analysis
+
+    say = _progress(args)
+    with output_folder(args.out, overwrite=args.overwrite, inputs=[args.stack]) as tmp:
+        analysis = analyze_stack(args.stack, progress=say, **_options(args))
+        say("writing results")
+        write_analysis(analysis, tmp, figures=not args.no_figures)
+    if not args.quiet:
+        print(f"{args.stack}: {_summary(analysis.metrics)}", file=sys.stderr)
+        print(f"results in {args.out}", file=sys.stderr)
+    return 0
+
+
+def _cmd_compare(args) -> int:
+    from mpm3d._output import output_folder
+    from mpm3d.compare import compare_stacks, write_comparison
+
+    say = _progress(args)
+    icp = {"auto": None, "on": True, "off": False}[args.icp]
+    with output_folder(args.out, overwrite=args.overwrite, inputs=[args.before, args.after]) as tmp:
+        report, first, second = compare_stacks(
+            args.before, args.after, icp=icp, progress=say, **_options(args)
+        )
+        say("writing results")
+        write_comparison(report, first, second, tmp, figures=not args.no_figures)
+    if not args.quiet:
+        for row in report["changes"]:
+            if row["change"] is not None and row["metric"] in (
+                "fold_wavelength_um",
+                "fold_height_um",
+                "max_fold_height_um",
+                "Sq_um",
+            ):
+                print(
+                    f"{row['metric']}: {row['before']:.1f} -> {row['after']:.1f}",
+                    file=sys.stderr,
+                )
+        print(f"results in {args.out}", file=sys.stderr)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s: %(message)s",
+    )
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return args.handler(args)
+            finally:
+                for w in caught:
+                    if issubclass(w.category, UserWarning):
+                        print(f"mpm3d {args.command}: warning: {w.message}", file=sys.stderr)
+    except (InputError, SourceError) as exc:
+        print(f"mpm3d {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"mpm3d {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"mpm3d {args.command}: interrupted; no output written", file=sys.stderr)
+        return 130

@@ -1,0 +1,266 @@
+"""Before / after: two stacks of one specimen, aligned, their metrics compared.
+
+:func:`compare_stacks` is what ``python -m mpm3d compare`` runs.  Both
+stacks are analysed in full (:func:`mpm3d.analyze.analyze_stack`); their
+height maps are aligned laterally by phase correlation, refined with
+point-to-plane ICP on the surfaces when open3d is installed (the ``3d``
+extra); every metric's change is reported.  It writes::
+
+    OUT/compare.json       alignment, both metric sets, every change
+    OUT/changes.csv        metric, before, after, change, ratio
+    OUT/figures/compare_heightmaps.png
+    OUT/before/, OUT/after/  each stack's full analysis (as ``analyze`` writes it)
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from mpm3d.analyze import Analysis, _clean, analyze_stack, write_analysis
+from mpm3d.errors import InputError
+
+__all__ = [
+    "align_heightmaps",
+    "compare_stacks",
+    "icp_refine",
+    "metric_changes",
+    "write_comparison",
+]
+
+log = logging.getLogger(__name__)
+
+#: metrics whose change is reported (numbers in metrics.json)
+COMPARED = (
+    "fold_wavelength_um",
+    "fold_height_um",
+    "max_fold_height_um",
+    "n_folds",
+    "fold_orientation_deg",
+    "fold_coherency",
+    "Sa_um",
+    "Sq_um",
+    "Ssk",
+    "Sku",
+    "Sp_um",
+    "Sv_um",
+    "Sz_um",
+    "Sdr_percent",
+)
+
+
+def align_heightmaps(
+    before: np.ndarray, after: np.ndarray, *, spacing: tuple[float, float]
+) -> dict:
+    """Lateral shift of ``after`` relative to ``before`` by phase correlation.
+
+    Both maps (same shape and pixel size) have their least-squares plane
+    removed and a Hann window applied; the shift is refined to 1/20 pixel
+    (Guizar-Sicairos et al., Opt. Lett. 33 (2008) 156,
+    doi:10.1364/OL.33.000156).
+
+    Returns
+    -------
+    dict
+        ``shift_x_um``, ``shift_y_um`` (move ``after`` by minus these to
+        overlay ``before``) and ``phase_correlation_error``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> from scipy import ndimage
+    >>> base = ndimage.gaussian_filter(rng.normal(size=(96, 96)), 3)
+    >>> moved = np.roll(base, (5, -3), axis=(0, 1))
+    >>> a = align_heightmaps(base, moved, spacing=(2.0, 2.0))
+    >>> round(a["shift_y_um"], 2), round(a["shift_x_um"], 2)
+    (10.0, -6.0)
+    """
+    from skimage.registration import phase_cross_correlation
+
+    from mpm3d.metrics import detrend
+
+    if before.shape != after.shape:
+        raise InputError(f"height maps differ in shape: {before.shape} and {after.shape}")
+    window = np.hanning(before.shape[0])[:, None] * np.hanning(before.shape[1])[None, :]
+    a = detrend(before, spacing=spacing) * window
+    b = detrend(after, spacing=spacing) * window
+    shift, error, _ = phase_cross_correlation(a, b, upsample_factor=20)
+    dy, dx = spacing
+    # skimage gives the shift that moves `b` onto `a`; report how `after` moved
+    return {
+        "shift_x_um": float(-shift[1] * dx),
+        "shift_y_um": float(-shift[0] * dy),
+        "phase_correlation_error": float(error),
+    }
+
+
+def icp_refine(
+    before_mesh, after_mesh, *, shift_xy_um: tuple[float, float], max_points: int = 60_000
+) -> dict:
+    """Rigid point-to-plane ICP of ``after`` onto ``before`` (open3d).
+
+    Starts from the phase-correlation shift; returns the translation (um),
+    rotation angle (degrees), ICP fitness and inlier RMSE (um).
+    """
+    try:
+        import open3d as o3d
+    except ImportError as exc:
+        raise InputError(
+            "ICP refinement needs open3d: pip install 'tissue-strain[3d]' "
+            "(and the system library libusb-1.0-0)"
+        ) from exc
+
+    def cloud(mesh):
+        pts = np.asarray(mesh.points, np.float64)
+        nrm = np.asarray(mesh.point_normals, np.float64)
+        step = max(1, len(pts) // max_points)
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[::step]))
+        pc.normals = o3d.utility.Vector3dVector(nrm[::step])
+        return pc
+
+    source, target = cloud(after_mesh), cloud(before_mesh)
+    init = np.eye(4)
+    init[0, 3], init[1, 3] = -shift_xy_um[0], -shift_xy_um[1]
+    extent = np.ptp(np.asarray(before_mesh.points), axis=0)
+    radius = 0.05 * float(np.hypot(extent[0], extent[1]))
+    result = o3d.pipelines.registration.registration_icp(
+        source,
+        target,
+        radius,
+        init,
+        o3d.pipelines.registration.TransformationEstimationPointToPlane(),
+    )
+    t = np.asarray(result.transformation)
+    angle = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(t[:3, :3]) - 1) / 2))))
+    return {
+        "translation_um": [float(v) for v in -t[:3, 3]],
+        "rotation_deg": angle,
+        "fitness": float(result.fitness),
+        "inlier_rmse_um": float(result.inlier_rmse),
+    }
+
+
+def metric_changes(before: dict, after: dict) -> list[dict]:
+    """One row per compared metric: before, after, change and ratio."""
+    rows = []
+    for key in COMPARED:
+        a, b = before.get(key), after.get(key)
+        row = {"metric": key, "before": a, "after": b, "change": None, "ratio": None}
+        if isinstance(a, int | float) and isinstance(b, int | float):
+            row["change"] = b - a
+            if key == "fold_orientation_deg":  # an axis: the change lies in (-90, 90]
+                row["change"] = (b - a + 90.0) % 180.0 - 90.0
+            elif a != 0:
+                row["ratio"] = b / a
+        rows.append(row)
+    return rows
+
+
+def _resample(height: np.ndarray, spacing, target_shape, target_spacing) -> np.ndarray:
+    from scipy import ndimage
+
+    dy, dx = spacing
+    ty, tx = target_spacing
+    rows = np.arange(target_shape[0]) * ty / dy
+    cols = np.arange(target_shape[1]) * tx / dx
+    rr, cc = np.meshgrid(rows, cols, indexing="ij")
+    return ndimage.map_coordinates(height, [rr, cc], order=1, mode="nearest")
+
+
+def compare_stacks(
+    before: str | os.PathLike,
+    after: str | os.PathLike,
+    *,
+    icp: bool | None = None,
+    progress: Callable[[str], None] | None = None,
+    **options,
+) -> tuple[dict, Analysis, Analysis]:
+    """Analyse two stacks, align them and compare every metric.
+
+    Parameters
+    ----------
+    before, after : path
+    icp : bool, optional
+        Refine the alignment by ICP (open3d); by default when open3d is
+        installed.
+    **options
+        Passed to :func:`mpm3d.analyze.analyze_stack` for both stacks.
+
+    Returns
+    -------
+    report, before_analysis, after_analysis
+    """
+    say = progress or (lambda message: None)
+    first = analyze_stack(before, progress=lambda m: say(f"before: {m}"), **options)
+    second = analyze_stack(after, progress=lambda m: say(f"after: {m}"), **options)
+    sp_b = first.heightmap.spacing[1:]
+    sp_a = second.heightmap.spacing[1:]
+    h_b = first.height_um
+    h_a = _resample(second.height_um, sp_a, h_b.shape, sp_b)
+    say("aligning")
+    alignment = align_heightmaps(h_b, h_a, spacing=sp_b)
+    if icp is None:
+        try:
+            import open3d  # noqa: F401
+
+            icp = True
+        except ImportError:
+            icp = False
+            alignment["icp"] = "skipped: open3d is not installed (the '3d' extra)"
+    if icp and first.surface is not None and second.surface is not None:
+        alignment["icp"] = icp_refine(
+            first.surface,
+            second.surface,
+            shift_xy_um=(alignment["shift_x_um"], alignment["shift_y_um"]),
+        )
+    report = {
+        "before": first.metrics,
+        "after": second.metrics,
+        "alignment": alignment,
+        "changes": metric_changes(first.metrics, second.metrics),
+        "software": first.metrics["software"],
+    }
+    return report, first, second
+
+
+def write_comparison(
+    report: dict, first: Analysis, second: Analysis, folder: str | os.PathLike, *, figures=True
+) -> None:
+    """Write a comparison into an existing, empty ``folder``."""
+    folder = Path(folder)
+    for name, analysis in (("before", first), ("after", second)):
+        (folder / name).mkdir()
+        write_analysis(analysis, folder / name, figures=figures)
+    with open(folder / "compare.json", "w", encoding="utf-8") as f:
+        json.dump(_clean(report), f, indent=2)
+        f.write("\n")
+    with open(folder / "changes.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=["metric", "before", "after", "change", "ratio"])
+        w.writeheader()
+        for row in report["changes"]:
+            w.writerow({k: ("" if v is None else v) for k, v in row.items()})
+    if figures:
+        from mpm3d.figures import plot_comparison
+        from mpm3d.metrics import detrend
+
+        (folder / "figures").mkdir()
+        fb = first.metrics
+        sb = report["after"]
+        titles = (
+            f"before ({fb['input']}): folds {fb['fold_height_um'] or 0:.0f} µm high",
+            f"after ({sb['input']}): folds {sb['fold_height_um'] or 0:.0f} µm high",
+        )
+        plot_comparison(
+            detrend(first.height_um, spacing=first.heightmap.spacing),
+            detrend(second.height_um, spacing=second.heightmap.spacing),
+            spacing_before=first.heightmap.spacing,
+            spacing_after=second.heightmap.spacing,
+            titles=titles,
+        ).savefig(folder / "figures" / "compare_heightmaps.png")
