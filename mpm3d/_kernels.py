@@ -15,11 +15,18 @@ __all__ = ["bin_lateral", "first_crossing"]
 
 @njit(cache=True, inline="always")
 def _mean3x3(vol, z, y, x, ny, nx):
-    """Mean of the 3 x 3 lateral neighbourhood of voxel (z, y, x), clamped at the borders."""
+    """Mean of the 3 x 3 lateral neighbourhood of voxel (z, y, x).
+
+    On the map's edges the neighbourhood shrinks symmetrically (to 1 x 3,
+    3 x 1 or 1 x 1), so a sloping surface is not pulled towards its inner
+    side there.
+    """
+    ry = 1 if 0 < y < ny - 1 else 0
+    rx = 1 if 0 < x < nx - 1 else 0
     total = 0.0
     count = 0
-    for yy in range(max(y - 1, 0), min(y + 2, ny)):
-        for xx in range(max(x - 1, 0), min(x + 2, nx)):
+    for yy in range(y - ry, y + ry + 1):
+        for xx in range(x - rx, x + rx + 1):
             total += vol[z, yy, xx]
             count += 1
     return total / count
@@ -29,11 +36,12 @@ def _mean3x3(vol, z, y, x, ny, nx):
 def first_crossing(vol, level, background, window, depth, peak):  # pragma: no cover - compiled
     """Sub-voxel depth of the first rise of each column above ``level``.
 
-    Scanning each column ``vol[:, y, x]`` (3 x 3 laterally averaged) from
-    slice 0, find the first slice at or above ``level``, then the brightest
-    slice within ``window`` slices below it (the surface layer's peak), and
-    locate where the rising edge crosses half-way between ``background`` and
-    that peak, interpolating linearly between slices.  The half-maximum of a
+    Scanning each column (3 x 3 laterally averaged, against noise) from
+    slice 0, find the first slice at or above ``level``; then, on the column
+    itself, the brightest slice within ``window`` slices below it (the
+    surface layer's peak), and where the rising edge crosses half-way
+    between ``background`` and that peak, interpolating linearly between
+    slices.  The half-maximum of a
     blurred step lies on the step whatever the blur, so the depth does not
     depend on ``level`` or on how bright the layer is.
 
@@ -59,10 +67,12 @@ def first_crossing(vol, level, background, window, depth, peak):  # pragma: no c
                 depth[y, x] = np.nan
                 peak[y, x] = np.nan
                 continue
-            top = _mean3x3(vol, z0, y, x, ny, nx)
+            # refine on the column itself: a lateral mean would pull the edge of a
+            # steep wall towards its shallow side
+            top = float(vol[z0, y, x])
             zp = z0
-            for z in range(z0 + 1, min(nz, z0 + window + 1)):
-                v = _mean3x3(vol, z, y, x, ny, nx)
+            for z in range(max(z0 - 1, 0), min(nz, z0 + window + 1)):
+                v = float(vol[z, y, x])
                 if v > top:
                     top = v
                     zp = z
@@ -72,13 +82,13 @@ def first_crossing(vol, level, background, window, depth, peak):  # pragma: no c
             below = top
             while j > 0:
                 j -= 1
-                below = _mean3x3(vol, j, y, x, ny, nx)
+                below = float(vol[j, y, x])
                 if below < half:
                     break
             if below >= half:  # bright from the first slice on: the surface is cut off
                 depth[y, x] = 0.0
             else:
-                above = _mean3x3(vol, j + 1, y, x, ny, nx)
+                above = float(vol[j + 1, y, x])
                 depth[y, x] = j + (half - below) / (above - below)
             peak[y, x] = top
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from mpm3d.errors import InputError
 
-__all__ = ["HeightMap", "fill_gaps", "height_map", "surface_levels"]
+__all__ = ["HeightMap", "fill_gaps", "height_map", "smooth_map", "surface_levels"]
 
 log = logging.getLogger(__name__)
 
@@ -222,7 +222,7 @@ def height_map(
     depth_um = fill_gaps(depth_um, valid)
     sigma_um = max(dx, dy) if smooth_um is None else float(smooth_um)
     if sigma_um > 0:
-        depth_um = ndimage.gaussian_filter(depth_um, (sigma_um / dy, sigma_um / dx), mode="nearest")
+        depth_um = smooth_map(depth_um, (sigma_um / dy, sigma_um / dx))
     peaks = peak[valid]
     level = background + 0.5 * (float(np.median(peaks)) - background)
     params = {
@@ -243,6 +243,29 @@ def height_map(
         level=float(level),
         params=params,
     )
+
+
+def smooth_map(values: np.ndarray, sigma_px: tuple[float, float]) -> np.ndarray:
+    """Gaussian smoothing that leaves planes (and ramps up to the edges) unchanged.
+
+    The map is extended past its edges point-symmetrically
+    (``h(-k) = 2 h(0) - h(k)``) before filtering, so a sloping surface keeps
+    its height at the edges, where constant or mirror padding would bend it.
+
+    Examples
+    --------
+    >>> ramp = np.tile(np.arange(8.0), (5, 1))
+    >>> bool(np.abs(smooth_map(ramp, (1.5, 1.5)) - ramp).max() < 1e-9)
+    True
+    """
+    from scipy import ndimage
+
+    pad = [
+        max(1, min(n - 1, math.ceil(4 * s))) for n, s in zip(values.shape, sigma_px, strict=True)
+    ]
+    ext = np.pad(values, [(p, p) for p in pad], mode="reflect", reflect_type="odd")
+    out = ndimage.gaussian_filter(ext, sigma_px, mode="reflect")
+    return out[pad[0] : pad[0] + values.shape[0], pad[1] : pad[1] + values.shape[1]]
 
 
 def fill_gaps(values: np.ndarray, valid: np.ndarray) -> np.ndarray:

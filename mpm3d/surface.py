@@ -81,6 +81,8 @@ def heightmap_mesh(depth_um: np.ndarray, *, spacing: Sequence[float], stride: in
     faces = np.column_stack([np.full(len(tris), 3), tris]).ravel()
     mesh = pv.PolyData(points, faces)
     mesh.point_data["depth_um"] = d.ravel()
+    if mesh.n_cells == 0:
+        return mesh
     mesh = mesh.compute_normals(
         cell_normals=False,
         split_vertices=False,

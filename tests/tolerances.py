@@ -14,3 +14,13 @@ RENDER_GRAY_LEVELS = 0.02
 DIC_QUICK_TRACK_RMSE_PX = 0.05
 #: dic on the quick paper cases: nodal strain RMSE of every component
 DIC_QUICK_STRAIN_RMSE = 0.001
+
+# --- mpm3d (synthetic MPM stacks; the bars are 5 %, 3 deg and one z-step) ---
+#: fold wavelength and fold heights (median, max, per fold): relative error
+MPM_FOLD_RELATIVE = 0.05
+#: fold orientation (crest direction), degrees
+MPM_ORIENTATION_DEG = 3.0
+#: RMS surface error of the height map and of the isosurface, in z-steps
+MPM_SURFACE_RMS_ZSTEPS = 1.0
+#: phase-correlation shift between height maps, pixels
+MPM_SHIFT_PX = 0.1
