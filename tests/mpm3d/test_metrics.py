@@ -1,0 +1,145 @@
+import math
+
+import numpy as np
+import pytest
+
+from mpm3d.errors import InputError
+from mpm3d.heightmap import height_map
+from mpm3d.io import read_stack, select_channel
+from mpm3d.metrics import (
+    detrend,
+    fold_metrics,
+    fold_orientation,
+    fold_profiles,
+    fold_spectrum,
+    roughness,
+)
+from sample_data_synth import fold_height_field
+from tests.tolerances import EXACT, MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG
+
+
+def _angle_diff(a, b):
+    return abs((a - b + 90.0) % 180.0 - 90.0)
+
+
+def _wave(shape, spacing, *, crest_deg, wavelength, amplitude=1.0):
+    dy, dx = spacing
+    y, x = np.mgrid[0 : shape[0], 0 : shape[1]]
+    t = math.radians(crest_deg)
+    u = -x * dx * math.sin(t) + y * dy * math.cos(t)
+    return amplitude * np.cos(2 * np.pi * u / wavelength)
+
+
+def test_roughness_of_a_sinusoid_is_analytic():
+    # an integer number of periods along x: the sample moments are exact
+    a = 7.0
+    h = _wave((40, 400), (1.0, 1.0), crest_deg=90, wavelength=50.0, amplitude=a)
+    r = roughness(h, spacing=(1.0, 1.0))
+    assert r["Sq_um"] == pytest.approx(a / math.sqrt(2), rel=1e-9)
+    assert r["Sa_um"] == pytest.approx(2 * a / math.pi, rel=2e-3)  # sampled |cos|
+    assert r["Ssk"] == pytest.approx(0.0, abs=1e-9)
+    assert r["Sku"] == pytest.approx(1.5, rel=1e-9)
+    assert r["Sz_um"] == pytest.approx(2 * a, rel=1e-9)
+    assert r["Sp_um"] == pytest.approx(a, rel=1e-9) and r["Sv_um"] == pytest.approx(a, rel=1e-9)
+
+
+@pytest.mark.parametrize("slope", [0.0, 0.3, 2.0])
+def test_sdr_of_a_plane_is_its_area_ratio(slope):
+    y, x = np.mgrid[0:30, 0:40] * 2.0
+    r = roughness(1.0 + slope * x - 0.5 * slope * y, spacing=(2.0, 2.0))
+    assert r["Sdr_percent"] == pytest.approx(100 * (math.sqrt(1 + 1.25 * slope**2) - 1), abs=EXACT)
+
+
+def test_detrend_removes_a_tilted_plane_and_keeps_the_rest():
+    y, x = np.mgrid[0:50, 0:60] * 1.5
+    bumps = _wave((50, 60), (1.5, 1.5), crest_deg=30, wavelength=15.0)
+    z = detrend(4.0 + 0.2 * x - 0.7 * y + 0.01 * bumps, spacing=(1.5, 1.5))
+    assert np.abs(z - 0.01 * (bumps - bumps.mean())).max() < 2e-3
+    q = detrend(0.01 * x**2 + 0.02 * x * y, spacing=(1.5, 1.5), order=2)
+    assert np.abs(q).max() < 1e-9
+    with pytest.raises(InputError):
+        detrend(x, spacing=(1.5, 1.5), order=3)
+
+
+@pytest.mark.parametrize("crest_deg", [0.0, 17.0, 45.0, 90.0, 123.0, 170.0])
+@pytest.mark.parametrize("wavelength", [23.3, 61.7])
+def test_spectral_wavelength_and_orientation_off_the_grid(crest_deg, wavelength):
+    spacing = (1.5, 2.0)
+    h = _wave((150, 120), spacing, crest_deg=crest_deg, wavelength=wavelength, amplitude=3.0)
+    s = fold_spectrum(h, spacing=spacing)
+    assert s.wavelength_um == pytest.approx(wavelength, rel=2e-3)
+    assert _angle_diff(s.orientation_deg, crest_deg) < 0.2
+    assert s.peak_fraction > 0.9
+
+
+@pytest.mark.parametrize("crest_deg", [0.0, 35.0, 90.0, 145.0])
+def test_structure_tensor_orientation_and_coherency(crest_deg):
+    h = _wave((128, 128), (1.0, 1.0), crest_deg=crest_deg, wavelength=20.0)
+    o, c = fold_orientation(h, spacing=(1.0, 1.0))
+    assert _angle_diff(o, crest_deg) < 0.5
+    assert c > 0.98
+    rng = np.random.default_rng(3)
+    _, c_iso = fold_orientation(rng.normal(size=(128, 128)), spacing=(1.0, 1.0))
+    assert c_iso < 0.1
+
+
+def test_fold_profiles_give_each_folds_exact_height():
+    heights = (80.0, 120.0, 95.0, 110.0, 70.0, 130.0)
+    h, info = fold_height_field(
+        (200, 240),
+        (2.5, 2.5),
+        wavelength_um=120.0,
+        orientation_deg=70.0,
+        fold_heights_um=heights,
+    )
+    table = fold_profiles(h, spacing=(2.5, 2.5), orientation_deg=70.0, wavelength_um=120.0)
+    truth = {round(f["crest_offset_um"]): f["crest_height_um"] for f in info["folds"]}
+    assert table.n_folds >= 4
+    for offset, height in zip(table.folds["offset_um"], table.folds["height_um"], strict=True):
+        nearest = min(truth, key=lambda u: abs(u - offset))
+        assert abs(nearest - offset) < 2.5
+        assert height == pytest.approx(truth[nearest], rel=0.01)
+
+
+@pytest.mark.parametrize("name", ["before", "after"])
+def test_fold_metrics_on_synthetic_stacks_match_the_truth(mpm_pair, name):
+    path, case = mpm_pair[name]
+    stack = read_stack(path)
+    volume, _ = select_channel(stack)
+    hm = height_map(volume, spacing=stack.spacing)
+    m, _, table = fold_metrics(hm.height_um, spacing=stack.spacing, mask=hm.valid)
+    info = case.info
+    assert m["fold_wavelength_um"] == pytest.approx(info["wavelength_um"], rel=MPM_FOLD_RELATIVE)
+    assert _angle_diff(m["fold_orientation_deg"], info["orientation_deg"]) < MPM_ORIENTATION_DEG
+    assert m["fold_coherency"] > 0.9
+    # every fold the profiles measured has its true height; median and max follow
+    truth = {f["crest_offset_um"]: f["crest_height_um"] for f in info["folds"]}
+    matched = []
+    for offset, height in zip(table.folds["offset_um"], table.folds["height_um"], strict=True):
+        nearest = min(truth, key=lambda u: abs(u - offset))
+        assert abs(nearest - offset) < 0.1 * info["wavelength_um"]
+        assert height == pytest.approx(truth[nearest], rel=MPM_FOLD_RELATIVE)
+        matched.append(truth[nearest])
+    in_view = [f["crest_height_um"] for f in info["folds"] if f["in_view"]]
+    assert len(matched) == len(in_view)
+    assert m["fold_height_um"] == pytest.approx(
+        info["median_fold_height_um"], rel=MPM_FOLD_RELATIVE
+    )
+    assert m["max_fold_height_um"] == pytest.approx(
+        info["max_fold_height_um"], rel=MPM_FOLD_RELATIVE
+    )
+    # roughness parameters agree with those of the true surface
+    t, _, _ = fold_metrics(case.height_um, spacing=stack.spacing)
+    for key in ("Sa_um", "Sq_um", "Sz_um"):
+        assert m[key] == pytest.approx(t[key], rel=MPM_FOLD_RELATIVE)
+    assert m["Sdr_percent"] == pytest.approx(t["Sdr_percent"], rel=0.1)
+
+
+def test_bad_arguments_are_named():
+    h = np.zeros((20, 20))
+    with pytest.raises(InputError, match="spacing"):
+        roughness(h, spacing=(1.0, -1.0))
+    with pytest.raises(InputError, match="wavelength_um"):
+        fold_profiles(h, spacing=(1, 1), orientation_deg=0, wavelength_um=0)
+    with pytest.raises(InputError, match="8 x 8"):
+        fold_spectrum(np.zeros((4, 20)), spacing=(1, 1))
