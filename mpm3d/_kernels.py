@@ -97,12 +97,45 @@ def first_crossing(vol, level, background, window, depth, peak):  # pragma: no c
 def bin_lateral(vol, factor, out):  # pragma: no cover - compiled
     """Mean over ``factor`` x ``factor`` lateral blocks: ``out[z, i, j]`` (float32)."""
     nz, by, bx = out.shape
-    scale = 1.0 / (factor * factor)
+    scale = np.float32(1.0 / (factor * factor))
     for z in prange(nz):
+        acc = np.empty(bx * factor, np.float32)
         for i in range(by):
+            acc[:] = 0
+            for yy in range(i * factor, (i + 1) * factor):
+                for x in range(bx * factor):  # contiguous: vectorizes
+                    acc[x] += vol[z, yy, x]
             for j in range(bx):
-                total = 0.0
-                for yy in range(i * factor, (i + 1) * factor):
-                    for xx in range(j * factor, (j + 1) * factor):
-                        total += vol[z, yy, xx]
+                total = np.float32(0)
+                for k in range(factor):
+                    total += acc[j * factor + k]
                 out[z, i, j] = total * scale
+
+
+@njit(parallel=True, cache=True)
+def combine_channels(data, lo, hi, out):  # pragma: no cover - compiled
+    """``out[z, y, x]`` = 65535 x max over channels of ``(data[z, c] - lo[c]) / (hi[c] - lo[c])``.
+
+    ``data`` is ``(Z, C, Y, X)``; each scaled value is clipped to [0, 1];
+    channels with ``hi <= lo`` and NaN voxels are left out.
+    """
+    nz, nc, ny, nx = data.shape
+    scale = np.zeros(nc, np.float32)
+    offset = np.zeros(nc, np.float32)
+    for c in range(nc):
+        if hi[c] > lo[c]:
+            scale[c] = 1.0 / (hi[c] - lo[c])
+            offset[c] = lo[c]
+    for z in prange(nz):
+        best = np.empty(nx, np.float32)
+        for y in range(ny):
+            best[:] = 0
+            for c in range(nc):
+                if scale[c] == 0:
+                    continue
+                for x in range(nx):  # contiguous: vectorizes
+                    v = (np.float32(data[z, c, y, x]) - offset[c]) * scale[c]
+                    if v > best[x]:  # False for NaN
+                        best[x] = v
+            for x in range(nx):
+                out[z, y, x] = np.uint16(min(best[x], np.float32(1.0)) * np.float32(65535) + 0.5)

@@ -32,9 +32,23 @@ def _extent(shape, spacing) -> tuple[float, float, float, float]:
     return (-dx / 2, (nx - 0.5) * dx, (ny - 0.5) * dy, -dy / 2)
 
 
+def _display(image: np.ndarray, size: int = 700) -> np.ndarray:
+    """Block-average a large map to about the figure's resolution (faster, no aliasing)."""
+    f = max(1, int(max(image.shape) // size))
+    if f == 1:
+        return image
+    ny, nx = image.shape[0] // f, image.shape[1] // f
+    return image[: ny * f, : nx * f].reshape(ny, f, nx, f).mean(axis=(1, 3))
+
+
 def _height_panel(ax, height, spacing, *, vmin=None, vmax=None, title=""):
     im = ax.imshow(
-        height, extent=_extent(height.shape, spacing), cmap="viridis", vmin=vmin, vmax=vmax
+        _display(height),
+        extent=_extent(height.shape, spacing),
+        cmap="viridis",
+        vmin=vmin,
+        vmax=vmax,
+        interpolation="nearest",
     )
     ax.set_xlabel("x (µm)")
     ax.set_ylabel("y (µm)")
@@ -66,7 +80,7 @@ def plot_height_map(
     im = _height_panel(ax, height, spacing, title=title)
     fig.colorbar(im, ax=ax, label="height (µm)", shrink=0.85)
     if valid is not None and not np.all(valid):
-        shade = np.ma.masked_where(np.asarray(valid, bool), np.ones(height.shape))
+        shade = _display(np.where(np.asarray(valid, bool), np.nan, 1.0))
         ax.imshow(
             shade, extent=_extent(height.shape, spacing), cmap="Greys", alpha=0.5, vmin=0, vmax=1
         )
@@ -162,18 +176,38 @@ def plot_comparison(
     return fig
 
 
-def render_surface(mesh, path, *, window_size: tuple[int, int] = (1000, 760), title: str = ""):
+def render_surface(
+    mesh,
+    path,
+    *,
+    window_size: tuple[int, int] = (1000, 760),
+    title: str = "",
+    max_triangles: int = 300_000,
+):
     """Write an off-screen 3D rendering of a surface mesh (PNG).
 
     The mesh (points ``(x, y, depth)`` in um) is coloured by height above
     its deepest point and seen obliquely from the lumen side, with a colour
-    bar in micrometres.
+    bar in micrometres.  Meshes over ``max_triangles`` are drawn from a
+    copy simplified by quadric vertex clustering (Lindstrom 2000,
+    doi:10.1145/344779.344912), which looks the same at figure size and
+    renders several times faster without a GPU.
     """
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
 
     # without a display VTK falls back to off-screen rendering after a warning
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    if mesh.n_cells > max_triangles:
+        from vtkmodules.vtkFiltersCore import vtkQuadricClustering
+
+        cells = int(np.sqrt(max_triangles / 2))
+        clustering = vtkQuadricClustering()
+        clustering.SetInputData(mesh)
+        clustering.SetNumberOfDivisions(cells, cells, cells)
+        clustering.AutoAdjustNumberOfDivisionsOn()
+        clustering.Update()
+        mesh = pv.wrap(clustering.GetOutput())
     shown = mesh.copy(deep=False)
     z = np.asarray(mesh.points[:, 2])
     shown.point_data["height (µm)"] = z.max() - z

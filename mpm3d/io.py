@@ -91,7 +91,6 @@ _RANGE_SAMPLE_VOXELS = 1_000_000
 #: percentiles of a channel's intensity that map to 0 and 65535 in a combination
 _RANGE_PERCENTILES = (0.1, 99.9)
 #: float32 bytes per channel per z-chunk while combining channels
-_CHUNK_BYTES = 32 * 2**20
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -397,20 +396,12 @@ def _combine_channels(data: np.ndarray) -> np.ndarray:
         lo, hi = np.percentile(sample, _RANGE_PERCENTILES)
         ranges.append((float(lo), float(hi)))
 
+    from mpm3d._kernels import combine_channels
+
+    lo = np.array([r[0] for r in ranges], np.float64)
+    hi = np.array([r[1] for r in ranges], np.float64)
     out = np.empty((z, y, x), dtype=np.uint16)
-    chunk = max(1, _CHUNK_BYTES // (4 * y * x))
-    for z0 in range(0, z, chunk):
-        block = np.zeros((min(chunk, z - z0), y, x), dtype=np.float32)
-        for k, (lo, hi) in enumerate(ranges):
-            if not hi > lo:
-                continue
-            scaled = data[z0 : z0 + chunk, k].astype(np.float32)
-            scaled -= lo
-            scaled *= 1.0 / (hi - lo)
-            np.fmax(block, scaled, out=block)  # fmax ignores NaN voxels
-        np.clip(block, 0.0, 1.0, out=block)
-        block *= 65535.0
-        out[z0 : z0 + chunk] = np.rint(block)
+    combine_channels(data, lo, hi, out)  # compiled, parallel over slices
     return out
 
 

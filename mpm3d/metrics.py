@@ -211,6 +211,7 @@ def fold_spectrum(
     spacing: Sequence[float],
     max_wavelength_um: float | None = None,
     min_wavelength_um: float | None = None,
+    max_size: int = 512,
 ) -> FoldSpectrum:
     """Dominant fold wavelength and direction from the spectral peak.
 
@@ -218,8 +219,12 @@ def fold_spectrum(
     two-fold) is searched for its highest peak between ``min_wavelength_um``
     (default 4 pixels) and ``max_wavelength_um`` (default the field's
     shorter side); the peak is then refined off the grid by maximizing the
-    windowed discrete-time Fourier transform's magnitude (Nelder-Mead), the
+    windowed discrete-time Fourier transform's magnitude (compass search), the
     single-tone maximum-likelihood estimate (Rife & Boorstyn 1974).
+
+    Maps larger than ``max_size`` pixels on a side are first averaged over
+    blocks to at most that size: folds are many pixels wide, and the
+    estimate does not need the fine sampling.
 
     Parameters
     ----------
@@ -239,12 +244,15 @@ def fold_spectrum(
     >>> round(s.wavelength_um, 2), round(s.orientation_deg, 2)
     (37.0, 60.0)
     """
-    from scipy.optimize import minimize
-
     dy, dx = _lateral(spacing)
     h = np.asarray(height, np.float64)
     if h.ndim != 2 or min(h.shape) < 8 or not np.isfinite(h).all():
         raise InputError("the height map must be 2D, finite and at least 8 x 8")
+    factor = max(1, math.ceil(max(h.shape) / max_size))
+    if factor > 1:
+        ny, nx = h.shape[0] // factor, h.shape[1] // factor
+        h = h[: ny * factor, : nx * factor].reshape(ny, factor, nx, factor).mean(axis=(1, 3))
+        dy, dx = dy * factor, dx * factor
     ny, nx = h.shape
     z = detrend(h, spacing=(dy, dx))
     window = np.hanning(ny)[:, None] * np.hanning(nx)[None, :]
@@ -264,20 +272,24 @@ def fold_spectrum(
     k0 = np.array([fx[ix], fy[iy]])
     ys, xs = _coords((ny, nx), (dy, dx))
 
-    def negpower(k: np.ndarray) -> float:
+    def power(k: np.ndarray) -> float:
         ex = np.exp(-2j * np.pi * k[0] * xs)
         ey = np.exp(-2j * np.pi * k[1] * ys)
-        return -float(abs(ey @ (zw @ ex)) ** 2)
+        return float(abs(ey @ (zw @ ex)) ** 2)
 
-    step = np.array([0.25 / (px * dx), 0.25 / (py * dy)])
-    simplex = np.array([k0, k0 + step * [1, 0], k0 + step * [0, 1]])
-    res = minimize(
-        negpower,
-        k0,
-        method="Nelder-Mead",
-        options={"initial_simplex": simplex, "xatol": 1e-4 * step.min(), "fatol": 1e-10},
-    )
-    k = res.x if -res.fun >= spec[iy, ix] else k0
+    # compass search: try the eight neighbours at the current step, move to
+    # the best, halve the step when none is better, down to 1e-4 of a bin
+    k, best = k0, power(k0)
+    step = np.array([0.5 / (px * dx), 0.5 / (py * dy)])
+    moves = np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1) if i or j], np.float64)
+    while step.max() > 1e-4 / (px * dx):
+        trials = k + moves * step
+        values = [power(t) for t in trials]
+        i = int(np.argmax(values))
+        if values[i] > best:
+            k, best = trials[i], values[i]
+        else:
+            step = step / 2
     if k[1] < 0 or (k[1] == 0 and k[0] < 0):
         k = -k
     wave_dir = math.degrees(math.atan2(k[1], k[0]))
@@ -387,6 +399,40 @@ class FoldTable:
         return len(self.folds["fold"])
 
 
+def _prominent_peaks(
+    profile: np.ndarray, *, distance: int, prominence: float, sigma: float
+) -> np.ndarray:
+    """Indices of the peaks of ``profile`` that stand out, in increasing order.
+
+    The profile is first smoothed (Gaussian, ``sigma`` samples) so small
+    roughness does not split a crest.  A peak's prominence is its height
+    above the higher of the two lowest points between it and the nearest
+    higher sample on either side (or the profile's end), as in topography;
+    peaks under ``prominence`` are dropped, then of peaks closer than
+    ``distance`` samples only the highest is kept.
+    """
+    from scipy import ndimage
+
+    sm = ndimage.gaussian_filter1d(profile, sigma, mode="nearest") if sigma > 0 else profile
+    n = sm.size
+    if n < 3:
+        return np.zeros(0, np.int64)
+    candidates = np.flatnonzero((sm[1:-1] > sm[:-2]) & (sm[1:-1] >= sm[2:])) + 1
+    kept = []
+    for i in candidates:
+        higher = np.flatnonzero(sm[:i] > sm[i])
+        left = sm[higher[-1] if higher.size else 0 : i].min()
+        higher = np.flatnonzero(sm[i + 1 :] > sm[i])
+        right = sm[i + 1 : i + 1 + higher[0] if higher.size else n].min()
+        if sm[i] - max(left, right) >= prominence:
+            kept.append(i)
+    chosen: list[int] = []
+    for i in sorted(kept, key=lambda j: -sm[j]):
+        if all(abs(i - j) >= distance for j in chosen):
+            chosen.append(int(i))
+    return np.asarray(sorted(chosen), np.int64)
+
+
 def _extremum(profile: np.ndarray, i: int, half: int) -> float:
     """Height of the extremum near sample ``i`` from a local quadratic fit."""
     lo, hi = max(0, i - half), min(len(profile), i + half + 1)
@@ -442,7 +488,6 @@ def fold_profiles(
     FoldTable
     """
     from scipy import ndimage
-    from scipy.signal import find_peaks
 
     dy, dx = _lateral(spacing)
     h = np.asarray(height, np.float64)
@@ -481,8 +526,8 @@ def fold_profiles(
         prof = ndimage.map_coordinates(h, [pts[:, 1] / dy, pts[:, 0] / dx], order=1)
         sp = s[idx[0] : idx[-1] + 1]
         profiles.append({"s_um": sp, "x_um": pts[:, 0], "y_um": pts[:, 1], "height_um": prof})
-        peaks, _ = find_peaks(prof, distance=distance, prominence=min_prom)
-        troughs, _ = find_peaks(-prof, distance=distance, prominence=min_prom)
+        peaks = _prominent_peaks(prof, distance=distance, prominence=min_prom, sigma=half / 2)
+        troughs = _prominent_peaks(-prof, distance=distance, prominence=min_prom, sigma=half / 2)
         if peaks.size == 0 or troughs.size == 0:
             continue
         for i in peaks:
