@@ -40,7 +40,7 @@ CHILD = textwrap.dedent(
     t0 = time.perf_counter()
     if what == "analyze":
         from mpm3d.cli import main
-        code = main(["analyze", stack, "--out", out, "-q"])
+        code = main(["analyze", stack, "--out", out, "-q", "--overwrite"])
         assert code == 0, code
         seconds = time.perf_counter() - t0
     else:

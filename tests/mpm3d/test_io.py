@@ -280,8 +280,7 @@ def test_select_missing_channel(stack, channel, message):
         select_channel(stack, channel)
 
 
-def test_combined_channels(stack, monkeypatch):
-    monkeypatch.setattr(io, "_CHUNK_BYTES", 2 * 4 * 9 * 11)  # two slices per chunk
+def test_combined_channels(stack):
     volume, label = select_channel(stack)
     assert label == "max of collagen, urothelium"
     assert volume.dtype == np.uint16
