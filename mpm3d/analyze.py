@@ -21,6 +21,7 @@ import json
 import logging
 import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -237,24 +238,33 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
             "channel 1: 1 where measured, 0 where filled",
         },
     )
-    if analysis.surface is not None:
-        _save_vtp(analysis.surface, folder / "surface.vtp")
-        analysis.surface.save(folder / "surface.ply", binary=True)
-    if not figures:
-        return
-    from mpm3d import figures as fg
-
     fig_dir = folder / "figures"
-    fig_dir.mkdir()
+    if figures:
+        fig_dir.mkdir()
     name = analysis.metrics["input"]
-    fg.plot_height_map(
-        hm.height_um,
-        spacing=hm.spacing,
-        valid=hm.valid,
-        folds=analysis.folds,
-        title=f"{name}: lumen surface height",
-    ).savefig(fig_dir / "heightmap.png")
-    fg.plot_profiles(analysis.folds).savefig(fig_dir / "profiles.png")
-    fg.plot_spectrum(analysis.spectrum).savefig(fig_dir / "spectrum.png")
-    if analysis.surface is not None:
-        fg.render_surface(analysis.surface, fig_dir / "surface3d.png", title=name)
+    mesh = analysis.surface
+
+    def vtk_outputs() -> None:  # VTK work, in a thread beside the matplotlib figures
+        _save_vtp(mesh, folder / "surface.vtp")
+        mesh.save(folder / "surface.ply", binary=True)
+        if figures:
+            from mpm3d.figures import render_surface
+
+            render_surface(mesh, fig_dir / "surface3d.png", title=name)
+
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        pending = pool.submit(vtk_outputs) if mesh is not None else None
+        if figures:
+            from mpm3d import figures as fg
+
+            fg.plot_height_map(
+                hm.height_um,
+                spacing=hm.spacing,
+                valid=hm.valid,
+                folds=analysis.folds,
+                title=f"{name}: lumen surface height",
+            ).savefig(fig_dir / "heightmap.png")
+            fg.plot_profiles(analysis.folds).savefig(fig_dir / "profiles.png")
+            fg.plot_spectrum(analysis.spectrum).savefig(fig_dir / "spectrum.png")
+        if pending is not None:
+            pending.result()

@@ -198,7 +198,8 @@ def render_surface(
 
     # without a display VTK falls back to off-screen rendering after a warning
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    if mesh.n_cells > max_triangles:
+    simplified = mesh.n_cells > max_triangles
+    if simplified:
         from vtkmodules.vtkFiltersCore import vtkQuadricClustering
 
         cells = int(np.sqrt(max_triangles / 2))
@@ -218,7 +219,7 @@ def render_surface(
             shown,
             scalars="height (µm)",
             cmap="viridis",
-            smooth_shading=True,
+            smooth_shading=not simplified,  # clustering leaves a few non-manifold edges
             scalar_bar_args={"title": "height (µm)", "color": "black", "vertical": True},
         )
         plotter.add_axes(color="black", xlabel="x", ylabel="y", zlabel="depth")
