@@ -5,7 +5,8 @@
 Writes docs/images/: the demo's tracked grid and strain maps (from
 demo_output/), the four synthetic benchmark cases, a 3D membrane-strain
 example computed by surface_strain, and dic's strain-error maps on two
-heterogeneous fields with a coarse and a fine grid.
+heterogeneous fields with a coarse and a fine grid; and the mpm3d demo's
+height map, 3D surface, fold profiles and before/after comparison.
 """
 
 from __future__ import annotations
@@ -117,10 +118,33 @@ def error_figures() -> None:
             )
 
 
+def mpm3d_figures() -> None:
+    """The mpm3d demo's figures (``make demo`` writes them), shrunk for the README."""
+    from PIL import Image
+
+    runs = {
+        "mpm3d_heightmap.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "heightmap.png",
+        "mpm3d_surface3d.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "surface3d.png",
+        "mpm3d_profiles.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "profiles.png",
+        "mpm3d_compare.png": ROOT
+        / "demo_output"
+        / "mpm3d_compare"
+        / "figures"
+        / "compare_heightmaps.png",
+    }
+    for name, path in runs.items():
+        if not path.is_file():
+            raise SystemExit("run `make demo` first")
+        image = Image.open(path).convert("RGB")
+        image.thumbnail((760, 760))
+        image.save(OUT / name, optimize=True)
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     demo_figures()
     synthetic_cases()
     membrane_3d()
     error_figures()
+    mpm3d_figures()
     print(f"figures written to {OUT}")

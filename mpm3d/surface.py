@@ -179,7 +179,7 @@ def isosurface(
         (``round(dz / max(dy, dx))``, at most 4), which gives near-cubic
         voxels and a mesh of the resolution the stack really has in 3D.
     smooth_iterations, pass_band : int, float
-        Windowed-sinc smoothing (Taubin et al., doi:10.1145/218380.218473),
+        Windowed-sinc smoothing (Taubin, Zhang & Golub 1996, doi:10.1007/BFb0015544),
         which does not shrink the surface; 0 iterations turn it off.
     decimate : float in [0, 1)
         Fraction of triangles to remove by quadric decimation (slow on

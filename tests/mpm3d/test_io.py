@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import tifffile
 
-from mpm3d import io
 from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
 from mpm3d.io import Stack, parse_spacing, read_stack, select_channel
 from tests.tolerances import EXACT
