@@ -37,6 +37,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
+#: least overlap correlation of two aligned height maps for them to count as the same surface
+MATCH_CORRELATION = 0.5
+
 #: metrics whose change is reported (numbers in metrics.json)
 COMPARED = (
     "fold_wavelength_um",
@@ -245,6 +248,16 @@ def compare_stacks(
         )
     elif icp:
         alignment["icp"] = "skipped: no isosurfaces (--no-surface)"
+    r = alignment["overlap_correlation"]
+    alignment["matched"] = bool(r >= MATCH_CORRELATION)
+    alignment["note"] = (
+        f"the surfaces match where they overlap (correlation {r:.2f}): the shift locates "
+        "the second stack on the first"
+        if alignment["matched"]
+        else f"the surfaces do not match (correlation {r:.2f} < {MATCH_CORRELATION}), as "
+        "when folds form or move: the shift is not meaningful and the metrics are compared "
+        "over each whole field of view"
+    )
     report = {
         "before": first.metrics,
         "after": second.metrics,
