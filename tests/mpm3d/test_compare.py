@@ -119,11 +119,19 @@ def test_compare_changes_are_after_minus_before(compared):
 
 def test_compare_alignment_skips_icp_without_open3d(compared):
     alignment = compared["report"]["alignment"]
-    assert set(alignment) == {"shift_x_um", "shift_y_um", "overlap_correlation", "icp"}
+    assert set(alignment) == {
+        "shift_x_um",
+        "shift_y_um",
+        "overlap_correlation",
+        "icp",
+        "matched",
+        "note",
+    }
     assert alignment["icp"].startswith("skipped") and "open3d" in alignment["icp"]
     assert all(math.isfinite(alignment[k]) for k in ("shift_x_um", "shift_y_um"))
     # different folds before and after: little in common
     assert -1.0 <= alignment["overlap_correlation"] < 0.5
+    assert alignment["matched"] is False and "not meaningful" in alignment["note"]
 
 
 def test_compare_figure(compared):
