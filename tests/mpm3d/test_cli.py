@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import tifffile
 
-from mpm3d.cli import main
 from sample_data_synth import make_stack_case, write_stack
+from tests.mpm3d.helpers import axis_diff, cli, listing, rel_err
 from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SURFACE_RMS_ZSTEPS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -30,28 +30,6 @@ FIGURES = {
 FAST = ("--no-surface", "--no-figures", "-q")
 TABLES = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif"}
 FULL = TABLES | {"surface.vtp", "surface.ply", "figures"} | set(FIGURES)
-
-
-def cli(*argv) -> int:
-    """``main`` as the shell sees it: argparse's own errors leave by SystemExit."""
-    try:
-        return main([str(a) for a in argv])
-    except SystemExit as exc:
-        return exc.code
-
-
-def listing(folder: Path) -> set[str]:
-    return {p.relative_to(folder).as_posix() for p in folder.rglob("*")}
-
-
-def rel_err(value, truth) -> float:
-    return abs(value - truth) / abs(truth)
-
-
-def axis_diff(a, b) -> float:
-    """Difference of two axis directions in degrees, in [0, 90]."""
-    d = (a - b) % 180.0
-    return min(d, 180.0 - d)
 
 
 def read_csv(path: Path) -> list[dict]:

@@ -12,35 +12,15 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from mpm3d.cli import main
 from mpm3d.compare import COMPARED, align_heightmaps, icp_refine, metric_changes
 from mpm3d.errors import InputError
+from tests.mpm3d.helpers import axis_diff, cli, listing, rel_err
 from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SHIFT_PX
 
 #: one side's analysis without the surface (the comparison needs only the height maps)
 SIDE = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif", "figures"} | {
     f"figures/{name}.png" for name in ("heightmap", "profiles", "spectrum")
 }
-
-
-def cli(*argv) -> int:
-    try:
-        return main([str(a) for a in argv])
-    except SystemExit as exc:
-        return exc.code
-
-
-def listing(folder) -> set[str]:
-    return {p.relative_to(folder).as_posix() for p in folder.rglob("*")}
-
-
-def rel_err(value, truth) -> float:
-    return abs(value - truth) / abs(truth)
-
-
-def axis_diff(a, b) -> float:
-    d = (a - b) % 180.0
-    return min(d, 180.0 - d)
 
 
 @pytest.fixture

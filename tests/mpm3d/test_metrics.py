@@ -15,11 +15,8 @@ from mpm3d.metrics import (
     roughness,
 )
 from sample_data_synth import fold_height_field
+from tests.mpm3d.helpers import axis_diff
 from tests.tolerances import EXACT, MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG
-
-
-def _angle_diff(a, b):
-    return abs((a - b + 90.0) % 180.0 - 90.0)
 
 
 def _wave(shape, spacing, *, crest_deg, wavelength, amplitude=1.0):
@@ -68,7 +65,7 @@ def test_spectral_wavelength_and_orientation_off_the_grid(crest_deg, wavelength)
     h = _wave((150, 120), spacing, crest_deg=crest_deg, wavelength=wavelength, amplitude=3.0)
     s = fold_spectrum(h, spacing=spacing)
     assert s.wavelength_um == pytest.approx(wavelength, rel=2e-3)
-    assert _angle_diff(s.orientation_deg, crest_deg) < 0.2
+    assert axis_diff(s.orientation_deg, crest_deg) < 0.2
     assert s.peak_fraction > 0.9
 
 
@@ -76,7 +73,7 @@ def test_spectral_wavelength_and_orientation_off_the_grid(crest_deg, wavelength)
 def test_structure_tensor_orientation_and_coherency(crest_deg):
     h = _wave((128, 128), (1.0, 1.0), crest_deg=crest_deg, wavelength=20.0)
     o, c = fold_orientation(h, spacing=(1.0, 1.0))
-    assert _angle_diff(o, crest_deg) < 0.5
+    assert axis_diff(o, crest_deg) < 0.5
     assert c > 0.98
     rng = np.random.default_rng(3)
     _, c_iso = fold_orientation(rng.normal(size=(128, 128)), spacing=(1.0, 1.0))
@@ -110,7 +107,7 @@ def test_fold_metrics_on_synthetic_stacks_match_the_truth(mpm_pair, name):
     m, _, table = fold_metrics(hm.height_um, spacing=stack.spacing, mask=hm.valid)
     info = case.info
     assert m["fold_wavelength_um"] == pytest.approx(info["wavelength_um"], rel=MPM_FOLD_RELATIVE)
-    assert _angle_diff(m["fold_orientation_deg"], info["orientation_deg"]) < MPM_ORIENTATION_DEG
+    assert axis_diff(m["fold_orientation_deg"], info["orientation_deg"]) < MPM_ORIENTATION_DEG
     assert m["fold_coherency"] > 0.9
     # every fold the profiles measured has its true height; median and max follow
     truth = {f["crest_offset_um"]: f["crest_height_um"] for f in info["folds"]}
