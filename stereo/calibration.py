@@ -1,0 +1,520 @@
+"""Stereo calibration from images of a checkerboard or ChArUco target.
+
+:func:`calibrate_stereo` detects the target in every image pair, calibrates
+each camera (intrinsics and distortion), rejects pairs whose reprojection
+error stands out, and then estimates the rig's extrinsics ``(R, T)`` with
+the intrinsics fixed.  OpenCV's ``stereoCalibrate`` minimizes the
+reprojection error of the whole rig over all views and board poses jointly:
+a bundle adjustment in which the planar target is the known structure.
+pycolmap's bundle adjuster would solve the same problem for this input
+(known planar points, two cameras), so it would add a dependency without
+improving the estimate; it serves where the structure is unknown.
+
+A :class:`Calibration` is saved as JSON (:meth:`Calibration.save`), with
+``image_size``, ``K_left``, ``dist_left``, ``K_right``, ``dist_right``,
+``R``, ``T`` (``x_right = R x_left + T``), ``rms_px`` and ``unit``, and can
+be read from that JSON or from OpenCV YAML/XML files
+(:func:`load_calibration`).
+
+References
+----------
+* Z. Zhang, A flexible new technique for camera calibration, IEEE TPAMI 22
+  (2000) 1330-1334, doi:10.1109/34.888718.
+* S. Garrido-Jurado et al., Automatic generation and detection of highly
+  reliable fiducial markers under occlusion, Pattern Recognition 47 (2014)
+  2280-2292, doi:10.1016/j.patcog.2014.01.005 (ArUco / ChArUco).
+* P. Duda, J. Frese, Accurate detection and localization of checkerboard
+  corners for calibration, BMVC 2018 (OpenCV's findChessboardCornersSB).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from strain2d.errors import InputError, SourceError
+
+__all__ = [
+    "Board",
+    "Calibration",
+    "calibrate_stereo",
+    "detect_board",
+    "load_calibration",
+    "parse_board",
+]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Board:
+    """A calibration target.
+
+    ``kind`` is ``"checkerboard"`` (``cols x rows`` inner corners) or
+    ``"charuco"`` (``cols x rows`` squares, ArUco markers of ``marker``
+    size from ``dictionary``); ``square`` is the square size in the unit
+    the results will use (e.g. mm).
+    """
+
+    kind: str
+    cols: int
+    rows: int
+    square: float
+    marker: float | None = None
+    dictionary: str | None = None
+
+    def spec(self) -> str:
+        """The text form :func:`parse_board` reads."""
+        base = f"{self.kind}:{self.cols}x{self.rows}:{self.square:g}"
+        if self.kind == "charuco":
+            return f"{base}:{self.marker:g}:{self.dictionary}"
+        return base
+
+    def object_points(self) -> np.ndarray:
+        """(M, 3) positions of the inner corners on the board (z = 0), row-major."""
+        if self.kind == "checkerboard":
+            nx, ny = self.cols, self.rows
+        else:
+            nx, ny = self.cols - 1, self.rows - 1
+        gy, gx = np.mgrid[0:ny, 0:nx]
+        return np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)]) * self.square
+
+    def opencv_board(self):
+        """The ``cv2.aruco.CharucoBoard`` of a ChArUco target."""
+        import cv2
+
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary))
+        return cv2.aruco.CharucoBoard(
+            (self.cols, self.rows), float(self.square), float(self.marker), dictionary
+        )
+
+
+def parse_board(text: str) -> Board:
+    """Parse ``checkerboard:COLSxROWS:SQUARE`` or ``charuco:COLSxROWS:SQUARE:MARKER:DICT``.
+
+    Examples
+    --------
+    >>> parse_board("checkerboard:9x6:10")
+    Board(kind='checkerboard', cols=9, rows=6, square=10.0, marker=None, dictionary=None)
+    >>> parse_board("charuco:11x8:8:6:DICT_4X4_50").spec()
+    'charuco:11x8:8:6:DICT_4X4_50'
+    """
+    import cv2
+
+    usage = (
+        "--board must be checkerboard:COLSxROWS:SQUARE or "
+        f"charuco:COLSxROWS:SQUARE:MARKER:DICTIONARY, got {text!r}"
+    )
+    parts = str(text).strip().split(":")
+    kind = parts[0].lower()
+    if kind not in ("checkerboard", "charuco") or len(parts) != (
+        3 if kind == "checkerboard" else 5
+    ):
+        raise InputError(usage)
+    try:
+        cols, rows = (int(v) for v in parts[1].lower().split("x"))
+        square = float(parts[2])
+        marker = float(parts[3]) if kind == "charuco" else None
+    except ValueError:
+        raise InputError(usage) from None
+    if cols < 3 or rows < 3 or not (math.isfinite(square) and square > 0):
+        raise InputError(f"{usage}: at least 3 x 3 and a positive square size")
+    if kind == "charuco":
+        if not (math.isfinite(marker) and 0 < marker < square):
+            raise InputError(f"{usage}: the marker must be smaller than the square")
+        name = parts[4].upper()
+        if not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+            raise InputError(f"unknown ArUco dictionary {parts[4]!r} (e.g. DICT_4X4_50)")
+        return Board(kind, cols, rows, square, marker, name)
+    return Board(kind, cols, rows, square)
+
+
+def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] | None:
+    """Sub-pixel corners of ``board`` in a gray image.
+
+    Returns
+    -------
+    (image_points (M, 2) float64, ids (M,) int) or None when not found.
+    ``ids`` index :meth:`Board.object_points`.
+    """
+    import cv2
+
+    gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if gray.dtype != np.uint8:
+        lo, hi = float(gray.min()), float(gray.max())
+        gray = np.uint8(np.clip((gray - lo) * 255.0 / max(hi - lo, 1e-12), 0, 255))
+    if board.kind == "checkerboard":
+        size = (board.cols, board.rows)
+        flags = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
+        found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
+        if not found:
+            found, corners = cv2.findChessboardCorners(
+                gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+            )
+            if not found:
+                return None
+            crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
+            corners = cv2.cornerSubPix(gray, corners, (7, 7), (-1, -1), crit)
+        pts = corners.reshape(-1, 2).astype(np.float64)
+        return pts, np.arange(len(pts))
+    detector = cv2.aruco.CharucoDetector(board.opencv_board())
+    corners, ids, _, _ = detector.detectBoard(gray)
+    if ids is None or len(ids) < 6:
+        return None
+    return corners.reshape(-1, 2).astype(np.float64), ids.ravel().astype(np.int64)
+
+
+@dataclass
+class Calibration:
+    """A calibrated stereo rig (OpenCV conventions, see :mod:`stereo.camera`).
+
+    Attributes
+    ----------
+    image_size : (width, height) px
+    K_left, K_right : (3, 3) camera matrices
+    dist_left, dist_right : (5,) distortion (k1, k2, p1, p2, k3)
+    R, T : (3, 3), (3,) ``x_right = R x_left + T``
+    rms_px : float
+        RMS reprojection error of the rig over all kept views.
+    unit : str
+        Unit of ``T`` and of triangulated points (the board's square size unit).
+    extra : dict
+        Per-camera RMS, per-view errors, rejected images and why, board,
+        software version.
+    """
+
+    image_size: tuple[int, int]
+    K_left: np.ndarray
+    dist_left: np.ndarray
+    K_right: np.ndarray
+    dist_right: np.ndarray
+    R: np.ndarray
+    T: np.ndarray
+    rms_px: float = float("nan")
+    unit: str = "mm"
+    extra: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.image_size = (int(self.image_size[0]), int(self.image_size[1]))
+        for name, shape in (("K_left", (3, 3)), ("K_right", (3, 3)), ("R", (3, 3)), ("T", (3,))):
+            value = np.asarray(getattr(self, name), np.float64)
+            if name == "T":
+                value = value.ravel()
+            if value.shape != shape or not np.isfinite(value).all():
+                raise InputError(f"calibration {name} must be a finite {shape} array")
+            setattr(self, name, value)
+        for name in ("dist_left", "dist_right"):
+            value = np.zeros(5)
+            given = np.asarray(getattr(self, name), np.float64).ravel()
+            if given.size not in (4, 5, 8, 12, 14) or not np.isfinite(given).all():
+                raise InputError(f"calibration {name} must hold 4, 5, 8, 12 or 14 coefficients")
+            value = given if given.size > 5 else np.concatenate([given, value[given.size :]])
+            setattr(self, name, value)
+
+    @property
+    def baseline(self) -> float:
+        """Distance between the two optical centres, in ``unit``."""
+        return float(np.linalg.norm(self.T))
+
+    def to_dict(self) -> dict:
+        out = {
+            "image_size": list(self.image_size),
+            "K_left": self.K_left.tolist(),
+            "dist_left": self.dist_left.tolist(),
+            "K_right": self.K_right.tolist(),
+            "dist_right": self.dist_right.tolist(),
+            "R": self.R.tolist(),
+            "T": self.T.tolist(),
+            "rms_px": None if not math.isfinite(self.rms_px) else float(self.rms_px),
+            "unit": self.unit,
+            "baseline": self.baseline,
+            "convention": "OpenCV: x_right = R x_left + T; pixel (0, 0) is the centre "
+            "of the top-left pixel; distortion (k1, k2, p1, p2, k3)",
+        }
+        out.update(self.extra)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> Calibration:
+        try:
+            keys = ("image_size", "K_left", "dist_left", "K_right", "dist_right", "R", "T")
+            values = {k: d[k] for k in keys}
+        except (KeyError, TypeError) as exc:
+            raise InputError(f"calibration is missing {exc}") from None
+        extra = {
+            k: v
+            for k, v in d.items()
+            if k not in (*keys, "rms_px", "unit", "baseline", "convention")
+        }
+        rms = d.get("rms_px")
+        return cls(
+            **values,
+            rms_px=float("nan") if rms is None else float(rms),
+            unit=str(d.get("unit", "mm")),
+            extra=extra,
+        )
+
+    def save(self, path: str | os.PathLike) -> None:
+        with open(path, "w", encoding="utf-8") as f:
+            json.dump(self.to_dict(), f, indent=2)
+            f.write("\n")
+
+
+def _opencv_file(path: Path) -> dict:
+    """Matrices from an OpenCV FileStorage (YAML/XML) file, by lower-case name."""
+    import cv2
+
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    if not fs.isOpened():
+        raise InputError(f"{path}: not a readable OpenCV YAML/XML file")
+    try:
+        root = fs.root()
+        out = {}
+        for key in root.keys():
+            node = fs.getNode(key)
+            mat = node.mat()
+            if mat is not None:
+                out[key.lower()] = np.asarray(mat, np.float64)
+            elif node.isSeq():
+                out[key.lower()] = np.array([node.at(i).real() for i in range(node.size())])
+            elif node.isReal() or node.isInt():
+                out[key.lower()] = node.real()
+        return out
+    finally:
+        fs.release()
+
+
+_ALIASES = {
+    "K_left": ("k_left", "m1", "k1", "cameramatrix1", "camera_matrix_left", "cameramatrixleft"),
+    "dist_left": ("dist_left", "d1", "distcoeffs1", "dist_coeffs_left", "distortion_left"),
+    "K_right": ("k_right", "m2", "k2", "cameramatrix2", "camera_matrix_right", "cameramatrixright"),
+    "dist_right": ("dist_right", "d2", "distcoeffs2", "dist_coeffs_right", "distortion_right"),
+    "R": ("r",),
+    "T": ("t",),
+}
+
+
+def load_calibration(*paths: str | os.PathLike) -> Calibration:
+    """Read a calibration: this package's JSON, or OpenCV YAML/XML file(s).
+
+    OpenCV files (e.g. the ``intrinsics.yml`` and ``extrinsics.yml`` of
+    OpenCV's stereo sample) may be given together; matrices are found under
+    the usual names (``M1/D1/M2/D2``, ``K1/K2``, ``cameraMatrix1``...,
+    ``R``, ``T``), the image size under ``image_size``/``imageSize`` or
+    ``image_width``/``image_height``.
+    """
+    if not paths:
+        raise InputError("no calibration file given")
+    first = Path(paths[0])
+    for p in paths:
+        if not Path(p).is_file():
+            raise SourceError(f"calibration file not found: {p}")
+    if first.suffix.lower() == ".json":
+        try:
+            data = json.loads(first.read_text(encoding="utf-8"))
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise InputError(f"{first}: not a valid calibration JSON ({exc})") from None
+        if not isinstance(data, dict):
+            raise InputError(f"{first}: a calibration JSON must hold an object")
+        try:
+            return Calibration.from_dict(data)
+        except (ValueError, TypeError) as exc:
+            raise InputError(f"{first}: {exc}") from None
+    merged: dict = {}
+    for p in paths:
+        merged.update(_opencv_file(Path(p)))
+    values = {}
+    for name, aliases in _ALIASES.items():
+        found = next((merged[a] for a in aliases if a in merged), None)
+        if found is None:
+            raise InputError(
+                f"{', '.join(map(str, paths))}: no {name} (looked for {', '.join(aliases)})"
+            )
+        values[name] = found
+    if "image_size" in merged or "imagesize" in merged:
+        size = np.asarray(merged.get("image_size", merged.get("imagesize"))).ravel()
+    elif "image_width" in merged and "image_height" in merged:
+        size = np.array([merged["image_width"], merged["image_height"]])
+    else:
+        K = np.asarray(values["K_left"])
+        size = np.array([round(2 * K[0, 2] + 1), round(2 * K[1, 2] + 1)])
+        log.warning("no image size in the OpenCV file; guessed %s from the principal point", size)
+    try:
+        return Calibration(image_size=(int(size[0]), int(size[1])), **values)
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"{first}: {exc}") from None
+
+
+def _per_view_rms(obj, img, rvecs, tvecs, K, dist) -> np.ndarray:
+    import cv2
+
+    out = []
+    for o, i, r, t in zip(obj, img, rvecs, tvecs, strict=True):
+        proj = cv2.projectPoints(o, r, t, K, dist)[0].reshape(-1, 2)
+        out.append(float(np.sqrt(np.mean(np.sum((proj - i.reshape(-1, 2)) ** 2, axis=1)))))
+    return np.asarray(out)
+
+
+def calibrate_stereo(
+    left: Sequence[np.ndarray],
+    right: Sequence[np.ndarray],
+    board: Board,
+    *,
+    names: Sequence[str] | None = None,
+    unit: str = "mm",
+    outlier_factor: float = 3.0,
+    min_views: int = 4,
+    progress: Callable[[str], None] | None = None,
+) -> Calibration:
+    """Calibrate a stereo rig from image pairs of a calibration target.
+
+    1. Detect the target in each pair; a pair is rejected (with the reason)
+       when it is missing from either view or the two views share fewer
+       than 6 corners.
+    2. Calibrate each camera on its views (Zhang 2000); a pair is rejected
+       when a view's reprojection RMS exceeds ``outlier_factor`` times the
+       median and 0.5 px, and the cameras are calibrated again.
+    3. Estimate ``(R, T)`` by ``cv2.stereoCalibrate`` with the intrinsics
+       fixed, then refine everything together from there.
+
+    Parameters
+    ----------
+    left, right : sequences of gray (H, W) images, same count and size
+    board : Board
+    names : per-pair names for the report (default ``pair 0``, ...)
+    unit : unit of the square size (and of everything measured later)
+
+    Returns
+    -------
+    Calibration
+        With ``extra`` holding ``rms_left_px``, ``rms_right_px``,
+        ``views`` (name, per-view RMS), ``rejected`` (name, reason), the
+        board spec and the software version.
+    """
+    import cv2
+
+    say = progress or (lambda message: None)
+    if len(left) != len(right):
+        raise InputError(f"unequal image counts: {len(left)} left and {len(right)} right")
+    if len(left) == 0:
+        raise InputError("no calibration images")
+    names = list(names) if names is not None else [f"pair {i}" for i in range(len(left))]
+    size = left[0].shape[:2]
+    for i, (a, b) in enumerate(zip(left, right, strict=True)):
+        if a.shape[:2] != size or b.shape[:2] != size:
+            raise InputError(
+                f"images differ in size: {names[i]} is {b.shape[1]}x{b.shape[0]} or "
+                f"{a.shape[1]}x{a.shape[0]}, the first is {size[1]}x{size[0]}"
+            )
+    image_size = (int(size[1]), int(size[0]))
+    objp = board.object_points().astype(np.float32)
+    rejected: list[dict] = []
+    views = []  # (name, object points, left points, right points)
+    for i, (a, b) in enumerate(zip(left, right, strict=True)):
+        say(f"detecting the target: {names[i]} ({i + 1}/{len(left)})")
+        dl, dr = detect_board(a, board), detect_board(b, board)
+        if dl is None or dr is None:
+            side = (
+                "both views" if dl is None and dr is None else ("left" if dl is None else "right")
+            )
+            rejected.append({"image": names[i], "reason": f"no target found ({side})"})
+            continue
+        common, il, ir = np.intersect1d(dl[1], dr[1], return_indices=True)
+        if common.size < 6:
+            rejected.append({"image": names[i], "reason": f"only {common.size} common corners"})
+            continue
+        views.append(
+            (
+                names[i],
+                objp[common],
+                dl[0][il].astype(np.float32),
+                dr[0][ir].astype(np.float32),
+            )
+        )
+    if len(views) < min_views:
+        found = ", ".join(f"{r['image']}: {r['reason']}" for r in rejected[:3])
+        raise InputError(
+            f"the target was found in only {len(views)} of {len(left)} image pairs "
+            f"(need {min_views}); check --board ({board.spec()}). {found}"
+        )
+
+    flags = 0
+    while True:
+        say(f"calibrating each camera on {len(views)} views")
+        obj = [v[1] for v in views]
+        cams = []
+        for side in (2, 3):
+            pts = [v[side] for v in views]
+            rms, K, dist, rv, tv = cv2.calibrateCamera(
+                obj, pts, image_size, None, None, flags=flags
+            )
+            cams.append((rms, K, dist.ravel(), _per_view_rms(obj, pts, rv, tv, K, dist)))
+        worst = np.maximum(cams[0][3], cams[1][3])
+        limit = max(outlier_factor * float(np.median(worst)), 0.5)
+        bad = np.flatnonzero(worst > limit)
+        if bad.size == 0 or len(views) - bad.size < min_views:
+            break
+        for j in sorted(bad, reverse=True):
+            rejected.append(
+                {
+                    "image": views[j][0],
+                    "reason": f"reprojection error {worst[j]:.2f} px "
+                    f"(over {limit:.2f} px: {outlier_factor:g} x the median)",
+                }
+            )
+            del views[j]
+
+    say("estimating the rig's extrinsics")
+    obj = [v[1] for v in views]
+    pl, pr = [v[2] for v in views], [v[3] for v in views]
+    Kl, dl, Kr, dr = cams[0][1], cams[0][2], cams[1][1], cams[1][2]
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-10)
+    rms, Kl, dl, Kr, dr, R, T, _, _ = cv2.stereoCalibrate(
+        obj, pl, pr, Kl, dl, Kr, dr, image_size, criteria=crit, flags=cv2.CALIB_FIX_INTRINSIC
+    )
+    rms, Kl, dl, Kr, dr, R, T, _, _ = cv2.stereoCalibrate(
+        obj,
+        pl,
+        pr,
+        Kl,
+        dl,
+        Kr,
+        dr,
+        image_size,
+        R=R,
+        T=T,
+        criteria=crit,
+        flags=cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_USE_EXTRINSIC_GUESS,
+    )
+    from strain2d import __version__
+
+    extra = {
+        "rms_left_px": float(cams[0][0]),
+        "rms_right_px": float(cams[1][0]),
+        "views": [
+            {"image": v[0], "rms_left_px": float(el), "rms_right_px": float(er)}
+            for v, el, er in zip(views, cams[0][3], cams[1][3], strict=True)
+        ],
+        "rejected": rejected,
+        "board": board.spec(),
+        "software": {"package": "tissue-strain", "module": "stereo", "version": __version__},
+    }
+    return Calibration(
+        image_size=image_size,
+        K_left=Kl,
+        dist_left=dl.ravel(),
+        K_right=Kr,
+        dist_right=dr.ravel(),
+        R=R,
+        T=T.ravel(),
+        rms_px=float(rms),
+        unit=unit,
+        extra=extra,
+    )
