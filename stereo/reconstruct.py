@@ -1,0 +1,163 @@
+"""3D tracks of grid points from two synchronized, calibrated videos.
+
+:func:`reconstruct` places the points on the left reference frame, matches
+them to the right reference frame (:func:`stereo.match.match_views`),
+tracks them through time in each view with a 2D tracker (``dic`` by
+default), and triangulates every frame (:func:`stereo.camera.triangulate`),
+keeping each point's reprojection error and visibility.  The result feeds
+:func:`surface_strain.compute_strain` directly.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from strain2d.errors import InputError
+
+__all__ = ["Reconstruction", "reconstruct"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class Reconstruction:
+    """Points tracked in 3D.
+
+    Attributes
+    ----------
+    points : (T, N, 3) float, calibration units, left-camera frame (NaN where lost)
+    reproj_error : (T, N) float, RMS reprojection error over the two views, px
+    visible : (T, N) bool
+    left, right : (T, N, 2) float, the 2D tracks in each view, px
+    meta : dict
+    """
+
+    points: np.ndarray
+    reproj_error: np.ndarray
+    visible: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def n_points(self) -> int:
+        return self.points.shape[1]
+
+
+def _first(frames):
+    """Frame 0 of a frame source or of a sequence of arrays."""
+    return frames.first() if hasattr(frames, "first") else frames[0]
+
+
+def reconstruct(
+    left_frames: Sequence[np.ndarray],
+    right_frames: Sequence[np.ndarray],
+    calib,
+    points: np.ndarray,
+    *,
+    tracker: str = "dic",
+    options: dict | None = None,
+    match_options: dict | None = None,
+    max_reproj_px: float = 1.0,
+    progress: Callable[[str], None] | None = None,
+) -> Reconstruction:
+    """Track ``points`` (left reference frame, px) in 3D through both videos.
+
+    Parameters
+    ----------
+    left_frames, right_frames : sequences of (H, W) gray frames, same length
+        (e.g. :class:`strain2d.frames.FrameSource`); frame 0 is the reference.
+    calib : stereo.calibration.Calibration
+    points : (N, 2) pixels in the left reference frame
+    tracker, options
+        The 2D tracker and its options (see ``python -m strain2d track``).
+    match_options : dict, optional
+        Passed to :func:`stereo.match.match_views`.
+    max_reproj_px : float
+        Points whose reprojection error exceeds this are not visible.
+
+    Returns
+    -------
+    Reconstruction
+    """
+    from stereo.camera import triangulate
+    from stereo.match import _apply, match_views
+    from strain2d.pipeline import track
+
+    say = progress or (lambda message: None)
+    n_left, n_right = len(left_frames), len(right_frames)
+    if n_left != n_right:
+        raise InputError(f"the views have different frame counts: {n_left} left, {n_right} right")
+    first_left = np.asarray(_first(left_frames), np.float64)
+    first_right = np.asarray(_first(right_frames), np.float64)
+    width, height = calib.image_size
+    for name, img in (("left", first_left), ("right", first_right)):
+        if img.shape != (height, width):
+            raise InputError(
+                f"the {name} frames are {img.shape[1]}x{img.shape[0]} px but the calibration "
+                f"is for {width}x{height}"
+            )
+    points = np.asarray(points, np.float64).reshape(-1, 2)
+    say(f"matching {len(points)} points between the views")
+    matches = match_views(first_left, first_right, points, calib=calib, **(match_options or {}))
+    if matches.visible.sum() < 3:
+        raise InputError(
+            f"only {int(matches.visible.sum())} of {len(points)} points were found in the right "
+            "view; check the calibration and that both views see the grid"
+        )
+    H = np.asarray(matches.meta["homography"])
+    start_right = np.where(matches.visible[:, None], matches.right, _apply(H, points))
+
+    def progress_of(view: str):
+        def report(done: int, total: int | None) -> None:
+            if total:
+                say(f"tracking the {view} view: frame {done}/{total}")
+
+        return report
+
+    left_tracks = track(
+        left_frames, points, tracker=tracker, options=options, progress=progress_of("left")
+    )
+    right_tracks = track(
+        right_frames,
+        start_right,
+        tracker=tracker,
+        options=options,
+        progress=progress_of("right"),
+    )
+    T, N = left_tracks.positions.shape[:2]
+    say("triangulating")
+    X = np.full((T, N, 3), np.nan)
+    err = np.full((T, N), np.nan)
+    seen = left_tracks.visible & right_tracks.visible & matches.visible[None, :]
+    for t in range(T):
+        pl = np.where(seen[t][:, None], left_tracks.positions[t], np.nan)
+        pr = np.where(seen[t][:, None], right_tracks.positions[t], np.nan)
+        X[t], err[t] = triangulate(pl, pr, calib)
+    visible = seen & (err <= max_reproj_px)
+    X[~visible] = np.nan
+    meta = {
+        "tracker": tracker,
+        "options": dict(options or {}),
+        "max_reproj_px": max_reproj_px,
+        "match": {k: v for k, v in matches.meta.items() if k != "homography"},
+        "match_quality": matches.quality.tolist(),
+        "epipolar_px": matches.epipolar_px.tolist(),
+        "unit": calib.unit,
+    }
+    return Reconstruction(
+        points=X,
+        reproj_error=err,
+        visible=visible,
+        left=left_tracks.positions,
+        right=right_tracks.positions,
+        meta=meta,
+    )
