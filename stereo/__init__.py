@@ -1,7 +1,14 @@
-"""Stereo reconstruction of tracked grid points (not implemented yet).
+"""Two calibrated cameras: grid points tracked in both views and triangulated in 3D.
 
-This package will hold camera calibration (checkerboard and ChArUco targets),
-cross-view matching of grid points, and triangulation of the points tracked in
-both views into 3D tracks ``(T, N, 3)`` for :mod:`surface_strain`.  Nothing in
-it works yet; ``python -m stereo`` says so and exits with status 2.
+:mod:`stereo.calibration` calibrates a camera pair from checkerboard or
+ChArUco images (or reads OpenCV calibration files); :mod:`stereo.match`
+finds points of the left view in the right one; :mod:`stereo.reconstruct`
+tracks them through both videos and triangulates them
+(:mod:`stereo.camera`) into 3D tracks ``(T, N, 3)`` for
+:mod:`surface_strain`.  From the shell: ``python -m stereo calibrate``,
+``match``, ``reconstruct``.
 """
+
+from strain2d import __version__
+
+__all__ = ["__version__"]

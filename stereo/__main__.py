@@ -1,7 +1,5 @@
 import sys
 
-print(
-    "stereo: not implemented yet in this version (planned: calibrate, match, reconstruct)",
-    file=sys.stderr,
-)
-sys.exit(2)
+from stereo.cli import main
+
+sys.exit(main())
