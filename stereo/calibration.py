@@ -279,13 +279,14 @@ def _opencv_file(path: Path) -> dict:
         out = {}
         for key in root.keys():
             node = fs.getNode(key)
-            mat = node.mat()
-            if mat is not None:
-                out[key.lower()] = np.asarray(mat, np.float64)
+            if node.isInt() or node.isReal():
+                out[key.lower()] = node.real()
             elif node.isSeq():
                 out[key.lower()] = np.array([node.at(i).real() for i in range(node.size())])
-            elif node.isReal() or node.isInt():
-                out[key.lower()] = node.real()
+            elif node.isMap():
+                mat = node.mat()  # an !!opencv-matrix
+                if mat is not None:
+                    out[key.lower()] = np.asarray(mat, np.float64)
         return out
     finally:
         fs.release()

@@ -27,7 +27,7 @@ def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     Parameters
     ----------
     normalized : (..., 2)
-    K : (3, 3) camera matrix
+    K : (3, 3) camera matrix (its skew term is ignored, as OpenCV does)
     dist : (k1, k2, p1, p2[, k3])
 
     Returns
@@ -48,7 +48,7 @@ def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
     xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
     yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-    u = K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
+    u = K[0, 0] * xd + K[0, 2]
     v = K[1, 1] * yd + K[1, 2]
     return np.stack([u, v], axis=-1)
 
