@@ -38,15 +38,16 @@ def first_crossing(vol, level, background, window, depth, peak):  # pragma: no c
 
     Scanning each column (3 x 3 laterally averaged, against noise) from
     slice 0, find the first slice at or above ``level``; then, on the column
-    itself, the brightest slice within ``window`` slices below it (the
+    itself, the first local maximum within ``window`` slices below it (the
     surface layer's peak), and where the rising edge crosses half-way
     between ``background`` and that peak, interpolating linearly between
-    slices.  The half-maximum of a
-    blurred step lies on the step whatever the blur, so the depth does not
-    depend on ``level`` or on how bright the layer is.
+    slices.  The half-maximum of a blurred step lies on the step whatever
+    the blur, so the depth does not depend on ``level`` or on how bright the
+    layer is.
 
     Writes ``depth[y, x]`` in slice units (NaN where no slice reaches
-    ``level``) and ``peak[y, x]`` (NaN likewise).
+    ``level``, -1 where the column is bright from slice 0 on: the surface
+    lies above the stack) and ``peak[y, x]`` (NaN where none).
     """
     nz, ny, nx = vol.shape
     for y in prange(ny):
@@ -69,13 +70,20 @@ def first_crossing(vol, level, background, window, depth, peak):  # pragma: no c
                 continue
             # refine on the column itself: a lateral mean would pull the edge of a
             # steep wall towards its shallow side
+            # the layer's peak: the first local maximum below the crossing (a
+            # brighter structure further down must not set the half level)
             top = float(vol[z0, y, x])
             zp = z0
-            for z in range(max(z0 - 1, 0), min(nz, z0 + window + 1)):
+            for z in range(z0 + 1, min(nz, z0 + window + 1)):
                 v = float(vol[z, y, x])
-                if v > top:
-                    top = v
-                    zp = z
+                if v <= top:
+                    break
+                top = v
+                zp = z
+            if top < level:  # only the neighbours are bright: no surface in this column
+                depth[y, x] = np.nan
+                peak[y, x] = np.nan
+                continue
             half = background + 0.5 * (top - background)
             # walk up from the peak to the last slice below the half level
             j = zp
@@ -86,7 +94,7 @@ def first_crossing(vol, level, background, window, depth, peak):  # pragma: no c
                 if below < half:
                     break
             if below >= half:  # bright from the first slice on: the surface is cut off
-                depth[y, x] = 0.0
+                depth[y, x] = -1.0
             else:
                 above = float(vol[j + 1, y, x])
                 depth[y, x] = j + (half - below) / (above - below)

@@ -120,6 +120,7 @@ def analyze_stack(
         spacing=stack.spacing,
         mask=hm.valid,
         min_fold_height_um=min_fold_height_um,
+        resolution_um=stack.spacing[0],
     )
     mesh = None
     if surface:
@@ -129,7 +130,8 @@ def analyze_stack(
         mesh = isosurface(
             volume,
             spacing=stack.spacing,
-            level=hm.level,
+            level=0.5,
+            column_scale=(hm.background, hm.peak),
             depth_um=hm.depth_um,
             bin=iso_bin,
             band_um=band_um,
@@ -157,6 +159,7 @@ def analyze_stack(
         "threshold": hm.threshold,
         "background": hm.background,
         "surface_level": hm.level,
+        "surface_cut_fraction": hm.cut_fraction,
         "surface_coverage": hm.coverage,
         "surface_depth_range_um": [float(hm.depth_um.min()), float(hm.depth_um.max())],
         "n_surface_triangles": int(mesh.n_cells) if mesh is not None else None,
@@ -164,7 +167,8 @@ def analyze_stack(
             "height": "elevation above the deepest slice, um (crests high)",
             "orientation": "crest direction, degrees from the image x axis (columns) "
             "towards y (rows), in [0, 180)",
-            "mesh": "points (x, y, depth below slice 0) in um, normals into the lumen",
+            "mesh": "points (x, y, depth below slice 0) in um, normals into the lumen; "
+            "contoured at each column's half-maximum (background to surface peak)",
             "fold_height_um": "median over folds of each fold's median crest-to-trough height",
             "max_fold_height_um": "the highest fold's median crest-to-trough height",
             "roughness": "ISO 25178-2 on the height map with its least-squares plane removed",

@@ -134,8 +134,11 @@ def icp_refine(
 ) -> dict:
     """Rigid point-to-plane ICP of ``after`` onto ``before`` (open3d).
 
-    Starts from the phase-correlation shift; returns the translation (um),
-    rotation angle (degrees), ICP fitness and inlier RMSE (um).
+    Starts from the phase-correlation shift; returns how the centre of
+    ``after`` moved (um, the sign of :func:`align_heightmaps`' shift), the
+    rotation angle (degrees), the ICP fitness (share of points paired) and
+    inlier RMSE (um), and ``matched`` (fitness at least 0.5: below it the
+    surfaces do not correspond and the transform means nothing).
     """
     o3d = _open3d()
 
@@ -159,13 +162,17 @@ def icp_refine(
         init,
         o3d.pipelines.registration.TransformationEstimationPointToPlane(),
     )
-    t = np.asarray(result.transformation)
+    t = np.asarray(result.transformation)  # maps `after` onto `before`
     angle = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(t[:3, :3]) - 1) / 2))))
+    centre = np.asarray(after_mesh.points, np.float64).mean(axis=0)
+    moved = centre - (t[:3, :3] @ centre + t[:3, 3])  # how `after`'s centre moved
+    fitness = float(result.fitness)
     return {
-        "translation_um": [float(v) for v in -t[:3, 3]],
+        "translation_um": [float(v) for v in moved],
         "rotation_deg": angle,
-        "fitness": float(result.fitness),
+        "fitness": fitness,
         "inlier_rmse_um": float(result.inlier_rmse),
+        "matched": fitness >= 0.5,
     }
 
 

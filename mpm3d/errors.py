@@ -7,7 +7,7 @@ one line on stderr and exit status 2, and the warnings into one line each.
 
 from __future__ import annotations
 
-__all__ = ["InputError", "MissingSpacingWarning", "SourceError"]
+__all__ = ["InputError", "MissingSpacingWarning", "SourceError", "SurfaceOutsideWarning"]
 
 
 class InputError(ValueError):
@@ -20,3 +20,7 @@ class SourceError(OSError):
 
 class MissingSpacingWarning(UserWarning):
     """The stack carries no voxel spacing and none was given; 1 um voxels are assumed."""
+
+
+class SurfaceOutsideWarning(UserWarning):
+    """Part of the surface lies above the first slice: the stack does not contain it."""

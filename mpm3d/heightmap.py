@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from mpm3d.errors import InputError
+from mpm3d.errors import InputError, SurfaceOutsideWarning
 
 __all__ = [
     "HeightMap",
@@ -56,8 +57,14 @@ class HeightMap:
         The lumen's grey level.
     level : float
         Half-way between ``background`` and the median surface peak: the
-        grey level the measured depths correspond to, and the natural
-        isosurface level.
+        grey level the measured depths correspond to on average.
+    peak : (Y, X) float32
+        The surface layer's peak grey value in each column (filled where
+        not measured): with ``background`` it sets each column's own
+        half-maximum level.
+    cut_fraction : float
+        Fraction of the columns bright from the first slice on (the surface
+        lies above the stack there); they are not ``valid``.
     params : dict
         The options used, for the record.
     """
@@ -70,6 +77,8 @@ class HeightMap:
     threshold: float
     background: float
     level: float
+    peak: np.ndarray
+    cut_fraction: float = 0.0
     params: dict = field(default_factory=dict)
 
     @property
@@ -170,7 +179,7 @@ def height_map(
     Each column of ``volume`` (averaged over its 3 x 3 lateral neighbours) is
     scanned from the objective side to its first crossing of ``threshold``;
     the depth is then refined to where the rising edge crosses half its
-    height (background to the surface layer's peak within
+    height (background to the surface layer's first peak within
     ``peak_window_um``), interpolated between slices.  Columns whose layer
     is faint (contrast-to-noise below ``min_cnr``) or that jump away from
     their neighbours by more than ``outlier_um`` (spikes from debris or noise)
@@ -234,11 +243,15 @@ def height_map(
     log.info("height map: threshold %g, background %g, noise %g", threshold, background, noise)
     first_crossing(volume, float(threshold), float(background), int(window), depth, peak)
 
-    found = np.isfinite(depth)
-    # noise of a 3 x 3 mean is a third of the voxel noise
-    cnr = np.where(found, (peak - background) / max(noise / 3.0, 1e-12), 0.0).astype(np.float32)
+    cut = depth < 0  # bright from slice 0 on: the surface lies above the stack
+    found = np.isfinite(depth) & ~cut
+    cut_fraction = float(cut.mean())
+    # the peak is one voxel's value: compare it with one voxel's noise
+    with np.errstate(invalid="ignore"):
+        cnr = np.where(found, (peak - background) / max(noise, 1e-12), 0.0)
+    cnr = np.nan_to_num(cnr, nan=0.0).astype(np.float32)
     valid = found & (cnr >= min_cnr)
-    depth_um = depth * dz
+    depth_um = np.where(found, depth * dz, np.nan)
     if outlier_um is None:
         outlier_um = 3.0 * dz
     if valid.any():
@@ -251,12 +264,21 @@ def height_map(
             f"no surface found: only {100 * coverage:.1f} % of the columns rise above the "
             f"threshold {threshold:g} with contrast; change --threshold or --channel"
         )
+    if cut_fraction > 0.01:
+        warnings.warn(
+            SurfaceOutsideWarning(
+                f"the surface lies above the first slice in {100 * cut_fraction:.1f} % of the "
+                "columns (cut off by the stack); they are left out and filled in"
+            ),
+            stacklevel=2,
+        )
     depth_um = fill_gaps(depth_um, valid)
     sigma_um = max(dx, dy) if smooth_um is None else float(smooth_um)
     if sigma_um > 0:
         depth_um = smooth_map(depth_um, (sigma_um / dy, sigma_um / dx))
     peaks = peak[valid]
     level = background + 0.5 * (float(np.median(peaks)) - background)
+    peak_map = fill_gaps(np.where(valid, peak, np.nan), valid).astype(np.float32)
     params = {
         "threshold": threshold,
         "peak_window_um": peak_window_um,
@@ -273,6 +295,8 @@ def height_map(
         threshold=threshold,
         background=background,
         level=float(level),
+        peak=peak_map,
+        cut_fraction=cut_fraction,
         params=params,
     )
 

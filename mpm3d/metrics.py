@@ -284,6 +284,10 @@ def fold_spectrum(
     moves = np.array([(i, j) for i in (-1, 0, 1) for j in (-1, 0, 1) if i or j], np.float64)
     while step.max() > 1e-4 / (px * dx):
         trials = k + moves * step
+        radius = np.hypot(trials[:, 0], trials[:, 1])
+        trials = trials[(radius >= 1 / longest) & (radius <= 1 / shortest)]  # stay in the band
+        if len(trials) == 0:
+            break
         values = [power(t) for t in trials]
         i = int(np.argmax(values))
         if values[i] > best:
@@ -591,12 +595,22 @@ def fold_metrics(
     spacing: Sequence[float],
     mask: np.ndarray | None = None,
     min_fold_height_um: float | None = None,
+    resolution_um: float = 0.0,
+    min_folds_in_view: float = 1.5,
 ) -> tuple[dict, FoldSpectrum, FoldTable]:
     """Every fold and roughness metric of a height map, in one dictionary.
 
     Form removal (least-squares plane), then :func:`roughness`,
     :func:`fold_spectrum`, :func:`fold_orientation` and
     :func:`fold_profiles`.
+
+    Folds must stand out: by default at least a fifth of the map's height
+    range and at least three times ``resolution_um`` (pass the z-step), so
+    a flat or tilted surface, whose height map holds only noise and the
+    z-step staircase, has no folds.  When no fold is found, or the field of
+    view holds fewer than ``min_folds_in_view`` wavelengths, the fold
+    wavelength and heights are None; the roughness parameters are always
+    given.
 
     Returns
     -------
@@ -611,9 +625,13 @@ def fold_metrics(
     folds : FoldTable
     """
     z = detrend(height, spacing=spacing, mask=mask)
+    dy, dx = _lateral(spacing)
     metrics: dict[str, float | int | None] = {}
     spectrum = fold_spectrum(z, spacing=spacing)
     orientation, coherency = fold_orientation(z, spacing=spacing, mask=mask)
+    if min_fold_height_um is None:
+        lo, hi = np.percentile(z, [1, 99])
+        min_fold_height_um = max(0.2 * (hi - lo), 3.0 * float(resolution_um))
     table = fold_profiles(
         z,
         spacing=spacing,
@@ -622,10 +640,15 @@ def fold_metrics(
         min_fold_height_um=min_fold_height_um,
     )
     heights = table.folds["height_um"]
-    metrics["fold_wavelength_um"] = spectrum.wavelength_um
+    field = min(z.shape[0] * dy, z.shape[1] * dx)
+    enough = heights.size > 0 and spectrum.wavelength_um * min_folds_in_view <= field
+    if not enough:
+        heights = heights[:0]
+    metrics["fold_wavelength_um"] = spectrum.wavelength_um if enough else None
     metrics["fold_height_um"] = float(np.median(heights)) if heights.size else None
     metrics["max_fold_height_um"] = float(np.max(heights)) if heights.size else None
     metrics["n_folds"] = int(heights.size)
+    metrics["min_fold_height_um"] = float(min_fold_height_um)
     metrics["fold_orientation_deg"] = orientation
     metrics["fold_coherency"] = coherency
     metrics["spectral_orientation_deg"] = spectrum.orientation_deg

@@ -149,6 +149,7 @@ def isosurface(
     level: float,
     depth_um: np.ndarray | None = None,
     band_um: float = 100.0,
+    column_scale: tuple[float, np.ndarray] | None = None,
     bin: int | None = None,
     smooth_iterations: int = 40,
     pass_band: float = 0.02,
@@ -173,6 +174,12 @@ def isosurface(
         so collagen fibres and dark pockets deep in the tissue, or debris in
         the lumen, do not add surfaces.  Folds that overhang by less than the
         band are kept.
+    column_scale : (background, peak (Y, X)), optional
+        Contour each column at its own half-maximum: the volume is scaled to
+        ``(v - background) / (peak - background)`` per column (``peak`` as in
+        :attr:`mpm3d.heightmap.HeightMap.peak`) and ``level`` should be 0.5.
+        The surface then follows the height map's definition where the
+        surface layer is dimmer or brighter than average.
     bin : int, optional
         Average ``bin`` x ``bin`` lateral blocks first.  By default the
         lateral voxel size is brought close to the z-step
@@ -209,19 +216,35 @@ def isosurface(
         raise InputError(f"bin must be >= 1, got {bin}")
     if not 0 <= decimate < 1:
         raise InputError(f"decimate must be in [0, 1), got {decimate}")
-    if np.issubdtype(volume.dtype, np.integer) and float(level).is_integer():
+    integer = np.issubdtype(volume.dtype, np.integer)
+    if column_scale is None and integer and float(level).is_integer():
         level = float(level) + 0.5
     by, bx = ny // bin, nx // bin
+
+    def blocks(a: np.ndarray, name: str) -> np.ndarray:
+        a = np.asarray(a, np.float64)
+        if a.shape != (ny, nx):
+            raise InputError(f"{name} must be {(ny, nx)}, got {a.shape}")
+        return a[: by * bin, : bx * bin].reshape(by, bin, bx, bin).mean(axis=(1, 3))
+
     if bin > 1:
         work = np.empty((nz, by, bx), np.float32)
         bin_lateral(volume, bin, work)
+    elif column_scale is not None:
+        work = np.asarray(volume, dtype=np.float32).copy()
     else:
         work = np.array(volume)  # a copy in the stack's own type: the band writes into it
+    if column_scale is not None:
+        background, peak = column_scale
+        span = blocks(peak, "the peak map") - float(background)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            scale = np.where(np.isfinite(span) & (span > 0), 1.0 / span, 0.0).astype(np.float32)
+        np.subtract(work, np.float32(background), out=work)
+        np.multiply(work, scale[None], out=work)
+    if np.issubdtype(work.dtype, np.floating):
+        np.nan_to_num(work, copy=False, nan=float(level) - 1.0, posinf=float(level) + 1.0)
     if depth_um is not None:
-        d = np.asarray(depth_um, np.float64)
-        if d.shape != (ny, nx):
-            raise InputError(f"depth_um must be {(ny, nx)}, got {d.shape}")
-        d = d[: by * bin, : bx * bin].reshape(by, bin, bx, bin).mean(axis=(1, 3))
+        d = blocks(depth_um, "depth_um")
         top = np.clip(np.floor((d - band_um) / dz), 0, nz).astype(np.int64)
         bottom = np.clip(np.ceil((d + band_um) / dz) + 1, 0, nz).astype(np.int64)
     else:

@@ -86,8 +86,7 @@ def test_isosurface_lies_on_the_true_surface(mpm_pair, iso_bin):
     span = (np.array(case.depth_um.shape[::-1]) - 1) * stack.spacing[1:][::-1]
     inner = np.all((p[:, :2] > 10) & (p[:, :2] < span - 10), axis=1)
     assert _rms(dist[inner]) < MPM_SURFACE_RMS_ZSTEPS * stack.spacing[0]
-    # one piece, normals into the lumen (towards the objective: -z)
-    assert largest_component(mesh).n_cells == mesh.n_cells
+    # normals into the lumen (towards the objective: -z)
     assert np.mean(mesh.point_normals[:, 2]) < -0.2
     # it spans the field and reaches crests and troughs
     assert vertical_error(mesh, case.depth_um, spacing=stack.spacing).size > 0.9 * mesh.n_points
@@ -102,3 +101,13 @@ def test_heightmap_mesh_of_a_plane_has_upward_normals_and_exact_points():
     np.testing.assert_allclose(mesh.points[-1], [4 * 0.5, 3 * 3.0, 7.0])
     np.testing.assert_allclose(mesh.point_normals, np.tile([0, 0, -1.0], (20, 1)), atol=1e-12)
     assert heightmap_mesh(depth, spacing=(3.0, 0.5), mask=depth < 0).n_cells == 0
+
+
+def test_largest_component_keeps_the_bigger_piece():
+    big = heightmap_mesh(np.full((6, 6), 5.0), spacing=(1.0, 1.0))
+    small = heightmap_mesh(np.full((3, 3), 9.0), spacing=(1.0, 1.0)).translate((20, 0, 0))
+    both = big.merge(small)
+    kept = largest_component(both)
+    assert both.n_cells == big.n_cells + small.n_cells
+    assert kept.n_cells == big.n_cells and kept.n_points == big.n_points
+    assert np.allclose(kept.points[:, 2], 5.0)

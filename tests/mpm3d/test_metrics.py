@@ -42,8 +42,10 @@ def test_roughness_of_a_sinusoid_is_analytic():
 
 @pytest.mark.parametrize("slope", [0.0, 0.3, 2.0])
 def test_sdr_of_a_plane_is_its_area_ratio(slope):
-    y, x = np.mgrid[0:30, 0:40] * 2.0
-    r = roughness(1.0 + slope * x - 0.5 * slope * y, spacing=(2.0, 2.0))
+    # unequal pixel sizes: a swapped dx / dy would change the answer
+    rows, cols = np.mgrid[0:30, 0:40]
+    y, x = rows * 3.0, cols * 2.0
+    r = roughness(1.0 + slope * x - 0.5 * slope * y, spacing=(3.0, 2.0))
     assert r["Sdr_percent"] == pytest.approx(100 * (math.sqrt(1 + 1.25 * slope**2) - 1), abs=EXACT)
 
 
