@@ -3,7 +3,9 @@
 Speckle patterns and a tissue photograph deformed by analytic maps, rendered
 with sensor noise and written as real video and TIFF files, and multiphoton
 z-stacks of a folded lumen whose surface is known exactly
-(:mod:`sample_data_synth.stacks`), each with a ground-truth file beside it.
+(:mod:`sample_data_synth.stacks`), and stereo pairs (calibration boards and
+deforming membranes seen through OpenCV's camera model,
+:mod:`sample_data_synth.stereo`), each with a ground-truth file beside it.
 Depends on no other package of the toolkit.
 """
 
@@ -29,6 +31,22 @@ from sample_data_synth.stacks import (
     save_stack_truth,
     write_stack,
 )
+from sample_data_synth.stereo import (
+    STEREO_CASES,
+    CalibrationViews,
+    CharucoBoard,
+    Checkerboard,
+    StereoRig,
+    StereoScene,
+    default_rig,
+    load_stereo_scene,
+    parse_board,
+    render_calibration_views,
+    render_surface_scene,
+    save_calibration_views,
+    save_stereo_scene,
+    undistort_points,
+)
 
 try:
     __version__ = _metadata.version("tissue-strain")
@@ -38,25 +56,39 @@ except _metadata.PackageNotFoundError:  # running from a source tree that is not
 __all__ = [
     "CASES",
     "STACK_CASES",
+    "STEREO_CASES",
+    "CalibrationViews",
+    "CharucoBoard",
+    "Checkerboard",
     "Field",
     "GroundTruth",
     "Homogeneous",
     "SpecklePattern",
+    "StereoRig",
+    "StereoScene",
     "SyntheticStack",
     "SyntheticVideo",
     "add_sensor_noise",
+    "default_rig",
     "equibiaxial",
     "fold_height_field",
     "load_ground_truth",
+    "load_stereo_scene",
     "make_case",
     "make_stack_case",
+    "parse_board",
+    "render_calibration_views",
     "render_image",
     "render_speckle",
     "render_stack",
+    "render_surface_scene",
     "rotation",
+    "save_calibration_views",
     "save_stack_truth",
+    "save_stereo_scene",
     "simple_shear",
     "speckle_pattern",
+    "undistort_points",
     "write_stack",
     "write_video",
 ]

@@ -1,4 +1,4 @@
-"""Command line: ``python -m sample_data_synth {video,stack,list}``.
+"""Command line: ``python -m sample_data_synth {video,stack,stereo,list}``.
 
 ``video`` writes, for each case, ``CASE.avi`` (lossless FFV1) and/or
 ``CASE.tif`` / ``CASE.mp4``, ``CASE_truth.json`` (the analytic deformation,
@@ -11,6 +11,12 @@ MPM z-stack ``CASE.tif`` (ImageJ hyperstack) or ``CASE.ome.tif`` (OME-TIFF),
 ``CASE_truth.json`` (fold geometry, per-fold heights, conventions) and
 ``CASE_truth.npz`` (``depth_um`` and ``height_um``, (Y, X) float32); see
 :mod:`sample_data_synth.stacks`.
+
+``stereo`` writes one folder per case: ``calibration/`` (``left/view_00.png``
+..., ``right/view_00.png`` ..., ``rig.json`` with the true calibration and
+``poses.json`` with the true board poses) and ``stretch/``, ``dome/``
+(``left/frame_000.png`` ..., ``right/frame_000.png`` ..., ``rig.json``,
+``truth.json`` and ``truth.npz``); see :mod:`sample_data_synth.stereo`.
 
 Every command writes into a temporary folder beside ``--out`` and renames it
 only when everything is written.
@@ -32,6 +38,15 @@ import numpy as np
 
 from sample_data_synth.cases import CASES, make_case, write_video
 from sample_data_synth.stacks import STACK_CASES, make_stack_case, save_stack_truth, write_stack
+from sample_data_synth.stereo import (
+    STEREO_CASES,
+    default_rig,
+    parse_board,
+    render_calibration_views,
+    render_surface_scene,
+    save_calibration_views,
+    save_stereo_scene,
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -76,6 +91,28 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--spacing", default="4,2.5,2.5", help="DZ,DY,DX in um (4,2.5,2.5)")
     p.add_argument("--format", default="imagej", help="imagej or ome (imagej)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p = sub.add_parser(
+        "stereo", help="render stereo calibration views and deforming surfaces with ground truth"
+    )
+    p.add_argument(
+        "--case",
+        default="all",
+        help=f"one of {', '.join(STEREO_CASES)}, or 'all' (default all)",
+    )
+    p.add_argument(
+        "--board",
+        default="checkerboard:9x6:10",
+        help="checkerboard:COLSxROWS:SQUARE_MM or charuco:SXxSY:SQUARE_MM:MARKER_MM[:DICT] "
+        "(checkerboard:9x6:10)",
+    )
+    p.add_argument("--views", type=int, default=15, help="calibration views (15)")
+    p.add_argument("--frames", type=int, default=11, help="frames of the surface cases (11)")
+    p.add_argument("--size", default="1024x768", help="image WIDTHxHEIGHT in px (1024x768)")
+    p.add_argument("--noise", type=float, default=1.0, help="sensor noise in gray levels (1.0)")
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -199,6 +236,70 @@ def _cmd_stack(args) -> int:
     return 0
 
 
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        w = h = 0
+    if w < 64 or h < 64:
+        raise ValueError(f"--size must be WIDTHxHEIGHT, both >= 64 px, got {text!r}")
+    return w, h
+
+
+def _cmd_stereo(args) -> int:
+    cases = list(STEREO_CASES) if args.case == "all" else [args.case]
+    if any(c not in STEREO_CASES for c in cases):
+        raise ValueError(
+            f"unknown case {args.case!r}; choose from {', '.join(STEREO_CASES)} or all"
+        )
+    board = parse_board(args.board)
+    if args.views < 1:
+        raise ValueError(f"--views must be >= 1, got {args.views}")
+    if args.frames < 2:
+        raise ValueError(f"--frames must be >= 2, got {args.frames}")
+    if not (np.isfinite(args.noise) and args.noise >= 0):
+        raise ValueError(f"--noise must be a number >= 0, got {args.noise}")
+    rig = default_rig(image_size=_parse_size(args.size))
+    with _output_folder(Path(args.out), args.overwrite) as tmp:
+        for case in cases:
+            unit = "view" if case == "calibration" else "frame"
+
+            def progress(done: int, total: int, case=case, unit=unit) -> None:
+                if not args.quiet:
+                    camera = "left" if done <= total // 2 else "right"
+                    k = done if done <= total // 2 else done - total // 2
+                    print(
+                        f"\r{case}: {camera} {unit} {k}/{total // 2}",
+                        end="",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+
+            if case == "calibration":
+                views = render_calibration_views(
+                    rig,
+                    board,
+                    n_views=args.views,
+                    rng=args.seed,
+                    noise=args.noise,
+                    progress=progress,
+                )
+                save_calibration_views(tmp / case, views)
+            else:
+                scene = render_surface_scene(
+                    rig,
+                    case,
+                    n_frames=args.frames,
+                    rng=args.seed,
+                    noise=args.noise,
+                    progress=progress,
+                )
+                save_stereo_scene(tmp / case, scene)
+            if not args.quiet:
+                print(file=sys.stderr)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _build_parser().parse_args(argv)
@@ -207,9 +308,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name:12s} {spec.description}")
         for name, spec in STACK_CASES.items():
             print(f"{name:12s} {spec.description}")
+        for name, description in STEREO_CASES.items():
+            print(f"{name:12s} {description} (stereo)")
         return 0
     try:
-        return {"video": _cmd_video, "stack": _cmd_stack}[args.command](args)
+        commands = {"video": _cmd_video, "stack": _cmd_stack, "stereo": _cmd_stereo}
+        return commands[args.command](args)
     except (ValueError, OSError) as exc:
         print(f"sample_data_synth {args.command}: error: {exc}", file=sys.stderr)
         return 2

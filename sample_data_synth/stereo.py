@@ -1201,7 +1201,9 @@ class _Dome:
         disc = B * B - 4 * A * C
         q = -0.5 * (B + np.copysign(np.sqrt(np.clip(disc, 0, None)), B))
         depth = C / q  # the root nearer the camera
-        on_cap = (disc >= 0) & (depth > 0) & (depth < np.inf) & (o[2] + depth * dz <= 0)
+        X = np.column_stack([o[0] + depth * dx, o[1] + depth * dy])
+        r = np.hypot(X[:, 0], X[:, 1])
+        on_cap = (disc >= 0) & (depth > 0) & (o[2] + depth * dz <= 0) & (r <= self.radius)
         depth = np.where(on_cap, depth, -o[2] / dz)  # else the plate's plane
         X = np.column_stack([o[0] + depth * dx, o[1] + depth * dy])
         r = np.hypot(X[:, 0], X[:, 1])
