@@ -26,17 +26,28 @@ Conventions (a contract: the stereo package is written against it)
 Rendering
 ---------
 Every output pixel is split into ``supersample x supersample`` sub-pixel rays;
-each sample's pixel position is undistorted to a normalized ray by Newton's
-method on the OpenCV distortion model (round trip through
-``cv2.projectPoints`` below 1e-9 px), the ray is intersected with the scene
-surface in closed form, mapped to the surface's material (texture)
-coordinates and the texture is sampled there.  Textures are rasters in
-material coordinates, band-limited (a Gaussian of one texel) and sampled
-bilinearly; the samples are averaged (pixel integration), optionally blurred
-(``blur_sigma``, the lens), lit unevenly, given Gaussian sensor noise and
-quantized to 8 bits.  Features therefore land where ``cv2.projectPoints``
-says: rendered checkerboard corners agree with the projected true corners to
-about 0.01-0.02 px RMS (see the tests).
+each sample's pixel position is undistorted to a normalized ray
+(``cv2.undistortPoints``, then Newton's method on the OpenCV distortion model:
+the round trip through ``cv2.projectPoints`` is below 1e-9 px), the ray is
+intersected with the scene surface in closed form, mapped to the surface's
+material (texture) coordinates and the texture is sampled there.  Textures
+are rasters in material coordinates (boards drawn at 200 texels per square
+and band-limited by a Gaussian of one texel; speckle dots evaluated exactly
+at ``speckle_radius / 5`` per texel), sampled bilinearly by ``cv2.remap``
+(1/32-texel weights: 0.002 mm on a 10 mm board).  The samples are averaged
+(pixel integration), blurred (``blur_sigma``, the lens), optionally lit
+unevenly, given Gaussian sensor noise and quantized to 8 bits (and
+optionally JPEG-compressed).
+
+Features land where ``cv2.projectPoints`` says.  Rendered at 4x the
+resolution, checkerboard corners found by ``cv2.cornerSubPix`` lie 0.005 px
+RMS (in 1x pixels) from the projected truth: the renderer's own error.  At
+1x with the default 0.7 px blur, ``cornerSubPix`` reads them 0.02-0.05 px
+RMS off (0.03 px over 15 default views at 1024 x 768; its own sampling bias
+on corners a few pixels wide, with no mean shift), and ``cv2.stereoCalibrate``
+on those views returns the baseline within 0.01 % at 0.03 px RMS.  The
+ChArUco detector's corners are 0.03-0.16 px RMS off per image: its marker
+edges sit close to the corners on steeply tilted views.
 
 Cases
 -----
@@ -384,6 +395,7 @@ def _distort(xy: np.ndarray, dist: np.ndarray) -> np.ndarray:
     )
 
 
+@np.errstate(invalid="ignore", over="ignore", divide="ignore")
 def _undistort(xd: np.ndarray, dist: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
     """Invert :func:`_distort` by Newton's method (quadratic convergence) from ``x0``.
 
@@ -399,7 +411,7 @@ def _undistort(xd: np.ndarray, dist: np.ndarray, x0: np.ndarray | None = None) -
         xy2 = 2 * x * y
         fx = x * radial + p1 * xy2 + p2 * (r2 + 2 * x * x) - ux
         fy = y * radial + p1 * (r2 + 2 * y * y) + p2 * xy2 - uy
-        if not np.abs(fx).max(initial=0) > 1e-15 and not np.abs(fy).max(initial=0) > 1e-15:
+        if not np.any(np.abs(fx) + np.abs(fy) > 1e-15):  # NaN input stays NaN
             break
         dradial = 2 * (k1 + r2 * (2 * k2 + 3 * k3 * r2))  # d(radial) / d(r2), doubled
         jxx = radial + x * x * dradial + 2 * p1 * y + 6 * p2 * x
@@ -434,6 +446,10 @@ def undistort_points(rig: StereoRig, xy: np.ndarray, *, camera: Camera = "left")
 
     K, dist = rig.intrinsics(camera)
     xy = np.asarray(xy, dtype=float)
+    if xy.shape[-1:] != (2,):
+        raise ValueError(f"xy must have shape (N, 2), got {xy.shape}")
+    if xy.size == 0:
+        return xy.copy()
     y = (xy[..., 1] - K[1, 2]) / K[1, 1]
     x = (xy[..., 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
     # OpenCV's fixed-point iteration gives the start, Newton the last digits
@@ -897,8 +913,8 @@ def _board_poses(
         p = mid + np.array([rng.uniform(-reach, reach), rng.uniform(-0.6, 0.6) * reach, 0.0])
         t = p - Rb @ center
         world = outline @ Rb.T + t
-        if np.any(world[:, 2] <= 0):
-            continue
+        if np.any(world[:, 2] <= 0) or np.any(world @ rig.R[2] + rig.T[2] <= 0):
+            continue  # behind a camera
         normal = Rb[:, 2]
         if normal @ (t - Cr) <= 0 or normal @ t <= 0:  # seen from behind
             continue

@@ -133,6 +133,9 @@ def test_undistortion_inverts_project_points(camera):
     for depth in (200.0, 450.0, 900.0):
         points = depth * np.column_stack([xn, np.ones(len(xn))]) @ Rc.T + Cc
         assert np.abs(rig.project(points, camera) - xy).max() < ROUND_TRIP_PX
+    # a NaN pixel gives a NaN ray and leaves the others alone
+    xn = undistort_points(rig, [[np.nan, 3.0], [5.0, 5.0]], camera=camera)
+    assert np.isnan(xn[0]).all() and np.all(np.isfinite(xn[1]))
 
 
 # --------------------------------------------------------------------------- calibration boards
