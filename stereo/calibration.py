@@ -152,16 +152,13 @@ def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarra
         gray = np.uint8(np.clip((gray - lo) * 255.0 / max(hi - lo, 1e-12), 0, 255))
     if board.kind == "checkerboard":
         size = (board.cols, board.rows)
-        flags = cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
+        flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
         found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
+        if not found:  # harder images: a slower, exhaustive search
+            flags |= cv2.CALIB_CB_EXHAUSTIVE
+            found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
         if not found:
-            found, corners = cv2.findChessboardCorners(
-                gray, size, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-            )
-            if not found:
-                return None
-            crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
-            corners = cv2.cornerSubPix(gray, corners, (7, 7), (-1, -1), crit)
+            return None
         pts = corners.reshape(-1, 2).astype(np.float64)
         return pts, np.arange(len(pts))
     detector = cv2.aruco.CharucoDetector(board.opencv_board())
@@ -363,6 +360,12 @@ def _per_view_rms(obj, img, rvecs, tvecs, K, dist) -> np.ndarray:
     return np.asarray(out)
 
 
+def _reversed(left: np.ndarray, right: np.ndarray) -> bool:
+    """Whether two detections of a checkerboard run in opposite directions."""
+    a, b = left[-1] - left[0], right[-1] - right[0]
+    return float(a @ b) < 0
+
+
 def calibrate_stereo(
     left: Sequence[np.ndarray],
     right: Sequence[np.ndarray],
@@ -372,6 +375,7 @@ def calibrate_stereo(
     unit: str = "mm",
     outlier_factor: float = 3.0,
     min_views: int = 4,
+    fix_k3: bool = True,
     progress: Callable[[str], None] | None = None,
 ) -> Calibration:
     """Calibrate a stereo rig from image pairs of a calibration target.
@@ -391,6 +395,10 @@ def calibrate_stereo(
     board : Board
     names : per-pair names for the report (default ``pair 0``, ...)
     unit : unit of the square size (and of everything measured later)
+    fix_k3 : bool
+        Keep the sixth-order radial term at zero (the default, as OpenCV
+        advises for ordinary lenses): from planar targets it is poorly
+        determined and trades off against k1, k2.
 
     Returns
     -------
@@ -427,6 +435,10 @@ def calibrate_stereo(
             )
             rejected.append({"image": names[i], "reason": f"no target found ({side})"})
             continue
+        if board.kind == "checkerboard" and _reversed(dl[0], dr[0]):
+            # a checkerboard has no marked origin: the detector may start at the opposite
+            # corner in one view; the two views of a rig see the board the same way round
+            dr = (dr[0][::-1].copy(), dr[1])
         common, il, ir = np.intersect1d(dl[1], dr[1], return_indices=True)
         if common.size < 6:
             rejected.append({"image": names[i], "reason": f"only {common.size} common corners"})
@@ -446,7 +458,7 @@ def calibrate_stereo(
             f"(need {min_views}); check --board ({board.spec()}). {found}"
         )
 
-    flags = 0
+    flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
     while True:
         say(f"calibrating each camera on {len(views)} views")
         obj = [v[1] for v in views]
@@ -489,10 +501,8 @@ def calibrate_stereo(
         Kr,
         dr,
         image_size,
-        R=R,
-        T=T,
         criteria=crit,
-        flags=cv2.CALIB_USE_INTRINSIC_GUESS | cv2.CALIB_USE_EXTRINSIC_GUESS,
+        flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags,
     )
     from strain2d import __version__
 

@@ -85,6 +85,9 @@ def _build_parser() -> argparse.ArgumentParser:
         "charuco:COLSxROWS:SQUARE:MARKER:DICTIONARY (squares), sizes in --unit",
     )
     p.add_argument("--unit", default="mm", help="unit of the square size (default mm)")
+    p.add_argument(
+        "--free-k3", action="store_true", help="also estimate the k3 distortion term (fixed at 0)"
+    )
     p.add_argument("--out", required=True, help="calibration JSON to write")
     _common(p)
     p.set_defaults(handler=_cmd_calibrate)
@@ -117,6 +120,12 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--points", help="CSV with columns x,y instead of a grid")
     p.add_argument("--tracker", default="dic", help="2D tracker: dic, klt (default dic)")
     p.add_argument("--subset", type=int, help="dic subset side in px (default 31)")
+    p.add_argument(
+        "--shape-function",
+        choices=["affine", "quadratic"],
+        default="quadratic",
+        help="dic subset warp (default quadratic: curved surfaces seen in perspective)",
+    )
     p.add_argument("--max-reproj", type=float, default=1.0, help="px; worse points are dropped")
     _match_args(p)
     p.add_argument("--out", required=True, help="output folder")
@@ -157,6 +166,7 @@ def _cmd_calibrate(args) -> int:
         board,
         names=names,
         unit=args.unit,
+        fix_k3=not args.free_k3,
         progress=say,
     )
     with atomic_file(args.out, overwrite=args.overwrite, inputs=left + right) as tmp:
@@ -260,7 +270,13 @@ def _cmd_reconstruct(args) -> int:
         points = make_grid(left.shape, shape=shape, roi=roi)
         point_info = {"grid": list(shape), "roi": list(roi) if roi else None}
     say = _say(args)
-    options = {"subset": args.subset} if args.subset else None
+    options = {}
+    if args.tracker == "dic":
+        options["shape_function"] = args.shape_function
+        if args.subset:
+            options["subset"] = args.subset
+    elif args.subset:
+        raise InputError("--subset is an option of the dic tracker")
     rec = reconstruct(
         left,
         right,
@@ -304,6 +320,7 @@ def _cmd_reconstruct(args) -> int:
             "parameters": {
                 "tracker": args.tracker,
                 "subset": args.subset,
+                "shape_function": args.shape_function if args.tracker == "dic" else None,
                 "match_subset": args.match_subset,
                 "max_epipolar_px": args.max_epipolar,
                 "max_reproj_px": args.max_reproj,

@@ -24,3 +24,15 @@ MPM_ORIENTATION_DEG = 3.0
 MPM_SURFACE_RMS_ZSTEPS = 1.0
 #: phase-correlation shift between height maps, pixels
 MPM_SHIFT_PX = 0.1
+
+# --- stereo (rendered scenes; the bars: RMS <= 0.1 px, baseline within 0.5 %) ---
+#: stereo calibration RMS reprojection error, px
+STEREO_CALIB_RMS_PX = 0.1
+#: relative baseline error of the calibration
+STEREO_BASELINE_RELATIVE = 0.005
+#: reprojection RMS of the reconstructed points, px
+STEREO_REPROJ_RMS_PX = 0.1
+#: 3D RMSE of the reconstructed sheet with the true cameras, mm (~0.006 % of the distance)
+STEREO_POINT_RMSE_MM = 0.03
+#: cross-view matching RMSE, px
+STEREO_MATCH_PX = 0.05

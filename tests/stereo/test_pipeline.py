@@ -1,0 +1,218 @@
+"""``python -m stereo`` end to end on rendered scenes with exact truth: calibration from
+checkerboard views (with a realistic bad view), matching across views, and 3D tracks of a
+stretching sheet; and every error a user can cause (exit 2, one line)."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from sample_data_synth.stereo import (
+    default_rig,
+    render_calibration_views,
+    render_surface_scene,
+    save_calibration_views,
+    save_stereo_scene,
+)
+from stereo.cli import main
+from tests.tolerances import (
+    STEREO_BASELINE_RELATIVE,
+    STEREO_CALIB_RMS_PX,
+    STEREO_MATCH_PX,
+    STEREO_POINT_RMSE_MM,
+    STEREO_REPROJ_RMS_PX,
+)
+
+
+def cli(*argv) -> int:
+    try:
+        return main([str(a) for a in argv])
+    except SystemExit as exc:
+        return exc.code
+
+
+def one_error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "error" in err[0], err
+    return err[0]
+
+
+@pytest.fixture(scope="module")
+def calibration_views(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("calib") / "views"
+    views = render_calibration_views(
+        default_rig(), "checkerboard:9x6:10", n_views=9, supersample=2, partial_views=1, rng=3
+    )
+    save_calibration_views(folder, views)
+    return folder, views
+
+
+@pytest.fixture(scope="module")
+def stretch(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("stretch") / "scene"
+    scene = render_surface_scene(default_rig(), "stretch", n_frames=3, supersample=2, rng=1)
+    save_stereo_scene(folder, scene)
+    truth = np.load(folder / "truth.npz")
+    points = folder.parent / "points.csv"
+    np.savetxt(points, truth["left_px"][0], delimiter=",", header="x,y", comments="")
+    return folder, truth, points
+
+
+def test_calibration_meets_the_bars_and_names_the_bad_view(calibration_views, tmp_path, capsys):
+    folder, views = calibration_views
+    out = tmp_path / "calib.json"
+    code = cli(
+        "calibrate",
+        "--left", f"{folder}/left/*.png",
+        "--right", f"{folder}/right/*.png",
+        "--board", "checkerboard:9x6:10",
+        "--out", out,
+    )  # fmt: skip
+    assert code == 0
+    calib = json.loads(out.read_text())
+    true = views.rig
+    assert calib["rms_px"] <= STEREO_CALIB_RMS_PX
+    baseline = np.linalg.norm(calib["T"])
+    assert abs(baseline - true.baseline) / true.baseline <= STEREO_BASELINE_RELATIVE
+    np.testing.assert_allclose(calib["K_left"], true.K_left, atol=5.0)
+    # the view with the board partly out of frame is rejected, and the report says why
+    partial = np.flatnonzero(~views.fully_visible)
+    assert len(partial) == 1
+    rejected = {r["image"].split(" / ")[0]: r["reason"] for r in calib["rejected"]}
+    assert f"view_{partial[0]:02d}.png" in rejected
+    assert "no target found" in rejected[f"view_{partial[0]:02d}.png"]
+    assert "rejected view_" in capsys.readouterr().err
+    for key in ("image_size", "K_left", "dist_left", "K_right", "dist_right", "R", "T", "unit"):
+        assert key in calib
+
+
+def test_reconstruction_of_a_stretching_sheet(stretch, tmp_path):
+    folder, truth, points = stretch
+    out = tmp_path / "rec"
+    code = cli(
+        "reconstruct",
+        "--calib", folder / "rig.json",
+        "--left", folder / "left",
+        "--right", folder / "right",
+        "--points", points,
+        "--out", out, "-q",
+    )  # fmt: skip
+    assert code == 0
+    rows = list(csv.DictReader((out / "points3d.csv").read_text().splitlines()))
+    assert list(rows[0]) == ["frame", "point", "X", "Y", "Z", "reproj_error", "visible"]
+    T, N = truth["positions"].shape[:2]
+    X = np.array([[float(r[k]) for k in "XYZ"] for r in rows]).reshape(T, N, 3)
+    assert all(r["visible"] == "1" for r in rows)
+    rmse = np.sqrt(np.mean(np.sum((X - truth["positions"]) ** 2, axis=2)))
+    assert rmse < STEREO_POINT_RMSE_MM
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reprojection_rms_px"] <= STEREO_REPROJ_RMS_PX
+    assert summary["unit"] == "mm" and summary["frames"] == T
+
+
+def test_match_finds_the_true_right_positions(stretch, tmp_path):
+    folder, truth, points = stretch
+    out = tmp_path / "matches.csv"
+    code = cli(
+        "match",
+        folder / "left" / "frame_000.png",
+        folder / "right" / "frame_000.png",
+        "--points", points,
+        "--calib", folder / "rig.json",
+        "--out", out, "-q",
+    )  # fmt: skip
+    assert code == 0
+    rows = list(csv.DictReader(out.read_text().splitlines()))
+    assert list(rows[0])[:6] == ["point", "x_left", "y_left", "x_right", "y_right", "quality"]
+    right = np.array([[float(r["x_right"]), float(r["y_right"])] for r in rows])
+    err = np.hypot(*(right - truth["right_px"][0]).T)
+    assert np.sqrt(np.mean(err**2)) < STEREO_MATCH_PX
+    assert all(float(r["epipolar_px"]) < 0.1 for r in rows)
+
+
+def test_calibration_errors(calibration_views, tmp_path, capsys):
+    folder, _ = calibration_views
+    out = tmp_path / "c.json"
+    left, right = f"{folder}/left/*.png", f"{folder}/right/*.png"
+    board = "checkerboard:9x6:10"
+    assert cli("calibrate", "--left", left, "--right", f"{folder}/right/view_0[0-3].png",
+               "--board", board, "--out", out) == 2  # fmt: skip
+    assert "unequal image counts" in one_error_line(capsys)
+    assert cli("calibrate", "--left", left, "--right", right, "--board", "checkerboard:7x4:10",
+               "--out", out, "-q") == 2  # fmt: skip
+    assert "target was found in only" in one_error_line(capsys)
+    assert cli("calibrate", "--left", left, "--right", right, "--board", "square:9x6",
+               "--out", out) == 2  # fmt: skip
+    assert "--board must be" in one_error_line(capsys)
+    assert cli("calibrate", "--left", f"{tmp_path}/none*.png", "--right", right,
+               "--board", board, "--out", out) == 2  # fmt: skip
+    assert "matches no image files" in one_error_line(capsys)
+    assert not out.exists()
+
+
+def test_images_of_different_sizes_are_refused(tmp_path, capsys):
+    import cv2
+
+    for side, size in (("left", (64, 48)), ("right", (60, 48))):
+        (tmp_path / side).mkdir()
+        cv2.imwrite(str(tmp_path / side / "a.png"), np.zeros(size[::-1], np.uint8))
+    code = cli("calibrate", "--left", tmp_path / "left", "--right", tmp_path / "right",
+               "--board", "checkerboard:9x6:10", "--out", tmp_path / "c.json")  # fmt: skip
+    assert code == 2
+    assert "differ in size" in one_error_line(capsys)
+
+
+def test_reconstruct_errors(stretch, tmp_path, capsys):
+    folder, _, points = stretch
+    bad = tmp_path / "bad.json"
+    bad.write_text("{ not json")
+    args = ["--left", folder / "left", "--right", folder / "right", "--points", points]
+    assert cli("reconstruct", "--calib", bad, *args, "--out", tmp_path / "r") == 2
+    assert "not a valid calibration JSON" in one_error_line(capsys)
+    wrong = json.loads((folder / "rig.json").read_text())
+    wrong["image_size"] = [640, 480]
+    (tmp_path / "wrong.json").write_text(json.dumps(wrong))
+    assert cli("reconstruct", "--calib", tmp_path / "wrong.json", *args,
+               "--out", tmp_path / "r") == 2  # fmt: skip
+    assert "the calibration is for 640x480" in one_error_line(capsys)
+    assert not (tmp_path / "r").exists()
+
+
+def test_import_calib_from_opencv_yaml(stretch, tmp_path):
+    import cv2
+
+    folder, _, _ = stretch
+    true = json.loads((folder / "rig.json").read_text())
+    path = tmp_path / "stereo.yml"
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    for key, name in (("K_left", "M1"), ("dist_left", "D1"), ("K_right", "M2"),
+                      ("dist_right", "D2"), ("R", "R"), ("T", "T")):  # fmt: skip
+        fs.write(name, np.asarray(true[key], np.float64))
+    fs.write("image_size", np.asarray(true["image_size"], np.float64))
+    fs.release()
+    out = tmp_path / "calib.json"
+    assert cli("import-calib", path, "--out", out) == 0
+    got = json.loads(out.read_text())
+    np.testing.assert_allclose(got["T"], true["T"])
+    assert got["image_size"] == true["image_size"]
+
+
+def test_calibration_survives_jpeg_uneven_light_and_blur():
+    from stereo.calibration import calibrate_stereo, parse_board
+
+    views = render_calibration_views(
+        default_rig(),
+        "checkerboard:9x6:10",
+        n_views=8,
+        supersample=2,
+        jpeg_quality=75,
+        lighting=0.5,
+        blur_sigma=1.2,
+        rng=5,
+    )
+    calib = calibrate_stereo(
+        list(views.left), list(views.right), parse_board("checkerboard:9x6:10")
+    )
+    assert calib.rms_px <= STEREO_CALIB_RMS_PX
+    assert abs(calib.baseline - views.rig.baseline) / views.rig.baseline <= STEREO_BASELINE_RELATIVE
