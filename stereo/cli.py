@@ -306,6 +306,11 @@ def _cmd_reconstruct(args) -> int:
                 tmp / f"tracks_{side}.csv",
                 Tracks(positions=pos, visible=rec.visible, quality=np.ones(rec.visible.shape)),
             )
+        from stereo.figures import plot_points3d, plot_views
+
+        (tmp / "figures").mkdir()
+        plot_views(left.first(), right.first(), rec).savefig(tmp / "figures" / "views.png")
+        plot_points3d(rec, unit=calib.unit).savefig(tmp / "figures" / "points3d.png")
         err = rec.reproj_error[rec.visible]
         summary = {
             "software": {"name": "stereo", "version": __version__},
