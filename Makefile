@@ -44,6 +44,16 @@ demo: setup
 	$(BIN)/python -m mpm3d compare $(DEMO)/stacks/before.tif $(DEMO)/stacks/after.tif \
 	    --out $(DEMO)/mpm3d_compare --overwrite
 	@echo "demo results in $(DEMO)/mpm3d_after (metrics.json, surface.vtp, figures/) and $(DEMO)/mpm3d_compare"
+	$(BIN)/python -m sample_data_synth stereo --case calibration --out $(DEMO)/stereo_targets --overwrite -q
+	$(BIN)/python -m sample_data_synth stereo --case dome --out $(DEMO)/stereo_scene --overwrite -q
+	$(BIN)/python -m stereo calibrate --board checkerboard:9x6:10 \
+	    --left "$(DEMO)/stereo_targets/calibration/left/*.png" \
+	    --right "$(DEMO)/stereo_targets/calibration/right/*.png" \
+	    --out $(DEMO)/stereo_calib.json --overwrite
+	$(BIN)/python -m stereo reconstruct --calib $(DEMO)/stereo_calib.json \
+	    --left $(DEMO)/stereo_scene/dome/left --right $(DEMO)/stereo_scene/dome/right \
+	    --grid 7x7 --roi 525,318,664,456 --out $(DEMO)/stereo_dome --overwrite
+	@echo "demo results in $(DEMO)/stereo_calib.json and $(DEMO)/stereo_dome (points3d.csv, figures/)"
 
 test: setup
 	$(BIN)/ruff check .

@@ -119,13 +119,15 @@ def error_figures() -> None:
 
 
 def mpm3d_figures() -> None:
-    """The mpm3d demo's figures (``make demo`` writes them), shrunk for the README."""
+    """The mpm3d and stereo demos' figures (``make demo`` writes them), shrunk for the README."""
     from PIL import Image
 
     runs = {
         "mpm3d_heightmap.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "heightmap.png",
         "mpm3d_surface3d.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "surface3d.png",
         "mpm3d_profiles.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "profiles.png",
+        "stereo_views.png": ROOT / "demo_output" / "stereo_dome" / "figures" / "views.png",
+        "stereo_points3d.png": ROOT / "demo_output" / "stereo_dome" / "figures" / "points3d.png",
         "mpm3d_compare.png": ROOT
         / "demo_output"
         / "mpm3d_compare"
