@@ -216,3 +216,16 @@ def test_calibration_survives_jpeg_uneven_light_and_blur():
     )
     assert calib.rms_px <= STEREO_CALIB_RMS_PX
     assert abs(calib.baseline - views.rig.baseline) / views.rig.baseline <= STEREO_BASELINE_RELATIVE
+
+
+def test_charuco_calibration():
+    from stereo.calibration import calibrate_stereo, parse_board
+
+    spec = "charuco:11x8:8:6:DICT_4X4_50"
+    views = render_calibration_views(
+        default_rig(), spec, n_views=7, supersample=2, max_tilt_deg=20.0, rng=2
+    )
+    calib = calibrate_stereo(list(views.left), list(views.right), parse_board(spec))
+    assert calib.rms_px <= STEREO_CALIB_RMS_PX
+    assert abs(calib.baseline - views.rig.baseline) / views.rig.baseline <= STEREO_BASELINE_RELATIVE
+    assert calib.extra["board"] == spec
