@@ -199,21 +199,38 @@ class Calibration:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        self.image_size = (int(self.image_size[0]), int(self.image_size[1]))
+        from stereo.camera import _coefficients
+
+        try:
+            w, h = (int(v) for v in self.image_size)
+        except (TypeError, ValueError):
+            raise InputError(
+                f"calibration image_size must be [width, height], got {self.image_size!r}"
+            ) from None
+        if w < 1 or h < 1:
+            raise InputError(f"calibration image_size must be positive, got {[w, h]}")
+        self.image_size = (w, h)
         for name, shape in (("K_left", (3, 3)), ("K_right", (3, 3)), ("R", (3, 3)), ("T", (3,))):
-            value = np.asarray(getattr(self, name), np.float64)
+            try:
+                value = np.asarray(getattr(self, name), np.float64)
+            except (TypeError, ValueError):
+                raise InputError(f"calibration {name} must be a {shape} array of numbers") from None
             if name == "T":
                 value = value.ravel()
             if value.shape != shape or not np.isfinite(value).all():
                 raise InputError(f"calibration {name} must be a finite {shape} array")
             setattr(self, name, value)
         for name in ("dist_left", "dist_right"):
-            value = np.zeros(5)
-            given = np.asarray(getattr(self, name), np.float64).ravel()
-            if given.size not in (4, 5, 8, 12, 14) or not np.isfinite(given).all():
-                raise InputError(f"calibration {name} must hold 4, 5, 8, 12 or 14 coefficients")
-            value = given if given.size > 5 else np.concatenate([given, value[given.size :]])
-            setattr(self, name, value)
+            try:
+                given = np.asarray(getattr(self, name), np.float64).ravel()
+                _coefficients(given)
+            except (TypeError, ValueError) as exc:
+                raise InputError(f"calibration {name}: {exc}") from None
+            if not np.isfinite(given).all():
+                raise InputError(f"calibration {name} must be finite")
+            if given.size < 5:
+                given = np.concatenate([given, np.zeros(5 - given.size)])
+            setattr(self, name, given)
 
     @property
     def baseline(self) -> float:
@@ -264,27 +281,47 @@ class Calibration:
             f.write("\n")
 
 
+def _node_value(node):
+    """A FileStorage node as a number, an array (matrices, nested sequences) or None."""
+    if node.isInt() or node.isReal():
+        return node.real()
+    if node.isSeq():
+        items = [_node_value(node.at(i)) for i in range(node.size())]
+        if any(v is None for v in items):
+            return None
+        try:
+            return np.asarray(items, np.float64)
+        except ValueError:  # ragged
+            return None
+    if node.isMap():
+        try:
+            mat = node.mat()  # an !!opencv-matrix
+        except Exception:  # cv2.error: a map that is not a matrix
+            return None
+        return None if mat is None else np.asarray(mat, np.float64)
+    return None
+
+
 def _opencv_file(path: Path) -> dict:
-    """Matrices from an OpenCV FileStorage (YAML/XML) file, by lower-case name."""
+    """Matrices and numbers from an OpenCV FileStorage (YAML/XML) file, by lower-case name."""
     import cv2
 
-    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    if not fs.isOpened():
-        raise InputError(f"{path}: not a readable OpenCV YAML/XML file")
     try:
-        root = fs.root()
+        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        opened = fs.isOpened()
+    except (cv2.error, SystemError):
+        opened = False
+    if not opened:
+        raise InputError(f"{path}: not a readable calibration file (OpenCV YAML/XML or JSON)")
+    try:
         out = {}
-        for key in root.keys():
-            node = fs.getNode(key)
-            if node.isInt() or node.isReal():
-                out[key.lower()] = node.real()
-            elif node.isSeq():
-                out[key.lower()] = np.array([node.at(i).real() for i in range(node.size())])
-            elif node.isMap():
-                mat = node.mat()  # an !!opencv-matrix
-                if mat is not None:
-                    out[key.lower()] = np.asarray(mat, np.float64)
+        for key in fs.root().keys():
+            value = _node_value(fs.getNode(key))
+            if value is not None:
+                out[key.lower()] = value
         return out
+    except (cv2.error, SystemError) as exc:
+        raise InputError(f"{path}: cannot read the calibration ({exc})") from None
     finally:
         fs.release()
 
@@ -314,7 +351,8 @@ def load_calibration(*paths: str | os.PathLike) -> Calibration:
     for p in paths:
         if not Path(p).is_file():
             raise SourceError(f"calibration file not found: {p}")
-    if first.suffix.lower() == ".json":
+    head = first.read_bytes()[:64].lstrip()
+    if first.suffix.lower() == ".json" or head.startswith(b"{"):
         try:
             data = json.loads(first.read_text(encoding="utf-8"))
         except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -325,6 +363,8 @@ def load_calibration(*paths: str | os.PathLike) -> Calibration:
             return Calibration.from_dict(data)
         except (ValueError, TypeError) as exc:
             raise InputError(f"{first}: {exc}") from None
+    if len(paths) > 1 and any(Path(p).suffix.lower() == ".json" for p in paths):
+        raise InputError("give one calibration JSON, or OpenCV YAML/XML files")
     merged: dict = {}
     for p in paths:
         merged.update(_opencv_file(Path(p)))
@@ -341,13 +381,19 @@ def load_calibration(*paths: str | os.PathLike) -> Calibration:
     elif "image_width" in merged and "image_height" in merged:
         size = np.array([merged["image_width"], merged["image_height"]])
     else:
-        K = np.asarray(values["K_left"])
-        size = np.array([round(2 * K[0, 2] + 1), round(2 * K[1, 2] + 1)])
-        log.warning("no image size in the OpenCV file; guessed %s from the principal point", size)
+        raise InputError(
+            f"{', '.join(map(str, paths))}: no image size (image_size, or image_width and "
+            "image_height); add it to the file"
+        )
+    if size.size != 2:
+        raise InputError(f"{first}: image_size must hold width and height, got {size.tolist()}")
     try:
-        return Calibration(image_size=(int(size[0]), int(size[1])), **values)
+        calib = Calibration(image_size=(int(size[0]), int(size[1])), **values)
     except (ValueError, TypeError) as exc:
         raise InputError(f"{first}: {exc}") from None
+    if not 0 < calib.baseline < 1e9:
+        raise InputError(f"{first}: implausible baseline |T| = {calib.baseline:g}")
+    return calib
 
 
 def _per_view_rms(obj, img, rvecs, tvecs, K, dist) -> np.ndarray:
@@ -443,6 +489,10 @@ def calibrate_stereo(
         if common.size < 6:
             rejected.append({"image": names[i], "reason": f"only {common.size} common corners"})
             continue
+        spread = np.linalg.svd(objp[common, :2] - objp[common, :2].mean(axis=0), compute_uv=False)
+        if spread[-1] < 0.5 * board.square:
+            rejected.append({"image": names[i], "reason": "the visible corners lie along a line"})
+            continue
         views.append(
             (
                 names[i],
@@ -489,29 +539,35 @@ def calibrate_stereo(
     pl, pr = [v[2] for v in views], [v[3] for v in views]
     Kl, dl, Kr, dr = cams[0][1], cams[0][2], cams[1][1], cams[1][2]
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-10)
-    rms, Kl, dl, Kr, dr, R, T, _, _ = cv2.stereoCalibrate(
-        obj, pl, pr, Kl, dl, Kr, dr, image_size, criteria=crit, flags=cv2.CALIB_FIX_INTRINSIC
-    )
-    rms, Kl, dl, Kr, dr, R, T, _, _ = cv2.stereoCalibrate(
-        obj,
-        pl,
-        pr,
-        Kl,
-        dl,
-        Kr,
-        dr,
-        image_size,
-        criteria=crit,
-        flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags,
-    )
+    try:
+        rms, Kl, dl, Kr, dr, R, T, *_ = cv2.stereoCalibrate(
+            obj, pl, pr, Kl, dl, Kr, dr, image_size, criteria=crit, flags=cv2.CALIB_FIX_INTRINSIC
+        )
+        rms, Kl, dl, Kr, dr, R, T, _, _, _, _, per_view = cv2.stereoCalibrateExtended(
+            obj,
+            pl,
+            pr,
+            Kl,
+            dl,
+            Kr,
+            dr,
+            image_size,
+            R,
+            T,
+            criteria=crit,
+            flags=cv2.CALIB_USE_INTRINSIC_GUESS | flags,
+        )
+    except cv2.error as exc:
+        raise InputError(f"stereo calibration failed: {exc.err}") from None
+    per_view = np.asarray(per_view, np.float64).reshape(len(views), 2)
     from strain2d import __version__
 
     extra = {
         "rms_left_px": float(cams[0][0]),
         "rms_right_px": float(cams[1][0]),
-        "views": [
-            {"image": v[0], "rms_left_px": float(el), "rms_right_px": float(er)}
-            for v, el, er in zip(views, cams[0][3], cams[1][3], strict=True)
+        "views": [  # reprojection RMS of each kept pair in the final rig fit
+            {"image": v[0], "rms_left_px": float(e[0]), "rms_right_px": float(e[1])}
+            for v, e in zip(views, per_view, strict=True)
         ],
         "rejected": rejected,
         "board": board.spec(),

@@ -21,6 +21,18 @@ import numpy as np
 __all__ = ["distort", "project", "reprojection_errors", "triangulate", "undistort"]
 
 
+def _coefficients(dist) -> np.ndarray:
+    """OpenCV's distortion vector as 12 coefficients (k1..k3, p1, p2, k4..k6, s1..s4)."""
+    d = np.asarray(dist, np.float64).ravel()
+    if d.size not in (0, 4, 5, 8, 12, 14):
+        raise ValueError(f"distortion needs 4, 5, 8, 12 or 14 coefficients, got {d.size}")
+    if d.size == 14 and np.any(d[12:] != 0):
+        raise ValueError("tilted-sensor distortion (tau x, tau y) is not supported")
+    out = np.zeros(12)
+    out[: min(12, d.size)] = d[:12]
+    return out
+
+
 def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """Pixel positions of normalized image points ``(x/z, y/z)``.
 
@@ -28,7 +40,9 @@ def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     ----------
     normalized : (..., 2)
     K : (3, 3) camera matrix (its skew term is ignored, as OpenCV does)
-    dist : (k1, k2, p1, p2[, k3])
+    dist : OpenCV's coefficients: (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4]]]);
+        the rational (k4-k6) and thin-prism (s1-s4) terms are supported, the
+        tilted-sensor terms (14 coefficients) only when zero
 
     Returns
     -------
@@ -40,14 +54,12 @@ def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     >>> distort(np.array([0.1, -0.05]), K, np.zeros(5)).tolist()
     [600.0, 350.0]
     """
-    d = np.zeros(5)
-    d[: min(5, len(dist))] = np.asarray(dist, np.float64).ravel()[:5]
-    k1, k2, p1, p2, k3 = d
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = _coefficients(dist)
     x, y = normalized[..., 0], normalized[..., 1]
     r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + r2 * (s1 + s2 * r2)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + r2 * (s3 + s4 * r2)
     u = K[0, 0] * xd + K[0, 2]
     v = K[1, 1] * yd + K[1, 2]
     return np.stack([u, v], axis=-1)

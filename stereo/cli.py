@@ -302,9 +302,14 @@ def _cmd_reconstruct(args) -> int:
                          int(rec.visible[t, i])]
                     )  # fmt: skip
         for side, pos in (("left", rec.left), ("right", rec.right)):
+            seen = np.isfinite(pos).all(axis=2)
             write_tracks_csv(
                 tmp / f"tracks_{side}.csv",
-                Tracks(positions=pos, visible=rec.visible, quality=np.ones(rec.visible.shape)),
+                Tracks(
+                    positions=np.where(seen[..., None], pos, np.nan),
+                    visible=seen,
+                    quality=np.where(rec.visible, 1.0, 0.0),
+                ),
             )
         from stereo.figures import plot_points3d, plot_views
 

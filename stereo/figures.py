@@ -43,10 +43,12 @@ def plot_views(left: np.ndarray, right: np.ndarray, rec, *, frame: int = -1):
             color="orange",
             label=f"frame {last}",
         )
-        pts = tracks[0]
-        pad = 0.25 * max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]), 50)
-        ax.set_xlim(pts[:, 0].min() - pad, pts[:, 0].max() + pad)
-        ax.set_ylim(pts[:, 1].max() + pad, pts[:, 1].min() - pad)
+        pts = tracks[0][np.isfinite(tracks[0]).all(axis=1)]
+        if len(pts):
+            lo, hi = pts.min(axis=0), pts.max(axis=0)
+            pad = 0.25 * max(*(hi - lo), 50)
+            ax.set_xlim(lo[0] - pad, hi[0] + pad)
+            ax.set_ylim(hi[1] + pad, lo[1] - pad)
         ax.set_title(f"{name} view")
         ax.set_xlabel("x (px)")
         ax.set_ylabel("y (px)")

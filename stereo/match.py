@@ -194,7 +194,7 @@ def match_views(
     """
     import cv2
 
-    from strain2d.pipeline import track
+    from strain2d.trackers.dic import track_dic
 
     points = np.asarray(points, np.float64).reshape(-1, 2)
     a = np.asarray(left, np.float64)
@@ -205,6 +205,22 @@ def match_views(
         raise InputError(
             f"the views differ in size: {a.shape[1]}x{a.shape[0]} and {b.shape[1]}x{b.shape[0]}"
         )
+    if len(points) == 0:
+        raise InputError("no points to match")
+    if not np.isfinite(points).all():
+        raise InputError("the points to match must be finite numbers")
+    outside = (points < 0).any(axis=1) | (points[:, 0] > a.shape[1] - 1)
+    outside |= points[:, 1] > a.shape[0] - 1
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise InputError(
+            f"point {i} at ({points[i, 0]:g}, {points[i, 1]:g}) lies outside the "
+            f"{a.shape[1]}x{a.shape[0]} px left image"
+        )
+    if subset < 7 or subset % 2 == 0:
+        raise InputError(f"the matching subset must be an odd number >= 7, got {subset}")
+    if not (np.isfinite(max_epipolar_px) and max_epipolar_px > 0):
+        raise InputError(f"the epipolar tolerance must be a positive number, got {max_epipolar_px}")
     info: dict = {}
     if homography is None:
         mask = np.zeros(a.shape, np.uint8)
@@ -221,11 +237,13 @@ def match_views(
         flags=cv2.INTER_CUBIC | cv2.WARP_INVERSE_MAP,
         borderMode=cv2.BORDER_REPLICATE,
     )
-    tracks = track(
+    # the dic tracker itself, not strain2d's track(): matching needs no strain-ready grid
+    tracks = track_dic(
         [a.astype(np.float32), warped],
         points,
-        tracker="dic",
-        options={"subset": subset, "shape_function": shape_function, "zncc_min": zncc_min},
+        subset=subset,
+        shape_function=shape_function,
+        zncc_min=zncc_min,
     )
     found = tracks.positions[1]
     right_px = _apply(H, found)

@@ -89,7 +89,7 @@ def reconstruct(
     Reconstruction
     """
     from stereo.camera import triangulate
-    from stereo.match import _apply, match_views
+    from stereo.match import match_views
     from strain2d.pipeline import track
 
     say = progress or (lambda message: None)
@@ -113,8 +113,7 @@ def reconstruct(
             f"only {int(matches.visible.sum())} of {len(points)} points were found in the right "
             "view; check the calibration and that both views see the grid"
         )
-    H = np.asarray(matches.meta["homography"])
-    start_right = np.where(matches.visible[:, None], matches.right, _apply(H, points))
+    matched = np.flatnonzero(matches.visible)
 
     def progress_of(view: str):
         def report(done: int, total: int | None) -> None:
@@ -126,21 +125,26 @@ def reconstruct(
     left_tracks = track(
         left_frames, points, tracker=tracker, options=options, progress=progress_of("left")
     )
-    right_tracks = track(
+    # only the points found in the right view are tracked there
+    right_sub = track(
         right_frames,
-        start_right,
+        matches.right[matched],
         tracker=tracker,
         options=options,
         progress=progress_of("right"),
     )
     T, N = left_tracks.positions.shape[:2]
+    right_positions = np.full((T, N, 2), np.nan)
+    right_positions[:, matched] = right_sub.positions
+    right_visible = np.zeros((T, N), bool)
+    right_visible[:, matched] = right_sub.visible
     say("triangulating")
     X = np.full((T, N, 3), np.nan)
     err = np.full((T, N), np.nan)
-    seen = left_tracks.visible & right_tracks.visible & matches.visible[None, :]
+    seen = left_tracks.visible & right_visible
     for t in range(T):
         pl = np.where(seen[t][:, None], left_tracks.positions[t], np.nan)
-        pr = np.where(seen[t][:, None], right_tracks.positions[t], np.nan)
+        pr = np.where(seen[t][:, None], right_positions[t], np.nan)
         X[t], err[t] = triangulate(pl, pr, calib)
     visible = seen & (err <= max_reproj_px)
     X[~visible] = np.nan
@@ -158,6 +162,6 @@ def reconstruct(
         reproj_error=err,
         visible=visible,
         left=left_tracks.positions,
-        right=right_tracks.positions,
+        right=right_positions,
         meta=meta,
     )

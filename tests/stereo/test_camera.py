@@ -1,3 +1,5 @@
+import json
+
 import cv2
 import numpy as np
 import pytest
@@ -151,3 +153,63 @@ def test_bad_calibration_files(tmp_path):
 def test_bad_board_specs_are_refused(spec):
     with pytest.raises(InputError):
         parse_board(spec)
+
+
+@pytest.mark.parametrize("n", [8, 12])
+def test_rational_and_thin_prism_models_are_opencvs(rig, n):
+    d = np.array(
+        [-0.08, 0.05, 0.001, -0.0005, 0.01, 0.02, -0.01, 0.005, 0.001, -0.002, 0.0015, 0.0005]
+    )
+    d = d[:n]
+    X = _points()
+    ours = project(X, rig.K_left, d)
+    theirs = cv2.projectPoints(X, np.zeros(3), np.zeros(3), rig.K_left, d)[0][:, 0]
+    assert np.abs(ours - theirs).max() < 1e-9
+    assert np.abs(distort(undistort(ours, rig.K_left, d), rig.K_left, d) - ours).max() < 1e-8
+    calib = Calibration(
+        image_size=(1024, 768), K_left=rig.K_left, dist_left=d, K_right=rig.K_right,
+        dist_right=d, R=rig.R, T=rig.T,
+    )  # fmt: skip
+    pr = project(X, rig.K_right, d, rig.R, rig.T)
+    Y, _ = triangulate(ours, pr, calib)
+    assert np.abs(Y - X).max() < 1e-7
+
+
+def test_tilted_sensor_terms_are_refused(rig):
+    with pytest.raises(InputError, match="tilted"):
+        Calibration(
+            image_size=(1024, 768), K_left=rig.K_left, dist_left=[0.0] * 12 + [0.01, 0.0],
+            K_right=rig.K_right, dist_right=rig.dist_right, R=rig.R, T=rig.T,
+        )  # fmt: skip
+
+
+def test_calibration_values_are_checked(tmp_path, rig):
+    good = rig.to_dict()
+    for key, value, message in (
+        ("K_left", "abc", "K_left"),
+        ("image_size", [1], "image_size"),
+        ("dist_right", [0.1, 0.2, 0.3], "dist_right"),
+        ("T", [1, 2], "T"),
+    ):
+        bad = dict(good, **{key: value})
+        path = tmp_path / f"{key}.json"
+        path.write_text(json.dumps(bad))
+        with pytest.raises(InputError, match=message):
+            load_calibration(path)
+
+
+def test_opencv_yaml_nested_sequences_and_garbage(tmp_path, rig):
+    path = tmp_path / "nested.yml"
+    lines = ["%YAML:1.0", "---", "image_size: [1024, 768]"]
+    for key, name in (("K_left", "M1"), ("dist_left", "D1"), ("K_right", "M2"),
+                      ("dist_right", "D2"), ("R", "R")):  # fmt: skip
+        lines.append(f"{name}: {np.asarray(getattr(rig, key)).tolist()}")
+    lines.append("T: [[-120.0], [1.0], [8.0]]")
+    path.write_text("\n".join(lines) + "\n")
+    back = load_calibration(path)
+    np.testing.assert_allclose(back.T, [-120.0, 1.0, 8.0])
+    np.testing.assert_allclose(back.K_left, rig.K_left)
+    junk = tmp_path / "junk.yml"
+    junk.write_bytes(bytes(range(256)) * 4)
+    with pytest.raises(InputError):
+        load_calibration(junk)

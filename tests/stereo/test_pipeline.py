@@ -229,3 +229,59 @@ def test_charuco_calibration():
     assert calib.rms_px <= STEREO_CALIB_RMS_PX
     assert abs(calib.baseline - views.rig.baseline) / views.rig.baseline <= STEREO_BASELINE_RELATIVE
     assert calib.extra["board"] == spec
+
+
+def test_reconstruction_after_calibration_matches_the_truth_up_to_the_frame(
+    calibration_views, stretch, tmp_path
+):
+    """Calibrate, then reconstruct: the shape is right; the estimated world frame (the left
+    camera, set by the estimated principal point) differs from the true one by a small
+    rigid motion only."""
+    folder, views = calibration_views
+    scene, truth, points = stretch
+    calib = tmp_path / "calib.json"
+    assert cli("calibrate", "--left", f"{folder}/left/*.png", "--right", f"{folder}/right/*.png",
+               "--board", "checkerboard:9x6:10", "--out", calib, "-q") == 0  # fmt: skip
+    got = json.loads(calib.read_text())
+    # the right convention: x_right = R x_left + T, as in the true rig
+    np.testing.assert_allclose(got["R"], views.rig.R, atol=2e-3)
+    np.testing.assert_allclose(got["T"], views.rig.T, atol=0.5)
+    out = tmp_path / "rec"
+    assert cli("reconstruct", "--calib", calib, "--left", scene / "left", "--right",
+               scene / "right", "--points", points, "--out", out, "-q") == 0  # fmt: skip
+    rows = list(csv.DictReader((out / "points3d.csv").read_text().splitlines()))
+    A = np.array([[float(r[k]) for k in "XYZ"] for r in rows])
+    B = truth["positions"].reshape(-1, 3)
+    ca, cb = A.mean(axis=0), B.mean(axis=0)
+    U, _, Vt = np.linalg.svd((A - ca).T @ (B - cb))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    aligned = (A - ca) @ (Vt.T @ D @ U.T).T + cb
+    assert np.sqrt(np.mean(np.sum((aligned - B) ** 2, axis=1))) < STEREO_POINT_RMSE_MM
+
+
+def test_points_the_right_view_does_not_see_are_lost_not_fatal(stretch, tmp_path):
+    folder, truth, points = stretch
+    pts = np.loadtxt(points, delimiter=",", skiprows=1)
+    extra = np.array([[5.0, 5.0], [8.0, 700.0], [30.0, 400.0]])  # far outside the sheet
+    path = tmp_path / "points.csv"
+    np.savetxt(path, np.vstack([pts, extra]), delimiter=",", header="x,y", comments="")
+    out = tmp_path / "rec"
+    assert cli("reconstruct", "--calib", folder / "rig.json", "--left", folder / "left",
+               "--right", folder / "right", "--points", path, "--out", out, "-q") == 0  # fmt: skip
+    rows = list(csv.DictReader((out / "points3d.csv").read_text().splitlines()))
+    vis = np.array([r["visible"] == "1" for r in rows]).reshape(truth["positions"].shape[0], -1)
+    assert vis[:, : len(pts)].all() and not vis[:, len(pts) :].any()
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_match_takes_any_number_of_points(stretch, tmp_path, n):
+    folder, truth, points = stretch
+    pts = np.loadtxt(points, delimiter=",", skiprows=1)[:n]
+    path = tmp_path / "p.csv"
+    np.savetxt(path, pts.reshape(-1, 2), delimiter=",", header="x,y", comments="")
+    out = tmp_path / "m.csv"
+    assert cli("match", folder / "left" / "frame_000.png", folder / "right" / "frame_000.png",
+               "--points", path, "--out", out, "-q") == 0  # fmt: skip
+    rows = list(csv.DictReader(out.read_text().splitlines()))
+    right = np.array([[float(r["x_right"]), float(r["y_right"])] for r in rows])
+    assert np.abs(right - truth["right_px"][0][:n]).max() < 0.1
