@@ -11,24 +11,42 @@ from importlib import metadata as _metadata
 from surface_strain.field import (
     StrainField,
     compute_strain,
+    element_principal_directions,
     element_scalars,
+    nodal_principal_directions,
     nodal_scalars,
     scalar_fields,
 )
 from surface_strain.kinematics import (
+    PrincipalDirections,
     area_ratio,
+    cylindrical_directions,
     deformation_gradient,
     directional_components,
     euler_almansi,
     green_lagrange,
     logarithmic_strain,
+    material_frame,
+    principal_directions,
     principal_strains,
     reference_frames,
     right_cauchy_green,
+    spherical_directions,
     triangle_areas,
+    triangle_normals,
 )
-from surface_strain.mesh import best_fit_plane, delaunay_triangles, grid_triangles, triangle_quality
-from surface_strain.nodal import nodal_average
+from surface_strain.mesh import (
+    best_fit_cylinder,
+    best_fit_plane,
+    best_fit_sphere,
+    delaunay_triangles,
+    edge_lengths,
+    folded_triangles,
+    grid_triangles,
+    point_normals,
+    triangle_quality,
+)
+from surface_strain.nodal import nodal_average, nodal_axes
 
 try:
     __version__ = _metadata.version("tissue-strain")
@@ -36,24 +54,38 @@ except _metadata.PackageNotFoundError:  # running from a source tree that is not
     __version__ = "0+unknown"
 
 __all__ = [
+    "PrincipalDirections",
     "StrainField",
     "area_ratio",
+    "best_fit_cylinder",
     "best_fit_plane",
+    "best_fit_sphere",
     "compute_strain",
+    "cylindrical_directions",
     "deformation_gradient",
     "delaunay_triangles",
     "directional_components",
+    "edge_lengths",
+    "element_principal_directions",
     "element_scalars",
     "euler_almansi",
+    "folded_triangles",
     "green_lagrange",
     "grid_triangles",
     "logarithmic_strain",
+    "material_frame",
     "nodal_average",
+    "nodal_axes",
+    "nodal_principal_directions",
     "nodal_scalars",
+    "point_normals",
+    "principal_directions",
     "principal_strains",
     "reference_frames",
     "right_cauchy_green",
     "scalar_fields",
+    "spherical_directions",
     "triangle_areas",
+    "triangle_normals",
     "triangle_quality",
 ]

@@ -1,31 +1,47 @@
-"""``StrainField``: the arrays of one strain computation, travelling together."""
+"""``StrainField``: the arrays of one strain computation, travelling together.
+
+Also the per-triangle and per-node outputs derived from one: scalar fields
+(components, principal values, maximum shear, area ratio) and principal
+directions as vectors in space.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
 from surface_strain._typing import BoolArray, FloatArray, IntArray
 from surface_strain.kinematics import (
+    PrincipalDirections,
     area_ratio,
+    cylindrical_directions,
     deformation_gradient,
-    directional_components,
     green_lagrange,
+    material_frame,
+    principal_directions,
     principal_strains,
     reference_frames,
+    spherical_directions,
     triangle_areas,
 )
-from surface_strain.nodal import nodal_average
+from surface_strain.nodal import _aligned_axes, _corner_sum, nodal_average
 
 __all__ = [
     "StrainField",
     "compute_strain",
+    "element_principal_directions",
     "element_scalars",
+    "nodal_principal_directions",
     "nodal_scalars",
     "scalar_fields",
 ]
+
+#: Named direction fields accepted by :func:`compute_strain` (with ``axis=``).
+DirectionKind = Literal["cylindrical", "spherical", "polar"]
+_DIRECTION_KINDS = ("cylindrical", "spherical", "polar")
 
 
 #: Principal directions are undefined where E1 - E2 is below this.
@@ -56,8 +72,16 @@ class StrainField:
     nodal_E : (T, N, 2, 2) float
         Area-weighted nodal average of ``E`` over valid adjacent triangles.
     reference_areas : (M,) float
-    directions : (2, d) float
-        Material directions that define the x, y frame of ``E``.
+    directions : (2, d) or (M, 2, d) float
+        Material directions that define the x, y frame of ``E``: one pair for
+        the whole mesh or one per triangle (as given, before projection).
+    frame : (M, d, 2) float
+        The orthonormal frame ``(e1, e2)`` of ``E`` on each triangle, as vectors
+        in space: ``directions`` projected onto the tangent plane and
+        orthonormalized (:func:`surface_strain.material_frame`).  Default
+        (``None`` at construction): the tangent basis ``basis``.
+    meta : dict
+        Free-form provenance (e.g. the named direction field and its axis).
     """
 
     reference: FloatArray
@@ -71,11 +95,14 @@ class StrainField:
     nodal_E: FloatArray
     reference_areas: FloatArray
     directions: FloatArray
+    frame: FloatArray | None = None
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         T, N, d = self.points.shape
         M = len(self.triangles)
+        if self.frame is None:
+            object.__setattr__(self, "frame", np.asarray(self.basis))
         expected = {
             "reference": (N, d),
             "triangles": (M, 3),
@@ -86,12 +113,17 @@ class StrainField:
             "element_valid": (T, M),
             "nodal_E": (T, N, 2, 2),
             "reference_areas": (M,),
-            "directions": (2, d),
+            "frame": (M, d, 2),
         }
         for name, shape in expected.items():
             got = np.shape(getattr(self, name))
             if got != shape:
                 raise ValueError(f"StrainField.{name} must have shape {shape}, got {got}")
+        if np.shape(self.directions) not in ((2, d), (M, 2, d)):
+            raise ValueError(
+                f"StrainField.directions must have shape (2, {d}) or ({M}, 2, {d}), "
+                f"got {np.shape(self.directions)}"
+            )
 
     @property
     def n_frames(self) -> int:
@@ -120,15 +152,27 @@ def scalar_fields(E: FloatArray) -> dict[str, FloatArray]:
     Parameters
     ----------
     E : (..., 2, 2) float
+        Green-Lagrange strain (dimensionless) in some orthonormal frame.
 
     Returns
     -------
     dict
-        ``Exx, Eyy, Exy, E1, E2`` (principal, ``E1 >= E2``), ``max_shear``
-        (``(E1 - E2) / 2``) and ``theta1_deg`` (angle of the ``E1`` direction from
-        the frame's x axis, in (-90, 90]; NaN where ``E1 - E2 < 1e-9``, i.e.
-        where the strain is isotropic and no direction is principal), each of
-        shape ``(...)``.
+        Each of shape ``(...)``:
+
+        * ``Exx, Eyy, Exy``: components in the frame (``Exy`` is the tensor
+          shear ``E12``; the engineering shear is ``2 Exy``);
+        * ``E1, E2``: principal strains, ``E1 >= E2``;
+        * ``max_shear``: ``(E1 - E2) / 2``, the largest value of the tensor
+          shear component ``E12`` over all in-plane rotations of the frame
+          (the radius of Mohr's circle; reached at 45 degrees from the
+          principal directions).  Frame-independent;
+        * ``theta1_deg``: angle of the ``E1`` direction from the frame's x axis,
+          in (-90, 90]; NaN where ``E1 - E2 < 1e-9``, i.e. where the strain is
+          isotropic and no direction is principal.
+
+    References
+    ----------
+    .. [1] Holzapfel, G. A. (2000). Nonlinear Solid Mechanics. Wiley. Sec. 2.5-2.6.
     """
     values, vectors = principal_strains(E)
     theta = np.degrees(np.arctan2(vectors[..., 1, 0], vectors[..., 0, 0]))  # in (-90, 90]
@@ -144,13 +188,92 @@ def scalar_fields(E: FloatArray) -> dict[str, FloatArray]:
     }
 
 
+def _resolve_directions(
+    directions,
+    reference: np.ndarray,
+    triangles: np.ndarray,
+    basis: np.ndarray,
+    axis,
+    directions_at: str,
+) -> tuple[np.ndarray, dict]:
+    """Directions as (2, d) or (M, 2, d), and provenance for ``meta``."""
+    N, d = reference.shape
+    M = len(triangles)
+    if directions_at not in ("auto", "triangles", "nodes"):
+        raise ValueError(
+            f"directions_at must be 'auto', 'triangles' or 'nodes', got {directions_at!r}"
+        )
+    if directions is None:
+        if axis is not None:
+            raise ValueError("axis is only used with directions='cylindrical' or 'spherical'")
+        return np.eye(d)[:2], {}
+    if isinstance(directions, str):
+        if directions not in _DIRECTION_KINDS:
+            raise ValueError(
+                f"directions must be one of {', '.join(map(repr, _DIRECTION_KINDS))} "
+                f"or an array, got {directions!r}"
+            )
+        if axis is None:
+            raise ValueError(f"directions={directions!r} needs axis=(point, direction)")
+        centroids = reference[triangles].mean(axis=1)
+        normals = np.cross(basis[:, :, 0], basis[:, :, 1]) if d == 3 else None
+        if d == 2:
+            if directions == "cylindrical":
+                raise ValueError("directions='cylindrical' needs 3D points")
+            point = np.asarray(axis[0] if np.ndim(axis[0]) else axis, dtype=float)
+            if point.shape != (2,):
+                raise ValueError(
+                    f"for 2D points axis must be the centre (x, y) of the polar frame, got {axis!r}"
+                )
+            axis3 = (np.append(point, 0.0), [0.0, 0.0, 1.0])
+            c3 = np.column_stack([centroids, np.zeros(M)])
+            n3 = np.broadcast_to([0.0, 0.0, 1.0], (M, 3))
+            dirs = spherical_directions(c3, n3, axis=axis3)[:, :, :2]
+            meta_axis = point.tolist()
+        else:
+            if directions == "cylindrical":
+                dirs = cylindrical_directions(centroids, axis=axis)
+            else:
+                dirs = spherical_directions(centroids, normals, axis=axis)
+            meta_axis = [np.asarray(a, dtype=float).tolist() for a in axis]
+        return dirs, {"directions": directions, "axis": meta_axis}
+    if axis is not None:
+        raise ValueError("axis is only used with directions='cylindrical' or 'spherical'")
+    a = np.asarray(directions, dtype=float)
+    if a.shape == (2, d):
+        return a, {}
+    if a.ndim != 3 or a.shape[1:] != (2, d) or a.shape[0] not in (M, N):
+        raise ValueError(
+            f"directions must have shape (2, {d}), ({M}, 2, {d}) per triangle or "
+            f"({N}, 2, {d}) per node, got {a.shape}"
+        )
+    at = directions_at
+    if at == "auto":
+        if M == N:
+            raise ValueError(
+                f"directions of shape {a.shape} could be per node or per triangle "
+                "(the mesh has as many of each); pass directions_at='nodes' or 'triangles'"
+            )
+        at = "triangles" if a.shape[0] == M else "nodes"
+    if a.shape[0] != (M if at == "triangles" else N):
+        raise ValueError(
+            f"directions_at={at!r} needs directions of shape "
+            f"({M if at == 'triangles' else N}, 2, {d}), got {a.shape}"
+        )
+    if at == "nodes":
+        a = a[triangles].mean(axis=1)  # at the centroid: mean of the vertices' vectors
+    return a, {}
+
+
 def compute_strain(
     reference: FloatArray,
     points: FloatArray,
     triangles: IntArray,
     *,
     visible: BoolArray | None = None,
-    directions: Sequence[Sequence[float]] | FloatArray | None = None,
+    directions: Sequence[Sequence[float]] | FloatArray | DirectionKind | None = None,
+    axis: tuple[Sequence[float], Sequence[float]] | Sequence[float] | None = None,
+    directions_at: Literal["auto", "triangles", "nodes"] = "auto",
 ) -> StrainField:
     """Deformation and Green-Lagrange strain of a triangle mesh over time.
 
@@ -158,20 +281,53 @@ def compute_strain(
     ----------
     reference : (N, d) float
         Reference positions (d = 2 or 3), e.g. the tracked grid on frame 0.
+        Must be finite.
     points : (T, N, d) float
-        Positions per frame.
+        Positions per frame.  NaN marks a lost point, like ``visible=False``.
     triangles : (M, 3) int
         Mesh on the reference points, e.g. from
         :func:`surface_strain.mesh.delaunay_triangles`.
     visible : (T, N) bool, optional, keyword-only
         False marks a lost point; its triangles get NaN for that frame and are
-        left out of the nodal averages.
-    directions : (2, d) float, optional, keyword-only
-        Material directions of the x, y frame (default global X and Y).
+        left out of the nodal averages (the neighbours' values stay finite).
+    directions : keyword-only
+        Material directions of the x, y frame of ``E`` (``Exx, Eyy, Exy``).
+        Each is projected onto a triangle's reference tangent plane and the
+        pair orthonormalized (:func:`surface_strain.material_frame`).  One of
+
+        * ``None`` (default): global X and Y;
+        * ``(2, d)`` array: two constant vectors;
+        * ``(M, 2, d)`` or ``(N, 2, d)`` array: a pair per triangle, or per node
+          (the mean of a triangle's three vertex vectors is used; they should
+          have consistent signs);
+        * ``"cylindrical"`` with ``axis=(point, direction)``: x axial, y
+          circumferential (:func:`surface_strain.cylindrical_directions`), e.g.
+          longitudinal and circumferential on a tube;
+        * ``"spherical"`` (alias ``"polar"``) with ``axis=(point, direction)``:
+          x meridional, y circumferential about the axis
+          (:func:`surface_strain.spherical_directions`), e.g. on a dome or an
+          inflating membrane; on a flat disc normal to the axis the polar frame
+          (radial, circumferential).  For 2D points ``axis`` is the centre
+          ``(x, y)`` and this is the polar frame.
+
+        Named fields are evaluated at the reference triangle centroids with
+        the triangles' reference normals.
+    axis : (point, direction) of 3-vectors, keyword-only
+        The axis of a named direction field.
+    directions_at : {"auto", "triangles", "nodes"}, keyword-only
+        Where an ``(K, 2, d)`` direction array lives; "auto" decides by ``K``
+        and refuses when the mesh has as many nodes as triangles.
 
     Returns
     -------
     StrainField
+
+    Raises
+    ------
+    ValueError
+        Bad shapes or options, a non-finite reference, a degenerate reference
+        triangle, or a direction normal to a triangle (the message names it;
+        there is no silent fallback).
 
     Examples
     --------
@@ -189,6 +345,12 @@ def compute_strain(
             f"points must have shape (T, {reference.shape[0]}, {reference.shape[-1]}), "
             f"got {points.shape}"
         )
+    bad_ref = ~np.all(np.isfinite(reference), axis=-1)
+    if np.any(bad_ref):
+        raise ValueError(
+            f"reference holds {int(bad_ref.sum())} non-finite position(s), first is point "
+            f"{int(np.flatnonzero(bad_ref)[0])}; drop lost reference points before meshing"
+        )
     triangles = np.asarray(triangles)
     T, N, _ = points.shape
     if visible is None:
@@ -199,14 +361,15 @@ def compute_strain(
     visible = visible & np.all(np.isfinite(points), axis=-1)
 
     basis, _ = reference_frames(reference, triangles)
+    dirs, meta = _resolve_directions(directions, reference, triangles, basis, axis, directions_at)
+    frame = material_frame(basis, dirs)
     safe = np.where(visible[..., None], points, reference)  # finite stand-ins, masked below
     F = deformation_gradient(reference, safe, triangles)
     element_valid = np.all(visible[:, triangles], axis=-1)
     F[~element_valid] = np.nan
     E_local = green_lagrange(F)
-    d = reference.shape[1]
-    dirs = np.eye(d)[:2] if directions is None else np.asarray(directions, dtype=float)
-    E = directional_components(E_local, basis, dirs)
+    R = np.einsum("mdi,mdk->mik", basis, frame)  # frame axes in tangent coordinates
+    E = np.einsum("mki,...mkl,mlj->...mij", R, E_local, R)
     areas = triangle_areas(reference, triangles)
     nodal_E = nodal_average(E, triangles, N, weights=areas, axis=1)
     return StrainField(
@@ -221,12 +384,18 @@ def compute_strain(
         nodal_E=nodal_E,
         reference_areas=areas,
         directions=dirs,
+        frame=frame,
+        meta=meta,
     )
 
 
 def element_scalars(field: StrainField) -> dict[str, FloatArray]:
-    """Per-triangle scalar fields, each ``(T, M)``: those of :func:`scalar_fields`
-    plus the area ratio ``J``."""
+    """Per-triangle scalar fields, each ``(T, M)``.
+
+    Those of :func:`scalar_fields` (``Exx, Eyy, Exy, E1, E2, max_shear,
+    theta1_deg``) of ``field.E`` plus the area ratio ``J`` (current / reference
+    area, :func:`surface_strain.area_ratio`).  NaN on lost triangles.
+    """
     out = scalar_fields(field.E)
     out["J"] = area_ratio(field.F)
     return out
@@ -235,12 +404,175 @@ def element_scalars(field: StrainField) -> dict[str, FloatArray]:
 def nodal_scalars(field: StrainField) -> dict[str, FloatArray]:
     """Per-node scalar fields, each ``(T, N)``.
 
-    Tensor components and principal values come from the nodal (averaged)
-    tensor ``nodal_E``; ``J`` is the area-weighted average of the element
-    area ratios.
+    Tensor components, principal values, ``max_shear`` and ``theta1_deg`` come
+    from the nodal (averaged) tensor ``nodal_E``; ``J`` is the area-weighted
+    average of the element area ratios.  NaN at nodes whose adjacent triangles
+    are all lost.
     """
     out = scalar_fields(field.nodal_E)
     out["J"] = nodal_average(
         area_ratio(field.F), field.triangles, field.n_points, weights=field.reference_areas, axis=1
     )
+    return out
+
+
+def _check_isotropic(isotropic: str) -> None:
+    if isotropic not in ("keep", "nan"):
+        raise ValueError(f"isotropic must be 'keep' or 'nan', got {isotropic!r}")
+
+
+def element_principal_directions(
+    field: StrainField, *, isotropic: Literal["keep", "nan"] = "keep"
+) -> PrincipalDirections:
+    """Principal strain directions of each triangle as vectors in space.
+
+    See :func:`surface_strain.principal_directions` for the definitions and
+    sign conventions (``dir1`` at (-90, 90] degrees from the frame's x axis,
+    ``(dir1, dir2, n)`` right-handed).
+
+    Parameters
+    ----------
+    field : StrainField
+    isotropic : {"keep", "nan"}, keyword-only
+        Where ``E1 - E2 < 1e-9`` every direction is principal: "keep" returns
+        an arbitrary orthonormal pair there (still unit vectors), "nan" returns
+        NaN like ``theta1_deg``.
+
+    Returns
+    -------
+    PrincipalDirections
+        ``(dir1_ref, dir2_ref, dir1_cur, dir2_cur)``, each ``(T, M, d)`` unit
+        vectors; NaN on lost triangles.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=float)
+    >>> x = X * [1.0, 1.2, 1.0]                   # stretch along y
+    >>> f = compute_strain(X, x[None], np.array([[0, 1, 2]]))
+    >>> element_principal_directions(f).dir1_ref.round(6)
+    array([[[0., 1., 0.]]])
+    """
+    _check_isotropic(isotropic)
+    out = principal_directions(field.E, field.F, field.basis, frame=field.frame)
+    if isotropic == "nan":
+        values, _ = principal_strains(field.E)
+        iso = (values[..., 0] - values[..., 1] < ISOTROPIC_TOLERANCE)[..., None]
+        out = PrincipalDirections(*(np.where(iso, np.nan, v) for v in out))
+    return out
+
+
+def _cross_or_rot90(n: np.ndarray | None, v: np.ndarray) -> np.ndarray:
+    """``n x v`` in 3D; ``v`` turned by +90 degrees in 2D."""
+    if n is None:
+        return np.stack([-v[..., 1], v[..., 0]], axis=-1)
+    return np.cross(n, v)
+
+
+def _project_unit(v: np.ndarray, n: np.ndarray | None) -> np.ndarray:
+    if n is not None:
+        v = v - np.sum(v * n, axis=-1, keepdims=True) * n
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm > 0, v / norm, np.nan)
+
+
+def nodal_principal_directions(
+    field: StrainField, *, isotropic: Literal["keep", "nan"] = "keep"
+) -> PrincipalDirections:
+    """Principal strain directions at the nodes as vectors in space.
+
+    For each frame and node, the ``dir1`` vectors of the adjacent valid
+    triangles (:func:`element_principal_directions`) are averaged with the
+    reference areas as weights after aligning their signs (a direction is an
+    axis, ``v ~ -v``): each is flipped where it points away from the dominant
+    axis of the adjacent triangles' orientation tensor ``sum_e A_e v_e v_e^T``
+    (see :func:`surface_strain.nodal_axes`).  The average is projected onto the
+    node's tangent plane, normalized, and flipped to point within 90 degrees
+    of the node's frame axis ``e1`` (the area-weighted mean of the adjacent
+    triangles' ``frame[:, :, 0]``); ``dir2 = n x dir1`` completes a right-handed
+    orthonormal frame with the node normal ``n``.  The current directions
+    average the adjacent ``dir1_cur`` with the same signs, projected onto the
+    node's current tangent plane, and ``dir2_cur = n_cur x dir1_cur``.
+
+    Node normals are the area-weighted, sign-aligned averages of the adjacent
+    triangles' unit normals: reference normals for the reference directions,
+    current normals (of the valid triangles) for the current ones.
+
+    Parameters
+    ----------
+    field : StrainField
+    isotropic : {"keep", "nan"}, keyword-only
+        "keep" averages every valid triangle; "nan" leaves isotropic triangles
+        (``E1 - E2 < 1e-9``) out of the average and returns NaN where the nodal
+        tensor ``nodal_E`` is isotropic, like ``theta1_deg`` of
+        :func:`nodal_scalars`.
+
+    Returns
+    -------
+    PrincipalDirections
+        ``(dir1_ref, dir2_ref, dir1_cur, dir2_cur)``, each ``(T, N, d)`` unit
+        vectors; NaN at nodes whose adjacent triangles are all lost.
+
+    Notes
+    -----
+    The nodal principal values ``E1, E2`` of :func:`nodal_scalars` are those of
+    the averaged tensor ``nodal_E``, whereas these directions average the
+    element directions; in a smooth field the two agree to the discretization
+    error.  Where ``E1`` and ``E2`` are close the direction is ill-conditioned.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from surface_strain.mesh import grid_triangles
+    >>> X = np.stack(np.meshgrid(np.arange(3.0), np.arange(3.0)), -1).reshape(-1, 2)
+    >>> f = compute_strain(X, (X * [1.0, 1.3])[None], grid_triangles(3, 3))
+    >>> nodal_principal_directions(f).dir1_cur[0, 4].round(6)
+    array([0., 1.])
+    """
+    _check_isotropic(isotropic)
+    elem = element_principal_directions(field, isotropic=isotropic)
+    tri = field.triangles
+    N = field.n_points
+    d = field.points.shape[2]
+    w = field.reference_areas
+    e1 = _corner_sum(
+        np.broadcast_to((w[:, None] * field.frame[:, :, 0])[:, None, :], (len(tri), 3, d)),
+        tri,
+        N,
+    )
+    if d == 3:
+        n_tri = np.cross(field.basis[:, :, 0], field.basis[:, :, 1])
+        total, n_signs = _aligned_axes(n_tri, tri, N, w)
+        orient = _corner_sum(
+            np.broadcast_to((w[:, None] * n_tri)[:, None, :], (len(tri), 3, 3)), tri, N
+        )
+        flip_n = np.where(np.sum(total * orient, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+        n_ref = _project_unit(total * flip_n, None)  # (N, 3)
+        n_cur_tri = _project_unit(np.cross(field.F[..., 0], field.F[..., 1]), None)  # (T, M, 3)
+        valid_cur = np.all(np.isfinite(n_cur_tri), axis=-1)
+        wn = (w[:, None] * n_signs)[None, :, :, None]  # (1, M, 3, 1)
+        n_cur = _corner_sum(
+            wn * np.where(valid_cur[..., None], n_cur_tri, 0.0)[:, :, None, :], tri, N
+        )
+        n_cur = _project_unit(n_cur * flip_n, None)  # (T, N, 3)
+    else:
+        n_ref = n_cur = None
+    total, signs = _aligned_axes(elem.dir1_ref, tri, N, w)  # (T, N, d), (T, M, 3)
+    flip = np.where(np.sum(total * e1, axis=-1, keepdims=True) < 0, -1.0, 1.0)
+    dir1_ref = _project_unit(total * flip, n_ref)
+    cur = np.where(np.isfinite(elem.dir1_cur), elem.dir1_cur, 0.0)
+    total_cur = _corner_sum((w[:, None] * signs)[..., None] * cur[:, :, None, :], tri, N)
+    dir1_cur = _project_unit(total_cur * flip, n_cur)
+    dir1_cur = np.where(np.isfinite(dir1_ref), dir1_cur, np.nan)
+    out = PrincipalDirections(
+        dir1_ref,
+        _cross_or_rot90(n_ref, dir1_ref),
+        dir1_cur,
+        _cross_or_rot90(n_cur, dir1_cur),
+    )
+    if isotropic == "nan":
+        values, _ = principal_strains(field.nodal_E)
+        iso = (values[..., 0] - values[..., 1] < ISOTROPIC_TOLERANCE)[..., None]
+        out = PrincipalDirections(*(np.where(iso, np.nan, v) for v in out))
     return out

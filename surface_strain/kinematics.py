@@ -22,25 +22,37 @@ References
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
 from surface_strain._typing import FloatArray, IntArray
 
 __all__ = [
+    "DIRECTION_TOLERANCE",
+    "PrincipalDirections",
     "area_ratio",
+    "cylindrical_directions",
     "deformation_gradient",
     "directional_components",
     "euler_almansi",
     "green_lagrange",
     "logarithmic_strain",
+    "material_frame",
+    "principal_directions",
     "principal_strains",
     "reference_frames",
     "right_cauchy_green",
+    "spherical_directions",
     "triangle_areas",
+    "triangle_normals",
 ]
 
 _I2 = np.eye(2)
+
+#: A material direction whose component in a tangent plane is below this fraction
+#: of its length (within about 0.00006 degrees of the normal) gives no usable frame.
+DIRECTION_TOLERANCE = 1e-6
 
 
 def _check_points(points: FloatArray, name: str) -> np.ndarray:
@@ -266,6 +278,220 @@ def principal_strains(E: FloatArray) -> tuple[FloatArray, FloatArray]:
     return values, directions
 
 
+def triangle_normals(points: FloatArray, triangles: IntArray) -> FloatArray:
+    """Unit normal ``n = D1 x D2 / |D1 x D2|`` of each triangle in 3D.
+
+    Parameters
+    ----------
+    points : (..., N, 3) float
+    triangles : (M, 3) int
+
+    Returns
+    -------
+    normals : (..., M, 3) float
+        Oriented by the vertex order (counter-clockwise seen from the tip of
+        ``n``); NaN for degenerate or lost triangles.
+    """
+    points = _check_points(points, "points")
+    if points.shape[-1] != 3:
+        raise ValueError(f"points must have shape (..., N, 3), got {points.shape}")
+    triangles = _check_triangles(triangles, points.shape[-2])
+    p = points[..., triangles, :]
+    n = np.cross(p[..., 1, :] - p[..., 0, :], p[..., 2, :] - p[..., 0, :])
+    norm = np.linalg.norm(n, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm > 0, n / norm, np.nan)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """Normalize along the last axis; zero or NaN vectors give NaN."""
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(norm > 0, v / norm, np.nan)
+
+
+def _parse_axis(axis, name: str = "axis") -> tuple[np.ndarray, np.ndarray]:
+    try:
+        point, direction = axis
+        point = np.asarray(point, dtype=float)
+        direction = np.asarray(direction, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"{name} must be a pair (point, direction) of 3-vectors, got {axis!r}"
+        ) from None
+    if point.shape != (3,) or direction.shape != (3,):
+        raise ValueError(
+            f"{name} must be a pair (point, direction) of 3-vectors, "
+            f"got shapes {point.shape} and {direction.shape}"
+        )
+    norm = np.linalg.norm(direction)
+    if not (np.all(np.isfinite(point)) and np.isfinite(norm) and norm > 0):
+        raise ValueError(f"{name} needs a finite point and a finite non-zero direction")
+    return point, direction / norm
+
+
+def cylindrical_directions(
+    points: FloatArray, *, axis: tuple[Sequence[float], Sequence[float]]
+) -> FloatArray:
+    """Axial and circumferential unit vectors about an axis.
+
+    ``e1 = a`` (the axis direction) and ``e2 = a x r / |a x r|`` with ``r`` the
+    vector from the axis point to the point: the right-handed circumferential
+    direction.  On a surface of revolution about the axis (a tube) ``e2`` is
+    tangent to the surface and ``e1`` projects onto its meridian; on a cylinder
+    both are tangent.  Pass the result, or ``directions="cylindrical"`` with the
+    same ``axis``, to :func:`surface_strain.compute_strain`.
+
+    Parameters
+    ----------
+    points : (K, 3) float
+        Where to evaluate the frame (e.g. reference triangle centroids).
+    axis : (point, direction), keyword-only
+        A point on the axis and its direction, each a 3-vector (any length).
+
+    Returns
+    -------
+    directions : (K, 2, 3) float
+        ``directions[:, 0]`` axial, ``directions[:, 1]`` circumferential; NaN
+        for points on the axis, where the circumferential direction is undefined.
+
+    Examples
+    --------
+    >>> cylindrical_directions(np.array([[2.0, 0.0, 5.0]]), axis=([0, 0, 0], [0, 0, 3]))
+    array([[[0., 0., 1.],
+            [0., 1., 0.]]])
+    """
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"points must have shape (K, 3), got {p.shape}")
+    origin, a = _parse_axis(axis)
+    circ = _unit(np.cross(a, p - origin))
+    return np.stack([np.broadcast_to(a, p.shape), circ], axis=1)
+
+
+def spherical_directions(
+    points: FloatArray,
+    normals: FloatArray,
+    *,
+    axis: tuple[Sequence[float], Sequence[float]],
+) -> FloatArray:
+    """Meridional and circumferential unit vectors about an axis (polar frame).
+
+    The circumferential direction is ``c = a x r / |a x r|`` (``r`` from the axis
+    point to the point) and the meridional direction ``m = c x n / |c x n|``,
+    so ``(m, c, n)`` is right-handed.  On any surface of revolution about the
+    axis (a dome, a spherical cap, a flat disc normal to the axis) both are
+    tangent: ``m`` follows the meridian, away from the pole when ``n`` points
+    away from the axis' side the surface bulges to (outward on a dome, along
+    ``+a`` on a disc seen from ``+a``).  On a flat disc this is the polar frame
+    (radial, circumferential).
+
+    Parameters
+    ----------
+    points : (K, 3) float
+        Where to evaluate the frame (e.g. reference triangle centroids).
+    normals : (K, 3) float
+        Surface normals there (e.g. :func:`triangle_normals`).
+    axis : (point, direction), keyword-only
+        A point on the axis and its direction, each a 3-vector.
+
+    Returns
+    -------
+    directions : (K, 2, 3) float
+        ``directions[:, 0]`` meridional, ``directions[:, 1]`` circumferential;
+        NaN on the axis (the pole) and where ``n`` is circumferential.
+
+    Examples
+    --------
+    >>> spherical_directions(np.array([[2.0, 0, 0]]), np.array([[0, 0, 1.0]]),
+    ...                      axis=([0, 0, 0], [0, 0, 1]))
+    array([[[1., 0., 0.],
+            [0., 1., 0.]]])
+    """
+    p = np.asarray(points, dtype=float)
+    n = np.asarray(normals, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"points must have shape (K, 3), got {p.shape}")
+    if n.shape != p.shape:
+        raise ValueError(f"normals must have shape {p.shape}, got {n.shape}")
+    origin, a = _parse_axis(axis)
+    circ = _unit(np.cross(a, p - origin))
+    merid = _unit(np.cross(circ, n))
+    return np.stack([merid, circ], axis=1)
+
+
+def material_frame(
+    basis: FloatArray,
+    directions: Sequence[Sequence[float]] | FloatArray | None = None,
+) -> FloatArray:
+    """Orthonormal frame of each triangle built from two material directions.
+
+    The first direction is projected onto the triangle's reference tangent
+    plane and normalized (``e1``); the second is projected, made orthogonal to
+    ``e1`` (Gram-Schmidt) and normalized (``e2``).
+
+    Parameters
+    ----------
+    basis : (M, d, 2) float
+        Tangent bases from :func:`reference_frames`.
+    directions : (2, d) or (M, 2, d) float, optional
+        Two material directions, the same for every triangle or one pair per
+        triangle (e.g. from :func:`cylindrical_directions` at the centroids).
+        Default global X and Y.
+
+    Returns
+    -------
+    frame : (M, d, 2) float
+        Columns ``e1, e2`` as vectors in space.
+
+    Raises
+    ------
+    ValueError
+        If a direction is not finite, is normal to a triangle's tangent plane
+        (in-plane component below :data:`DIRECTION_TOLERANCE` of its length),
+        or the two are parallel once projected.  The message names the first
+        triangle concerned.  There is no silent fallback: pick directions
+        with an in-plane component everywhere, or per-triangle directions.
+    """
+    basis = np.asarray(basis, dtype=float)
+    if basis.ndim != 3 or basis.shape[2] != 2 or basis.shape[1] not in (2, 3):
+        raise ValueError(f"basis must have shape (M, d, 2), got {basis.shape}")
+    m, d = basis.shape[:2]
+    if directions is None:
+        directions = np.eye(d)[:2]
+    a = np.asarray(directions, dtype=float)
+    if a.shape not in ((2, d), (m, 2, d)):
+        raise ValueError(f"directions must have shape (2, {d}) or ({m}, 2, {d}), got {a.shape}")
+    a = np.broadcast_to(a, (m, 2, d))
+    length = np.linalg.norm(a, axis=-1)  # (M, 2)
+    _check_frame(~np.all(np.isfinite(a), axis=(1, 2)), "directions are not finite")
+    _check_frame(~np.all(length > 0, axis=1), "a direction has zero length")
+    local = np.einsum("mdi,mkd->mki", basis, a)  # (M, 2 directions, 2 tangent comps)
+    n1 = np.linalg.norm(local[:, 0], axis=-1)
+    _check_frame(
+        n1 < DIRECTION_TOLERANCE * length[:, 0],
+        "the first direction is normal to the tangent plane",
+    )
+    e1 = local[:, 0] / n1[:, None]
+    e2 = local[:, 1] - np.sum(local[:, 1] * e1, axis=-1, keepdims=True) * e1
+    n2 = np.linalg.norm(e2, axis=-1)
+    _check_frame(
+        n2 < DIRECTION_TOLERANCE * length[:, 1],
+        "the two directions are parallel (or the second is normal) in the tangent plane",
+    )
+    e2 = e2 / n2[:, None]
+    return np.einsum("mdi,mik->mdk", basis, np.stack([e1, e2], axis=-1))
+
+
+def _check_frame(bad: np.ndarray, what: str) -> None:
+    if np.any(bad):
+        raise ValueError(
+            f"{what} of {int(bad.sum())} triangle(s), first is triangle "
+            f"{int(np.flatnonzero(bad)[0])}; choose directions with an in-plane "
+            "component on every triangle"
+        )
+
+
 def directional_components(
     E: FloatArray,
     basis: FloatArray,
@@ -273,11 +499,12 @@ def directional_components(
 ) -> FloatArray:
     """Rotate ``E`` into a frame built from material directions.
 
-    The first direction is projected onto each reference tangent plane and
-    normalized (``e1``); the second is projected, made orthogonal to ``e1`` and
-    normalized (``e2``).  The result holds ``[[Exx, Exy], [Exy, Eyy]]`` in the
-    ``(e1, e2)`` frame.  On a planar surface with the default directions (global
-    X and Y) this returns ``E`` unchanged.
+    The frame is that of :func:`material_frame`: the first direction projected
+    onto each reference tangent plane (``e1``), the second projected and made
+    orthogonal to it (``e2``).  The result holds ``[[Exx, Exy], [Exy, Eyy]]``
+    with ``Exx = e1 . E e1``, ``Eyy = e2 . E e2``, ``Exy = e1 . E e2`` (tensor,
+    not engineering, shear).  On a planar surface with the default directions
+    (global X and Y) this returns ``E`` unchanged.
 
     Parameters
     ----------
@@ -285,8 +512,9 @@ def directional_components(
         Strain in the tangent basis of :func:`reference_frames`.
     basis : (M, d, 2) float
         Tangent bases from :func:`reference_frames`.
-    directions : (2, d) float, optional
-        Material directions, default global X and Y.
+    directions : (2, d) or (M, 2, d) float, optional
+        Material directions, constant or one pair per triangle; default global
+        X and Y.
 
     Returns
     -------
@@ -296,24 +524,93 @@ def directional_components(
     ------
     ValueError
         If a direction is (nearly) normal to a triangle, or the two directions
-        are (nearly) parallel once projected.
+        are (nearly) parallel once projected (see :func:`material_frame`).
     """
     basis = np.asarray(basis, dtype=float)
-    d = basis.shape[1]
-    if directions is None:
-        directions = np.eye(d)[:2]
-    a = np.asarray(directions, dtype=float)
-    if a.shape != (2, d):
-        raise ValueError(f"directions must have shape (2, {d}), got {a.shape}")
-    local = np.einsum("mdi,kd->mki", basis, a)  # (M, 2 directions, 2 local comps)
-    n1 = np.linalg.norm(local[:, 0], axis=-1, keepdims=True)
-    if np.any(n1 < 1e-8 * np.linalg.norm(a[0])):
-        raise ValueError("the first direction is normal to at least one triangle")
-    e1 = local[:, 0] / n1
-    e2 = local[:, 1] - np.sum(local[:, 1] * e1, axis=-1, keepdims=True) * e1
-    n2 = np.linalg.norm(e2, axis=-1, keepdims=True)
-    if np.any(n2 < 1e-8 * np.linalg.norm(a[1])):
-        raise ValueError("the two directions are parallel on at least one triangle")
-    e2 = e2 / n2
-    R = np.stack([e1, e2], axis=-1)  # (M, 2, 2), columns e1, e2
+    frame = material_frame(basis, directions)
+    R = np.einsum("mdi,mdk->mik", basis, frame)  # columns: e1, e2 in tangent coordinates
     return np.einsum("mki,...mkl,mlj->...mij", R, E, R)
+
+
+class PrincipalDirections(NamedTuple):
+    """Principal strain directions as unit vectors in space.
+
+    Each field has shape ``(..., d)`` (``(T, M, d)`` per triangle, ``(T, N, d)``
+    per node); NaN where the strain is unknown.  ``dir1`` belongs to ``E1``
+    (the larger principal strain) and ``dir2`` to ``E2``.
+    """
+
+    #: ``E1`` direction in the reference configuration (a material direction)
+    dir1_ref: FloatArray
+    #: ``E2`` direction in the reference configuration, ``n x dir1_ref``
+    dir2_ref: FloatArray
+    #: ``E1`` direction in the current configuration, ``F dir1 / |F dir1|``
+    dir1_cur: FloatArray
+    #: ``E2`` direction in the current configuration, ``F dir2 / |F dir2|``
+    dir2_cur: FloatArray
+
+
+def principal_directions(
+    E: FloatArray,
+    F: FloatArray,
+    basis: FloatArray,
+    *,
+    frame: FloatArray | None = None,
+) -> PrincipalDirections:
+    """Principal strain directions as vectors, before and after deformation.
+
+    With ``v1, v2`` the unit eigenvectors of ``E`` in the tangent coordinates of
+    each triangle, the reference directions are ``basis @ v`` and the current
+    ones ``F @ v / |F @ v|``.  Because ``v1, v2`` are eigenvectors of
+    ``C = F^T F``, ``F v1`` and ``F v2`` are orthogonal as well: the principal
+    axes of stretch stay orthogonal (Holzapfel 2000, sec. 2.6).
+
+    Sign conventions (a direction is an axis; these fix its sign):
+    ``dir1_ref`` makes an angle in (-90, 90] degrees with the frame's first
+    axis ``e1`` (as ``theta1_deg`` of :func:`surface_strain.scalar_fields`), and
+    ``dir2_ref = n x dir1_ref`` with ``n = t1 x t2`` the triangle's reference
+    normal (the global z axis for 2D input), so ``(dir1, dir2, n)`` is
+    right-handed.  The current directions are the images of these, so
+    ``(dir1_cur, dir2_cur, n_cur)`` is right-handed for ``J > 0``.
+
+    Parameters
+    ----------
+    E : (..., M, 2, 2) float
+        Green-Lagrange strain in the coordinates of ``frame``.
+    F : (..., M, d, 2) float
+        Deformation map in the coordinates of ``basis`` (as from
+        :func:`deformation_gradient`).
+    basis : (M, d, 2) float
+        Tangent bases from :func:`reference_frames`.
+    frame : (M, d, 2) float, optional, keyword-only
+        The frame ``E`` is expressed in (:func:`material_frame`, or
+        ``StrainField.frame``).  Default ``basis`` (``E = green_lagrange(F)``).
+
+    Returns
+    -------
+    PrincipalDirections
+        ``(dir1_ref, dir2_ref, dir1_cur, dir2_cur)``, each ``(..., M, d)``
+        unit vectors; NaN where ``E`` or ``F`` holds NaN.  Where ``E1 = E2``
+        (isotropic strain, rigid motion) every direction is principal and the
+        returned pair is an arbitrary orthonormal one.
+
+    Examples
+    --------
+    >>> X = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    >>> x = X @ np.array([[1.0, 0.0], [0.0, 1.5]]).T   # stretch along y
+    >>> F = deformation_gradient(X, x, np.array([[0, 1, 2]]))
+    >>> basis, _ = reference_frames(X, np.array([[0, 1, 2]]))
+    >>> principal_directions(green_lagrange(F), F, basis).dir1_ref.round(6)
+    array([[0., 1.]])
+    """
+    basis = np.asarray(basis, dtype=float)
+    F = np.asarray(F, dtype=float)
+    R = _I2 if frame is None else np.einsum("mdi,mdk->mik", basis, np.asarray(frame, float))
+    _, vectors = principal_strains(E)
+    v1 = np.einsum("...ik,...k->...i", R, vectors[..., :, 0])  # tangent coordinates
+    v2 = np.stack([-v1[..., 1], v1[..., 0]], axis=-1)  # n x v1 in the tangent plane
+    dir1_ref = np.einsum("mdi,...mi->...md", basis, v1)
+    dir2_ref = np.einsum("mdi,...mi->...md", basis, v2)
+    dir1_cur = _unit(np.einsum("...di,...i->...d", F, v1))
+    dir2_cur = _unit(np.einsum("...di,...i->...d", F, v2))
+    return PrincipalDirections(dir1_ref, dir2_ref, dir1_cur, dir2_cur)
