@@ -362,7 +362,15 @@ def compute_strain(
 
     basis, _ = reference_frames(reference, triangles)
     dirs, meta = _resolve_directions(directions, reference, triangles, basis, axis, directions_at)
-    frame = material_frame(basis, dirs)
+    try:
+        frame = material_frame(basis, dirs)
+    except ValueError as exc:
+        if directions is None:
+            raise ValueError(
+                f"{exc} (directions: the default global X and Y, which suit surfaces "
+                "facing Z; pass directions=, e.g. 'cylindrical' or 'spherical' with axis=)"
+            ) from None
+        raise
     safe = np.where(visible[..., None], points, reference)  # finite stand-ins, masked below
     F = deformation_gradient(reference, safe, triangles)
     element_valid = np.all(visible[:, triangles], axis=-1)

@@ -36,3 +36,7 @@ STEREO_REPROJ_RMS_PX = 0.1
 STEREO_POINT_RMSE_MM = 0.03
 #: cross-view matching RMSE, px
 STEREO_MATCH_PX = 0.05
+
+# --- surface_strain on curved surfaces (coordinates of order 1) ---
+#: exact kinematics of exact positions: float64 round-off
+ROUNDOFF = 1e-12
