@@ -94,62 +94,18 @@ def write_pvd(
 ) -> Path:
     """Write a ParaView time series: ``folder/name.pvd`` and ``folder/name/name_####.vtp``.
 
-    Each ``.vtp`` holds the triangle mesh at the frame's current positions
-    (z = 0 for 2D input), point data ``displacement`` (vector), the nodal
-    scalars, ``principal_direction_1`` (unit vector of the first principal
-    strain direction, a material direction in the reference frame; 2D only)
-    and ``visible``; cell data with the element scalars and ``valid``.
+    The same files as :func:`surface_strain.export.write_pvd` (2D points at
+    z = 0): point data ``displacement``, the nodal scalars, the principal
+    directions and ``visible``; cell data with the element scalars and
+    ``valid``.
 
     Returns
     -------
     Path of the ``.pvd`` file.
     """
-    import pyvista as pv
+    from surface_strain.export import write_pvd as write_series
 
-    folder = Path(folder)
-    sub = folder / name
-    sub.mkdir(parents=True, exist_ok=True)
-    T = field.n_frames
-    times = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
-    d = field.points.shape[2]
-    node = nodal_scalars(field)
-    elem = element_scalars(field)
-    faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
-    theta = np.radians(node["theta1_deg"])
-    entries = []
-    for t in range(T):
-        pts = field.points[t]
-        ref = field.reference
-        if d == 2:
-            pts = np.column_stack([pts, np.zeros(len(pts))])
-            ref = np.column_stack([ref, np.zeros(len(ref))])
-        pts = np.where(np.isfinite(pts), pts, ref)
-        mesh = pv.PolyData(pts, faces=faces)
-        mesh.point_data["displacement"] = (
-            field.points[t] - field.reference
-            if d == 3
-            else (np.column_stack([field.points[t] - field.reference, np.zeros(field.n_points)]))
-        )
-        for key, values in node.items():
-            mesh.point_data[key] = values[t]
-        if d == 2:
-            mesh.point_data["principal_direction_1"] = np.column_stack(
-                [np.cos(theta[t]), np.sin(theta[t]), np.zeros(field.n_points)]
-            )
-        mesh.point_data["visible"] = field.visible[t].astype(np.uint8)
-        for key, values in elem.items():
-            mesh.cell_data[key] = values[t]
-        mesh.cell_data["valid"] = field.element_valid[t].astype(np.uint8)
-        fname = f"{name}_{t:04d}.vtp"
-        mesh.save(sub / fname, binary=True)
-        entries.append(f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>')
-    pvd = folder / f"{name}.pvd"
-    pvd.write_text(
-        '<?xml version="1.0"?>\n'
-        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
-        "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
-    )
-    return pvd
+    return write_series(folder, field, name=name, times=times)
 
 
 def _jsonable(obj):

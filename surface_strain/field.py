@@ -27,7 +27,7 @@ from surface_strain.kinematics import (
     spherical_directions,
     triangle_areas,
 )
-from surface_strain.nodal import _aligned_axes, _corner_sum, nodal_average
+from surface_strain.nodal import _aligned_axes, _corner_sum, _triangle_sum, nodal_average
 
 __all__ = [
     "StrainField",
@@ -544,17 +544,11 @@ def nodal_principal_directions(
     N = field.n_points
     d = field.points.shape[2]
     w = field.reference_areas
-    e1 = _corner_sum(
-        np.broadcast_to((w[:, None] * field.frame[:, :, 0])[:, None, :], (len(tri), 3, d)),
-        tri,
-        N,
-    )
+    e1 = _triangle_sum(w[:, None] * field.frame[:, :, 0], tri, N)
     if d == 3:
         n_tri = np.cross(field.basis[:, :, 0], field.basis[:, :, 1])
         total, n_signs = _aligned_axes(n_tri, tri, N, w)
-        orient = _corner_sum(
-            np.broadcast_to((w[:, None] * n_tri)[:, None, :], (len(tri), 3, 3)), tri, N
-        )
+        orient = _triangle_sum(w[:, None] * n_tri, tri, N)
         flip_n = np.where(np.sum(total * orient, axis=-1, keepdims=True) < 0, -1.0, 1.0)
         n_ref = _project_unit(total * flip_n, None)  # (N, 3)
         n_cur_tri = _project_unit(np.cross(field.F[..., 0], field.F[..., 1]), None)  # (T, M, 3)

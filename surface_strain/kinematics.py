@@ -381,10 +381,10 @@ def spherical_directions(
     point to the point) and the meridional direction ``m = c x n / |c x n|``,
     so ``(m, c, n)`` is right-handed.  On any surface of revolution about the
     axis (a dome, a spherical cap, a flat disc normal to the axis) both are
-    tangent: ``m`` follows the meridian, away from the pole when ``n`` points
-    away from the axis' side the surface bulges to (outward on a dome, along
-    ``+a`` on a disc seen from ``+a``).  On a flat disc this is the polar frame
-    (radial, circumferential).
+    tangent: ``m`` follows the meridian, pointing away from the pole where
+    ``n`` points away from the centre of curvature (outward on a dome whose
+    pole lies along ``+a``; ``n = +a`` on a flat disc).  On a flat disc this is
+    the polar frame (radial, circumferential).
 
     Parameters
     ----------

@@ -268,21 +268,23 @@ def best_fit_cylinder(
     if not (np.isfinite(r0) and r0 > 0):
         raise ValueError("points are degenerate; no cylinder fits them")
 
+    free = direction is None  # fit the direction too, or only position and radius
+
     def axis_of(x):
-        a = a0 + x[0] * b1 + x[1] * b2 if direction is None else a0
-        a = a / np.linalg.norm(a)
-        o = x[2] * b1 + x[3] * b2
-        return o, a
+        a = a0 + x[0] * b1 + x[1] * b2 if free else a0
+        o = x[-3] * b1 + x[-2] * b2
+        return o, a / np.linalg.norm(a)
 
     def residual(x):
         o, a = axis_of(x)
         r = q - o
-        return np.linalg.norm(r - np.outer(r @ a, a), axis=1) - x[4]
+        return np.linalg.norm(r - np.outer(r @ a, a), axis=1) - x[-1]
 
-    fit = least_squares(residual, np.array([0.0, 0.0, sol[0], sol[1], r0]), method="lm")
+    x0 = np.array([sol[0], sol[1], r0])
+    fit = least_squares(residual, np.concatenate([np.zeros(2), x0]) if free else x0, method="lm")
     o, a = axis_of(fit.x)
     o = o - (o @ a) * a  # nearest the centroid (the origin of q)
-    return o + mean, a, float(abs(fit.x[4]))
+    return o + mean, a, float(abs(fit.x[-1]))
 
 
 def edge_lengths(points: FloatArray, triangles: IntArray) -> FloatArray:

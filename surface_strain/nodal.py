@@ -88,6 +88,18 @@ def _corner_sum(values: np.ndarray, triangles: np.ndarray, n_points: int) -> np.
     return np.moveaxis(out, 0, -2)
 
 
+def _triangle_sum(values: np.ndarray, triangles: np.ndarray, n_points: int) -> np.ndarray:
+    """Sum per-triangle values ``(..., M, k)`` onto the triangles' nodes: ``(..., N, k)``."""
+    m = len(triangles)
+    lead = values.shape[:-2]
+    k = values.shape[-1]
+    A = sp.csr_matrix(
+        (np.ones(3 * m), (triangles.ravel(), np.repeat(np.arange(m), 3))), shape=(n_points, m)
+    )
+    v = np.moveaxis(values, -2, 0).reshape(m, -1)
+    return np.moveaxis((A @ v).reshape((n_points, *lead, k)), 0, -2)
+
+
 def _aligned_axes(
     axes: np.ndarray, triangles: np.ndarray, n_points: int, weights: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -102,18 +114,13 @@ def _aligned_axes(
     a = np.where(valid[..., None], axes, 0.0)
     wa = weights[:, None] * a
     tensor = np.einsum("...mi,...mj->...mij", wa, a).reshape((*a.shape[:-1], d * d))
-    corners = np.broadcast_to(tensor[..., None, :], (*tensor.shape[:-1], 3, d * d))
-    A = _corner_sum(corners, triangles, n_points).reshape((*a.shape[:-2], n_points, d, d))
+    A = _triangle_sum(tensor, triangles, n_points).reshape((*a.shape[:-2], n_points, d, d))
     _, vecs = np.linalg.eigh(A)
     dominant = vecs[..., :, -1]  # (..., N, d), sign arbitrary
     dots = np.einsum("...mcd,...md->...mc", dominant[..., triangles, :], a)
     signs = np.where(dots < 0, -1.0, 1.0) * valid[..., None]
     total = _corner_sum(signs[..., None] * wa[..., None, :], triangles, n_points)
-    count = _corner_sum(
-        np.broadcast_to((weights * valid)[..., None, None], (*valid.shape, 3, 1)),
-        triangles,
-        n_points,
-    )
+    count = _triangle_sum((weights * valid)[..., None], triangles, n_points)
     total = np.where(count > 0, total, np.nan)
     return total, signs
 

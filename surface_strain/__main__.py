@@ -1,0 +1,5 @@
+import sys
+
+from surface_strain.cli import main
+
+sys.exit(main())

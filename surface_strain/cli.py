@@ -1,0 +1,228 @@
+"""Command line: ``python -m surface_strain compute POINTS3D.csv --out DIR``.
+
+Reads 3D point tracks (``frame,point,X,Y,Z[,visible]``: the output of
+``python -m stereo reconstruct`` as it is), meshes the reference points,
+computes membrane strain per triangle and node for every frame, and writes
+``strain_nodes.csv``, ``strain_elements.csv``, ``summary.json``, the
+ParaView series ``strain.pvd`` and figures.  Errors a user can cause end
+with one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["main"]
+
+
+class UsageError(ValueError):
+    """A bad option or input, reported as one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def _vector(text: str, what: str) -> np.ndarray:
+    try:
+        v = np.array([float(t) for t in text.split(",")])
+    except ValueError:
+        raise UsageError(f"{what} must be three numbers X,Y,Z, got {text!r}") from None
+    if v.shape != (3,) or not np.isfinite(v).all():
+        raise UsageError(f"{what} must be three finite numbers X,Y,Z, got {text!r}")
+    return v
+
+
+def parse_directions(text: str) -> dict:
+    """Keyword arguments of :func:`compute_strain` for ``--directions``.
+
+    ``xy`` (default): global X and Y.  ``vectors:AX,AY,AZ:BX,BY,BZ``: two
+    constant directions.  ``cylinder:PX,PY,PZ:AX,AY,AZ``: axial and
+    circumferential about the axis through P along A.
+    ``sphere:PX,PY,PZ:AX,AY,AZ``: meridional and circumferential about it.
+    """
+    parts = text.split(":")
+    kind = parts[0].lower()
+    usage = (
+        "--directions must be xy, vectors:AX,AY,AZ:BX,BY,BZ, cylinder:PX,PY,PZ:AX,AY,AZ "
+        f"or sphere:PX,PY,PZ:AX,AY,AZ, got {text!r}"
+    )
+    if kind == "xy" and len(parts) == 1:
+        return {}
+    if kind not in ("vectors", "cylinder", "sphere") or len(parts) != 3:
+        raise UsageError(usage)
+    a, b = _vector(parts[1], f"{kind} first vector"), _vector(parts[2], f"{kind} second vector")
+    if kind == "vectors":
+        return {"directions": np.stack([a, b])}
+    return {"directions": "cylindrical" if kind == "cylinder" else "spherical", "axis": (a, b)}
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="surface_strain", description="Membrane strain on tracked surfaces.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    p = sub.add_parser("compute", help="strain per triangle and node from 3D point tracks")
+    p.add_argument(
+        "points", help="CSV with frame,point,X,Y,Z[,visible] (e.g. stereo's points3d.csv)"
+    )
+    p.add_argument("--triangles", help="CSV of p0,p1,p2 point indices (default: see --grid)")
+    p.add_argument(
+        "--grid",
+        help="the points form a COLSxROWS grid (row by row): mesh it by its topology; by "
+        "default taken from a stereo summary.json beside the points, else Delaunay",
+    )
+    p.add_argument("--directions", default="xy", help="frame of Exx, Eyy, Exy (default xy)")
+    p.add_argument("--fps", type=float, help="frame rate, for times in the ParaView series")
+    p.add_argument("--unit", help="unit of X, Y, Z (default: from summary.json, else mm)")
+    p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
+    p.add_argument("-v", "--verbose", action="store_true", help="log details")
+    p.set_defaults(handler=_cmd_compute)
+    return parser
+
+
+def _stereo_summary(points_path: Path) -> dict:
+    path = points_path.parent / "summary.json"
+    if not path.is_file():
+        return {}
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        return {}
+
+
+def mesh_for(
+    points: np.ndarray, visible: np.ndarray, args, summary: dict
+) -> tuple[np.ndarray, str]:
+    """Triangles for the reference points and how they were made."""
+    from surface_strain.io import read_triangles
+    from surface_strain.mesh import delaunay_triangles, grid_triangles
+
+    n = points.shape[1]
+    if args.triangles:
+        return read_triangles(args.triangles, n), f"given ({Path(args.triangles).name})"
+    grid = None
+    if args.grid:
+        try:
+            cols, rows = (int(v) for v in args.grid.lower().split("x"))
+        except ValueError:
+            raise UsageError(f"--grid must be COLSxROWS, got {args.grid!r}") from None
+        grid = (cols, rows)
+    elif isinstance(summary.get("points", {}).get("grid"), list):
+        cols, rows = summary["points"]["grid"]
+        grid = (int(cols), int(rows))
+    if grid is not None:
+        cols, rows = grid
+        if cols * rows != n:
+            raise UsageError(f"a {cols}x{rows} grid has {cols * rows} points, the file has {n}")
+        return grid_triangles(rows, cols), f"grid {cols}x{rows}, alternating diagonals"
+    ref = points[0]
+    ok = visible[0]
+    if ok.sum() < 3:
+        raise UsageError("fewer than 3 points are visible on the reference frame")
+    tri_ok = delaunay_triangles(ref[ok])
+    index = np.flatnonzero(ok)
+    return index[tri_ok], "Delaunay in the best-fit plane"
+
+
+def _cmd_compute(args) -> int:
+    from strain2d.atomic import atomic_dir, check_writable
+    from surface_strain import __version__
+    from surface_strain.export import write_elements_csv, write_nodes_csv, write_pvd
+    from surface_strain.field import compute_strain, nodal_scalars
+    from surface_strain.io import read_points3d
+
+    check_writable(args.out, overwrite=args.overwrite, inputs=[args.points])
+    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
+        raise UsageError(f"--fps must be a positive number, got {args.fps}")
+    points, visible = read_points3d(args.points)
+    summary_in = _stereo_summary(Path(args.points))
+    unit = args.unit or summary_in.get("unit") or "mm"
+    triangles, how = mesh_for(points, visible, args, summary_in)
+    try:
+        field = compute_strain(
+            points[0], points, triangles, visible=visible, **parse_directions(args.directions)
+        )
+    except ValueError as exc:
+        if isinstance(exc, UsageError):
+            raise
+        raise UsageError(str(exc)) from None
+    times = np.arange(field.n_frames) / args.fps if args.fps else np.arange(field.n_frames)
+    node = nodal_scalars(field)
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.points]) as tmp:
+        write_nodes_csv(tmp / "strain_nodes.csv", field)
+        write_elements_csv(tmp / "strain_elements.csv", field)
+        write_pvd(tmp, field, name="strain", times=times)
+        if not args.no_figures:
+            from surface_strain.figures import (
+                plot_strain_curves,
+                plot_strain_violins,
+                render_strain,
+            )
+
+            (tmp / "figures").mkdir()
+            last = field.n_frames - 1
+            for key in ("E1", "Exx", "Eyy"):
+                render_strain(field, tmp / "figures" / f"{key}_frame{last:04d}.png", key=key,
+                              frame=last, unit=unit)  # fmt: skip
+            plot_strain_curves(field, times=times, fps=args.fps).savefig(
+                tmp / "figures" / "strain_over_time.png"
+            )
+            plot_strain_violins(field).savefig(tmp / "figures" / f"violins_frame{last:04d}.png")
+        mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
+                    for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
+        summary = {
+            "software": {"name": "surface_strain", "version": __version__},
+            "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            "input": Path(args.points).name,
+            "unit": unit,
+            "frames": field.n_frames,
+            "points": field.n_points,
+            "mesh": {"method": how, "n_triangles": field.n_triangles},
+            "directions": args.directions,
+            "strain": "Green-Lagrange membrane strain; Exx, Eyy, Exy in the directions' frame",
+            "nodal_mean_per_frame": mean,
+        }
+        with open(tmp / "summary.json", "w", encoding="utf-8") as f:
+            json.dump(summary, f, indent=2, allow_nan=False, default=str)
+            f.write("\n")
+    if not args.quiet:
+        last = field.n_frames - 1
+        e1 = node["E1"][last]
+        print(
+            f"{field.n_points} points, {field.n_triangles} triangles ({how}), "
+            f"{field.n_frames} frames; last frame E1 mean {np.nanmean(e1):.4f}; "
+            f"results in {args.out}",
+            file=sys.stderr,
+        )
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    from strain2d.errors import InputError, SourceError
+    from surface_strain.io import PointsError
+
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(levelname)s: %(message)s",
+    )
+    try:
+        return args.handler(args)
+    except (UsageError, PointsError, InputError, SourceError, OSError) as exc:
+        print(f"surface_strain {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"surface_strain {args.command}: interrupted; no output written", file=sys.stderr)
+        return 130

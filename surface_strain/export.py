@@ -1,0 +1,151 @@
+"""Result files for strain on surfaces: node and element tables, ParaView time series.
+
+``strain_nodes.csv`` columns::
+
+    frame,point,X,Y,Z,U,V,W,visible,Exx,Eyy,Exy,E1,E2,max_shear,J
+
+``strain_elements.csv`` columns::
+
+    frame,triangle,p0,p1,p2,valid,Exx,Eyy,Exy,E1,E2,max_shear,J
+
+Positions ``X, Y, Z`` and displacements ``U, V, W`` are in the points' unit;
+strains are Green-Lagrange, dimensionless, ``Exx, Eyy, Exy`` in the
+directional frame the field was computed with; ``J`` is the area ratio.
+Lost values are ``nan``.
+
+:func:`write_pvd` writes ``name.pvd`` and one ``.vtp`` per frame: the mesh at
+the frame's positions, point data ``displacement`` (vector), the nodal
+scalars, the principal directions as unit vectors (``principal_direction_1``
+and ``_2``: material directions in the reference configuration;
+``..._current``: the same fibres in the current one; NaN where the strain
+is isotropic) and ``visible``; cell data with the element scalars, their
+principal directions and ``valid``.  ParaView opens the ``.pvd`` as a time series.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from surface_strain.field import StrainField, element_scalars, nodal_scalars
+
+__all__ = ["ELEMENT_COLUMNS", "NODE_COLUMNS", "write_elements_csv", "write_nodes_csv", "write_pvd"]
+
+SCALARS = ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "J")
+NODE_COLUMNS = ("frame", "point", "X", "Y", "Z", "U", "V", "W", "visible", *SCALARS)
+ELEMENT_COLUMNS = ("frame", "triangle", "p0", "p1", "p2", "valid", *SCALARS)
+
+
+def _xyz(a: np.ndarray) -> np.ndarray:
+    """(..., 2 or 3) -> (..., 3), z = 0 for 2D."""
+    if a.shape[-1] == 3:
+        return a
+    return np.concatenate([a, np.zeros((*a.shape[:-1], 1))], axis=-1)
+
+
+def write_nodes_csv(path: str | os.PathLike, field: StrainField) -> None:
+    """Per-node positions, displacements and strain for every frame."""
+    T, N = field.n_frames, field.n_points
+    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
+    pos = _xyz(field.points)
+    disp = pos - _xyz(field.reference)[None]
+    scalars = nodal_scalars(field)
+    table = np.column_stack(
+        [
+            frame.ravel(),
+            point.ravel(),
+            pos.reshape(-1, 3),
+            disp.reshape(-1, 3),
+            field.visible.ravel(),
+            *(scalars[k].ravel() for k in SCALARS),
+        ]
+    )
+    fmt = ["%d", "%d", *["%.6f"] * 6, "%d"] + ["%.8g"] * len(SCALARS)
+    with open(path, "w") as f:
+        f.write(",".join(NODE_COLUMNS) + "\n")
+        np.savetxt(f, table, fmt=fmt, delimiter=",")
+
+
+def write_elements_csv(path: str | os.PathLike, field: StrainField) -> None:
+    """Per-triangle strain for every frame."""
+    T, M = field.n_frames, field.n_triangles
+    frame, tri = np.meshgrid(np.arange(T), np.arange(M), indexing="ij")
+    scalars = element_scalars(field)
+    table = np.column_stack(
+        [
+            frame.ravel(),
+            tri.ravel(),
+            field.triangles[tri.ravel()],
+            field.element_valid.ravel(),
+            *(scalars[k].ravel() for k in SCALARS),
+        ]
+    )
+    fmt = ["%d"] * 6 + ["%.8g"] * len(SCALARS)
+    with open(path, "w") as f:
+        f.write(",".join(ELEMENT_COLUMNS) + "\n")
+        np.savetxt(f, table, fmt=fmt, delimiter=",")
+
+
+def _directions(field: StrainField) -> dict:
+    """Principal directions per triangle and node: {"element"|"node": PrincipalDirections}."""
+    from surface_strain.field import element_principal_directions, nodal_principal_directions
+
+    return {
+        "element": element_principal_directions(field, isotropic="nan"),
+        "node": nodal_principal_directions(field, isotropic="nan"),
+    }
+
+
+def write_pvd(
+    folder: str | os.PathLike,
+    field: StrainField,
+    *,
+    name: str = "strain",
+    times: np.ndarray | None = None,
+) -> Path:
+    """Write a ParaView time series: ``folder/name.pvd`` and ``folder/name/name_####.vtp``.
+
+    Returns
+    -------
+    Path of the ``.pvd`` file.
+    """
+    import pyvista as pv
+
+    folder = Path(folder)
+    sub = folder / name
+    sub.mkdir(parents=True, exist_ok=True)
+    T = field.n_frames
+    times = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
+    node = nodal_scalars(field)
+    elem = element_scalars(field)
+    dirs = _directions(field)
+    faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
+    ref = _xyz(field.reference)
+    entries = []
+    for t in range(T):
+        cur = _xyz(field.points[t])
+        mesh = pv.PolyData(np.where(np.isfinite(cur), cur, ref), faces=faces)
+        mesh.point_data["displacement"] = cur - ref
+        for key, values in node.items():
+            mesh.point_data[key] = values[t]
+        mesh.point_data["visible"] = field.visible[t].astype(np.uint8)
+        for key, values in elem.items():
+            mesh.cell_data[key] = values[t]
+        mesh.cell_data["valid"] = field.element_valid[t].astype(np.uint8)
+        for data, pd in ((mesh.point_data, dirs["node"]), (mesh.cell_data, dirs["element"])):
+            data["principal_direction_1"] = _xyz(pd.dir1_ref[t])
+            data["principal_direction_2"] = _xyz(pd.dir2_ref[t])
+            data["principal_direction_1_current"] = _xyz(pd.dir1_cur[t])
+            data["principal_direction_2_current"] = _xyz(pd.dir2_cur[t])
+        fname = f"{name}_{t:04d}.vtp"
+        mesh.save(sub / fname, binary=True)
+        entries.append(f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>')
+    pvd = folder / f"{name}.pvd"
+    pvd.write_text(
+        '<?xml version="1.0"?>\n'
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+        "  <Collection>\n" + "\n".join(entries) + "\n  </Collection>\n</VTKFile>\n"
+    )
+    return pvd

@@ -1,0 +1,118 @@
+"""Figures of strain on surfaces: a component on the deformed mesh, curves over time, violins.
+
+:func:`render_strain` writes an off-screen PyVista rendering (PNG);
+:func:`plot_strain_curves` and :func:`plot_strain_violins` return
+:class:`matplotlib.figure.Figure` objects (no pyplot state).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from surface_strain.field import StrainField, nodal_scalars
+
+__all__ = ["plot_strain_curves", "plot_strain_violins", "render_strain"]
+
+_COMPONENTS = ("Exx", "Eyy", "Exy", "E1", "E2")
+
+
+def render_strain(
+    field: StrainField,
+    path,
+    *,
+    key: str = "E1",
+    frame: int = -1,
+    unit: str = "mm",
+    window_size: tuple[int, int] = (900, 700),
+    clim: tuple[float, float] | None = None,
+) -> None:
+    """Render a nodal strain component on the deformed surface at ``frame`` (PNG).
+
+    The colour range is symmetric about zero unless ``clim`` is given, and
+    the same for every frame when ``clim`` is passed by the caller.
+    """
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    t = field.n_frames - 1 if frame < 0 else frame
+    pts = field.points[t]
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    ref = field.reference if field.reference.shape[1] == 3 else np.column_stack(
+        [field.reference, np.zeros(len(field.reference))]
+    )  # fmt: skip
+    pts = np.where(np.isfinite(pts), pts, ref)
+    values = nodal_scalars(field)[key][t]
+    faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
+    mesh = pv.PolyData(pts, faces=faces)
+    mesh.point_data[key] = values
+    if clim is None:
+        m = float(np.nanmax(np.abs(values))) if np.isfinite(values).any() else 1.0
+        clim = (-m, m) if np.nanmin(values) < 0 else (0.0, m)
+    plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
+    try:
+        plotter.set_background("white")
+        plotter.add_mesh(
+            mesh,
+            scalars=key,
+            cmap="RdBu_r" if clim[0] < 0 else "viridis",
+            clim=clim,
+            nan_color="lightgray",
+            show_edges=True,
+            edge_color="gray",
+            scalar_bar_args={"title": f"{key} (Green-Lagrange)", "color": "black"},
+        )
+        plotter.add_axes(color="black", xlabel=f"X ({unit})", ylabel=f"Y ({unit})",
+                         zlabel=f"Z ({unit})")  # fmt: skip
+        plotter.add_text(f"{key}, frame {t}", font_size=10, color="black")
+        plotter.view_vector((0.3, -0.6, -1.0), viewup=(0.0, -1.0, 0.0))
+        plotter.reset_camera()
+        plotter.screenshot(str(path))
+    finally:
+        plotter.close()
+
+
+def plot_strain_curves(field: StrainField, *, times=None, fps: float | None = None):
+    """Mean nodal strain over time with a band of +/- one spatial SD, per component."""
+    from matplotlib.figure import Figure
+
+    node = nodal_scalars(field)
+    T = field.n_frames
+    x = np.arange(T) if times is None else np.asarray(times, float)
+    fig = Figure(figsize=(7.5, 4.2), dpi=100, layout="constrained")
+    ax = fig.add_subplot()
+    for key in _COMPONENTS:
+        values = node[key]
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(values).any(axis=1)
+            mean = np.where(ok, np.nanmean(np.where(ok[:, None], values, 0.0), axis=1), np.nan)
+            sd = np.where(ok, np.nanstd(np.where(ok[:, None], values, 0.0), axis=1), np.nan)
+        (line,) = ax.plot(x, mean, label=key)
+        ax.fill_between(x, mean - sd, mean + sd, color=line.get_color(), alpha=0.15, lw=0)
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("time (s)" if fps else "frame")
+    ax.set_ylabel("Green-Lagrange strain (mean ± spatial SD)")
+    ax.legend(ncols=5, fontsize=8, loc="upper left")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_strain_violins(field: StrainField, *, frame: int = -1):
+    """Distribution over the nodes of each component at ``frame``."""
+    from matplotlib.figure import Figure
+
+    t = field.n_frames - 1 if frame < 0 else frame
+    node = nodal_scalars(field)
+    data = [node[k][t][np.isfinite(node[k][t])] for k in _COMPONENTS]
+    fig = Figure(figsize=(6.5, 4.0), dpi=100, layout="constrained")
+    ax = fig.add_subplot()
+    keep = [i for i, d in enumerate(data) if d.size > 1]
+    if keep:
+        ax.violinplot([data[i] for i in keep], positions=keep, showmedians=True)
+    ax.set_xticks(range(len(_COMPONENTS)), _COMPONENTS)
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_ylabel("Green-Lagrange strain (nodes)")
+    ax.set_title(f"frame {t}")
+    ax.grid(alpha=0.3, axis="y")
+    return fig
