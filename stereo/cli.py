@@ -127,6 +127,16 @@ def _build_parser() -> argparse.ArgumentParser:
         help="dic subset warp (default quadratic: curved surfaces seen in perspective)",
     )
     p.add_argument("--max-reproj", type=float, default=1.0, help="px; worse points are dropped")
+    p.add_argument(
+        "--strain",
+        action="store_true",
+        help="also compute membrane strain on the 3D tracks into DIR/strain/",
+    )
+    p.add_argument(
+        "--directions",
+        default="xy",
+        help="with --strain: frame of Exx, Eyy, Exy (xy, vectors:..., cylinder:..., sphere:...)",
+    )
     _match_args(p)
     p.add_argument("--out", required=True, help="output folder")
     _common(p)
@@ -269,6 +279,10 @@ def _cmd_reconstruct(args) -> int:
         roi = parse_roi(args.roi) if args.roi else None
         points = make_grid(left.shape, shape=shape, roi=roi)
         point_info = {"grid": list(shape), "roi": list(roi) if roi else None}
+    if args.strain:
+        from surface_strain.cli import parse_directions
+
+        parse_directions(args.directions)  # fail before the work
     say = _say(args)
     options = {}
     if args.tracker == "dic":
@@ -340,6 +354,27 @@ def _cmd_reconstruct(args) -> int:
         with open(tmp / "summary.json", "w", encoding="utf-8") as f:
             json.dump(summary, f, indent=2)
             f.write("\n")
+        if args.strain:
+            from surface_strain.cli import write_strain_folder
+            from surface_strain.mesh import delaunay_triangles, grid_triangles
+
+            say("computing strain")
+            if not args.points:
+                cols, rows = point_info["grid"]
+                triangles, how = grid_triangles(rows, cols), f"grid {cols}x{rows}"
+            else:
+                triangles, how = delaunay_triangles(rec.points[0]), "Delaunay"
+            (tmp / "strain").mkdir()
+            write_strain_folder(
+                tmp / "strain",
+                rec.points,
+                rec.visible,
+                triangles,
+                mesh_method=how,
+                directions=args.directions,
+                unit=calib.unit,
+                source="points3d.csv",
+            )
     if not args.quiet:
         rms = summary["reprojection_rms_px"]
         print(
@@ -361,7 +396,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return args.handler(args)
-    except (InputError, SourceError, OSError) as exc:
+    except (InputError, SourceError, OSError, ValueError) as exc:
+        # ValueError: surface_strain's usage errors (e.g. --directions)
         print(f"stereo {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -134,70 +134,101 @@ def mesh_for(
     return index[tri_ok], "Delaunay in the best-fit plane"
 
 
-def _cmd_compute(args) -> int:
-    from strain2d.atomic import atomic_dir, check_writable
+def write_strain_folder(
+    folder: Path,
+    points: np.ndarray,
+    visible: np.ndarray,
+    triangles: np.ndarray,
+    *,
+    mesh_method: str,
+    directions: str = "xy",
+    unit: str = "mm",
+    fps: float | None = None,
+    figures: bool = True,
+    source: str = "",
+):
+    """Compute strain on 3D tracks and write every result file into ``folder`` (exists).
+
+    Used by ``python -m surface_strain compute`` and ``python -m stereo
+    reconstruct --strain``.  Returns the :class:`StrainField`.
+    """
     from surface_strain import __version__
     from surface_strain.export import write_elements_csv, write_nodes_csv, write_pvd
     from surface_strain.field import compute_strain, nodal_scalars
-    from surface_strain.io import read_points3d
 
-    check_writable(args.out, overwrite=args.overwrite, inputs=[args.points])
-    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
-        raise UsageError(f"--fps must be a positive number, got {args.fps}")
-    points, visible = read_points3d(args.points)
-    summary_in = _stereo_summary(Path(args.points))
-    unit = args.unit or summary_in.get("unit") or "mm"
-    triangles, how = mesh_for(points, visible, args, summary_in)
     try:
         field = compute_strain(
-            points[0], points, triangles, visible=visible, **parse_directions(args.directions)
+            points[0], points, triangles, visible=visible, **parse_directions(directions)
         )
     except ValueError as exc:
         if isinstance(exc, UsageError):
             raise
         raise UsageError(str(exc)) from None
-    times = np.arange(field.n_frames) / args.fps if args.fps else np.arange(field.n_frames)
+    times = np.arange(field.n_frames) / fps if fps else np.arange(field.n_frames, dtype=float)
     node = nodal_scalars(field)
-    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.points]) as tmp:
-        write_nodes_csv(tmp / "strain_nodes.csv", field)
-        write_elements_csv(tmp / "strain_elements.csv", field)
-        write_pvd(tmp, field, name="strain", times=times)
-        if not args.no_figures:
-            from surface_strain.figures import (
-                plot_strain_curves,
-                plot_strain_violins,
-                render_strain,
-            )
+    write_nodes_csv(folder / "strain_nodes.csv", field)
+    write_elements_csv(folder / "strain_elements.csv", field)
+    write_pvd(folder, field, name="strain", times=times)
+    last = field.n_frames - 1
+    if figures:
+        from surface_strain.figures import plot_strain_curves, plot_strain_violins, render_strain
 
-            (tmp / "figures").mkdir()
-            last = field.n_frames - 1
-            for key in ("E1", "Exx", "Eyy"):
-                render_strain(field, tmp / "figures" / f"{key}_frame{last:04d}.png", key=key,
-                              frame=last, unit=unit)  # fmt: skip
-            plot_strain_curves(field, times=times, fps=args.fps).savefig(
-                tmp / "figures" / "strain_over_time.png"
-            )
-            plot_strain_violins(field).savefig(tmp / "figures" / f"violins_frame{last:04d}.png")
-        mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
-                    for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
-        summary = {
-            "software": {"name": "surface_strain", "version": __version__},
-            "created": datetime.now(UTC).isoformat(timespec="seconds"),
-            "input": Path(args.points).name,
-            "unit": unit,
-            "frames": field.n_frames,
-            "points": field.n_points,
-            "mesh": {"method": how, "n_triangles": field.n_triangles},
-            "directions": args.directions,
-            "strain": "Green-Lagrange membrane strain; Exx, Eyy, Exy in the directions' frame",
-            "nodal_mean_per_frame": mean,
-        }
-        with open(tmp / "summary.json", "w", encoding="utf-8") as f:
-            json.dump(summary, f, indent=2, allow_nan=False, default=str)
-            f.write("\n")
+        (folder / "figures").mkdir()
+        for key in ("E1", "Exx", "Eyy"):
+            render_strain(field, folder / "figures" / f"{key}_frame{last:04d}.png", key=key,
+                          frame=last, unit=unit)  # fmt: skip
+        plot_strain_curves(field, times=times, fps=fps).savefig(
+            folder / "figures" / "strain_over_time.png"
+        )
+        plot_strain_violins(field).savefig(folder / "figures" / f"violins_frame{last:04d}.png")
+    mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
+                for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
+    summary = {
+        "software": {"name": "surface_strain", "version": __version__},
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "input": source,
+        "unit": unit,
+        "frames": field.n_frames,
+        "points": field.n_points,
+        "mesh": {"method": mesh_method, "n_triangles": field.n_triangles},
+        "directions": directions,
+        "strain": "Green-Lagrange membrane strain; Exx, Eyy, Exy in the directions' frame",
+        "nodal_mean_per_frame": mean,
+    }
+    with open(folder / "summary.json", "w", encoding="utf-8") as f:
+        json.dump(summary, f, indent=2, allow_nan=False, default=str)
+        f.write("\n")
+    return field
+
+
+def _cmd_compute(args) -> int:
+    from strain2d.atomic import atomic_dir, check_writable
+    from surface_strain.field import nodal_scalars
+    from surface_strain.io import read_points3d
+
+    check_writable(args.out, overwrite=args.overwrite, inputs=[args.points])
+    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
+        raise UsageError(f"--fps must be a positive number, got {args.fps}")
+    parse_directions(args.directions)  # fail before the work
+    points, visible = read_points3d(args.points)
+    summary_in = _stereo_summary(Path(args.points))
+    unit = args.unit or summary_in.get("unit") or "mm"
+    triangles, how = mesh_for(points, visible, args, summary_in)
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.points]) as tmp:
+        field = write_strain_folder(
+            tmp,
+            points,
+            visible,
+            triangles,
+            mesh_method=how,
+            directions=args.directions,
+            unit=unit,
+            fps=args.fps,
+            figures=not args.no_figures,
+            source=Path(args.points).name,
+        )
     if not args.quiet:
-        last = field.n_frames - 1
-        e1 = node["E1"][last]
+        e1 = nodal_scalars(field)["E1"][-1]
         print(
             f"{field.n_points} points, {field.n_triangles} triangles ({how}), "
             f"{field.n_frames} frames; last frame E1 mean {np.nanmean(e1):.4f}; "
