@@ -40,3 +40,5 @@ STEREO_MATCH_PX = 0.05
 # --- surface_strain on curved surfaces (coordinates of order 1) ---
 #: exact kinematics of exact positions: float64 round-off
 ROUNDOFF = 1e-12
+#: membrane strain RMSE of reconstruct --strain against the analytic field (the issue's bar)
+STEREO_STRAIN_RMSE = 0.005

@@ -22,6 +22,7 @@ from tests.tolerances import (
     STEREO_MATCH_PX,
     STEREO_POINT_RMSE_MM,
     STEREO_REPROJ_RMS_PX,
+    STEREO_STRAIN_RMSE,
 )
 
 
@@ -285,3 +286,18 @@ def test_match_takes_any_number_of_points(stretch, tmp_path, n):
     rows = list(csv.DictReader(out.read_text().splitlines()))
     right = np.array([[float(r["x_right"]), float(r["y_right"])] for r in rows])
     assert np.abs(right - truth["right_px"][0][:n]).max() < 0.1
+
+
+def test_reconstruct_with_strain_gives_the_analytic_strain(stretch, tmp_path):
+    folder, truth, points = stretch
+    out = tmp_path / "rec"
+    assert cli("reconstruct", "--calib", folder / "rig.json", "--left", folder / "left",
+               "--right", folder / "right", "--points", points, "--strain",
+               "--out", out, "-q") == 0  # fmt: skip
+    rows = list(csv.DictReader((out / "strain" / "strain_nodes.csv").read_text().splitlines()))
+    T, N = truth["positions"].shape[:2]
+    w = np.linalg.eigvalsh(truth["strain"])  # (T, N, 2), ascending
+    for key, true in (("E1", w[..., 1]), ("E2", w[..., 0])):
+        got = np.array([float(r[key]) for r in rows]).reshape(T, N)
+        assert np.sqrt(np.nanmean((got - true) ** 2)) <= STEREO_STRAIN_RMSE
+    assert (out / "strain" / "strain.pvd").is_file()
