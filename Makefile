@@ -52,8 +52,8 @@ demo: setup
 	    --out $(DEMO)/stereo_calib.json --overwrite
 	$(BIN)/python -m stereo reconstruct --calib $(DEMO)/stereo_calib.json \
 	    --left $(DEMO)/stereo_scene/dome/left --right $(DEMO)/stereo_scene/dome/right \
-	    --grid 7x7 --roi 525,318,664,456 --out $(DEMO)/stereo_dome --overwrite
-	@echo "demo results in $(DEMO)/stereo_calib.json and $(DEMO)/stereo_dome (points3d.csv, figures/)"
+	    --grid 13x13 --roi 525,318,664,456 --strain --out $(DEMO)/stereo_dome --overwrite
+	@echo "demo results in $(DEMO)/stereo_calib.json and $(DEMO)/stereo_dome (points3d.csv, strain/, figures/)"
 
 test: setup
 	$(BIN)/ruff check .

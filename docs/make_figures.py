@@ -127,6 +127,12 @@ def mpm3d_figures() -> None:
         "mpm3d_surface3d.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "surface3d.png",
         "mpm3d_profiles.png": ROOT / "demo_output" / "mpm3d_after" / "figures" / "profiles.png",
         "stereo_views.png": ROOT / "demo_output" / "stereo_dome" / "figures" / "views.png",
+        "strain3d_dome.png": ROOT
+        / "demo_output"
+        / "stereo_dome"
+        / "strain"
+        / "figures"
+        / "E2_frame0010.png",
         "stereo_points3d.png": ROOT / "demo_output" / "stereo_dome" / "figures" / "points3d.png",
         "mpm3d_compare.png": ROOT
         / "demo_output"

@@ -174,7 +174,7 @@ def write_strain_folder(
         from surface_strain.figures import plot_strain_curves, plot_strain_violins, render_strain
 
         (folder / "figures").mkdir()
-        for key in ("E1", "Exx", "Eyy"):
+        for key in ("E1", "E2", "Exx", "Eyy"):
             render_strain(field, folder / "figures" / f"{key}_frame{last:04d}.png", key=key,
                           frame=last, unit=unit)  # fmt: skip
         plot_strain_curves(field, times=times, fps=fps).savefig(

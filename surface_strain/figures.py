@@ -61,6 +61,8 @@ def render_strain(
             nan_color="lightgray",
             show_edges=True,
             edge_color="gray",
+            ambient=0.6,  # colours close to the colour bar, shading still shows the shape
+            diffuse=0.4,
             scalar_bar_args={"title": f"{key} (Green-Lagrange)", "color": "black"},
         )
         plotter.add_axes(color="black", xlabel=f"X ({unit})", ylabel=f"Y ({unit})",
