@@ -79,6 +79,13 @@ def _build_parser() -> argparse.ArgumentParser:
         "default taken from a stereo summary.json beside the points, else Delaunay",
     )
     p.add_argument("--directions", default="xy", help="frame of Exx, Eyy, Exy (default xy)")
+    p.add_argument(
+        "--projection",
+        choices=["plane", "sphere", "cylinder"],
+        default="plane",
+        help="Delaunay meshing of scattered points: in their best-fit plane (default), or "
+        "on the best-fit sphere or cylinder for caps and tubes too curved for one plane",
+    )
     p.add_argument("--fps", type=float, help="frame rate, for times in the ParaView series")
     p.add_argument("--unit", help="unit of X, Y, Z (default: from summary.json, else mm)")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
@@ -129,9 +136,13 @@ def mesh_for(
     ok = visible[0]
     if ok.sum() < 3:
         raise UsageError("fewer than 3 points are visible on the reference frame")
-    tri_ok = delaunay_triangles(ref[ok])
+    projection = getattr(args, "projection", "plane")
+    try:
+        tri_ok = delaunay_triangles(ref[ok], projection=projection)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
     index = np.flatnonzero(ok)
-    return index[tri_ok], "Delaunay in the best-fit plane"
+    return index[tri_ok], f"Delaunay on the best-fit {projection}"
 
 
 def write_strain_folder(

@@ -163,3 +163,25 @@ def test_bad_frame_rate(tmp_path, capsys, fps):
     _write(src, points)
     assert cli("compute", src, "--fps", fps, "--out", tmp_path / "o") == 2
     assert "--fps" in one_line(capsys)
+
+
+def test_scattered_points_on_a_cap_meshed_on_their_sphere(tmp_path):
+    rng = np.random.default_rng(0)
+    n = 200
+    theta = np.arccos(rng.uniform(math.cos(1.3), 1, n))
+    phi = rng.uniform(0, 2 * np.pi, n)
+    ref = (
+        np.column_stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+        * 10
+    )
+    src = tmp_path / "cap.csv"
+    _write(src, np.stack([ref, 1.1 * ref]))  # uniform inflation: E = (1.1^2 - 1) / 2
+    out = tmp_path / "out"
+    assert cli("compute", src, "--projection", "sphere", "--no-figures", "--out", out, "-q") == 0
+    rows = list(csv.DictReader((out / "strain_nodes.csv").read_text().splitlines()))
+    last = [r for r in rows if r["frame"] == "1"]
+    for key in ("E1", "E2"):
+        got = np.array([float(r[key]) for r in last])
+        assert np.nanmax(np.abs(got - 0.105)) < 1e-9
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["mesh"]["method"] == "Delaunay on the best-fit sphere"
