@@ -388,6 +388,9 @@ def _cmd_reconstruct(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
+    from surface_strain.cli import UsageError
+    from surface_strain.io import PointsError
+
     parser = _build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(
@@ -396,8 +399,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     try:
         return args.handler(args)
-    except (InputError, SourceError, OSError, ValueError) as exc:
-        # ValueError: surface_strain's usage errors (e.g. --directions)
+    except (InputError, SourceError, OSError, UsageError, PointsError) as exc:
         print(f"stereo {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

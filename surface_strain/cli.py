@@ -124,11 +124,18 @@ def mesh_for(
         except ValueError:
             raise UsageError(f"--grid must be COLSxROWS, got {args.grid!r}") from None
         grid = (cols, rows)
-    elif isinstance(summary.get("points", {}).get("grid"), list):
-        cols, rows = summary["points"]["grid"]
-        grid = (int(cols), int(rows))
+    else:
+        info = summary.get("points") if isinstance(summary, dict) else None
+        given = info.get("grid") if isinstance(info, dict) else None
+        if isinstance(given, list) and len(given) == 2:
+            try:
+                grid = (int(given[0]), int(given[1]))
+            except (TypeError, ValueError):
+                grid = None
     if grid is not None:
         cols, rows = grid
+        if cols < 2 or rows < 2:
+            raise UsageError(f"a grid needs at least 2 x 2 points, got {cols}x{rows}")
         if cols * rows != n:
             raise UsageError(f"a {cols}x{rows} grid has {cols * rows} points, the file has {n}")
         return grid_triangles(rows, cols), f"grid {cols}x{rows}, alternating diagonals"
@@ -167,15 +174,27 @@ def write_strain_folder(
     from surface_strain.export import write_elements_csv, write_nodes_csv, write_pvd
     from surface_strain.field import compute_strain, nodal_scalars
 
+    # points lost on the reference frame have no reference position: their triangles go,
+    # they keep a placeholder position (tied to no triangle) and stay lost in every frame
+    lost = ~(visible[0] & np.isfinite(points[0]).all(axis=1))
+    triangles = np.asarray(triangles)[~lost[np.asarray(triangles)].any(axis=1)]
+    if len(triangles) == 0:
+        raise UsageError("no triangle has all three points visible on the reference frame")
+    reference = points[0].copy()
+    if lost.any():
+        reference[lost] = reference[~lost].mean(axis=0)
+        visible = visible & ~lost[None, :]
     try:
         field = compute_strain(
-            points[0], points, triangles, visible=visible, **parse_directions(directions)
+            reference, points, triangles, visible=visible, **parse_directions(directions)
         )
     except ValueError as exc:
         if isinstance(exc, UsageError):
             raise
         raise UsageError(str(exc)) from None
     times = np.arange(field.n_frames) / fps if fps else np.arange(field.n_frames, dtype=float)
+    if not np.isfinite(times).all():
+        raise UsageError(f"--fps {fps} gives non-finite times")
     node = nodal_scalars(field)
     write_nodes_csv(folder / "strain_nodes.csv", field)
     write_elements_csv(folder / "strain_elements.csv", field)

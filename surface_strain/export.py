@@ -19,7 +19,10 @@ scalars, the principal directions as unit vectors (``principal_direction_1``
 and ``_2``: material directions in the reference configuration;
 ``..._current``: the same fibres in the current one; NaN where the strain
 is isotropic) and ``visible``; cell data with the element scalars, their
-principal directions and ``valid``.  ParaView opens the ``.pvd`` as a time series.
+principal directions and ``valid``.  Vectors are zero where undefined (a
+lost point's displacement, an isotropic strain's directions): VTK's XML
+readers cannot take NaN vectors; ``visible`` and the NaN scalars say where.
+ParaView opens the ``.pvd`` as a time series.
 """
 
 from __future__ import annotations
@@ -127,7 +130,7 @@ def write_pvd(
     for t in range(T):
         cur = _xyz(field.points[t])
         mesh = pv.PolyData(np.where(np.isfinite(cur), cur, ref), faces=faces)
-        mesh.point_data["displacement"] = cur - ref
+        mesh.point_data["displacement"] = np.nan_to_num(cur - ref)  # lost: 0, see "visible"
         for key, values in node.items():
             mesh.point_data[key] = values[t]
         mesh.point_data["visible"] = field.visible[t].astype(np.uint8)
@@ -135,10 +138,12 @@ def write_pvd(
             mesh.cell_data[key] = values[t]
         mesh.cell_data["valid"] = field.element_valid[t].astype(np.uint8)
         for data, pd in ((mesh.point_data, dirs["node"]), (mesh.cell_data, dirs["element"])):
-            data["principal_direction_1"] = _xyz(pd.dir1_ref[t])
-            data["principal_direction_2"] = _xyz(pd.dir2_ref[t])
-            data["principal_direction_1_current"] = _xyz(pd.dir1_cur[t])
-            data["principal_direction_2_current"] = _xyz(pd.dir2_cur[t])
+            # zero vectors where a direction is undefined: NaN vectors give VTK's XML
+            # readers unreadable ranges
+            data["principal_direction_1"] = np.nan_to_num(_xyz(pd.dir1_ref[t]))
+            data["principal_direction_2"] = np.nan_to_num(_xyz(pd.dir2_ref[t]))
+            data["principal_direction_1_current"] = np.nan_to_num(_xyz(pd.dir1_cur[t]))
+            data["principal_direction_2_current"] = np.nan_to_num(_xyz(pd.dir2_cur[t]))
         fname = f"{name}_{t:04d}.vtp"
         mesh.save(sub / fname, binary=True)
         entries.append(f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>')

@@ -113,6 +113,8 @@ def read_triangles(path: str | os.PathLike, n_points: int) -> np.ndarray:
             if not row or all(not c.strip() for c in row):
                 continue
             try:
+                if len(row) < 3:
+                    raise ValueError
                 out.append([int(c) for c in row[:3]])
             except ValueError:
                 if line == 1:

@@ -72,8 +72,11 @@ def test_exact_strain_on_a_stretched_tilted_sheet_and_the_paraview_files(tmp_pat
     pvd = ET.parse(out / "strain.pvd").getroot()
     files = [ds.get("file") for ds in pvd.iter("DataSet")]
     assert len(files) == T
+    errors = []
     for t, name in enumerate(files):
         reader = vtkXMLPolyDataReader()
+        reader.AddObserver("ErrorEvent", lambda obj, event: errors.append(event))
+        reader.GetExecutive().AddObserver("ErrorEvent", lambda obj, event: errors.append(event))
         reader.SetFileName(str(out / name))
         reader.Update()
         mesh = reader.GetOutput()
@@ -91,6 +94,7 @@ def test_exact_strain_on_a_stretched_tilted_sheet_and_the_paraview_files(tmp_pat
         if t > 0:  # the first principal direction is the sheet's first axis, up to sign
             dirs = vtk_to_numpy(pd.GetArray("principal_direction_1"))
             np.testing.assert_allclose(np.abs(dirs @ e1), 1.0, atol=1e-9)
+    assert errors == []  # VTK's reader took every file without complaint
     summary = json.loads((out / "summary.json").read_text())
     assert summary["mesh"]["n_triangles"] == 32 and summary["frames"] == T
     for name in ("E1_frame0003.png", "strain_over_time.png", "violins_frame0003.png"):
@@ -185,3 +189,32 @@ def test_scattered_points_on_a_cap_meshed_on_their_sphere(tmp_path):
         assert np.nanmax(np.abs(got - 0.105)) < 1e-9
     summary = json.loads((out / "summary.json").read_text())
     assert summary["mesh"]["method"] == "Delaunay on the best-fit sphere"
+
+
+def test_a_point_lost_on_the_reference_frame_is_left_out(tmp_path):
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    visible = np.ones(points.shape[:2], bool)
+    visible[:, 12] = False  # the centre point, lost from the start
+    src = tmp_path / "p.csv"
+    _write(src, points, visible)
+    out = tmp_path / "o"
+    assert cli("compute", src, "--grid", "5x5", "--no-figures", "--out", out, "-q") == 0
+    rows = list(csv.DictReader((out / "strain_nodes.csv").read_text().splitlines()))
+    E1 = np.array([float(r["E1"]) for r in rows]).reshape(3, 25)
+    assert np.isnan(E1[:, 12]).all()
+    assert np.isfinite(np.delete(E1, 12, axis=1)).all()
+
+
+def test_more_bad_inputs(tmp_path, capsys):
+    points, *_ = _tilted_sheet_tracks(frames=2)
+    src = tmp_path / "p.csv"
+    _write(src, points)
+    out = tmp_path / "o"
+    assert cli("compute", src, "--grid", "25x1", "--out", out) == 2
+    assert "at least 2 x 2" in one_line(capsys)
+    tri = tmp_path / "tri.csv"
+    tri.write_text("p0,p1,p2\n0,1\n")
+    assert cli("compute", src, "--triangles", tri, "--out", out) == 2
+    assert "three point indices" in one_line(capsys)
+    (tmp_path / "summary.json").write_text(json.dumps({"points": 25}))  # not a stereo summary
+    assert cli("compute", src, "--no-figures", "--out", out, "-q") == 0
