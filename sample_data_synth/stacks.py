@@ -51,6 +51,11 @@ from typing import Literal
 import numpy as np
 from scipy import fft, ndimage, special
 
+from sample_data_synth._common import non_negative as _non_negative
+from sample_data_synth._common import positive as _positive
+from sample_data_synth._common import spawn as _spawn
+from sample_data_synth._common import version as _version
+
 __all__ = [
     "STACK_CASES",
     "SyntheticStack",
@@ -77,33 +82,6 @@ CONVENTIONS = {
     "orientation": "fold orientation is the direction of the crests, in [0, 180) degrees",
     "fold_height": "crest-to-trough height of a fold, roughness excluded",
 }
-
-
-def _version() -> str:
-    from sample_data_synth import __version__
-
-    return __version__
-
-
-def _spawn(rng: Rng, n: int) -> list[np.random.Generator]:
-    """``n`` independent generators from a seed or a generator."""
-    if isinstance(rng, np.random.Generator):
-        return list(rng.spawn(n))
-    return [np.random.default_rng(s) for s in np.random.SeedSequence(rng).spawn(n)]
-
-
-def _positive(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value}")
-    return value
-
-
-def _non_negative(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name} must be a finite number >= 0, got {value}")
-    return value
 
 
 def _spacing(spacing: Sequence[float], n: int, name: str) -> tuple[float, ...]:

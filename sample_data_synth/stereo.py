@@ -91,6 +91,10 @@ from typing import Literal
 import numpy as np
 from scipy import ndimage
 
+from sample_data_synth._common import non_negative as _non_negative
+from sample_data_synth._common import positive as _positive
+from sample_data_synth._common import spawn as _spawn
+from sample_data_synth._common import version as _version
 from sample_data_synth.deformations import Homogeneous
 from sample_data_synth.render import add_sensor_noise, render_speckle
 from sample_data_synth.speckle import SpecklePattern, speckle_pattern
@@ -146,33 +150,6 @@ _DICTIONARIES = {f"DICT_{b}X{b}_{n}": n for b in (4, 5, 6, 7) for n in (50, 100,
     "DICT_APRILTAG_36h11": 587,
     "DICT_ARUCO_MIP_36h12": 250,
 }
-
-
-def _version() -> str:
-    from sample_data_synth import __version__
-
-    return __version__
-
-
-def _spawn(rng: Rng, n: int) -> list[np.random.Generator]:
-    """``n`` independent generators from a seed or a generator."""
-    if isinstance(rng, np.random.Generator):
-        return list(rng.spawn(n))
-    return [np.random.default_rng(s) for s in np.random.SeedSequence(rng).spawn(n)]
-
-
-def _positive(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value}")
-    return value
-
-
-def _non_negative(value: float, name: str) -> float:
-    value = float(value)
-    if not (math.isfinite(value) and value >= 0):
-        raise ValueError(f"{name} must be a finite number >= 0, got {value}")
-    return value
 
 
 def _check_camera(camera: str) -> None:
