@@ -51,6 +51,7 @@ from typing import Literal
 import numpy as np
 from scipy import fft, ndimage, special
 
+from sample_data_synth._common import Rng
 from sample_data_synth._common import non_negative as _non_negative
 from sample_data_synth._common import positive as _positive
 from sample_data_synth._common import spawn as _spawn
@@ -70,7 +71,6 @@ __all__ = [
 CHANNEL_NAMES: tuple[str, str] = ("collagen", "urothelium")
 
 StackFormat = Literal["imagej", "ome"]
-Rng = int | np.random.Generator | None
 
 CONVENTIONS = {
     "array": "stack is (Z, C, Y, X) uint16; spacing is (dz, dy, dx) in um",

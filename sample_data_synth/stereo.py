@@ -91,6 +91,7 @@ from typing import Literal
 import numpy as np
 from scipy import ndimage
 
+from sample_data_synth._common import Rng
 from sample_data_synth._common import non_negative as _non_negative
 from sample_data_synth._common import positive as _positive
 from sample_data_synth._common import spawn as _spawn
@@ -120,7 +121,6 @@ Camera = Literal["left", "right"]
 SurfaceCase = Literal["stretch", "dome"]
 TextureKind = Literal["speckle", "checker"]
 StrainAxes = Literal["material", "polar"]
-Rng = int | np.random.Generator | None
 
 #: the stereo cases and what they show
 STEREO_CASES: dict[str, str] = {
