@@ -6,7 +6,7 @@ DEMO   := demo_output
 # Debian packages the core needs at run time (VTK's shared libraries).
 SYSTEM_LIBS := libgl1 libxrender1 libx11-6
 
-.PHONY: setup demo test lint bench bench-mpm3d system-deps setup-3d setup-torch clean
+.PHONY: setup demo test lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
 
 system-deps:
 	@missing=""; \
@@ -67,6 +67,10 @@ bench: setup
 	mkdir -p bench/results
 	$(BIN)/python -m strain2d benchmark --sweep grid,subset,noise,contrast,density \
 	    --out bench/results/table1 --overwrite
+
+# The demo's z-stack and stereo results against the synthetic truth (after make demo)
+accuracy: setup
+	$(BIN)/python bench/accuracy_demo.py
 
 # mpm3d analyze against scikit-image's marching cubes on a 240 x 1024 x 1024 stack (~2 min)
 bench-mpm3d: setup
