@@ -14,7 +14,6 @@ import argparse
 import csv
 import glob
 import json
-import logging
 import re
 import sys
 import time
@@ -388,20 +387,8 @@ def _cmd_reconstruct(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
+    from strain2d.errors import run_command
     from surface_strain.cli import UsageError
     from surface_strain.io import PointsError
 
-    parser = _build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="%(levelname)s: %(message)s",
-    )
-    try:
-        return args.handler(args)
-    except (InputError, SourceError, OSError, UsageError, PointsError) as exc:
-        print(f"stereo {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"stereo {args.command}: interrupted; no output written", file=sys.stderr)
-        return 130
+    return run_command("stereo", _build_parser().parse_args(argv), errors=(UsageError, PointsError))

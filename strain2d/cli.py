@@ -402,20 +402,6 @@ def _cmd_benchmark(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    parser = _build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="%(levelname)s: %(message)s",
-    )
-    try:
-        return args.handler(args)
-    except (InputError, SourceError) as exc:
-        print(f"strain2d {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:  # permissions, full disk, paths the checks above did not foresee
-        print(f"strain2d {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"strain2d {args.command}: interrupted; no output written", file=sys.stderr)
-        return 130
+    from strain2d.errors import run_command
+
+    return run_command("strain2d", _build_parser().parse_args(argv))

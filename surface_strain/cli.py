@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
@@ -270,20 +269,9 @@ def _cmd_compute(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from strain2d.errors import InputError, SourceError
+    from strain2d.errors import run_command
     from surface_strain.io import PointsError
 
-    parser = _build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="%(levelname)s: %(message)s",
+    return run_command(
+        "surface_strain", _build_parser().parse_args(argv), errors=(UsageError, PointsError)
     )
-    try:
-        return args.handler(args)
-    except (UsageError, PointsError, InputError, SourceError, OSError) as exc:
-        print(f"surface_strain {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"surface_strain {args.command}: interrupted; no output written", file=sys.stderr)
-        return 130
