@@ -152,6 +152,15 @@ _DICTIONARIES = {f"DICT_{b}X{b}_{n}": n for b in (4, 5, 6, 7) for n in (50, 100,
 }
 
 
+def _check_counts(board, names: tuple[str, ...]) -> None:
+    """Make the named fields of a frozen board integers >= 2, or raise ValueError."""
+    for name in names:
+        value = getattr(board, name)
+        if int(value) != value or value < 2:
+            raise ValueError(f"{name} must be an integer >= 2, got {value!r}")
+        object.__setattr__(board, name, int(value))
+
+
 def _check_camera(camera: str) -> None:
     if camera not in ("left", "right"):
         raise ValueError(f"camera must be 'left' or 'right', got {camera!r}")
@@ -586,11 +595,7 @@ class Checkerboard:
     margin: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("cols", "rows"):
-            value = getattr(self, name)
-            if int(value) != value or value < 2:
-                raise ValueError(f"{name} must be an integer >= 2, got {value!r}")
-            object.__setattr__(self, name, int(value))
+        _check_counts(self, ("cols", "rows"))
         object.__setattr__(self, "square", _positive(self.square, "square"))
         margin = self.square if self.margin is None else _non_negative(self.margin, "margin")
         object.__setattr__(self, "margin", margin)
@@ -664,11 +669,7 @@ class CharucoBoard:
     margin: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("squares_x", "squares_y"):
-            value = getattr(self, name)
-            if int(value) != value or value < 2:
-                raise ValueError(f"{name} must be an integer >= 2, got {value!r}")
-            object.__setattr__(self, name, int(value))
+        _check_counts(self, ("squares_x", "squares_y"))
         object.__setattr__(self, "square", _positive(self.square, "square"))
         object.__setattr__(self, "marker", _positive(self.marker, "marker"))
         if self.marker >= self.square:
