@@ -27,6 +27,16 @@ _TRACKER_FLAGS = {
     "subset": "subset",
     "zncc_min": "zncc_min",
     "shape_function": "shape_function",
+    "cotracker_repo": "repo",
+    "cotracker_checkpoint": "checkpoint",
+    "cotracker_download": "download",
+    "device": "device",
+    "half": "half",
+    "crop": "crop",
+    "crop_margin": "crop_margin",
+    "chunk_frames": "chunk_frames",
+    "chunk_overlap": "chunk_overlap",
+    "query_chunk": "query_chunk",
 }
 
 
@@ -50,7 +60,9 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
 
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--tracker", default="dic", help="tracker name: dic, klt, imported (default dic)"
+        "--tracker",
+        default="dic",
+        help="tracker name: dic, klt, cotracker3, imported (default dic)",
     )
     p.add_argument("--subset", type=int, help="dic: subset side in pixels (default 31)")
     p.add_argument(
@@ -69,6 +81,38 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
         help="klt: forward-backward error in px that marks a point lost (default 1.0)",
     )
     p.add_argument("--tracks-file", help="imported: tracks from another tool (CSV, NPY or NPZ)")
+    g = p.add_argument_group("cotracker3 (needs PyTorch: make setup-torch; see the README)")
+    g.add_argument(
+        "--cotracker-repo", metavar="DIR", help="local clone of facebookresearch/co-tracker"
+    )
+    g.add_argument(
+        "--cotracker-checkpoint", metavar="FILE", help="model weights, e.g. scaled_offline.pth"
+    )
+    g.add_argument(
+        "--cotracker-download",
+        action="store_true",
+        default=None,
+        help="allow torch.hub to download the code and/or weights that are not given",
+    )
+    g.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda when present, else cpu)")
+    g.add_argument("--half", action="store_true", default=None, help="float16 autocast (CUDA only)")
+    g.add_argument(
+        "--no-crop",
+        dest="crop",
+        action="store_false",
+        default=None,
+        help="give the model whole frames instead of the points' region plus a margin",
+    )
+    g.add_argument(
+        "--crop-margin",
+        type=float,
+        help="margin around the points' bounding box, as a fraction of its size (default 0.5)",
+    )
+    g.add_argument("--chunk-frames", type=int, help="frames per model call (default 60)")
+    g.add_argument(
+        "--chunk-overlap", type=int, help="frames shared by consecutive chunks (default 4)"
+    )
+    g.add_argument("--query-chunk", type=int, help="points per model call (default 1024)")
 
 
 def _add_points_args(p: argparse.ArgumentParser) -> None:
@@ -192,7 +236,8 @@ def _reference_points(args, source):
 
 def _inputs(args) -> list[str]:
     """Every file the command reads, so no output may replace one."""
-    extra = [getattr(args, name, None) for name in ("points", "tracks_file")]
+    names = ("points", "tracks_file", "cotracker_checkpoint", "cotracker_repo")
+    extra = [getattr(args, name, None) for name in names]
     return [*args.source, *(e for e in extra if e)]
 
 
