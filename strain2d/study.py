@@ -1,0 +1,516 @@
+"""Studies: many runs (specimens, optionally in groups) combined, with the specimen as the unit.
+
+The source paper compared nodal Exx and Eyy with a paired t-test over the 49
+nodes of each specimen.  Those nodes are not independent samples of a
+population of specimens: the question a study asks ("does this tissue contract
+more along its length than around it?") has the *specimen* as its unit.  This
+module therefore reports, for the two components compared (``a`` and ``b``,
+by default Exx and Eyy at each specimen's contraction endpoint):
+
+* per specimen, the node-level tests of :func:`strain2d.stats.paired_node_tests`
+  (labelled as such);
+* across specimens (all, and per group), the paired t-test and the Wilcoxon
+  signed-rank test on the specimen means, the mean difference with its
+  t interval and Cohen's d_z;
+* a linear mixed-effects model of the nodal differences ``d = a - b`` with a
+  random intercept per specimen (REML, :class:`statsmodels.regression.mixed_linear_model.MixedLM`):
+  ``d ~ 1 + (1 | specimen)``, or ``d ~ 0 + group + (1 | specimen)`` with
+  groups.  Its fixed effects are tested with the Wald z that statsmodels
+  reports and, because a handful of specimens makes z anticonservative, with a
+  t reference on ``n_specimens - n_fixed_effects`` degrees of freedom (the
+  between-within approximation), which is the p-value the summary uses;
+* with exactly two groups, Welch's t-test between the groups' specimen mean
+  differences, and the group contrast of the mixed model;
+* a plain-language summary of what is and is not significant at ``alpha``.
+
+References
+----------
+* N. M. Laird, J. H. Ware, Random-effects models for longitudinal data,
+  Biometrics 38 (1982) 963-974, doi:10.2307/2529876.
+* J. C. Pinheiro, D. M. Bates, Mixed-Effects Models in S and S-PLUS, Springer
+  2000 (between-within degrees of freedom, sec. 2.4.2).
+* S. E. Lazic, The problem of pseudoreplication in neuroscientific studies,
+  BMC Neuroscience 11 (2010) 5, doi:10.1186/1471-2202-11-5.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from strain2d.errors import InputError
+from strain2d.run import COMPONENTS, Run, load_run
+from strain2d.stats import paired_node_tests
+
+__all__ = [
+    "Specimen",
+    "load_specimens",
+    "mixed_model",
+    "plain_summary",
+    "read_manifest",
+    "specimen_tests",
+    "study_statistics",
+]
+
+
+@dataclass(frozen=True)
+class Specimen:
+    """One run of a study.
+
+    Attributes
+    ----------
+    name : str
+    group : str
+        Empty when the study has no groups.
+    run : Run
+    endpoint : int
+        The frame compared (the run's contraction endpoint unless overridden).
+    endpoint_source : str
+    """
+
+    name: str
+    group: str
+    run: Run
+    endpoint: int
+    endpoint_source: str
+
+    def values(self, component: str) -> np.ndarray:
+        """Nodal values of ``component`` on the endpoint frame, ``(N,)``."""
+        return self.run.nodal[component][self.endpoint]
+
+
+def read_manifest(path: str | os.PathLike) -> list[dict]:
+    """Read a study manifest CSV.
+
+    Columns: ``run`` (an ``analyze`` output folder, relative to the manifest's
+    folder or absolute; required), ``specimen`` (default: the folder name),
+    ``group`` (optional), ``endpoint`` (optional frame index overriding the
+    run's contraction endpoint).  Other columns are kept and ignored.
+    """
+    path = Path(path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            rows = list(csv.DictReader(f))
+    except FileNotFoundError:
+        raise InputError(f"manifest {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"manifest {path} cannot be read: {exc}") from None
+    if not rows or "run" not in rows[0]:
+        raise InputError(f"manifest {path} needs a header with a 'run' column and one row per run")
+    entries = []
+    for i, row in enumerate(rows, start=2):
+        run = (row.get("run") or "").strip()
+        if not run:
+            raise InputError(f"manifest {path}, line {i}: the run column is empty")
+        run_path = Path(run) if Path(run).is_absolute() else path.parent / run
+        endpoint = (row.get("endpoint") or "").strip()
+        if endpoint:
+            try:
+                endpoint = int(endpoint)
+            except ValueError:
+                raise InputError(
+                    f"manifest {path}, line {i}: endpoint must be a frame index, got {endpoint!r}"
+                ) from None
+        entries.append(
+            {
+                "run": run_path,
+                "specimen": (row.get("specimen") or "").strip() or run_path.name,
+                "group": (row.get("group") or "").strip(),
+                "endpoint": endpoint if endpoint != "" else None,
+            }
+        )
+    return entries
+
+
+def load_specimens(entries: list[dict]) -> list[Specimen]:
+    """Load every run of a manifest (see :func:`read_manifest`) or of plain folders.
+
+    ``entries`` are dicts with ``run`` and optional ``specimen``, ``group``,
+    ``endpoint``.  Specimen names must be unique.
+    """
+    if not entries:
+        raise InputError("a study needs at least one run folder")
+    specimens = []
+    for e in entries:
+        run = load_run(e["run"])
+        name = e.get("specimen") or Path(e["run"]).name
+        endpoint, source = run.endpoint, run.endpoint_source
+        if e.get("endpoint") is not None:
+            endpoint, source = int(e["endpoint"]), "given in the manifest"
+            if not 0 <= endpoint < run.n_frames:
+                raise InputError(
+                    f"specimen {name}: endpoint {endpoint} is outside frames 0..{run.n_frames - 1}"
+                )
+        specimens.append(Specimen(name, e.get("group") or "", run, endpoint, source))
+    names = [s.name for s in specimens]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"specimen names must be unique; repeated: {', '.join(dup)}")
+    return specimens
+
+
+def _t_interval(d: np.ndarray, confidence: float) -> list[float]:
+    from scipy import stats
+
+    n = d.size
+    if n < 2:
+        return [float("nan"), float("nan")]
+    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * d.std(ddof=1) / math.sqrt(n)
+    return [float(d.mean() - half), float(d.mean() + half)]
+
+
+def specimen_tests(a_means: np.ndarray, b_means: np.ndarray, *, confidence: float = 0.95) -> dict:
+    """Paired tests with the specimen as the unit: one mean of ``a`` and ``b`` per specimen.
+
+    Returns ``n``, ``mean_difference`` (a - b) with its t interval
+    ``mean_difference_ci``, ``t``, ``t_p`` (paired t-test), ``wilcoxon_p``
+    (exact signed-rank test; with fewer than 6 specimens it cannot reach
+    p < 0.05 two-sided) and ``cohens_dz``.  Values that need more specimens
+    are NaN.
+    """
+    from scipy import stats
+
+    a = np.asarray(a_means, np.float64)
+    b = np.asarray(b_means, np.float64)
+    ok = np.isfinite(a) & np.isfinite(b)
+    d = a[ok] - b[ok]
+    n = int(d.size)
+    out = {
+        "n": n,
+        "mean_difference": float(d.mean()) if n else float("nan"),
+        "mean_difference_ci": _t_interval(d, confidence),
+        "confidence": confidence,
+        "t": float("nan"),
+        "t_p": float("nan"),
+        "wilcoxon_p": float("nan"),
+        "cohens_dz": float("nan"),
+        "label": "specimen-level paired tests (one mean per specimen)",
+    }
+    if n >= 2 and d.std(ddof=1) > 0:
+        t = stats.ttest_rel(a[ok], b[ok])
+        out.update(
+            t=float(t.statistic), t_p=float(t.pvalue), cohens_dz=float(d.mean() / d.std(ddof=1))
+        )
+    if n >= 2 and np.any(d != 0):
+        out["wilcoxon_p"] = float(stats.wilcoxon(d[d != 0]).pvalue)
+    return out
+
+
+def mixed_model(
+    d: np.ndarray,
+    specimen: np.ndarray,
+    group: np.ndarray | None = None,
+    *,
+    confidence: float = 0.95,
+) -> dict:
+    """Random-intercept model of nodal differences ``d`` with the specimen as a random effect.
+
+    ``d ~ 1 + (1 | specimen)`` without groups; ``d ~ 0 + group + (1 | specimen)``
+    (one mean difference per group) with them, plus the contrast between the
+    first group and each other group from ``d ~ group + (1 | specimen)``.
+    Fitted by REML.
+
+    Returns
+    -------
+    dict
+        ``effects``: a list of {``term``, ``estimate``, ``se``, ``z_p`` (Wald),
+        ``df``, ``t_p`` (t reference, between-within df), ``ci`` (t interval)};
+        ``contrasts`` likewise (groups only); ``specimen_variance``,
+        ``residual_variance``, ``icc``, ``n_nodes``, ``n_specimens``,
+        ``converged``, ``warnings``, ``formula``.
+    """
+    import pandas as pd
+    import statsmodels.formula.api as smf
+    from scipy import stats
+
+    d = np.asarray(d, np.float64)
+    specimen = np.asarray(specimen).astype(str)
+    ok = np.isfinite(d)
+    # statsmodels flags a random-effect variance under 0.01 as "on the boundary" in
+    # absolute terms; strains are ~0.01, so fit d in units of its own SD and scale back
+    unit = float(np.std(d[ok])) if ok.sum() > 1 else 1.0
+    unit = unit if unit > 0 else 1.0
+    frame = pd.DataFrame({"d": d[ok] / unit, "specimen": specimen[ok]})
+    groups = None
+    if group is not None:
+        frame["group"] = np.asarray(group).astype(str)[ok]
+        groups = list(dict.fromkeys(frame["group"]))
+    n_spec = int(frame["specimen"].nunique())
+    if n_spec < 2:
+        raise InputError(f"a mixed-effects model needs at least 2 specimens, got {n_spec}")
+
+    def fit(formula: str):
+        caught: list[str] = []
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            model = smf.mixedlm(formula, frame, groups=frame["specimen"])
+            result = model.fit(reml=True)
+        for w in record:
+            message = str(w.message).splitlines()[0].rstrip(".")
+            if message not in caught:
+                caught.append(message)
+        return result, caught
+
+    def terms(result, names: list[str], df: int) -> list[dict]:
+        q = stats.t.ppf(0.5 + confidence / 2, df) if df > 0 else float("nan")
+        out = []
+        for name, key in names:
+            est = unit * float(result.fe_params[key])
+            se = unit * float(result.bse_fe[key])
+            z = est / se if se > 0 else float("nan")
+            out.append(
+                {
+                    "term": name,
+                    "estimate": est,
+                    "se": se,
+                    "z_p": float(2 * stats.norm.sf(abs(z))) if math.isfinite(z) else float("nan"),
+                    "df": df,
+                    "t_p": float(2 * stats.t.sf(abs(z), df))
+                    if math.isfinite(z) and df > 0
+                    else float("nan"),
+                    "ci": [est - q * se, est + q * se],
+                }
+            )
+        return out
+
+    if groups is None or len(groups) == 1:
+        formula = "d ~ 1"
+        result, caught = fit(formula)
+        effects = terms(result, [("mean difference", "Intercept")], n_spec - 1)
+        contrasts: list[dict] = []
+    else:
+        formula = "d ~ 0 + C(group)"
+        result, caught = fit(formula)
+        keys = list(result.fe_params.index)
+        # keys follow pandas' category order (sorted): name them from the keys
+        names = [(f"mean difference, {k[len('C(group)[') : -1]}", k) for k in keys]
+        effects = terms(result, names, n_spec - len(groups))
+        base = sorted(groups)[0]
+        contrast_result, caught2 = fit("d ~ C(group)")
+        caught += [c for c in caught2 if c not in caught]
+        keys = [k for k in contrast_result.fe_params.index if k != "Intercept"]
+        names = [(f"{k[len('C(group)[T.') : -1]} - {base}", k) for k in keys]
+        contrasts = terms(contrast_result, names, n_spec - len(groups))
+    tau2 = unit**2 * float(np.asarray(result.cov_re)[0, 0])
+    sigma2 = unit**2 * float(result.scale)
+    return {
+        "formula": formula.replace("C(group)", "group") + " + (1 | specimen)",
+        "method": "REML (statsmodels MixedLM)",
+        "effects": effects,
+        "contrasts": contrasts,
+        "specimen_variance": tau2,
+        "residual_variance": sigma2,
+        "icc": tau2 / (tau2 + sigma2) if tau2 + sigma2 > 0 else float("nan"),
+        "n_nodes": len(frame),
+        "n_specimens": n_spec,
+        "converged": bool(getattr(result, "converged", True)),
+        "warnings": caught,
+        "p_value_used": "t_p: t reference on n_specimens - n_fixed_effects degrees of freedom",
+    }
+
+
+def _finite_mean(v: np.ndarray) -> float:
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else float("nan")
+
+
+def study_statistics(
+    specimens: list[Specimen],
+    *,
+    a: str = "Exx",
+    b: str = "Eyy",
+    alpha: float = 0.05,
+    confidence: float = 0.95,
+    n_boot: int = 2000,
+) -> dict:
+    """All statistics of a study comparing components ``a`` and ``b`` at each endpoint.
+
+    Returns a dict with ``specimens`` (one row per specimen: name, group,
+    endpoint, n_nodes, mean/SD of ``a``, ``b`` and their difference, and the
+    node-level tests), ``specimen_level`` (``all`` and one entry per group,
+    see :func:`specimen_tests`), ``mixed_model`` (see :func:`mixed_model`;
+    ``None`` with fewer than 2 specimens), ``groups_compared`` (two groups
+    only: Welch's t-test on the specimen mean differences) and the settings.
+    """
+    for comp in (a, b):
+        if comp not in COMPONENTS:
+            raise InputError(f"unknown component {comp!r}; choose from {', '.join(COMPONENTS)}")
+    if a == b:
+        raise InputError("compare two different components")
+    if not 0 < alpha < 1:
+        raise InputError(f"alpha must lie between 0 and 1, got {alpha}")
+    rows = []
+    long_d, long_s, long_g = [], [], []
+    for s in specimens:
+        va, vb = s.values(a), s.values(b)
+        ok = np.isfinite(va) & np.isfinite(vb)
+        pos = s.run.positions[s.endpoint]
+        row = {
+            "specimen": s.name,
+            "group": s.group,
+            "run": str(s.run.path),
+            "endpoint": s.endpoint,
+            "endpoint_source": s.endpoint_source,
+            "endpoint_time": float(s.run.times[s.endpoint]),
+            "time_unit": s.run.time_unit,
+            "n_nodes": int(ok.sum()),
+            f"mean_{a}": _finite_mean(va[ok]),
+            f"sd_{a}": float(np.std(va[ok], ddof=1)) if ok.sum() > 1 else float("nan"),
+            f"mean_{b}": _finite_mean(vb[ok]),
+            f"sd_{b}": float(np.std(vb[ok], ddof=1)) if ok.sum() > 1 else float("nan"),
+        }
+        row["mean_difference"] = row[f"mean_{a}"] - row[f"mean_{b}"]
+        try:
+            node = paired_node_tests(va, vb, positions=pos, n_boot=n_boot, confidence=confidence)
+        except InputError as exc:
+            node = {"error": str(exc)}
+        node["label"] = "node-level paired tests (nodes of one specimen)"
+        row["node_level"] = node
+        rows.append(row)
+        long_d.append(va[ok] - vb[ok])
+        long_s += [s.name] * int(ok.sum())
+        long_g += [s.group] * int(ok.sum())
+    groups = list(dict.fromkeys(s.group for s in specimens))
+    has_groups = any(groups)
+    if has_groups and not all(groups):
+        raise InputError("give every specimen a group, or none")
+
+    def level(sel: list[dict]) -> dict:
+        return specimen_tests(
+            np.array([r[f"mean_{a}"] for r in sel]),
+            np.array([r[f"mean_{b}"] for r in sel]),
+            confidence=confidence,
+        )
+
+    specimen_level = {"all": level(rows)}
+    if has_groups:
+        for g in groups:
+            specimen_level[g] = level([r for r in rows if r["group"] == g])
+    model = None
+    if len(specimens) >= 2:
+        d = np.concatenate(long_d)
+        model = mixed_model(
+            d, np.array(long_s), np.array(long_g) if has_groups else None, confidence=confidence
+        )
+    compared = None
+    if has_groups and len(groups) == 2:
+        from scipy import stats
+
+        g0, g1 = sorted(groups)
+        d0 = np.array([r["mean_difference"] for r in rows if r["group"] == g0])
+        d1 = np.array([r["mean_difference"] for r in rows if r["group"] == g1])
+        compared = {"groups": [g0, g1], "difference": float(d1.mean() - d0.mean())}
+        if d0.size >= 2 and d1.size >= 2:
+            w = stats.ttest_ind(d1, d0, equal_var=False)
+            compared.update(welch_t=float(w.statistic), welch_p=float(w.pvalue))
+        else:
+            compared.update(welch_t=float("nan"), welch_p=float("nan"))
+        compared["label"] = (
+            f"Welch's t-test between the groups' specimen mean differences ({a} - {b})"
+        )
+    return {
+        "components": [a, b],
+        "frame": "each specimen's contraction endpoint",
+        "alpha": alpha,
+        "confidence": confidence,
+        "specimens": rows,
+        "groups": groups if has_groups else [],
+        "specimen_level": specimen_level,
+        "mixed_model": model,
+        "groups_compared": compared,
+    }
+
+
+def _p(p: float) -> str:
+    if not math.isfinite(p):
+        return "p not available"
+    return "p < 0.001" if p < 0.001 else f"p = {p:.3f}"
+
+
+def _verdict(p: float, alpha: float) -> str:
+    if not math.isfinite(p):
+        return "cannot be tested"
+    return "significant" if p < alpha else "not significant"
+
+
+def plain_summary(stats: dict) -> list[str]:
+    """Sentences saying what is and is not significant, for a report or a terminal."""
+    a, b = stats["components"]
+    alpha = stats["alpha"]
+    pct = round(100 * stats["confidence"])
+    lines = []
+    levels = stats["specimen_level"]
+    model = stats["mixed_model"]
+    effects = {}
+    if model:
+        for e in model["effects"]:
+            effects[e["term"].removeprefix("mean difference").removeprefix(", ") or "all"] = e
+    keys = stats["groups"] or ["all"]
+    for key in keys:
+        t = levels[key]
+        who = f"group {key}" if stats["groups"] else "all specimens"
+        n = t["n"]
+        head = f"In {who} ({n} specimen{'s' if n != 1 else ''})"
+        if n < 2:
+            lines.append(
+                f"{head}, {a} - {b} at the contraction endpoint cannot be tested across "
+                "specimens: at least 2 specimens are needed."
+            )
+            continue
+        lo, hi = t["mean_difference_ci"]
+        diff = t["mean_difference"]
+        sentence = (
+            f"{head}, {a} - {b} at the contraction endpoint averaged {diff:+.4f} "
+            f"({pct}% CI {lo:+.4f} to {hi:+.4f}); the paired t-test on specimen means gives "
+            f"{_p(t['t_p'])}: {_verdict(t['t_p'], alpha)} at alpha = {alpha:g}"
+        )
+        if math.isfinite(t["t_p"]) and t["t_p"] < alpha:
+            which = a if diff < 0 else b
+            sentence += f" ({which} is the more negative, i.e. the stronger shortening)"
+        sentence += "."
+        e = effects.get(key)
+        if e is not None:
+            agree = _verdict(e["t_p"], alpha)
+            sentence += (
+                f" The mixed-effects model (specimen as random effect) estimates "
+                f"{e['estimate']:+.4f}, {_p(e['t_p'])} ({agree})."
+            )
+            if agree != _verdict(t["t_p"], alpha):
+                sentence += (
+                    " The two tests disagree (the model pools the between-specimen variance "
+                    "over all groups); with this few specimens treat the result as inconclusive."
+                )
+        if math.isfinite(t["t_p"]) and t["t_p"] >= alpha:
+            sentence += (
+                " Not significant does not mean equal: the interval shows the differences "
+                "the data still allow."
+            )
+        if n < 6:
+            sentence += f" With {n} specimens the Wilcoxon signed-rank test cannot reach p < 0.05."
+        lines.append(sentence)
+    comp = stats["groups_compared"]
+    if comp is not None:
+        g0, g1 = comp["groups"]
+        lines.append(
+            f"Between groups, the mean {a} - {b} of {g1} differs from that of {g0} by "
+            f"{comp['difference']:+.4f}; Welch's t-test on specimen means gives "
+            f"{_p(comp['welch_p'])}: {_verdict(comp['welch_p'], alpha)}."
+        )
+    node = [r["node_level"] for r in stats["specimens"] if "t_p" in r["node_level"]]
+    if node:
+        k = sum(1 for r in node if math.isfinite(r["t_p"]) and r["t_p"] < alpha)
+        lines.append(
+            f"Node-level paired t-tests (the source paper's test) are significant in {k} of "
+            f"{len(node)} specimens. They treat the nodes of one specimen as independent "
+            "samples and describe that specimen's field, not the population; use the "
+            "specimen-level results above for conclusions about the tissue."
+        )
+    if model and model["warnings"]:
+        lines.append("The mixed-model fit reported: " + "; ".join(model["warnings"]) + ".")
+    return lines

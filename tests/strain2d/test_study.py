@@ -1,0 +1,258 @@
+"""Run folders read back, and study statistics against known specimen-level effects."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from strain2d.errors import InputError
+from strain2d.export import write_json, write_strain_nodes_csv
+from strain2d.grid import make_grid
+from strain2d.run import load_run
+from strain2d.study import (
+    load_specimens,
+    mixed_model,
+    plain_summary,
+    read_manifest,
+    specimen_tests,
+    study_statistics,
+)
+from surface_strain import compute_strain, grid_triangles, nodal_scalars
+
+
+def _field(lx: float, ly: float, *, rng, n_frames: int = 12, endpoint: int = 8, noise=0.05):
+    """A 7x7 grid contracting by (lx, ly) until ``endpoint``, with a smooth bump and noise."""
+    ref = make_grid((400, 400), shape=(7, 7), roi=(100, 100, 300, 300))
+    c = np.array([200.0, 200.0])
+    phase = rng.uniform(0, 2 * np.pi)
+    positions = []
+    for k in range(n_frames):
+        s = min(k / endpoint, 1.0)
+        A = np.diag([1 + s * (lx - 1), 1 + s * (ly - 1)])
+        x = c + (ref - c) @ A.T
+        # a smooth heterogeneity: nodal strains vary over the field as in tissue
+        x[:, 0] += s * 3.0 * np.sin((ref[:, 1] - 100) / 60 + phase)
+        x = x + (rng.normal(0, noise, x.shape) if k else 0)
+        positions.append(x)
+    positions = np.array(positions)
+    return compute_strain(ref, positions, grid_triangles(7, 7))
+
+
+def _write_run(folder, field, *, endpoint: int | None = None, fps=None) -> None:
+    folder.mkdir(parents=True)
+    write_strain_nodes_csv(folder / "strain_nodes.csv", field)
+    summary = {
+        "software": {"name": "strain2d", "version": "test"},
+        "source": {"frames_used": field.n_frames},
+        "time_axis": {"fps": fps},
+    }
+    if endpoint is not None:
+        summary["contraction_endpoint"] = {"frame": endpoint, "source": "detected"}
+    write_json(folder / "summary.json", summary)
+
+
+@pytest.fixture(scope="module")
+def study_dir(tmp_path_factory):
+    """Two groups of 5 specimens: Exx shortens 0.08 more than Eyy in one, equally in the other."""
+    root = tmp_path_factory.mktemp("study")
+    rng = np.random.default_rng(7)
+    rows = ["run,specimen,group"]
+    truth = {}
+    for group, (mx, my) in {"anisotropic": (0.80, 0.88), "isotropic": (0.84, 0.84)}.items():
+        for i in range(5):
+            lx, ly = mx + rng.normal(0, 0.012), my + rng.normal(0, 0.012)
+            name = f"{group[:3]}{i}"
+            _write_run(root / "runs" / name, _field(lx, ly, rng=rng), endpoint=8)
+            rows.append(f"runs/{name},{name},{group}")
+            truth[name] = (0.5 * (lx**2 - 1), 0.5 * (ly**2 - 1))
+    (root / "manifest.csv").write_text("\n".join(rows) + "\n")
+    return root, truth
+
+
+def test_load_run_reads_back_the_nodal_field(tmp_path):
+    field = _field(0.8, 0.9, rng=np.random.default_rng(0))
+    _write_run(tmp_path / "r", field, endpoint=8, fps=5.0)
+    run = load_run(tmp_path / "r")
+    assert run.n_frames == field.n_frames and run.n_points == 49
+    assert run.endpoint == 8 and run.endpoint_source == "detected"
+    np.testing.assert_allclose(run.times, np.arange(field.n_frames) / 5.0)
+    assert run.time_unit == "s"
+    ref = nodal_scalars(field)
+    for key in ("Exx", "Eyy", "E1", "J"):
+        np.testing.assert_allclose(run.nodal[key], ref[key], rtol=1e-7, atol=1e-10)
+    np.testing.assert_allclose(run.positions, field.points, atol=1e-6)
+
+
+def test_load_run_without_endpoint_uses_the_last_frame(tmp_path):
+    _write_run(tmp_path / "r", _field(0.8, 0.9, rng=np.random.default_rng(0)))
+    run = load_run(tmp_path / "r")
+    assert run.endpoint == run.n_frames - 1 and run.endpoint_source == "last frame"
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (lambda d: (d / "summary.json").unlink(), "summary.json is missing"),
+        (lambda d: (d / "strain_nodes.csv").unlink(), "strain_nodes.csv is missing"),
+        (lambda d: (d / "summary.json").write_text("{not json"), "cannot be read"),
+        (lambda d: (d / "summary.json").write_text("[1, 2]"), "not a strain2d summary"),
+        (lambda d: (d / "strain_nodes.csv").write_text(""), "is empty"),
+        (lambda d: (d / "strain_nodes.csv").write_text("a,b\n1,2\n"), "lacks the columns"),
+        (
+            lambda d: (d / "strain_nodes.csv").write_text(
+                "\n".join((d / "strain_nodes.csv").read_text().splitlines()[:-7]) + "\n"
+            ),
+            "incomplete",
+        ),
+        (
+            lambda d: (d / "strain_nodes.csv").write_text(
+                (d / "strain_nodes.csv").read_text().replace("\n3,", "\n3,x", 1)
+            ),
+            "malformed row",
+        ),
+        (lambda d: (d / "strain_nodes.csv").write_bytes(b"\xff\xfe\x00garbage"), "not a text"),
+        (
+            lambda d: (d / "summary.json").write_text(
+                json.dumps({"software": {}, "contraction_endpoint": {"frame": 99}})
+            ),
+            "contraction_endpoint.frame",
+        ),
+        (
+            lambda d: (d / "summary.json").write_text(
+                json.dumps({"software": {}, "source": {"frames_used": 3}})
+            ),
+            "says 3 frames",
+        ),
+    ],
+)
+def test_corrupt_run_folders_give_one_clear_error(tmp_path, damage, message):
+    _write_run(tmp_path / "r", _field(0.8, 0.9, rng=np.random.default_rng(0)), endpoint=8)
+    damage(tmp_path / "r")
+    with pytest.raises(InputError, match=message):
+        load_run(tmp_path / "r")
+
+
+def test_missing_run_folder(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        load_run(tmp_path / "nope")
+
+
+def test_manifest_paths_groups_and_endpoint_override(study_dir, tmp_path):
+    root, _ = study_dir
+    entries = read_manifest(root / "manifest.csv")
+    assert len(entries) == 10
+    assert entries[0]["run"] == root / "runs" / "ani0"
+    assert {e["group"] for e in entries} == {"anisotropic", "isotropic"}
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"run,endpoint\n{root / 'runs' / 'ani0'},5\n")
+    (spec,) = load_specimens(read_manifest(manifest))
+    assert spec.name == "ani0" and spec.endpoint == 5
+    assert spec.endpoint_source == "given in the manifest"
+    manifest.write_text(f"run,endpoint\n{root / 'runs' / 'ani0'},50\n")
+    with pytest.raises(InputError, match="outside frames"):
+        load_specimens(read_manifest(manifest))
+    manifest.write_text(f"run,endpoint\n{root / 'runs' / 'ani0'},five\n")
+    with pytest.raises(InputError, match="frame index"):
+        read_manifest(manifest)
+    manifest.write_text("specimen\nA\n")
+    with pytest.raises(InputError, match="'run' column"):
+        read_manifest(manifest)
+    manifest.write_text(f"run,specimen\n{root / 'runs' / 'ani0'},A\n{root / 'runs' / 'ani1'},A\n")
+    with pytest.raises(InputError, match="unique"):
+        load_specimens(read_manifest(manifest))
+
+
+def test_study_finds_the_effect_only_where_it_exists(study_dir):
+    root, truth = study_dir
+    specimens = load_specimens(read_manifest(root / "manifest.csv"))
+    stats = study_statistics(specimens, n_boot=200)
+    # the specimen means are the known strains (the bump and the noise average out)
+    for row in stats["specimens"]:
+        exx, eyy = truth[row["specimen"]]
+        assert abs(row["mean_Exx"] - exx) < 0.004 and abs(row["mean_Eyy"] - eyy) < 0.004
+    aniso, iso = stats["specimen_level"]["anisotropic"], stats["specimen_level"]["isotropic"]
+    assert aniso["n"] == iso["n"] == 5
+    expected = 0.5 * (0.80**2 - 0.88**2)  # -0.0672
+    assert aniso["t_p"] < 0.001
+    assert aniso["mean_difference_ci"][0] < expected < aniso["mean_difference_ci"][1]
+    assert iso["t_p"] > 0.05
+    assert iso["mean_difference_ci"][0] < 0 < iso["mean_difference_ci"][1]
+    effects = {e["term"]: e for e in stats["mixed_model"]["effects"]}
+    assert effects["mean difference, anisotropic"]["t_p"] < 0.001
+    assert effects["mean difference, isotropic"]["t_p"] > 0.05
+    assert abs(effects["mean difference, anisotropic"]["estimate"] - expected) < 0.01
+    (contrast,) = stats["mixed_model"]["contrasts"]
+    assert contrast["term"] == "isotropic - anisotropic" and contrast["t_p"] < 0.001
+    assert stats["groups_compared"]["welch_p"] < 0.001
+    assert stats["mixed_model"]["warnings"] == []
+    text = " ".join(plain_summary(stats))
+    assert "group anisotropic (5 specimens)" in text
+    assert "p < 0.001: significant" in text and "not significant" in text
+    assert "Exx is the more negative" in text
+    assert "node-level" in text.lower()
+
+
+def test_node_level_tests_overstate_the_evidence(study_dir):
+    """Within an isotropic specimen the node-level test can still come out 'significant';
+    the specimen-level test is what decides, and the output says so."""
+    root, _ = study_dir
+    stats = study_statistics(load_specimens(read_manifest(root / "manifest.csv")), n_boot=200)
+    for row in stats["specimens"]:
+        node = row["node_level"]
+        assert node["n"] == 49 and node["label"].startswith("node-level")
+        assert "not" in node["note"]  # "...which they are not"
+    # each isotropic specimen has its own small lx - ly; over 49 nodes that looks "significant"
+    iso_nodes = [r["node_level"]["t_p"] for r in stats["specimens"] if r["group"] == "isotropic"]
+    assert sum(p < 0.05 for p in iso_nodes) >= 3
+    assert stats["specimen_level"]["isotropic"]["t_p"] > 0.05
+
+
+def test_specimen_tests_against_scipy():
+    from scipy import stats
+
+    a = np.array([-0.20, -0.18, -0.22, -0.19, -0.21, -0.17])
+    b = np.array([-0.10, -0.11, -0.09, -0.12, -0.10, -0.08])
+    out = specimen_tests(a, b)
+    t = stats.ttest_rel(a, b)
+    assert out["t_p"] == pytest.approx(t.pvalue) and out["t"] == pytest.approx(t.statistic)
+    assert out["wilcoxon_p"] == pytest.approx(2 / 64)  # all 6 differences negative
+    lo, hi = out["mean_difference_ci"]
+    assert lo < (a - b).mean() < hi
+    one = specimen_tests(a[:1], b[:1])
+    assert one["n"] == 1 and math.isnan(one["t_p"]) and math.isnan(one["mean_difference_ci"][0])
+
+
+def test_mixed_model_recovers_known_variances():
+    """d = mu + u_specimen + e with known mu, tau and sigma."""
+    rng = np.random.default_rng(3)
+    n_spec, n_node = 30, 49
+    u = rng.normal(0, 0.02, n_spec)
+    d = -0.05 + np.repeat(u, n_node) + rng.normal(0, 0.01, n_spec * n_node)
+    spec = np.repeat([f"s{i}" for i in range(n_spec)], n_node)
+    out = mixed_model(d, spec)
+    (e,) = out["effects"]
+    assert e["ci"][0] < -0.05 < e["ci"][1] and e["df"] == n_spec - 1
+    assert out["specimen_variance"] == pytest.approx(0.02**2, rel=0.5)
+    assert out["residual_variance"] == pytest.approx(0.01**2, rel=0.1)
+    assert out["converged"] and 0.6 < out["icc"] < 0.95
+    # the fixed effect's SE follows the specimen count, not the node count
+    means = d.reshape(n_spec, n_node).mean(axis=1)
+    assert e["se"] == pytest.approx(means.std(ddof=1) / np.sqrt(n_spec), rel=0.05)
+    with pytest.raises(InputError, match="at least 2 specimens"):
+        mixed_model(d[:49], spec[:49])
+
+
+def test_study_arguments_are_checked(study_dir):
+    root, _ = study_dir
+    specimens = load_specimens(read_manifest(root / "manifest.csv"))
+    with pytest.raises(InputError, match="unknown component"):
+        study_statistics(specimens, a="Ezz")
+    with pytest.raises(InputError, match="different components"):
+        study_statistics(specimens, a="Exx", b="Exx")
+    with pytest.raises(InputError, match="alpha"):
+        study_statistics(specimens, alpha=1.5)
+    with pytest.raises(InputError, match="at least one run"):
+        load_specimens([])
