@@ -32,12 +32,15 @@ from pathlib import Path
 import numpy as np
 
 from sample_data_synth.deformations import (
+    Contraction,
     Field,
     Homogeneous,
+    RampHold,
     deformation_from_dict,
     equibiaxial,
     rotation,
     simple_shear,
+    time_profile_from_dict,
 )
 from sample_data_synth.render import add_sensor_noise, render_image, render_speckle
 from sample_data_synth.speckle import speckle_pattern
@@ -137,7 +140,7 @@ class GroundTruth:
     Attributes
     ----------
     case : str
-    deformation : Homogeneous or Field
+    deformation : Homogeneous, Field or Contraction
         Positions, gradient and strain at any reference point and time.
     n_frames : int
     image_size : (H, W)
@@ -145,17 +148,31 @@ class GroundTruth:
         The case's grid region in pixels.
     params : dict
         Rendering parameters (pattern, noise, seed).
+    time_profile : RampHold or None
+        How frames map to the deformation's time ``t``; None (the benchmark
+        cases) is the linear ramp ``t = k / (n_frames - 1)``.
     """
 
     case: str
-    deformation: Homogeneous | Field
+    deformation: Homogeneous | Field | Contraction
     n_frames: int
     image_size: tuple[int, int]
     roi: tuple[float, float, float, float]
     params: dict = field(default_factory=dict)
+    time_profile: RampHold | None = None
+
+    def __post_init__(self) -> None:
+        if self.time_profile is not None and self.time_profile.endpoint > self.n_frames - 1:
+            raise ValueError(
+                f"the time profile's endpoint {self.time_profile.endpoint} is past the last "
+                f"frame {self.n_frames - 1}"
+            )
 
     def time(self, frame: int) -> float:
-        """Normalized time of a frame (0 on the first, 1 on the last)."""
+        """Normalized time of a frame: 0 on the first, 1 on the last (linear ramp) or
+        from the endpoint on (``time_profile``)."""
+        if self.time_profile is not None:
+            return self.time_profile(frame)
         return frame / (self.n_frames - 1)
 
     def positions(self, points: np.ndarray, frame: int | None = None) -> np.ndarray:
@@ -182,9 +199,13 @@ class GroundTruth:
     def to_dict(self) -> dict:
         # at the deformation's centre (the strain is uniform for the paper's cases)
         final_E = self.strain(self.deformation.center[None], self.n_frames - 1)[0]
-        return {
+        if self.case in CASES:
+            description = CASES[self.case].description
+        else:
+            description = self.params.get("description", "")
+        out = {
             "case": self.case,
-            "description": CASES[self.case].description if self.case in CASES else "",
+            "description": description,
             "deformation": self.deformation.to_dict(),
             "n_frames": self.n_frames,
             "image_size": list(self.image_size),
@@ -195,6 +216,10 @@ class GroundTruth:
             "params": self.params,
             "software": {"sample_data_synth": _version()},
         }
+        if self.time_profile is not None:
+            out["time"] = self.time_profile.describe()
+            out["time_profile"] = self.time_profile.to_dict()
+        return out
 
     def save(self, path: str | os.PathLike) -> None:
         with open(path, "w") as f:
@@ -212,6 +237,7 @@ def load_ground_truth(path: str | os.PathLike) -> GroundTruth:
         image_size=tuple(d["image_size"]),
         roi=tuple(d["roi"]),
         params=d.get("params", {}),
+        time_profile=time_profile_from_dict(d["time_profile"]) if "time_profile" in d else None,
     )
 
 

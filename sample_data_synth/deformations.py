@@ -5,6 +5,11 @@ to current coordinates ``x`` at a normalized time ``t`` in [0, 1]; ``t = 0`` is
 the identity.  Every class offers ``forward``, ``inverse`` and ``gradient`` and
 serializes to a plain dict so ground truth can be stored beside a video and
 rebuilt later with :func:`deformation_from_dict`.
+
+How frames map to ``t`` is a separate, optional time profile: by default frame
+``k`` of ``T`` has ``t = k / (T - 1)``; :class:`RampHold` instead ramps ``t``
+from 0 to 1 up to a chosen frame and holds it there (a contraction that
+stops), see :func:`time_profile_from_dict`.
 """
 
 from __future__ import annotations
@@ -12,13 +17,16 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "Contraction",
     "Field",
     "Homogeneous",
+    "RampHold",
     "deformation_from_dict",
     "equibiaxial",
     "green_lagrange",
     "rotation",
     "simple_shear",
+    "time_profile_from_dict",
 ]
 
 
@@ -198,13 +206,200 @@ class Field:
         return f"Field({self.kind}, center={tuple(self.center)}, {args})"
 
 
-def deformation_from_dict(d: dict) -> Homogeneous | Field:
+class Contraction:
+    """Anisotropic contraction about a centre with a superposed smooth heterogeneity.
+
+    ``x = c + A(t) (X - c) + t sum_k u_k(X)`` with
+    ``A(t) = diag(1 + t (lx - 1), 1 + t (ly - 1))`` and ``u_k`` the
+    displacement fields of :class:`Field` objects at t = 1.  ``lx`` and
+    ``ly`` are the homogeneous stretches along x (longitudinal) and y
+    (circumferential): ``lx = 0.8`` is 20 % shortening along x.  The
+    deformation gradient is ``F = A(t) + t sum_k grad u_k(X)``, so the
+    Green-Lagrange strain of the homogeneous part alone is
+    ``Exx = (lx^2 - 1) / 2``, ``Eyy = (ly^2 - 1) / 2``, ``Exy = 0``.
+
+    Parameters
+    ----------
+    center : (cx, cy)
+        Fixed point of the homogeneous part, in pixels.
+    lx, ly : float, keyword-only
+        Final stretches (> 0).
+    fields : sequence of Field, keyword-only
+        Heterogeneity superposed on the homogeneous part (default none).
+
+    Examples
+    --------
+    >>> d = Contraction((50.0, 50.0), lx=0.8, ly=0.9)
+    >>> d.forward(np.array([60.0, 60.0]), 1.0).tolist()
+    [58.0, 59.0]
+    >>> round(float(d.strain(np.array([10.0, 20.0]), 1.0)[0, 0]), 6)
+    -0.18
+    """
+
+    def __init__(
+        self,
+        center: tuple[float, float],
+        *,
+        lx: float,
+        ly: float,
+        fields: tuple[Field, ...] | list[Field] = (),
+    ) -> None:
+        lx, ly = float(lx), float(ly)
+        for name, value in (("lx", lx), ("ly", ly)):
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a finite stretch > 0, got {value}")
+        fields = tuple(fields)
+        if not all(isinstance(f, Field) for f in fields):
+            raise ValueError("fields must be Field objects")
+        self.center = np.asarray(center, dtype=float)
+        if self.center.shape != (2,):
+            raise ValueError(f"center must be (cx, cy), got {center!r}")
+        self.lx, self.ly = lx, ly
+        self.fields = fields
+
+    def matrix(self, t: float) -> np.ndarray:
+        """Homogeneous part ``A(t)``, shape (2, 2)."""
+        return np.diag([1 + t * (self.lx - 1), 1 + t * (self.ly - 1)])
+
+    def displacement(self, X: np.ndarray) -> np.ndarray:
+        """Heterogeneous displacement ``sum_k u_k(X)`` at t = 1, shape ``(..., 2)``."""
+        X = np.asarray(X, dtype=float)
+        u = np.zeros(X.shape)
+        for f in self.fields:
+            u += f.displacement(X)
+        return u
+
+    def forward(self, X: np.ndarray, t: float) -> np.ndarray:
+        """Current positions ``(..., 2)`` of reference points ``X`` ``(..., 2)``."""
+        X = np.asarray(X, dtype=float)
+        return self.center + (X - self.center) @ self.matrix(t).T + t * self.displacement(X)
+
+    def inverse(self, x: np.ndarray, t: float) -> np.ndarray:
+        """Reference positions by Newton's method from the homogeneous inverse (to 1e-10 px).
+
+        Raises
+        ------
+        ValueError
+            If Newton's method does not converge (the map folds over itself:
+            too strong a heterogeneity).
+        """
+        x = np.asarray(x, dtype=float)
+        X = self.center + (x - self.center) @ np.linalg.inv(self.matrix(t)).T
+        if not self.fields:
+            return X
+        for _ in range(50):
+            residual = self.forward(X, t) - x
+            if np.abs(residual).max(initial=0.0) < 1e-10:
+                return X
+            X = X - np.linalg.solve(self.gradient(X, t), residual[..., None])[..., 0]
+        raise ValueError("Contraction.inverse did not converge; is det F > 0 everywhere?")
+
+    def gradient(self, X: np.ndarray, t: float) -> np.ndarray:
+        """Deformation gradient ``F`` at ``X``, shape ``(..., 2, 2)``."""
+        X = np.asarray(X, dtype=float)
+        F = np.broadcast_to(self.matrix(t), (*X.shape[:-1], 2, 2)).copy()
+        for f in self.fields:
+            F += t * f.displacement_gradient(X)
+        return F
+
+    def strain(self, X: np.ndarray, t: float) -> np.ndarray:
+        """Green-Lagrange strain at ``X``, shape ``(..., 2, 2)``."""
+        return green_lagrange(self.gradient(X, t))
+
+    def to_dict(self) -> dict:
+        return {
+            "type": "contraction",
+            "center": self.center.tolist(),
+            "lx": self.lx,
+            "ly": self.ly,
+            "fields": [f.to_dict() for f in self.fields],
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"Contraction(center={tuple(self.center.tolist())}, lx={self.lx:g}, ly={self.ly:g}, "
+            f"fields={list(self.fields)})"
+        )
+
+
+def deformation_from_dict(d: dict) -> Homogeneous | Field | Contraction:
     """Rebuild a deformation from its ``to_dict()`` output."""
     d = dict(d)
     kind_type = d.pop("type", None)
+    if kind_type == "contraction":
+        fields = [deformation_from_dict(f) for f in d.get("fields", [])]
+        return Contraction(tuple(d["center"]), lx=d["lx"], ly=d["ly"], fields=fields)
     if kind_type not in ("homogeneous", "field"):
         raise ValueError(f"unknown deformation type {kind_type!r}")
     kind = d.pop("kind")
     center = tuple(d.pop("center"))
     cls = Homogeneous if kind_type == "homogeneous" else Field
     return cls(kind, center, **d)
+
+
+class RampHold:
+    """Time profile: ``t`` ramps from 0 at frame 0 to 1 at frame ``endpoint``, then holds.
+
+    With ``u = min(frame / endpoint, 1)``: ``ramp="smoothstep"`` gives
+    ``t = 3 u^2 - 2 u^3`` (starts and stops smoothly, like a muscle contraction
+    reaching its plateau), ``ramp="linear"`` gives ``t = u`` (constant rate,
+    abrupt stop).  From ``endpoint`` on, every frame has ``t = 1``: positions
+    are constant and the strain rate is exactly zero.
+
+    A strain-rate endpoint detector with a relative tolerance ``r`` (rate below
+    ``r`` times the peak rate) finds ``endpoint`` on the smoothstep ramp while
+    the last ramp step, about ``2 / endpoint`` of the peak step, exceeds
+    ``r``: for ``r = 0.05``, up to ``endpoint`` of about 35 frames; use the
+    linear ramp for longer ramps.
+
+    Parameters
+    ----------
+    endpoint : int
+        Frame where the motion stops (>= 1).
+    ramp : {"smoothstep", "linear"}, keyword-only
+
+    Examples
+    --------
+    >>> profile = RampHold(4)
+    >>> [profile(k) for k in range(6)]
+    [0.0, 0.15625, 0.5, 0.84375, 1.0, 1.0]
+    """
+
+    def __init__(self, endpoint: int, *, ramp: str = "smoothstep") -> None:
+        if isinstance(endpoint, bool) or int(endpoint) != endpoint or endpoint < 1:
+            raise ValueError(f"endpoint must be a frame index >= 1, got {endpoint!r}")
+        if ramp not in ("smoothstep", "linear"):
+            raise ValueError(f"ramp must be smoothstep or linear, got {ramp!r}")
+        self.endpoint = int(endpoint)
+        self.ramp = ramp
+
+    def __call__(self, frame: float) -> float:
+        """Normalized time ``t`` in [0, 1] of a frame (fractional frames allowed)."""
+        u = min(max(float(frame) / self.endpoint, 0.0), 1.0)
+        return 3 * u**2 - 2 * u**3 if self.ramp == "smoothstep" else u
+
+    def describe(self) -> str:
+        formula = "3 u^2 - 2 u^3" if self.ramp == "smoothstep" else "u"
+        return (
+            f"ramp then hold: frame k has t = {formula} with u = min(k / {self.endpoint}, 1); "
+            f"motion stops at frame {self.endpoint}"
+        )
+
+    def to_dict(self) -> dict:
+        return {"type": "ramp_hold", "endpoint": self.endpoint, "ramp": self.ramp}
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, RampHold) and other.to_dict() == self.to_dict()
+
+    def __hash__(self) -> int:
+        return hash((self.endpoint, self.ramp))
+
+    def __repr__(self) -> str:
+        return f"RampHold({self.endpoint}, ramp={self.ramp!r})"
+
+
+def time_profile_from_dict(d: dict) -> RampHold:
+    """Rebuild a time profile from its ``to_dict()`` output."""
+    if d.get("type") != "ramp_hold":
+        raise ValueError(f"unknown time profile type {d.get('type')!r}")
+    return RampHold(d["endpoint"], ramp=d.get("ramp", "smoothstep"))
