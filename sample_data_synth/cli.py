@@ -1,4 +1,4 @@
-"""Command line: ``python -m sample_data_synth {video,stack,stereo,list}``.
+"""Command line: ``python -m sample_data_synth {video,stack,stereo,study,list}``.
 
 ``video`` writes, for each case, ``CASE.avi`` (lossless FFV1) and/or
 ``CASE.tif`` / ``CASE.mp4``, ``CASE_truth.json`` (the analytic deformation,
@@ -17,6 +17,13 @@ MPM z-stack ``CASE.tif`` (ImageJ hyperstack) or ``CASE.ome.tif`` (OME-TIFF),
 ``poses.json`` with the true board poses) and ``stretch/``, ``dome/``
 (``left/frame_000.png`` ..., ``right/frame_000.png`` ..., ``rig.json``,
 ``truth.json`` and ``truth.npz``); see :mod:`sample_data_synth.stereo`.
+
+``study`` writes a multi-specimen contraction study with known anisotropy:
+``S01.avi`` ... (lossless FFV1), ``S01_truth.json`` and ``S01_truth.npz`` per
+specimen, ``manifest.csv`` (``run,specimen,group,video,truth,lx,ly,endpoint,roi``:
+what to pass to ``strain2d analyze VIDEO --grid 7x7 --roi ROI --out RUN``) and
+``study_truth.json`` (exact mean nodal strains at each endpoint, the expected
+verdict per group); see :mod:`sample_data_synth.specimens`.
 
 Every command writes into a temporary folder beside ``--out`` and renames it
 only when everything is written.
@@ -113,6 +120,23 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=11, help="frames of the surface cases (11)")
     p.add_argument("--size", default="1024x768", help="image WIDTHxHEIGHT in px (1024x768)")
     p.add_argument("--noise", type=float, default=1.0, help="sensor noise in gray levels (1.0)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p = sub.add_parser(
+        "study", help="render a multi-specimen contraction study with known anisotropy"
+    )
+    p.add_argument("--size", type=int, default=352, help="frame width and height in px (352)")
+    p.add_argument("--frames", type=int, default=25, help="frames per video (25)")
+    p.add_argument("--per-group", type=int, default=4, help="specimens per group (4)")
+    p.add_argument("--texture", default="tissue", help="tissue or speckle (tissue)")
+    p.add_argument(
+        "--heterogeneity",
+        type=float,
+        default=0.04,
+        help="amplitude of the smooth strain heterogeneity, 0 to 0.2 (0.04)",
+    )
     p.add_argument("--seed", type=int, default=0, help="random seed (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -300,6 +324,52 @@ def _cmd_stereo(args) -> int:
     return 0
 
 
+def _cmd_study(args) -> int:
+    from dataclasses import replace
+
+    from sample_data_synth.specimens import DEFAULT_DESIGN, make_study
+
+    if args.per_group < 1:
+        raise ValueError(f"--per-group must be >= 1, got {args.per_group}")
+    if args.size < 64:
+        raise ValueError(f"--size must be >= 64, got {args.size}")
+    if args.frames < 3:
+        raise ValueError(f"--frames must be >= 3, got {args.frames}")
+    if args.texture not in ("tissue", "speckle"):
+        raise ValueError(f"--texture must be tissue or speckle, got {args.texture!r}")
+    if not (math.isfinite(args.heterogeneity) and 0 <= args.heterogeneity <= 0.2):
+        raise ValueError(
+            f"--heterogeneity must be a number from 0 to 0.2, got {args.heterogeneity}"
+        )
+    design = tuple(replace(g, n=args.per_group) for g in DEFAULT_DESIGN)
+    n_specimens = sum(g.n for g in design)
+
+    def progress(done: int, total: int) -> None:
+        if not args.quiet:
+            specimen, frame = divmod(done - 1, args.frames)
+            print(
+                f"\rstudy: specimen {specimen + 1}/{n_specimens}, frame {frame + 1}/{args.frames}",
+                end="",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    with _output_folder(Path(args.out), args.overwrite) as tmp:
+        make_study(
+            tmp,
+            design=design,
+            size=args.size,
+            n_frames=args.frames,
+            heterogeneity=args.heterogeneity,
+            texture=args.texture,
+            rng=args.seed,
+            progress=progress,
+        )
+        if not args.quiet:
+            print(file=sys.stderr)
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     args = _build_parser().parse_args(argv)
@@ -312,7 +382,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{name:12s} {description} (stereo)")
         return 0
     try:
-        commands = {"video": _cmd_video, "stack": _cmd_stack, "stereo": _cmd_stereo}
+        commands = {
+            "video": _cmd_video,
+            "stack": _cmd_stack,
+            "stereo": _cmd_stereo,
+            "study": _cmd_study,
+        }
         return commands[args.command](args)
     except (ValueError, OSError) as exc:
         print(f"sample_data_synth {args.command}: error: {exc}", file=sys.stderr)
