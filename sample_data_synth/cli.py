@@ -20,7 +20,7 @@ MPM z-stack ``CASE.tif`` (ImageJ hyperstack) or ``CASE.ome.tif`` (OME-TIFF),
 
 ``study`` writes a multi-specimen contraction study with known anisotropy:
 ``S01.avi`` ... (lossless FFV1), ``S01_truth.json`` and ``S01_truth.npz`` per
-specimen, ``manifest.csv`` (``run,specimen,group,video,truth,lx,ly,endpoint,roi``:
+specimen, ``manifest.csv`` (``run,specimen,group,video,truth,true_lx,true_ly,true_endpoint,roi``:
 what to pass to ``strain2d analyze VIDEO --grid 7x7 --roi ROI --out RUN``) and
 ``study_truth.json`` (exact mean nodal strains at each endpoint, the expected
 verdict per group); see :mod:`sample_data_synth.specimens`.

@@ -75,6 +75,9 @@ ROI_FRACTION = 0.6
 #: DIC subset plus room)
 EDGE_MARGIN_PX = 20.0
 
+#: manifest.csv names of the truth columns
+_MANIFEST_NAMES = {"lx": "true_lx", "ly": "true_ly", "endpoint": "true_endpoint"}
+
 NO_DIFFERENCE = "no difference"
 DIFFERENCE = "Exx differs from Eyy"
 
@@ -454,7 +457,7 @@ def make_study(
       (the 7 x 7 grid: ``grid`` (N, 2), ``positions`` (T, N, 2), ``F`` and
       ``E`` (T, N, 2, 2) continuum values, ``E_nodal`` (T, N, 2, 2) as
       :func:`grid_nodal_strain`);
-    * ``manifest.csv``: ``run,specimen,group,video,truth,lx,ly,endpoint,roi``
+    * ``manifest.csv``: ``run,specimen,group,video,truth,true_lx,true_ly,true_endpoint,roi``
       with ``run`` = ``runs/SNN`` (the folder to give ``strain2d analyze
       --out``; ``runs/`` is created empty) and ``roi`` = ``"x0,y0,x1,y1"``
       (for ``--roi``);
@@ -569,10 +572,13 @@ def make_study(
         rows.append(row)
         specimens.append({**row, "seed": p["seed"], **_endpoint_summary(truth, shape)})
 
+    # the truth columns carry a true_ prefix: a study manifest's "endpoint" column
+    # overrides the run's detected endpoint (strain2d study), which would hide detection
+    manifest = [{_MANIFEST_NAMES.get(k, k): v for k, v in r.items()} for r in rows]
     with open(out / "manifest.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer = csv.DictWriter(f, fieldnames=list(manifest[0]))
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows(manifest)
 
     result = {
         "description": "synthetic contraction study with known anisotropy: exact mean nodal "

@@ -37,7 +37,9 @@ PULLBACK_SHIFT_PX = 0.05
 LK_TRACK_PX = 0.5
 
 TINY = (Group("anisotropic", 2, lx=0.80, ly=0.92), Group("isotropic", 2, lx=0.86, ly=0.86))
-COLUMNS = ["run", "specimen", "group", "video", "truth", "lx", "ly", "endpoint", "roi"]
+COLUMNS = [
+    "run", "specimen", "group", "video", "truth", "true_lx", "true_ly", "true_endpoint", "roi"
+]  # fmt: skip
 
 
 def contraction() -> Contraction:
@@ -297,15 +299,16 @@ def test_study_manifest(tiny_study):
         assert r["roi"] == "19,19,76,76"
         assert (out / r["video"]).is_file() and r["video"].endswith(".avi")
         truth = load_ground_truth(out / r["truth"])
-        assert truth.params["lx"] == float(r["lx"]) and truth.params["ly"] == float(r["ly"])
-        assert truth.time_profile.endpoint == int(r["endpoint"])
-        assert 4 <= int(r["endpoint"]) <= 6  # 55 % to 75 % of frames 0..8
+        assert truth.params["lx"] == float(r["true_lx"])
+        assert truth.params["ly"] == float(r["true_ly"])
+        assert truth.time_profile.endpoint == int(r["true_endpoint"])
+        assert 4 <= int(r["true_endpoint"]) <= 6  # 55 % to 75 % of frames 0..8
         assert truth.roi == specimen_roi(96)
         cap = cv2.VideoCapture(str(out / r["video"]))  # lossless: the frames come back exactly
         ok, first = cap.read()
         cap.release()
         assert ok and first.shape[:2] == (96, 96)
-    lxs = [float(r["lx"]) for r in rows]
+    lxs = [float(r["true_lx"]) for r in rows]
     assert len(set(lxs)) == 4  # specimen-to-specimen variability
 
 
