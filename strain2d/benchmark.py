@@ -97,7 +97,8 @@ def run_benchmark(
     cases : keyword-only
         Subset of the case names (default all four).
     trackers : keyword-only
-        Tracker names (default every registered tracker that reads frames).
+        Tracker names (default every registered tracker that reads frames and needs no
+        outside model, i.e. not cotracker3).
     grid : (n_cols, n_rows), keyword-only
     seed : int, keyword-only
     figures : path, keyword-only
@@ -110,7 +111,7 @@ def run_benchmark(
     cases = list(CASES) if cases is None else list(cases)
     registry = available_trackers()
     if trackers is None:
-        trackers = [name for name, spec in registry.items() if spec.needs_frames]
+        trackers = [n for n, spec in registry.items() if spec.needs_frames and not spec.needs_model]
     size, n_frames = (400, 11) if quick else (800, 31)
     rows = []
     for case in cases:
@@ -280,7 +281,7 @@ def run_sweep(
     label, values, cases = SWEEPS[kind]
     registry = available_trackers()
     if trackers is None:
-        trackers = [name for name, spec in registry.items() if spec.needs_frames]
+        trackers = [n for n, spec in registry.items() if spec.needs_frames and not spec.needs_model]
     size, n_frames = (400, 11) if quick else (800, 31)
     last = n_frames - 1
     rows = []

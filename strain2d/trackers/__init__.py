@@ -34,25 +34,31 @@ class TrackerSpec:
     description : str
     needs_frames : bool
         False for trackers that read tracks made elsewhere.
+    needs_model : bool
+        True for trackers that need code or weights from outside the package
+        (``cotracker3``); the benchmark leaves them out unless named.
     """
 
     name: str
     function: Callable
     description: str
     needs_frames: bool = True
+    needs_model: bool = False
 
 
 _REGISTRY: dict[str, TrackerSpec] = {}
 _discovered = False
 
 
-def register_tracker(name: str, *, description: str, needs_frames: bool = True) -> Callable:
+def register_tracker(
+    name: str, *, description: str, needs_frames: bool = True, needs_model: bool = False
+) -> Callable:
     """Decorator registering a tracker function under ``name``."""
 
     def decorate(function: Callable) -> Callable:
         if name in _REGISTRY and _REGISTRY[name].function is not function:
             raise ValueError(f"a tracker named {name!r} is already registered")
-        _REGISTRY[name] = TrackerSpec(name, function, description, needs_frames)
+        _REGISTRY[name] = TrackerSpec(name, function, description, needs_frames, needs_model)
         return function
 
     return decorate
