@@ -1,16 +1,19 @@
-"""Figures of 2D runs: the tracked grid, strain contour maps and their shared colour scales.
+"""Figures of 2D runs: grids, strain maps, principal crosses, curves, violins, animations.
 
-Per run: the tracked grid (:func:`plot_tracked_grid`), contour maps of
-strain components on the deformed configuration (:func:`plot_strain_maps`,
-:func:`plot_strain_maps_at`) and the nodal strain error
-(:func:`plot_strain_errors`).
+Per run (the source paper's Figs. 10-15 for one specimen): the tracked grid
+(:func:`plot_tracked_grid`), contour maps of strain components on the
+deformed configuration (:func:`plot_strain_maps`, :func:`plot_strain_maps_at`),
+principal strain directions as crosses (:func:`plot_principal_crosses`), the
+mean +/- spatial SD of each component over time (:func:`plot_strain_curves`),
+violins of the nodal values at one frame (:func:`plot_strain_violins`) and an
+MP4 or GIF of the strain field on the video (:func:`write_strain_animation`).
 
 Conventions
 -----------
 * Built on :class:`matplotlib.figure.Figure` directly, never pyplot, so
   importing or calling this module does not change the global matplotlib
-  state or backend.  Functions named ``plot_*`` save and return the written paths;
-  :func:`strain_maps_figure` returns the ``Figure`` and
+  state or backend.  Functions named ``plot_*`` that take a path save and
+  return the written paths; the others return the ``Figure`` and
   :func:`save_figure` writes it in any number of formats (PNG, SVG, PDF).
 * Image axes are in pixels with y pointing down, as in the images (x =
   column, y = row, the centre of the top-left pixel at (0, 0)).
@@ -21,22 +24,25 @@ Conventions
   map only, and a range such as (-0.3, 0.01) gives a barely pink top instead
   of a white middle at -0.15.
 * :func:`strain_limits` gives colour limits shared by every frame, so maps at
-  different frames can be compared by eye.
+  different frames and the animation can be compared by eye.
 """
 
 from __future__ import annotations
 
+import math
 import operator
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from matplotlib import colormaps, rc_context
 from matplotlib.cm import ScalarMappable
+from matplotlib.collections import LineCollection
 from matplotlib.colors import Colormap, ListedColormap, Normalize
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
@@ -44,17 +50,26 @@ from strain2d.errors import InputError
 from strain2d.tracks import Tracks
 from surface_strain import (
     StrainField,
+    element_principal_directions,
+    element_scalars,
+    nodal_principal_directions,
     nodal_scalars,
 )
 
 __all__ = [
+    "format_p",
+    "mean_strain_curves",
+    "plot_principal_crosses",
+    "plot_strain_curves",
     "plot_strain_errors",
     "plot_strain_maps",
     "plot_strain_maps_at",
+    "plot_strain_violins",
     "plot_tracked_grid",
     "save_figure",
     "strain_limits",
     "strain_maps_figure",
+    "write_strain_animation",
 ]
 
 _LABELS = {
@@ -370,6 +385,15 @@ def _show_image(ax, image: np.ndarray, *, vmin=None, vmax=None):
     return artist
 
 
+def _gray_range(image: np.ndarray) -> tuple[float, float]:
+    if image.dtype == np.uint8:
+        return 0.0, 255.0
+    finite = _finite(image)
+    if finite.size == 0 or finite.max() == finite.min():
+        return 0.0, 1.0
+    return float(finite.min()), float(finite.max())
+
+
 def _check_image(image, name: str = "image") -> np.ndarray:
     a = np.asarray(image)
     if a.ndim not in (2, 3) or (a.ndim == 3 and a.shape[2] not in (3, 4)) or 0 in a.shape:
@@ -547,7 +571,8 @@ def plot_strain_maps_at(
     components : sequence of str, keyword-only
     limits : dict, keyword-only
         Colour limits per component; default :func:`strain_limits` over
-        every frame of the field, so that these maps share one scale.
+        every frame of the field, so that these maps and an animation of the
+        same field share one scale.
     formats : str or sequence of str, keyword-only
         Formats of each map (see :func:`save_figure`).
     titles : dict, keyword-only
@@ -682,3 +707,627 @@ def plot_strain_errors(
     if title:
         fig.suptitle(title)
     return save_figure(fig, path, formats, dpi=dpi, tight=True)
+
+
+# --------------------------------------------------------------------------- principal crosses
+
+
+def _nice_value(x: float) -> float:
+    """The largest of 1, 2, 5 times a power of ten not above ``x`` (``x > 0``)."""
+    e = math.floor(math.log10(x))
+    for m in (5.0, 2.0, 1.0):
+        if m * 10.0**e <= x * (1 + 1e-9):
+            return float(f"{m * 10.0**e:.12g}")
+    return float(f"{10.0**e:.12g}")
+
+
+def _node_spacing(field: StrainField, frame: int) -> float:
+    """Median over nodes of the shortest valid mesh edge at each node, on ``frame``."""
+    tri = field.triangles[field.element_valid[frame]]
+    if len(tri) == 0:
+        return float("nan")
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    pos = field.points[frame]
+    length = np.linalg.norm(pos[edges[:, 0]] - pos[edges[:, 1]], axis=1)
+    shortest = np.full(field.n_points, np.inf)
+    np.minimum.at(shortest, edges[:, 0], length)
+    np.minimum.at(shortest, edges[:, 1], length)
+    shortest = shortest[np.isfinite(shortest) & (shortest > 0)]
+    return float(np.median(shortest)) if shortest.size else float("nan")
+
+
+def plot_principal_crosses(
+    image: np.ndarray,
+    field: StrainField,
+    frame: int,
+    *,
+    scale: float | None = None,
+    at: Literal["nodes", "triangles"] = "nodes",
+    key_value: float | None = None,
+    title: str | None = None,
+) -> Figure:
+    """Principal strain directions as crosses over the image, on the deformed configuration.
+
+    At each node (or triangle centroid) a cross of two bars centred on it:
+    one along the first principal direction and one along the second, as
+    directions in the current configuration (the material fibres along the
+    reference principal directions after deformation, which stay
+    orthogonal).  Each bar's length is ``scale * |E|`` of its principal
+    strain, red for stretch (E > 0) and blue for shortening (E < 0).
+
+    Parameters
+    ----------
+    image : (H, W) float or uint8
+        The frame shown underneath.
+    field : StrainField
+        A 2D field.
+    frame : int
+    scale : float, keyword-only
+        Bar length in pixels per unit strain.  Default: the longest bar is
+        0.8 times the typical node spacing (the median over nodes of the
+        shortest mesh edge), i.e. each arm from the centre is 0.4 of it.
+    at : {"nodes", "triangles"}, keyword-only
+        Nodal principal strains (:func:`surface_strain.nodal_scalars`,
+        directions from :func:`surface_strain.nodal_principal_directions`)
+        at the nodes, or the constant strain of each triangle at its centroid.
+    key_value : float, keyword-only
+        Strain of the key's bar (default: a round value, 1, 2 or 5 times a
+        power of ten, not above the largest |E| drawn).
+    title : str, keyword-only
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The bars are two :class:`~matplotlib.collections.LineCollection`
+        artists with ``gid`` ``"E1"`` and ``"E2"`` (one segment per drawn
+        point, in the same order); points without finite values are skipped.
+    """
+    from matplotlib.patheffects import withStroke
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    image = _check_image(image)
+    _check_2d(field)
+    k = _frame_index(field, frame)
+    if at not in ("nodes", "triangles"):
+        raise InputError(f"at must be 'nodes' or 'triangles', got {at!r}")
+    if scale is not None and not (np.isfinite(scale) and scale > 0):
+        raise InputError(f"scale must be a positive number of pixels per unit strain, got {scale}")
+    if at == "nodes":
+        s = nodal_scalars(field)
+        d = nodal_principal_directions(field)
+        centres = field.points[k]
+        ok = field.visible[k].copy()
+    else:
+        s = element_scalars(field)
+        d = element_principal_directions(field)
+        centres = field.points[k][field.triangles].mean(axis=1)
+        ok = field.element_valid[k].copy()
+    e1, e2 = s["E1"][k], s["E2"][k]
+    u1, u2 = d.dir1_cur[k], d.dir2_cur[k]
+    ok &= np.isfinite(e1) & np.isfinite(e2) & np.all(np.isfinite(centres), axis=1)
+    ok &= np.all(np.isfinite(u1), axis=1) & np.all(np.isfinite(u2), axis=1)
+    c, e1, e2, u1, u2 = centres[ok], e1[ok], e2[ok], u1[ok], u2[ok]
+    largest = float(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0)))
+    if scale is None:
+        spacing = _node_spacing(field, k)
+        if not np.isfinite(spacing):
+            spacing = 0.1 * min(image.shape[:2])
+        scale = 0.8 * spacing / largest if largest > 0 else 0.0
+
+    fig = Figure(figsize=_figsize_for_image(image, 1, 6.4), layout="constrained")
+    ax = fig.add_subplot()
+    _show_image(ax, image)
+    outline = [withStroke(linewidth=3.2, foreground="white")]
+    for gid, e, u in (("E1", e1, u1), ("E2", e2, u2)):
+        half = (0.5 * scale * np.abs(e))[:, None] * u
+        segments = np.stack([c - half, c + half], axis=1)
+        colours = np.where(e >= 0, _STRETCH, _SHORTENING)
+        lc = LineCollection(segments, colors=colours, linewidths=1.8, capstyle="round")
+        lc.set_gid(gid)
+        lc.set_path_effects(outline)
+        ax.add_collection(lc, autolim=False)
+    handles = [
+        Line2D([], [], color=_STRETCH, lw=2, label="stretch (E > 0)"),
+        Line2D([], [], color=_SHORTENING, lw=2, label="shortening (E < 0)"),
+    ]
+    ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.85)
+    if scale > 0 and largest > 0:
+        value = _nice_value(largest) if key_value is None else float(key_value)
+        bar = AnchoredSizeBar(
+            ax.transData,
+            scale * value,
+            f"|E| = {value:g}",
+            loc="lower right",
+            color="k",
+            frameon=True,
+            size_vertical=0,
+            pad=0.4,
+            sep=4,
+            fontproperties={"size": 8},
+        )
+        bar.patch.set_alpha(0.85)
+        ax.add_artist(bar)
+    where = "nodes" if at == "nodes" else "triangles"
+    ax.set_title(title or f"principal strains at the {where}, frame {k}")
+    return fig
+
+
+# --------------------------------------------------------------------------- curves
+
+
+def mean_strain_curves(
+    field: StrainField, components: Sequence[str] = ("Exx", "Eyy", "Exy")
+) -> dict[str, dict[str, np.ndarray]]:
+    """Mean and spatial SD of nodal strain components over the nodes, per frame.
+
+    Returns
+    -------
+    dict
+        ``{"mean": {comp: (T,)}, "sd": {comp: (T,)}, "n": {comp: (T,) int}}``:
+        the mean over the nodes with a finite value, their standard deviation
+        (``ddof=0``, the spread of this field, not an estimate for a
+        population) and how many nodes entered; NaN on frames without any.
+        The ``mean`` and ``sd`` entries are what :func:`plot_study_curves`
+        takes per specimen.
+    """
+    scalars = _scalars(field, components)
+    out: dict[str, dict[str, np.ndarray]] = {"mean": {}, "sd": {}, "n": {}}
+    for comp in components:
+        v = scalars[comp]
+        ok = np.isfinite(v)
+        n = ok.sum(axis=1)
+        filled = np.where(ok, v, 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = filled.sum(axis=1) / n
+            sd = np.sqrt(np.where(ok, (filled - mean[:, None]) ** 2, 0.0).sum(axis=1) / n)
+        out["mean"][comp] = np.where(n > 0, mean, np.nan)
+        out["sd"][comp] = np.where(n > 0, sd, np.nan)
+        out["n"][comp] = n
+    return out
+
+
+def _time_label(time_unit: str) -> str:
+    if not isinstance(time_unit, str) or not time_unit:
+        raise InputError(f"time_unit must be 'frame' or a unit such as 's', got {time_unit!r}")
+    return "frame" if time_unit == "frame" else f"time ({time_unit})"
+
+
+def _endpoint_text(x: float, time_unit: str) -> str:
+    if time_unit == "frame":
+        return f"endpoint (frame {x:g})"
+    return f"endpoint ({x:.3g} {time_unit})"
+
+
+def _draw_curves(ax, times, mean, sd, components, endpoint_x, time_unit, *, legend=True):
+    for i, comp in enumerate(components):
+        if comp not in mean:
+            raise InputError(f"no mean curve for component {comp!r}; have {sorted(mean)}")
+        m = np.asarray(mean[comp], dtype=float)
+        if m.shape != times.shape:
+            raise InputError(
+                f"the mean curve of {comp} has shape {m.shape}, the times {times.shape}"
+            )
+        colour = _colour(comp, i)
+        ax.plot(times, m, color=colour, lw=1.6, label=f"{_label(comp)} mean")
+        if sd is not None and comp in sd:
+            s = np.asarray(sd[comp], dtype=float)
+            if s.shape != times.shape:
+                raise InputError(
+                    f"the SD curve of {comp} has shape {s.shape}, the times {times.shape}"
+                )
+            ax.fill_between(
+                times, m - s, m + s, color=colour, alpha=0.2, lw=0, label=f"{_label(comp)} ± SD"
+            )
+    ax.axhline(0, color="k", lw=0.6)
+    if endpoint_x is not None:
+        ax.axvline(endpoint_x, color="0.3", ls="--", lw=1)
+        ax.annotate(
+            _endpoint_text(endpoint_x, time_unit),
+            xy=(endpoint_x, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(-3, -3),
+            textcoords="offset points",
+            ha="right",
+            va="top",
+            fontsize=8,
+            color="0.2",
+        )
+    ax.set_xlabel(_time_label(time_unit))
+    ax.set_ylabel(_STRAIN_AXIS)
+    ax.grid(alpha=0.3)
+    if legend:
+        ax.legend(fontsize=8, loc="best", ncols=2)
+
+
+def plot_strain_curves(
+    field: StrainField,
+    *,
+    times: Sequence[float] | np.ndarray | None = None,
+    time_unit: str = "frame",
+    components: Sequence[str] = ("Exx", "Eyy", "Exy"),
+    endpoint: int | None = None,
+    title: str = "",
+) -> Figure:
+    """Mean nodal strain over time with a band of +/- one spatial SD (the paper's Fig. 14).
+
+    Parameters
+    ----------
+    field : StrainField
+    times : (T,) float, keyword-only
+        Time of each frame in ``time_unit`` (default: the frame indices).
+    time_unit : str, keyword-only
+        ``"frame"`` or a unit of ``times`` such as ``"s"``; labels the x axis.
+    components : sequence of str, keyword-only
+    endpoint : int, keyword-only
+        Frame index of the contraction endpoint
+        (:func:`strain2d.stats.contraction_endpoint`), marked by a dashed line.
+    title : str, keyword-only
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    stats = mean_strain_curves(field, components)
+    T = field.n_frames
+    t = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
+    if t.shape != (T,):
+        raise InputError(f"times must have one value per frame, shape ({T},), got {t.shape}")
+    x_end = None if endpoint is None else float(t[_frame_index(field, endpoint, "endpoint")])
+    fig = Figure(figsize=(7.0, 4.2), layout="constrained")
+    ax = fig.add_subplot()
+    _draw_curves(ax, t, stats["mean"], stats["sd"], components, x_end, time_unit)
+    if title:
+        ax.set_title(title)
+    return fig
+
+
+# --------------------------------------------------------------------------- violins
+
+
+def format_p(p: float | None) -> str:
+    """A p-value as a figure or report shows it.
+
+    Examples
+    --------
+    >>> format_p(2e-5), format_p(0.0042), format_p(0.0496), format_p(0.31)
+    ('p < 0.001', 'p = 0.004', 'p = 0.050', 'p = 0.31')
+    """
+    if p is None or not np.isfinite(p):
+        return "p = n/a"
+    if p < 0.001:
+        return "p < 0.001"
+    if p < 0.1:
+        return f"p = {p:.3f}"
+    return f"p = {p:.2f}"
+
+
+def _draw_violins(ax, positions, arrays, colours, *, width=0.7, rng=None, point_size=6.0):
+    """Violins with the nodes as jittered points, a median bar and the quartiles."""
+    rng = np.random.default_rng(0) if rng is None else rng
+    for x, data, colour in zip(positions, arrays, colours, strict=True):
+        if data.size == 0:
+            continue
+        if data.size >= 2 and np.ptp(data) > 1e-12 * max(1.0, float(np.abs(data).max())):
+            parts = ax.violinplot(
+                [data], positions=[x], widths=width, showextrema=False, showmedians=False
+            )
+            for body in parts["bodies"]:
+                body.set_facecolor(colour)
+                body.set_edgecolor(colour)
+                body.set_alpha(0.35)
+        jitter = rng.uniform(-0.18, 0.18, data.size) * width
+        ax.scatter(
+            x + jitter,
+            data,
+            s=point_size,
+            color=colour,
+            edgecolors="k",
+            linewidths=0.3,
+            alpha=0.8,
+            zorder=3,
+        )
+        q1, med, q3 = np.percentile(data, [25, 50, 75])
+        ax.vlines(x, q1, q3, color="k", lw=2.5, zorder=4)
+        ax.hlines(med, x - 0.25 * width, x + 0.25 * width, color="k", lw=2, zorder=4)
+
+
+def _bracket(ax, x0: float, x1: float, y: float, height: float, text: str, *, fontsize=8):
+    ax.plot([x0, x0, x1, x1], [y, y + height, y + height, y], color="k", lw=0.9)
+    ax.text(0.5 * (x0 + x1), y + 1.4 * height, text, ha="center", va="bottom", fontsize=fontsize)
+
+
+def _test_lines(tests: Mapping, *, short: bool = False) -> str:
+    label = tests.get("label", "paired t-test")
+    n = tests.get("n")
+    lines = []
+    if "t_p" in tests:
+        lines.append(f"{'t' if short else label}: {format_p(tests['t_p'])}")
+    if "wilcoxon_p" in tests:
+        lines.append(f"{'W' if short else 'Wilcoxon signed-rank'}: {format_p(tests['wilcoxon_p'])}")
+    if n is not None and not short:
+        lines.append(f"n = {n} nodes")
+    return "\n".join(lines)
+
+
+def _values(values: Mapping[str, np.ndarray], where: str) -> dict[str, np.ndarray]:
+    if len(values) == 0:
+        raise InputError(f"{where} is empty; give at least one component")
+    return {str(k): _finite(v) for k, v in values.items()}
+
+
+def plot_strain_violins(
+    values: Mapping[str, np.ndarray],
+    *,
+    title: str = "",
+    tests: Mapping | None = None,
+) -> Figure:
+    """Violins of nodal strain components at one frame (the paper's Fig. 15 for one specimen).
+
+    Parameters
+    ----------
+    values : dict
+        ``{component: (N,) nodal values}``, e.g. ``{"Exx": ..., "Eyy": ...}``
+        at the contraction endpoint; NaN are left out.
+    title : str, keyword-only
+    tests : dict, keyword-only
+        A paired comparison of the first two components, e.g. from
+        :func:`strain2d.stats.paired_node_tests` with a ``"label"`` added:
+        ``"t_p"``, ``"wilcoxon_p"``, ``"n"``, ``"label"`` (e.g.
+        "node-level paired t-test"), each optional.  Drawn as a bracket
+        annotated with the p-values.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Each component as a violin with every node as a (jittered) point,
+        the median as a bar and the quartiles as a thick line.
+    """
+    data = _values(values, "values")
+    comps = list(data)
+    fig = Figure(figsize=(1.6 * len(comps) + 2.2, 4.4), layout="constrained")
+    ax = fig.add_subplot()
+    positions = np.arange(len(comps), dtype=float)
+    _draw_violins(ax, positions, list(data.values()), [_colour(c, i) for i, c in enumerate(comps)])
+    ax.set_xticks(positions, [_label(c) for c in comps])
+    ax.set_xlim(-0.6, len(comps) - 0.4)
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("component")
+    ax.set_ylabel(_STRAIN_AXIS)
+    ax.grid(alpha=0.3, axis="y")
+    every = np.concatenate([*data.values(), [np.nan]])
+    if tests and len(comps) >= 2 and np.isfinite(every).any():
+        lo, hi = float(np.nanmin(every)), float(np.nanmax(every))
+        span = max(hi - lo, 1e-3)
+        _bracket(ax, 0, 1, hi + 0.06 * span, 0.03 * span, _test_lines(tests))
+        ax.set_ylim(lo - 0.06 * span, hi + 0.4 * span)
+    if title:
+        ax.set_title(title)
+    return fig
+
+
+# --------------------------------------------------------------------------- animation
+
+
+def write_strain_animation(
+    path: str | os.PathLike,
+    frames: Iterable[np.ndarray],
+    field: StrainField,
+    *,
+    components: Sequence[str] = ("Exx", "Eyy"),
+    limits: Mapping[str, tuple[float, float]] | None = None,
+    fps: float = 10,
+    time_labels: Sequence[str] | None = None,
+    progress: Callable[[int, int | None], None] | None = None,
+    alpha: float = 0.6,
+    max_width: int = 960,
+    dpi: int = 100,
+) -> Path:
+    """Write a video of the strain field over time, drawn on the frames (MP4 or GIF).
+
+    Each output frame shows one panel per component: the video frame in gray,
+    filled contours of the nodal strain on the deformed mesh, a colour bar
+    fixed for the whole video and the frame number (or ``time_labels``).
+
+    Parameters
+    ----------
+    path : path
+        ``.mp4`` (OpenCV, codec ``mp4v``) or ``.gif`` (imageio's pillow plugin).
+    frames : iterable of (H, W) float or uint8
+        The video, one image per frame of ``field``, read one at a time.
+        uint8 images are shown on 0..255; float images on the range of the
+        first image.
+    field : StrainField
+        A 2D field.
+    components : sequence of str, keyword-only
+    limits : dict, keyword-only
+        Colour limits per component (default :func:`strain_limits` over every
+        frame, the same as :func:`plot_strain_maps_at` uses).
+    fps : float, keyword-only
+        Frames per second of the output.
+    time_labels : sequence of str, keyword-only
+        One label per frame (e.g. ``"t = 1.5 s"``); default ``"frame k / T-1"``.
+    progress : callable(done, total), keyword-only
+        Called after each frame.
+    alpha : float, keyword-only
+        Opacity of the contours.
+    max_width : int, keyword-only
+        Width of the output in pixels (at most; rounded down to even).
+    dpi : int, keyword-only
+        Resolution of the rendering (sets text size relative to the frame).
+
+    Returns
+    -------
+    Path
+        ``path``.  The video is written under a temporary name and renamed
+        when complete; an error or Ctrl-C leaves nothing at ``path``.
+
+    Raises
+    ------
+    ValueError
+        When ``frames`` yields more or fewer images than ``field`` has frames,
+        or an option is invalid (:class:`strain2d.InputError`).
+
+    Notes
+    -----
+    MP4 frames are streamed to the file as they are rendered.  Pillow writes
+    a GIF only when it is closed, so a GIF holds every rendered frame in
+    memory until the end: use MP4 for long videos.  Output dimensions are
+    even (required by most MP4 players).
+    """
+    path = Path(path)
+    kind = path.suffix.lower()
+    if kind not in (".mp4", ".gif"):
+        raise InputError(f"the animation must be .mp4 or .gif, got {path.name!r}")
+    _check_2d(field)
+    scalars = _scalars(field, components)
+    if not (np.isfinite(fps) and fps > 0):
+        raise InputError(f"fps must be a positive number, got {fps}")
+    T = field.n_frames
+    if time_labels is not None and len(time_labels) != T:
+        raise InputError(f"time_labels has {len(time_labels)} entries for {T} frames")
+    if max_width < 64:
+        raise InputError(f"max_width must be at least 64 px, got {max_width}")
+    if limits is None:
+        limits = strain_limits(field, components)
+    else:
+        missing = [c for c in components if c not in limits]
+        limits = {**strain_limits(field, missing), **limits} if missing else limits
+    scales = {c: _colour_scale(c, *map(float, limits[c])) for c in components}
+    tmp = path.with_name(f".{path.stem}.partial{kind}")
+    writer = None
+    state: dict = {}
+    count = 0
+    try:
+        for count, image in enumerate(frames, start=1):
+            k = count - 1
+            if k >= T:
+                raise InputError(f"frames yields more images than the field's {T} frames")
+            image = _check_image(image, f"frame {k}")
+            if not state:
+                state = _animation_figure(image, field, components, scales, alpha, max_width, dpi)
+            rgb = _animation_frame(
+                state,
+                image,
+                field,
+                k,
+                scalars,
+                components,
+                scales,
+                alpha,
+                time_labels[k] if time_labels is not None else f"frame {k} / {T - 1}",
+            )
+            if writer is None:
+                writer = _open_writer(tmp, kind, fps, rgb.shape)
+            if kind == ".mp4":
+                writer.write(np.ascontiguousarray(rgb[..., ::-1]))
+            else:
+                writer.write(rgb, duration=1000.0 / fps, loop=0)
+            if progress:
+                progress(count, T)
+        if count != T:
+            raise InputError(f"frames yields {count} images for a field of {T} frames")
+        _close_writer(writer, kind)
+        writer = None
+        os.replace(tmp, path)
+    finally:
+        if writer is not None:
+            try:
+                _close_writer(writer, kind)
+            except Exception:  # already failing; the temporary file is removed below
+                pass
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def _open_writer(tmp: Path, kind: str, fps: float, shape: tuple[int, ...]):
+    h, w = shape[:2]
+    if kind == ".mp4":
+        import cv2
+
+        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
+        if not writer.isOpened():
+            raise OSError(f"OpenCV cannot write an MP4 (mp4v) video to {tmp.parent}")
+        return writer
+    import imageio.v3 as iio
+
+    return iio.imopen(tmp, "w", plugin="pillow", extension=".gif")
+
+
+def _close_writer(writer, kind: str) -> None:
+    if kind == ".mp4":
+        writer.release()
+    else:
+        writer.close()
+
+
+def _animation_figure(image, field, components, scales, alpha, max_width, dpi) -> dict:
+    """The reused figure of an animation: image, mesh and label artists, fixed colour bars."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    n = len(components)
+    h, w = image.shape[:2]
+    width_px = 2 * (min(int(max_width), 480 * n) // 2)
+    panel_in = width_px / dpi / n
+    height_px = 2 * (round(((panel_in - 1.25) * h / w + 0.95) * dpi) // 2)
+    fig = Figure(figsize=(width_px / dpi, max(height_px, 64) / dpi), dpi=dpi, layout="constrained")
+    canvas = FigureCanvasAgg(fig)
+    axes = np.atleast_1d(fig.subplots(1, n))
+    vmin, vmax = _gray_range(image)
+    state = {
+        "fig": fig,
+        "canvas": canvas,
+        "axes": axes,
+        "images": [],
+        "meshes": [],
+        "contours": [None] * n,
+        "size": (width_px, max(height_px, 64)),
+    }
+    for ax, comp in zip(axes, components, strict=True):
+        state["images"].append(_show_image(ax, image, vmin=vmin, vmax=vmax))
+        mesh = LineCollection([], colors="k", linewidths=0.3, alpha=0.45)
+        ax.add_collection(mesh, autolim=False)
+        state["meshes"].append(mesh)
+        cbar = _colorbar(fig, ax, scales[comp], _unit_label(comp), alpha=alpha, shrink=0.9)
+        cbar.ax.tick_params(labelsize=7)
+        cbar.ax.yaxis.label.set_fontsize(8)
+        ax.set_title(_label(comp), fontsize=10)
+        ax.tick_params(labelsize=7)
+        ax.xaxis.label.set_fontsize(8)
+        ax.yaxis.label.set_fontsize(8)
+    state["label"] = fig.suptitle(" ", fontsize=10)
+    return state
+
+
+def _animation_frame(state, image, field, k, scalars, components, scales, alpha, label):
+    """Render frame ``k`` into the reused figure; returns (H, W, 3) uint8 with even H, W."""
+    fig = state["fig"]
+    for j, comp in enumerate(components):
+        ax = state["axes"][j]
+        state["images"][j].set_data(image)
+        if state["contours"][j] is not None:
+            state["contours"][j].remove()
+            state["contours"][j] = None
+        values = scalars[comp][k]
+        tri = _triangulation(field, k, values)
+        if tri is not None:
+            state["contours"][j] = _draw_contours(ax, tri, values, scales[comp], alpha)
+            edges = tri.edges
+            state["meshes"][j].set_segments(
+                np.stack(
+                    [np.column_stack([tri.x[edges[:, i]], tri.y[edges[:, i]]]) for i in (0, 1)],
+                    axis=1,
+                )
+            )
+        else:
+            state["meshes"][j].set_segments([])
+    state["label"].set_text(label)
+    state["canvas"].draw()
+    if not state.get("frozen"):
+        fig.set_layout_engine("none")  # keep the first frame's layout: no jitter between frames
+        state["frozen"] = True
+    rgb = np.asarray(state["canvas"].buffer_rgba())[..., :3]
+    w, h = state["size"]
+    out = np.full((h, w, 3), 255, np.uint8)
+    hh, ww = min(h, rgb.shape[0]), min(w, rgb.shape[1])
+    out[:hh, :ww] = rgb[:hh, :ww]
+    return out

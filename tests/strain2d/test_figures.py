@@ -1,16 +1,23 @@
 import numpy as np
 import pytest
+from matplotlib.colors import to_rgba
 from matplotlib.contour import ContourSet
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 
 from strain2d.figures import (
+    format_p,
+    mean_strain_curves,
+    plot_principal_crosses,
+    plot_strain_curves,
     plot_strain_maps,
     plot_strain_maps_at,
+    plot_strain_violins,
     plot_tracked_grid,
     save_figure,
     strain_limits,
     strain_maps_figure,
+    write_strain_animation,
 )
 from strain2d.pipeline import strain_from_tracks
 from strain2d.tracks import Tracks
@@ -183,3 +190,165 @@ def test_maps_at_several_frames_share_one_scale_with_zero_white(tmp_path):
     assert sorted(everything) == [0, 2, 3]
     with pytest.raises(ValueError, match="no image given for frame 1"):
         plot_strain_maps_at(tmp_path / "x", images, field, [1])
+
+
+# ------------------------------------------------------------------ principal crosses
+
+
+def _arms(fig, gid):
+    """The bars of one principal direction: (points, 2 ends, xy)."""
+    (arms,) = [c for c in fig.axes[0].collections if c.get_gid() == gid]
+    return np.array(arms.get_segments())
+
+
+def test_principal_crosses_point_along_a_known_stretch(tmp_path):
+    X = _grid(4)
+    x = X * [1.2, 0.9]  # stretch along x, shortening along y: E1 = 0.22, E2 = -0.095
+    field = compute_strain(X, np.stack([X, x]), grid_triangles(4, 4))
+    image = _frames(1)[0]
+    fig = plot_principal_crosses(image, field, 1, scale=100.0)
+    arms = {c.get_gid(): c for c in fig.axes[0].collections if c.get_gid() in ("E1", "E2")}
+    e1 = np.array(arms["E1"].get_segments())
+    e2 = np.array(arms["E2"].get_segments())
+    assert e1.shape == e2.shape == (16, 2, 2)
+    d1, d2 = e1[:, 1] - e1[:, 0], e2[:, 1] - e2[:, 0]
+    assert np.abs(d1[:, 1]).max() < 1e-9 and np.abs(d2[:, 0]).max() < 1e-9  # horizontal, vertical
+    assert np.abs(d1[:, 0]) == pytest.approx(100 * 0.22)
+    assert np.abs(d2[:, 1]) == pytest.approx(100 * 0.095)
+    assert 0.5 * (e1[:, 0] + e1[:, 1]) == pytest.approx(x)  # centred on the current nodes
+    assert to_rgba(arms["E1"].get_colors()[0]) == to_rgba("#b2182b")  # red: stretch
+    assert to_rgba(arms["E2"].get_colors()[0]) == to_rgba("#2166ac")  # blue: shortening
+    assert fig.axes[0].get_xlabel() == "x (px)"
+    save_figure(fig, tmp_path / "crosses.png", dpi=80)
+    _assert_image(tmp_path / "crosses.png")
+    # default scale: the longest bar is 0.8 of the node spacing (in the current frame)
+    fig = plot_principal_crosses(image, field, -1)
+    e1 = _arms(fig, "E1")
+    spacing = (X[4, 1] - X[0, 1]) * 0.9  # the shorter grid step (y) after deformation
+    assert np.linalg.norm(e1[:, 1] - e1[:, 0], axis=1).max() == pytest.approx(0.8 * spacing)
+    # triangles: one cross per triangle centroid
+    fig = plot_principal_crosses(image, field, 1, at="triangles")
+    assert len(_arms(fig, "E1")) == field.n_triangles
+    with pytest.raises(ValueError, match="at must be"):
+        plot_principal_crosses(image, field, 1, at="edges")
+
+
+def test_principal_crosses_skip_nodes_without_values():
+    n = 4
+    X = _grid(n)
+    x = np.stack([X, X * [1.1, 0.95]])
+    x[1, 0] = np.nan  # a lost corner node: its only triangle is lost, it has no value
+    field = compute_strain(X, x, grid_triangles(n, n))
+    e1 = nodal_scalars(field)["E1"][1]
+    assert np.isnan(e1[0]) and np.isfinite(e1[1:]).all()
+    fig = plot_principal_crosses(_frames(1)[0], field, 1)
+    seg = _arms(fig, "E1")
+    assert len(seg) == n * n - 1
+    assert np.isfinite(seg).all()
+
+
+# ------------------------------------------------------------------ curves and violins
+
+
+def test_mean_curves_and_their_figure(tmp_path):
+    field = _field(T=6, noise=0.0)
+    curves = mean_strain_curves(field, ("Exx", "Eyy"))
+    s = np.linspace(0, 1, 6)
+    assert curves["mean"]["Eyy"] == pytest.approx(0.5 * ((1 - 0.2 * s) ** 2 - 1))
+    assert curves["sd"]["Exx"] == pytest.approx(np.zeros(6), abs=1e-12)
+    assert list(curves["n"]["Exx"]) == [25] * 6
+    noisy = _field(T=6)
+    fig = plot_strain_curves(noisy, times=np.arange(6) / 5, time_unit="s", endpoint=4)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "time (s)" and ax.get_ylabel() == "Green-Lagrange strain (-)"
+    assert any("endpoint" in t.get_text() and "0.8 s" in t.get_text() for t in ax.texts)
+    save_figure(fig, tmp_path / "curves.png", dpi=60)
+    _assert_image(tmp_path / "curves.png", shape=(int(4.2 * 60), int(7.0 * 60)))
+    assert plot_strain_curves(noisy).axes[0].get_xlabel() == "frame"
+    with pytest.raises(ValueError, match="one value per frame"):
+        plot_strain_curves(noisy, times=[0, 1])
+
+
+def test_format_p():
+    assert format_p(1e-9) == "p < 0.001"
+    assert format_p(0.00999) == "p = 0.010"
+    assert format_p(0.5) == "p = 0.50"
+    assert format_p(float("nan")) == "p = n/a"
+
+
+def test_violins_with_tests_and_degenerate_values(tmp_path):
+    rng = np.random.default_rng(0)
+    values = {"Exx": rng.normal(-0.1, 0.01, 49), "Eyy": rng.normal(-0.2, 0.02, 49)}
+    values["Exx"][3] = np.nan
+    tests = {"t_p": 2e-6, "wilcoxon_p": 0.0042, "n": 48, "label": "node-level paired t-test"}
+    fig = plot_strain_violins(values, title="specimen 1", tests=tests)
+    texts = " ".join(t.get_text() for t in fig.axes[0].texts)
+    assert "node-level paired t-test: p < 0.001" in texts
+    assert "Wilcoxon signed-rank: p = 0.004" in texts and "n = 48" in texts
+    assert fig.axes[0].get_ylabel() == "Green-Lagrange strain (-)"
+    save_figure(fig, tmp_path / "violins.png", dpi=60)
+    _assert_image(tmp_path / "violins.png")
+    # a uniform field (no spread), a single node, and no values at all still draw
+    odd = {"Exx": np.full(10, -0.1), "Eyy": np.array([-0.2]), "Exy": np.array([np.nan])}
+    save_figure(plot_strain_violins(odd, tests={"t_p": float("nan")}), tmp_path / "odd.png")
+    _assert_image(tmp_path / "odd.png", min_colours=5)
+
+
+# ------------------------------------------------------------------ animation
+
+
+def test_mp4_animation_frames_size_and_content(tmp_path):
+    import cv2
+
+    field = _field(T=4)
+    calls = []
+    out = write_strain_animation(
+        tmp_path / "strain.mp4",
+        iter(_frames(4)),
+        field,
+        fps=5,
+        progress=lambda done, total: calls.append((done, total)),
+        max_width=400,
+    )
+    assert out == tmp_path / "strain.mp4"
+    assert calls == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    cap = cv2.VideoCapture(str(out))
+    try:
+        assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == 4
+        shown = []
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            shown.append(frame)
+    finally:
+        cap.release()
+    assert len(shown) == 4
+    h, w = shown[0].shape[:2]
+    assert w == 400 and h % 2 == 0 and 100 < h < 400
+    for frame in shown:
+        assert frame.std() > 20 and len(np.unique(frame.reshape(-1, 3), axis=0)) > 50
+    assert [p.name for p in tmp_path.iterdir()] == ["strain.mp4"]  # no temporary left
+
+
+def test_gif_animation_and_mismatched_frame_counts(tmp_path):
+    import imageio.v3 as iio
+
+    field = _field(T=3)
+    floats = [f.astype(float) / 255 for f in _frames(3)]
+    labels = [f"t = {k / 2:.1f} s" for k in range(3)]
+    out = write_strain_animation(
+        tmp_path / "strain.gif", floats, field, components=("E1",), time_labels=labels
+    )
+    gif = iio.imread(out, plugin="pillow", index=None)
+    assert gif.shape[0] == 3 and gif.shape[2] % 2 == 0 and gif.shape[2] <= 1000
+    assert gif[..., :3].std() > 20
+    for name, frames in (("few", _frames(2)), ("many", _frames(4))):
+        with pytest.raises(ValueError, match=r"field of 3 frames|field's 3 frames"):
+            write_strain_animation(tmp_path / f"{name}.mp4", iter(frames), field)
+        assert not (tmp_path / f"{name}.mp4").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["strain.gif"]
+    with pytest.raises(ValueError, match=r"\.mp4 or \.gif"):
+        write_strain_animation(tmp_path / "x.avi", _frames(3), field)
+    with pytest.raises(ValueError, match="time_labels"):
+        write_strain_animation(tmp_path / "x.gif", _frames(3), field, time_labels=["a"])
