@@ -14,6 +14,9 @@ RENDER_GRAY_LEVELS = 0.02
 DIC_QUICK_TRACK_RMSE_PX = 0.05
 #: dic on the quick paper cases: nodal strain RMSE of every component
 DIC_QUICK_STRAIN_RMSE = 0.001
+#: cotracker3 adapter with the stand-in predictor: largest position error along the known path
+#: in pixels (float32 coordinates through a crop and the 384 x 512 model resolution)
+COTRACKER_STANDIN_PX = 1e-3
 
 # --- mpm3d (synthetic MPM stacks; the bars are 5 %, 3 deg and one z-step) ---
 #: fold wavelength and fold heights (median, max, per fold): relative error
