@@ -792,6 +792,8 @@ def plot_principal_crosses(
         raise InputError(f"at must be 'nodes' or 'triangles', got {at!r}")
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise InputError(f"scale must be a positive number of pixels per unit strain, got {scale}")
+    if key_value is not None and not (np.isfinite(key_value) and key_value > 0):
+        raise InputError(f"key_value must be a positive strain, got {key_value}")
     if at == "nodes":
         s = nodal_scalars(field)
         d = nodal_principal_directions(field)
@@ -1151,7 +1153,8 @@ def write_strain_animation(
     alpha : float, keyword-only
         Opacity of the contours.
     max_width : int, keyword-only
-        Width of the output in pixels (at most; rounded down to even).
+        Largest width (and height, for tall frames) of the output in pixels;
+        both are even.
     dpi : int, keyword-only
         Resolution of the rendering (sets text size relative to the frame).
 
@@ -1266,10 +1269,18 @@ def _animation_figure(image, field, components, scales, alpha, max_width, dpi) -
 
     n = len(components)
     h, w = image.shape[:2]
+
+    def height_for(width_px: int) -> int:  # panel: image + colour bar and labels beside it
+        panel_in = width_px / dpi / n
+        return max(64, 2 * (round(((panel_in - 1.25) * h / w + 0.95) * dpi) // 2))
+
     width_px = 2 * (min(int(max_width), 480 * n) // 2)
-    panel_in = width_px / dpi / n
-    height_px = 2 * (round(((panel_in - 1.25) * h / w + 0.95) * dpi) // 2)
-    fig = Figure(figsize=(width_px / dpi, max(height_px, 64) / dpi), dpi=dpi, layout="constrained")
+    height_px = height_for(width_px)
+    if height_px > max_width:  # tall frames: the height is kept under max_width too
+        image_in = (max_width / dpi - 0.95) * w / h
+        width_px = max(64, 2 * (int((image_in + 1.25) * n * dpi) // 2))
+        height_px = min(height_for(width_px), 2 * (int(max_width) // 2))
+    fig = Figure(figsize=(width_px / dpi, height_px / dpi), dpi=dpi, layout="constrained")
     canvas = FigureCanvasAgg(fig)
     axes = np.atleast_1d(fig.subplots(1, n))
     vmin, vmax = _gray_range(image)
@@ -1280,7 +1291,7 @@ def _animation_figure(image, field, components, scales, alpha, max_width, dpi) -
         "images": [],
         "meshes": [],
         "contours": [None] * n,
-        "size": (width_px, max(height_px, 64)),
+        "size": (width_px, height_px),
     }
     for ax, comp in zip(axes, components, strict=True):
         state["images"].append(_show_image(ax, image, vmin=vmin, vmax=vmax))

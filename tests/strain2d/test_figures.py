@@ -335,13 +335,15 @@ def test_gif_animation_and_mismatched_frame_counts(tmp_path):
     import imageio.v3 as iio
 
     field = _field(T=3)
-    floats = [f.astype(float) / 255 for f in _frames(3)]
+    rng = np.random.default_rng(1)
+    tall = [rng.uniform(0, 1, (400, W)) for _ in range(3)]  # float frames, taller than wide
     labels = [f"t = {k / 2:.1f} s" for k in range(3)]
     out = write_strain_animation(
-        tmp_path / "strain.gif", floats, field, components=("E1",), time_labels=labels
+        tmp_path / "strain.gif", tall, field, components=("E1",), time_labels=labels, max_width=400
     )
     gif = iio.imread(out, plugin="pillow", index=None)
-    assert gif.shape[0] == 3 and gif.shape[2] % 2 == 0 and gif.shape[2] <= 1000
+    assert gif.shape[0] == 3
+    assert gif.shape[1] <= 400 and gif.shape[1] % 2 == 0 and gif.shape[2] % 2 == 0
     assert gif[..., :3].std() > 20
     for name, frames in (("few", _frames(2)), ("many", _frames(4))):
         with pytest.raises(ValueError, match=r"field of 3 frames|field's 3 frames"):
