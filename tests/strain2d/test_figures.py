@@ -1,3 +1,6 @@
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from matplotlib.colors import to_rgba
@@ -9,10 +12,13 @@ from strain2d.figures import (
     format_p,
     mean_strain_curves,
     plot_principal_crosses,
+    plot_specimen_means,
     plot_strain_curves,
     plot_strain_maps,
     plot_strain_maps_at,
     plot_strain_violins,
+    plot_study_curves,
+    plot_study_violins,
     plot_tracked_grid,
     save_figure,
     strain_limits,
@@ -354,3 +360,72 @@ def test_gif_animation_and_mismatched_frame_counts(tmp_path):
         write_strain_animation(tmp_path / "x.avi", _frames(3), field)
     with pytest.raises(ValueError, match="time_labels"):
         write_strain_animation(tmp_path / "x.gif", _frames(3), field, time_labels=["a"])
+
+
+# ------------------------------------------------------------------ study figures
+
+
+def _study():
+    specs = [("S1", "aniso", 0.1, 0.2), ("S2", "iso", 0.15, 0.15), ("S3", "aniso", 0.1, 0.25)]
+    curves, violins, table = [], [], []
+    for i, (name, group, ax, ay) in enumerate(specs):
+        field = _field(T=4, ax=ax, ay=ay, seed=i)
+        stats = mean_strain_curves(field, ("Exx", "Eyy"))
+        curves.append(
+            {"name": name, "group": group, "times": np.arange(4) * 0.5, **stats, "endpoint": 2}
+        )
+        node = nodal_scalars(field)
+        values = {"Exx": node["Exx"][-1], "Eyy": node["Eyy"][-1]}
+        tests = {"t_p": 1e-4 if ax != ay else 0.4, "n": 25, "label": "node-level paired t-test"}
+        violins.append({"name": name, "group": group, "values": values, "tests": tests})
+        means = {k: float(v.mean()) for k, v in values.items()}
+        table.append({"name": name, "group": group, **means})
+    return curves, violins, table
+
+
+def test_study_figures(tmp_path):
+    curves, violins, table = _study()
+    fig = plot_study_curves(curves, time_unit="s")
+    panels = [ax for ax in fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in panels] == ["S1 (aniso)", "S3 (aniso)", "S2 (iso)"]
+    assert all(ax.get_xlabel() == "time (s)" for ax in panels)
+    assert panels[0].get_ylim() == panels[2].get_ylim()  # one strain axis
+    assert any("endpoint (1 s)" in t.get_text() for t in panels[0].texts)
+    curves[1]["endpoint"] = 0.75  # a time, not an index
+    save_figure(plot_study_curves(curves), tmp_path / "curves.png", dpi=50)
+    _assert_image(tmp_path / "curves.png")
+
+    fig = plot_study_violins(violins)
+    ax = fig.axes[0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["S1", "S3", "S2"]
+    ptexts = sorted(t.get_text() for t in ax.texts if t.get_text().startswith("p "))
+    assert ptexts == ["p < 0.001", "p < 0.001", "p = 0.40"]
+    assert ax.get_ylabel() == "Green-Lagrange strain (-)"
+    save_figure(fig, tmp_path / "violins.png", dpi=50)
+    _assert_image(tmp_path / "violins.png")
+    with pytest.raises(ValueError, match="no values for"):
+        plot_study_violins(violins, components=("Exx", "Exy"))
+
+    fig = plot_specimen_means(table, tests={"aniso": {"t_p": 0.03}, "iso": {"t_p": 0.9}})
+    ax = fig.axes[0]
+    assert len(ax.get_lines()) == len(table) + 2 + 1  # specimens, group means, zero
+    assert "aniso: t: p = 0.030" in ax.get_title()
+    assert "specimen mean" in ax.get_ylabel() and "(-)" in ax.get_ylabel()
+    nested = [{"name": r["name"], "mean": {"Exx": r["Exx"], "Eyy": r["Eyy"]}} for r in table]
+    save_figure(plot_specimen_means(nested), tmp_path / "means.png", dpi=50)
+    _assert_image(tmp_path / "means.png")
+
+
+def test_figures_never_touch_pyplot(tmp_path):
+    code = (
+        "import sys, numpy as np\n"
+        "from strain2d import figures as f\n"
+        "from surface_strain import compute_strain, grid_triangles\n"
+        "X = np.stack(np.meshgrid(np.arange(3.0), np.arange(3.0)), -1).reshape(-1, 2) * 10\n"
+        "field = compute_strain(X, np.stack([X, X * 1.1]), grid_triangles(3, 3))\n"
+        "img = np.zeros((30, 30))\n"
+        f"f.save_figure(f.plot_principal_crosses(img, field, 1), {str(tmp_path / 'c')!r})\n"
+        f"f.write_strain_animation({str(tmp_path / 'a.mp4')!r}, [img, img], field)\n"
+        "assert 'matplotlib.pyplot' not in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
