@@ -83,8 +83,12 @@ setup-3d: setup
 	  else echo "open3d needs libusb: sudo apt-get install -y libusb-1.0-0"; exit 1; fi; }
 	$(BIN)/python -m pip install --quiet -e ".[3d]"
 
+# PyTorch for the cotracker3 tracker (the dev tools that make setup installs include it);
+# says which build is there: for a GPU, install the CUDA build from pytorch.org into .venv.
 setup-torch: setup
 	$(BIN)/python -m pip install --quiet -e ".[torch]"
+	@$(BIN)/python -c "import torch; print('PyTorch', torch.__version__, \
+	  '(CUDA device found)' if torch.cuda.is_available() else '(no CUDA device: CPU only)')"
 
 clean:
 	rm -rf $(VENV) $(DEMO) .pytest_cache .ruff_cache
