@@ -1449,7 +1449,8 @@ def write_strain_animation(
     Parameters
     ----------
     path : path
-        ``.mp4`` (OpenCV, codec ``mp4v``) or ``.gif`` (imageio's pillow plugin).
+        ``.mp4`` (H.264 through imageio-ffmpeg's ffmpeg, plays in web browsers)
+        or ``.gif`` (imageio's pillow plugin).
     frames : iterable of (H, W) float or uint8
         The video, one image per frame of ``field``, read one at a time.
         uint8 images are shown on 0..255; float images on the range of the
@@ -1538,7 +1539,7 @@ def write_strain_animation(
             if writer is None:
                 writer = _open_writer(tmp, kind, fps, rgb.shape)
             if kind == ".mp4":
-                writer.write(np.ascontiguousarray(rgb[..., ::-1]))
+                writer.send(np.ascontiguousarray(rgb))
             else:
                 writer.write(rgb, duration=1000.0 / fps, loop=0)
             if progress:
@@ -1561,11 +1562,22 @@ def write_strain_animation(
 def _open_writer(tmp: Path, kind: str, fps: float, shape: tuple[int, ...]):
     h, w = shape[:2]
     if kind == ".mp4":
-        import cv2
+        # H.264 in yuv420p: what web browsers (the HTML report) and every player decode
+        import imageio_ffmpeg
 
-        writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
-        if not writer.isOpened():
-            raise OSError(f"OpenCV cannot write an MP4 (mp4v) video to {tmp.parent}")
+        writer = imageio_ffmpeg.write_frames(
+            str(tmp),
+            (w, h),
+            fps=float(fps),
+            codec="libx264",
+            pix_fmt_in="rgb24",
+            pix_fmt_out="yuv420p",
+            quality=7,
+            macro_block_size=2,  # the frames are already even on both sides
+            ffmpeg_log_level="error",
+            output_params=["-movflags", "+faststart"],
+        )
+        writer.send(None)  # start ffmpeg
         return writer
     import imageio.v3 as iio
 
@@ -1574,7 +1586,7 @@ def _open_writer(tmp: Path, kind: str, fps: float, shape: tuple[int, ...]):
 
 def _close_writer(writer, kind: str) -> None:
     if kind == ".mp4":
-        writer.release()
+        writer.close()
     else:
         writer.close()
 

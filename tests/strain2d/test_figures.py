@@ -321,6 +321,9 @@ def test_mp4_animation_frames_size_and_content(tmp_path):
     cap = cv2.VideoCapture(str(out))
     try:
         assert cap.get(cv2.CAP_PROP_FRAME_COUNT) == 4
+        # H.264, which web browsers play inside the HTML report (mp4v does not)
+        fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little").decode().lower()
+        assert fourcc in ("h264", "avc1"), fourcc
         shown = []
         while True:
             ok, frame = cap.read()
