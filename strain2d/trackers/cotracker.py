@@ -172,7 +172,7 @@ def _load(
     info: dict[str, Any] = {}
     ckpt = None
     if checkpoint is not None:
-        ckpt = Path(checkpoint)
+        ckpt = Path(checkpoint).expanduser()
         if not ckpt.is_file():
             raise InputError(
                 f"no such CoTracker3 checkpoint: {ckpt} (download it from {WEIGHTS_URL})"
@@ -183,7 +183,7 @@ def _load(
         f"{WEIGHTS_URL} and add --cotracker-checkpoint FILE, or --cotracker-download"
     )
     if repo is not None:
-        root = Path(repo)
+        root = Path(repo).expanduser()
         if not root.is_dir():
             raise InputError(f"--cotracker-repo {root} is not a folder; git clone {REPO_URL}")
         if not (root / "hubconf.py").is_file():

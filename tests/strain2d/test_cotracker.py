@@ -249,8 +249,9 @@ def checkpoint(tmp_path):
     return path
 
 
-def test_repository_and_checkpoint_load_the_weights(hub_repo, checkpoint):
-    predictor = load_cotracker3(repo=hub_repo, checkpoint=checkpoint)
+def test_repository_and_checkpoint_load_the_weights(monkeypatch, tmp_path, hub_repo, checkpoint):
+    monkeypatch.setenv("HOME", str(tmp_path))  # paths from Python may start with ~
+    predictor = load_cotracker3(repo="~/co-tracker", checkpoint="~/scaled_offline.pth")
     assert type(predictor).__name__ == "StandInPredictor"
     np.testing.assert_allclose(predictor.model.log_stretch.detach().numpy(), LOG_STRETCH)
     tracks = track_cotracker(
