@@ -160,9 +160,72 @@ def _build_parser() -> argparse.ArgumentParser:
         default=None,
         help="frame rate for time axes in seconds (default: the frame index)",
     )
+    g = p.add_argument_group("figures, statistics and report")
+    g.add_argument(
+        "--endpoint",
+        type=int,
+        metavar="FRAME",
+        help="contraction endpoint frame (default: detected, where the strain rate falls "
+        "below --endpoint-tolerance and stays there)",
+    )
+    g.add_argument(
+        "--endpoint-tolerance",
+        type=float,
+        default=0.05,
+        metavar="FRACTION",
+        help="endpoint detection: rate of the mean strains, as a fraction of its largest "
+        "value, below which the tissue counts as still (default 0.05)",
+    )
+    g.add_argument(
+        "--maps-at",
+        metavar="FRAMES",
+        help="comma-separated frames that also get contour maps (the endpoint and the last "
+        "frame always do)",
+    )
+    g.add_argument(
+        "--animation",
+        choices=["mp4", "gif", "none"],
+        default="mp4",
+        help="animation of the strain field on the video (default mp4)",
+    )
+    g.add_argument(
+        "--figure-format",
+        default="png",
+        metavar="FORMATS",
+        help="comma-separated figure formats among png, svg, pdf (default png; png is "
+        "always written, the report embeds it)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.set_defaults(handler=_cmd_analyze)
+
+    p = sub.add_parser(
+        "study",
+        help="combine analyze runs (specimens) into study figures, tests and a report",
+        description="Combine analyze output folders: Fig. 14/15-style panels for all "
+        "specimens, specimen-level paired tests, a mixed-effects model with the specimen as "
+        "random effect, a plain-language summary and report.html.",
+    )
+    p.add_argument("runs", nargs="*", metavar="RUN_DIR", help="analyze output folders")
+    p.add_argument(
+        "--manifest",
+        metavar="CSV",
+        help="CSV with columns run (folder, relative to the CSV), and optionally specimen, "
+        "group and endpoint (a frame overriding the run's contraction endpoint)",
+    )
+    p.add_argument(
+        "--compare",
+        default="Exx,Eyy",
+        metavar="A,B",
+        help="the two nodal components compared (default Exx,Eyy)",
+    )
+    p.add_argument("--alpha", type=float, default=0.05, help="significance level (default 0.05)")
+    p.add_argument(
+        "--figure-format", default="png", metavar="FORMATS", help="as for analyze (default png)"
+    )
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.set_defaults(handler=_cmd_study)
 
     p = sub.add_parser("benchmark", help="reproduce the paper's Table 1 on synthetic videos")
     p.add_argument("--quick", action="store_true", help="400x400 px, 11 frames (for tests)")
@@ -310,13 +373,20 @@ def _cmd_analyze(args) -> int:
         write_strain_elements_csv,
         write_strain_nodes_csv,
     )
-    from strain2d.figures import plot_strain_maps, plot_tracked_grid
+    from strain2d.figures import plot_tracked_grid
     from strain2d.pipeline import strain_from_tracks
+    from strain2d.report import parse_formats, run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
 
     t_start = time.perf_counter()
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
         raise InputError(f"--fps must be a positive number, got {args.fps}")
+    if not 0 < args.endpoint_tolerance < 1:
+        raise InputError(
+            f"--endpoint-tolerance must lie between 0 and 1, got {args.endpoint_tolerance}"
+        )
+    formats = parse_formats(args.figure_format)
+    map_frames = _frame_list(args.maps_at, "--maps-at")
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     source, point_info, tracks = _track_source(args)
     t_tracked = time.perf_counter()
@@ -338,7 +408,34 @@ def _cmd_analyze(args) -> int:
         figs.mkdir()
         first_img, last_img = source.ends()
         plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
-        plot_strain_maps(figs / f"strain_frame{last:04d}.png", last_img, field, last)
+        update, close = _progress(args, "figures")
+        try:
+            extra = run_outputs(
+                tmp,
+                field,
+                tracks,
+                frames=lambda: _open(args),
+                times=times,
+                time_unit="s" if args.fps else "frame",
+                endpoint=args.endpoint,
+                relative_tolerance=args.endpoint_tolerance,
+                map_frames=map_frames,
+                animation=args.animation,
+                animation_fps=args.fps or 10.0,
+                formats=formats,
+                progress=update,
+            )
+        finally:
+            close()
+        t_figures = time.perf_counter()
+        extra["figures"].insert(
+            0,
+            {
+                "files": ["figures/tracked_grid.png"],
+                "caption": "The tracked grid and mesh on the reference and the last frame; "
+                "lost points are red crosses.",
+            },
+        )
         summary = {
             "software": {"name": "strain2d", "version": __version__},
             "created": datetime.now(UTC).isoformat(timespec="seconds"),
@@ -364,18 +461,90 @@ def _cmd_analyze(args) -> int:
             "time_axis": {"fps": args.fps, "unit": "s" if args.fps else "frame"},
             "lost_points_last_frame": int((~tracks.visible[-1]).sum()),
             "final_frame": {"index": last, "nodal_strain": _final_stats(field)},
+            "contraction_endpoint": extra["contraction_endpoint"],
+            "statistics": extra["statistics"],
             "units": {"positions": "px", "strain": "Green-Lagrange, dimensionless"},
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
             "outputs": [
                 *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
+                "report.html",
                 "summary.json",
             ],
+            "figures": extra["figures"],
             "runtime_s": {
                 "tracking": t_tracked - t_start,
                 "strain": t_strain - t_tracked,
+                "figures": t_figures - t_strain,
             },
         }
         write_json(tmp / "summary.json", summary)
+        write_run_report(tmp, summary)
+    return 0
+
+
+def _frame_list(text: str | None, flag: str) -> list[int]:
+    if not text:
+        return []
+    try:
+        return [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise InputError(f"{flag} takes comma-separated frame numbers, got {text!r}") from None
+
+
+def _cmd_study(args) -> int:
+    from strain2d.atomic import atomic_dir, check_writable
+    from strain2d.export import write_json
+    from strain2d.report import parse_formats, study_outputs, write_study_report
+    from strain2d.study import load_specimens, plain_summary, read_manifest, study_statistics
+
+    formats = parse_formats(args.figure_format)
+    parts = [c.strip() for c in args.compare.split(",")]
+    if len(parts) != 2:
+        raise InputError(f"--compare takes two components A,B, got {args.compare!r}")
+    if args.manifest and args.runs:
+        raise InputError("give run folders or --manifest, not both")
+    if not args.manifest and not args.runs:
+        raise InputError("give the run folders to combine, or --manifest CSV")
+    inputs = [args.manifest] if args.manifest else list(args.runs)
+    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
+    entries = read_manifest(args.manifest) if args.manifest else [{"run": r} for r in args.runs]
+    specimens = load_specimens(entries)
+    stats = study_statistics(specimens, a=parts[0], b=parts[1], alpha=args.alpha)
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
+        extra = study_outputs(tmp, specimens, stats, formats=formats)
+        summary = {
+            "software": {"name": "strain2d", "version": __version__},
+            "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            "command": ["strain2d", *sys.argv[1:]] if sys.argv else [],
+            "inputs": {
+                "manifest": args.manifest,
+                "runs": [str(e["run"]) for e in entries],
+            },
+            "parameters": {"compare": parts, "alpha": args.alpha, "formats": list(formats)},
+            "specimens": [
+                {
+                    "specimen": s.name,
+                    "group": s.group,
+                    "run": str(s.run.path),
+                    "run_software": s.run.summary.get("software"),
+                    "endpoint": s.endpoint,
+                    "endpoint_source": s.endpoint_source,
+                }
+                for s in specimens
+            ],
+            "plain_summary": plain_summary(stats),
+            "outputs": [
+                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
+                "report.html",
+                "summary.json",
+            ],
+            "figures": extra["figures"],
+        }
+        write_json(tmp / "summary.json", summary)
+        write_study_report(tmp, summary, stats)
+    if not args.quiet:
+        for line in summary["plain_summary"]:
+            print(line)
     return 0
 
 

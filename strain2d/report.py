@@ -1,0 +1,594 @@
+"""Per-run figures, statistics and the run's ``report.html``.
+
+:func:`run_outputs` is what ``strain2d analyze`` calls after tracking: it
+finds the contraction endpoint (or takes the one given), draws the figures
+(contour maps at chosen frames and at the endpoint with one colour scale for
+all frames, principal directions as crosses, mean +/- spatial SD curves,
+violins with the node-level tests, an animation of the field on the video),
+and computes the run's statistics.  :func:`write_run_report` turns the run
+folder and its ``summary.json`` into a self-contained ``report.html``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from strain2d.errors import InputError
+from strain2d.html import HtmlReport
+from strain2d.stats import contraction_endpoint, paired_node_tests
+from strain2d.tracks import Tracks
+from surface_strain import StrainField, nodal_scalars
+
+__all__ = [
+    "FIGURE_FORMATS",
+    "endpoint_of",
+    "parse_formats",
+    "run_outputs",
+    "write_run_report",
+]
+
+FIGURE_FORMATS = ("png", "svg", "pdf")
+ANIMATIONS = ("mp4", "gif", "none")
+
+
+def parse_formats(text: str | Sequence[str]) -> tuple[str, ...]:
+    """``"png,svg"`` -> ``("png", "svg")``; PNG is always included (the report embeds it)."""
+    items = text.split(",") if isinstance(text, str) else list(text)
+    formats = [f.strip().lower().lstrip(".") for f in items if f.strip()]
+    bad = [f for f in formats if f not in FIGURE_FORMATS]
+    if bad:
+        raise InputError(
+            f"unknown figure format {bad[0]!r}; choose from {', '.join(FIGURE_FORMATS)}"
+        )
+    return tuple(dict.fromkeys(["png", *formats]))
+
+
+def _mean_curves(field: StrainField, components: Sequence[str]) -> np.ndarray:
+    node = nodal_scalars(field)
+    out = np.full((field.n_frames, len(components)), np.nan)
+    for j, key in enumerate(components):
+        values = node[key]
+        ok = np.isfinite(values)
+        counts = ok.sum(axis=1)
+        sums = np.where(ok, values, 0.0).sum(axis=1)
+        out[:, j] = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+    return out
+
+
+def endpoint_of(
+    field: StrainField,
+    *,
+    times: np.ndarray | None = None,
+    frame: int | None = None,
+    rate_tolerance: float | None = None,
+    relative_tolerance: float = 0.05,
+    components: Sequence[str] = ("Exx", "Eyy", "Exy"),
+) -> dict:
+    """The contraction endpoint of a run: detected from the mean strains, or ``frame``.
+
+    Returns a dict for ``summary.json``: ``frame``, ``time``, ``source``
+    (``"detected"`` or ``"given"``), the method and tolerance, and the
+    detected frame even when one was given, so the two can be compared.
+    """
+    T = field.n_frames
+    t = np.arange(T, dtype=float) if times is None else np.asarray(times, float)
+    detected = None
+    if T >= 3:
+        detected = contraction_endpoint(
+            _mean_curves(field, components),
+            times=t,
+            rate_tolerance=rate_tolerance,
+            relative_tolerance=relative_tolerance,
+        )
+    if frame is not None:
+        if not -T <= frame < T:
+            raise InputError(f"--endpoint {frame} is outside the frames 0..{T - 1}")
+        chosen, source = frame % T, "given"
+    else:
+        chosen, source = (T - 1 if detected is None else detected), "detected"
+    return {
+        "frame": int(chosen),
+        "time": float(t[chosen]),
+        "source": source,
+        "detected_frame": detected,
+        "method": (
+            f"last frame into which the rate of the mean {', '.join(components)} exceeds "
+            + (
+                f"{rate_tolerance:g} per time unit"
+                if rate_tolerance is not None
+                else f"{relative_tolerance:g} x its largest value"
+            )
+        ),
+    }
+
+
+def _capture(frames: Iterable[np.ndarray], wanted: set[int], store: dict) -> Iterable[np.ndarray]:
+    for k, image in enumerate(frames):
+        if k in wanted:
+            store[k] = np.asarray(image)
+        yield image
+
+
+def run_outputs(
+    folder: str | os.PathLike,
+    field: StrainField,
+    tracks: Tracks,
+    *,
+    frames: Callable[[], Iterable[np.ndarray]],
+    times: np.ndarray,
+    time_unit: str,
+    endpoint: int | None = None,
+    rate_tolerance: float | None = None,
+    relative_tolerance: float = 0.05,
+    map_frames: Sequence[int] = (),
+    animation: str = "mp4",
+    animation_fps: float = 10.0,
+    formats: Sequence[str] = ("png",),
+    components: Sequence[str] = ("Exx", "Eyy", "Exy"),
+    n_boot: int = 2000,
+    progress: Callable[[int, int | None], None] | None = None,
+) -> dict:
+    """Write a run's figures and ``statistics.json`` into ``folder``; return summary entries.
+
+    Parameters
+    ----------
+    folder : path
+        The run folder (``figures/`` is created in it).
+    frames : callable
+        Returns a fresh iterable over the video's frames (``(H, W)`` gray),
+        one per field frame; called once.
+    times : (T,) float
+        Frame times in ``time_unit`` (``"s"`` or ``"frame"``).
+    endpoint : int, optional
+        The contraction endpoint frame; detected when None (see :func:`endpoint_of`
+        for ``rate_tolerance`` and ``relative_tolerance``).
+    map_frames : sequence of int
+        Frames that get contour maps besides the endpoint and the last frame.
+    animation : {"mp4", "gif", "none"}
+    formats : sequence of {"png", "svg", "pdf"}
+        Every figure is written in each format (animations excepted).
+
+    Returns
+    -------
+    dict
+        ``contraction_endpoint``, ``statistics`` and ``figures`` (a list of
+        {``files``, ``caption``}) for ``summary.json``.
+    """
+    from strain2d import figures as fg
+
+    folder = Path(folder)
+    T = field.n_frames
+    if animation not in ANIMATIONS:
+        raise InputError(f"unknown animation {animation!r}; choose from {', '.join(ANIMATIONS)}")
+    bad = [k for k in map_frames if not -T <= k < T]
+    if bad:
+        raise InputError(f"--maps-at frame {bad[0]} is outside the frames 0..{T - 1}")
+    ep = endpoint_of(
+        field,
+        times=times,
+        frame=endpoint,
+        rate_tolerance=rate_tolerance,
+        relative_tolerance=relative_tolerance,
+    )
+    k_end = ep["frame"]
+    maps = sorted({*(k % T for k in map_frames), k_end, T - 1})
+    unit = "s" if time_unit == "s" else "frame"
+
+    def when(k: int) -> str:
+        return f"frame {k}" + (f" (t = {times[k]:.3g} s)" if unit == "s" else "")
+
+    figdir = folder / "figures"
+    figdir.mkdir(exist_ok=True)
+    written: list[dict] = []
+
+    def record(paths, caption: str) -> None:
+        written.append(
+            {"files": [str(Path(p).relative_to(folder)) for p in paths], "caption": caption}
+        )
+
+    # one pass over the video: the animation, and the images under the contour maps
+    images: dict[int, np.ndarray] = {}
+    wanted = set(maps)
+    limits = fg.strain_limits(field, components)
+    if animation != "none":
+        path = figdir / f"strain_animation.{animation}"
+        fg.write_strain_animation(
+            path,
+            _capture(frames(), wanted, images),
+            field,
+            components=tuple(c for c in components if c != "Exy")[:2] or tuple(components[:1]),
+            limits=limits,
+            fps=animation_fps,
+            time_labels=[when(k) for k in range(T)],
+            progress=progress,
+        )
+        record([path], f"Strain field over time on the video ({animation.upper()}).")
+    else:
+        for _ in _capture(frames(), wanted, images):
+            pass
+    missing = wanted - set(images)
+    if missing:
+        raise InputError(f"the video ended before frame {min(missing)}")
+
+    for k in maps:
+        what = "contraction endpoint" if k == k_end else ("last frame" if k == T - 1 else "")
+        fig = fg.strain_maps_figure(images[k], field, k, components=components, limits=limits)
+        paths = fg.save_figure(fig, figdir / f"strain_frame{k:04d}", formats)
+        record(
+            paths,
+            f"Nodal strain on the deformed grid at {when(k)}"
+            + (f", the {what}" if what else "")
+            + "; the colour scale is the same at every frame.",
+        )
+    fig = fg.plot_principal_crosses(images[k_end], field, k_end)
+    record(
+        fg.save_figure(fig, figdir / f"principal_directions_frame{k_end:04d}", formats),
+        f"Principal strain directions at the contraction endpoint ({when(k_end)}): arm "
+        "lengths proportional to |E1| and |E2|, red = stretch, blue = shortening.",
+    )
+    fig = fg.plot_strain_curves(
+        field, times=times, time_unit=unit, components=components, endpoint=k_end
+    )
+    record(
+        fg.save_figure(fig, figdir / "strain_curves", formats),
+        "Mean nodal strain over time with a band of +/- one spatial SD over the nodes.",
+    )
+
+    node = nodal_scalars(field)
+    a, b = "Exx", "Eyy"
+    tests = paired_node_tests(
+        node[a][k_end], node[b][k_end], positions=field.points[k_end], n_boot=n_boot
+    )
+    tests["label"] = "node-level paired t-test"
+    values = {c: node[c][k_end][np.isfinite(node[c][k_end])] for c in (a, b, "Exy")}
+    fig = fg.plot_strain_violins(
+        values, title=f"nodal strain at the contraction endpoint, {when(k_end)}", tests=tests
+    )
+    record(
+        fg.save_figure(fig, figdir / f"violins_frame{k_end:04d}", formats),
+        f"Distribution of the nodal strains at the contraction endpoint, with the node-level "
+        f"paired tests of {a} against {b}.",
+    )
+
+    table = {}
+    for key in ("Exx", "Eyy", "Exy", "E1", "E2", "J"):
+        v = node[key][k_end]
+        v = v[np.isfinite(v)]
+        table[key] = (
+            {
+                "mean": float(v.mean()),
+                "sd": float(v.std(ddof=1)) if v.size > 1 else float("nan"),
+                "min": float(v.min()),
+                "max": float(v.max()),
+                "n": int(v.size),
+            }
+            if v.size
+            else {"n": 0}
+        )
+    statistics = {
+        "frame": k_end,
+        "frame_meaning": "contraction endpoint",
+        "nodal_strain": table,
+        "paired": {"components": [a, b], **tests},
+    }
+    with open(folder / "statistics.json", "w", encoding="utf-8") as f:
+        json.dump(statistics, f, indent=2, default=_json_default)
+    return {"contraction_endpoint": ep, "statistics": statistics, "figures": written}
+
+
+def _json_default(obj):
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"cannot write {type(obj).__name__} to JSON")
+
+
+def _embeddable(folder: Path, files: list[str]) -> Path | None:
+    by_suffix = {Path(f).suffix.lower(): folder / f for f in files}
+    for suffix in (".png", ".gif", ".mp4", ".svg"):
+        if suffix in by_suffix and by_suffix[suffix].is_file():
+            return by_suffix[suffix]
+    return None
+
+
+def _embed_figures(doc: HtmlReport, folder: Path, figures: list[dict]) -> None:
+    if figures:
+        doc.heading("Figures")
+    for item in figures:
+        path = _embeddable(folder, item["files"])
+        if path is not None:
+            also = [f for f in item["files"] if folder / f != path]
+            caption = item["caption"] + (f" Also: {', '.join(also)}." if also else "")
+            doc.media(path, caption)
+
+
+def _p(p) -> str:
+    if not isinstance(p, int | float) or not math.isfinite(p):
+        return "n/a"
+    return "< 0.001" if p < 0.001 else f"{p:.3f}"
+
+
+def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
+    """Write ``report.html`` for a run folder from its ``summary.json`` content.
+
+    Figures listed in ``summary["figures"]`` are embedded (PNG, GIF, MP4 or
+    SVG); the report needs no other file to be read.
+    """
+    folder = Path(folder)
+    software = summary.get("software", {})
+    inputs = summary.get("inputs") or []
+    doc = HtmlReport(
+        f"Strain analysis: {', '.join(Path(i).name for i in inputs[:3]) or folder.name}",
+        subtitle=f"{software.get('name', 'strain2d')} {software.get('version', '?')}, "
+        f"created {summary.get('created', '?')}",
+    )
+    doc.heading("Run")
+    source = summary.get("source", {})
+    tracker = summary.get("tracker", {})
+    points = summary.get("points", {})
+    doc.key_values(
+        {
+            "inputs": ", ".join(inputs),
+            "frames used": source.get("frames_used"),
+            "frame size (px)": source.get("frame_size_px"),
+            "tracker": tracker.get("name"),
+            "tracker options": tracker.get("options", {}),
+            "points": points.get("grid") or points.get("points_file") or points.get("points"),
+            "triangles": summary.get("mesh", {}).get("n_triangles"),
+            "points lost by the last frame": summary.get("lost_points_last_frame"),
+            "time axis": summary.get("time_axis", {}).get("unit"),
+            "command": " ".join(summary.get("command", [])),
+        }
+    )
+    ep = summary.get("contraction_endpoint")
+    if ep:
+        doc.heading("Contraction endpoint")
+        text = f"Frame {ep['frame']}"
+        if summary.get("time_axis", {}).get("unit") == "s":
+            text += f" (t = {ep['time']:.4g} s)"
+        if ep["source"] == "given":
+            text += f", given by the user (detected: frame {ep.get('detected_frame')})."
+        else:
+            text += f", detected: {ep['method']}."
+        doc.paragraph(text)
+    stats = summary.get("statistics")
+    if stats:
+        doc.heading("Nodal strain at the contraction endpoint")
+        rows = [{"component": k, **v} for k, v in stats["nodal_strain"].items() if v.get("n", 0)]
+        doc.table(rows, columns=["component", "mean", "sd", "min", "max", "n"])
+        paired = stats["paired"]
+        a, b = paired["components"]
+        doc.heading(f"{a} against {b}: node-level paired tests")
+        lo, hi = paired.get("mean_difference_ci", [float("nan")] * 2)
+        dlo, dhi = paired.get("cohens_dz_ci", [float("nan")] * 2)
+        doc.table(
+            [
+                {"quantity": "nodes", "value": paired.get("n")},
+                {"quantity": f"mean {a} - {b}", "value": paired.get("mean_difference")},
+                {"quantity": "bootstrap 95% CI", "value": [lo, hi]},
+                {"quantity": "paired t-test p", "value": _p(paired.get("t_p"))},
+                {"quantity": "Wilcoxon signed-rank p", "value": _p(paired.get("wilcoxon_p"))},
+                {"quantity": "Cohen's d_z", "value": paired.get("cohens_dz")},
+                {"quantity": "d_z bootstrap 95% CI", "value": [dlo, dhi]},
+                {"quantity": "Moran's I of the differences", "value": paired.get("morans_i")},
+                {"quantity": "Moran's I permutation p", "value": _p(paired.get("morans_p"))},
+            ]
+        )
+        doc.paragraph(paired.get("note", ""), css="note")
+    _embed_figures(doc, folder, summary.get("figures") or [])
+    doc.heading("Parameters and provenance (summary.json)")
+    doc.json_block({k: v for k, v in summary.items() if k not in ("figures", "statistics")})
+    out = folder / "report.html"
+    doc.write(out)
+    return out
+
+
+def _curves(run, components: Sequence[str]) -> tuple[dict, dict]:
+    mean, sd = {}, {}
+    for c in components:
+        v = run.nodal[c]
+        ok = np.isfinite(v)
+        n = ok.sum(axis=1)
+        m = np.where(n > 0, np.where(ok, v, 0).sum(axis=1) / np.maximum(n, 1), np.nan)
+        dev = np.where(ok, v - m[:, None], 0.0)
+        s = np.where(n > 1, np.sqrt((dev**2).sum(axis=1) / np.maximum(n - 1, 1)), np.nan)
+        mean[c], sd[c] = m, s
+    return mean, sd
+
+
+def study_outputs(
+    folder: str | os.PathLike,
+    specimens: Sequence,
+    stats: dict,
+    *,
+    formats: Sequence[str] = ("png",),
+) -> dict:
+    """Write a study's table, figures and ``statistics.json`` into ``folder``.
+
+    ``specimens`` are :class:`strain2d.study.Specimen` and ``stats`` the
+    result of :func:`strain2d.study.study_statistics` for them.  Returns the
+    ``figures`` list for ``summary.json``.
+    """
+    import csv
+
+    from strain2d import figures as fg
+
+    folder = Path(folder)
+    a, b = stats["components"]
+    figdir = folder / "figures"
+    figdir.mkdir(exist_ok=True)
+    written: list[dict] = []
+
+    def record(paths, caption: str) -> None:
+        written.append(
+            {"files": [str(Path(p).relative_to(folder)) for p in paths], "caption": caption}
+        )
+
+    units = {s.run.time_unit for s in specimens}
+    time_unit = units.pop() if len(units) == 1 else "frame"
+    curves = []
+    for s in specimens:
+        mean, sd = _curves(s.run, (a, b))
+        times = s.run.times if time_unit == s.run.time_unit else np.arange(s.run.n_frames)
+        curves.append(
+            {
+                "name": s.name,
+                "group": s.group,
+                "times": times,
+                "mean": mean,
+                "sd": sd,
+                "endpoint": s.endpoint,
+            }
+        )
+    fig = fg.plot_study_curves(curves, time_unit=time_unit, components=(a, b))
+    record(
+        fg.save_figure(fig, figdir / "study_curves", formats),
+        f"Mean {a} and {b} over time for every specimen, with a band of +/- one spatial SD "
+        "over the nodes; the dashed line marks each specimen's contraction endpoint.",
+    )
+    rows = {r["specimen"]: r for r in stats["specimens"]}
+    violins = [
+        {
+            "name": s.name,
+            "group": s.group,
+            "values": {c: s.values(c)[np.isfinite(s.values(c))] for c in (a, b)},
+            "tests": rows[s.name]["node_level"] if "t_p" in rows[s.name]["node_level"] else None,
+        }
+        for s in specimens
+    ]
+    fig = fg.plot_study_violins(violins, components=(a, b))
+    record(
+        fg.save_figure(fig, figdir / "study_violins", formats),
+        f"Nodal {a} and {b} at each specimen's contraction endpoint, with the node-level "
+        "paired t-test p-value of each specimen (nodes are not independent samples).",
+    )
+    table = [
+        {"name": r["specimen"], "group": r["group"], a: r[f"mean_{a}"], b: r[f"mean_{b}"]}
+        for r in stats["specimens"]
+    ]
+    levels = stats["specimen_level"]
+    tests = {g: levels[g] for g in stats["groups"]} if stats["groups"] else levels["all"]
+    fig = fg.plot_specimen_means(table, a=a, b=b, tests=tests)
+    record(
+        fg.save_figure(fig, figdir / "specimen_means", formats),
+        f"Specimen means of {a} and {b} at the contraction endpoint, joined per specimen: "
+        "the data of the specimen-level paired tests.",
+    )
+
+    columns = [
+        "specimen", "group", "run", "endpoint", "endpoint_source", "endpoint_time", "time_unit",
+        "n_nodes", f"mean_{a}", f"sd_{a}", f"mean_{b}", f"sd_{b}", "mean_difference",
+    ]  # fmt: skip
+    node_cols = ["t_p", "wilcoxon_p", "cohens_dz", "morans_i", "morans_p"]
+    with open(folder / "specimens.csv", "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(columns + [f"node_{c}" for c in node_cols])
+        for r in stats["specimens"]:
+            writer.writerow(
+                [r[c] for c in columns] + [r["node_level"].get(c, "") for c in node_cols]
+            )
+    with open(folder / "statistics.json", "w", encoding="utf-8") as f:
+        json.dump(stats, f, indent=2, default=_json_default)
+    return {"figures": written}
+
+
+def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) -> Path:
+    """Write a study folder's self-contained ``report.html``."""
+    from strain2d.study import plain_summary
+
+    folder = Path(folder)
+    software = summary.get("software", {})
+    a, b = stats["components"]
+    n = len(stats["specimens"])
+    doc = HtmlReport(
+        f"Strain study: {n} specimen{'s' if n != 1 else ''}, {a} against {b}",
+        subtitle=f"{software.get('name', 'strain2d')} {software.get('version', '?')}, "
+        f"created {summary.get('created', '?')}",
+    )
+    doc.heading("Summary")
+    doc.bullets(plain_summary(stats), css="summary")
+    doc.heading("Specimens")
+    columns = [
+        "specimen", "group", "run", "endpoint", "endpoint_source", "n_nodes",
+        f"mean_{a}", f"sd_{a}", f"mean_{b}", f"sd_{b}", "mean_difference",
+        "node t-test p", "node Wilcoxon p",
+    ]  # fmt: skip
+    doc.table(
+        [
+            {
+                **r,
+                "node t-test p": _p(r["node_level"].get("t_p")),
+                "node Wilcoxon p": _p(r["node_level"].get("wilcoxon_p")),
+                "run": Path(r["run"]).name,
+            }
+            for r in stats["specimens"]
+        ],
+        columns=columns,
+    )
+    doc.heading("Specimen-level paired tests (the specimen is the unit)")
+    rows = []
+    for key, t in stats["specimen_level"].items():
+        rows.append(
+            {
+                "specimens": "all" if key == "all" else f"group {key}",
+                "n": t["n"],
+                f"mean {a} - {b}": t["mean_difference"],
+                f"{round(100 * t['confidence'])}% CI (t)": t["mean_difference_ci"],
+                "paired t p": _p(t["t_p"]),
+                "Wilcoxon p": _p(t["wilcoxon_p"]),
+                "Cohen's d_z": t["cohens_dz"],
+            }
+        )
+    doc.table(rows)
+    model = stats.get("mixed_model")
+    if model:
+        doc.heading("Mixed-effects model")
+        doc.paragraph(
+            f"{model['formula']}, fitted by {model['method']} on {model['n_nodes']} nodes of "
+            f"{model['n_specimens']} specimens, where d = {a} - {b} at each node. p (t) uses "
+            "a t reference with the between-within degrees of freedom; p (z) is the Wald z "
+            "statsmodels reports, anticonservative with few specimens."
+        )
+        doc.table(
+            [
+                {
+                    "term": e["term"],
+                    "estimate": e["estimate"],
+                    "SE": e["se"],
+                    "CI": e["ci"],
+                    "df": e["df"],
+                    "p (t)": _p(e["t_p"]),
+                    "p (z)": _p(e["z_p"]),
+                }
+                for e in model["effects"] + model["contrasts"]
+            ]
+        )
+        doc.key_values(
+            {
+                "between-specimen variance": model["specimen_variance"],
+                "within-specimen (node) variance": model["residual_variance"],
+                "intraclass correlation": model["icc"],
+                "converged": model["converged"],
+                "fit warnings": "; ".join(model["warnings"]) or "none",
+            }
+        )
+    comp = stats.get("groups_compared")
+    if comp:
+        doc.heading("Between the groups")
+        doc.paragraph(
+            f"{comp['label']}: difference {comp['difference']:+.4f}, "
+            f"t = {comp['welch_t']:.3g}, p {_p(comp['welch_p'])}."
+        )
+    _embed_figures(doc, folder, summary.get("figures") or [])
+    doc.heading("Parameters and provenance (summary.json)")
+    doc.json_block({k: v for k, v in summary.items() if k != "figures"})
+    out = folder / "report.html"
+    doc.write(out)
+    return out
