@@ -148,6 +148,29 @@ def mpm3d_figures() -> None:
         image.save(OUT / name, optimize=True)
 
 
+def report_figures() -> None:
+    """The demo study's figures: one specimen's run figures and the study's, shrunk."""
+    from PIL import Image
+
+    run = ROOT / "demo_output" / "study_data" / "runs" / "S01" / "figures"
+    study = ROOT / "demo_output" / "study" / "figures"
+    files = {
+        "run_maps_endpoint.png": next(iter(sorted(run.glob("strain_frame*.png"))), None),
+        "run_crosses.png": next(iter(sorted(run.glob("principal_directions_frame*.png"))), None),
+        "run_curves.png": run / "strain_curves.png",
+        "run_violins.png": next(iter(sorted(run.glob("violins_frame*.png"))), None),
+        "study_curves.png": study / "study_curves.png",
+        "study_violins.png": study / "study_violins.png",
+        "study_means.png": study / "specimen_means.png",
+    }
+    for name, path in files.items():
+        if path is None or not path.is_file():
+            raise SystemExit("run `make demo` first")
+        image = Image.open(path).convert("RGB")
+        image.thumbnail((1000, 1000) if name.startswith("study_") else (760, 760))
+        image.save(OUT / name, optimize=True)
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     demo_figures()
@@ -155,4 +178,5 @@ if __name__ == "__main__":
     membrane_3d()
     error_figures()
     mpm3d_figures()
+    report_figures()
     print(f"figures written to {OUT}")

@@ -492,10 +492,8 @@ def _frame_list(text: str | None, flag: str) -> list[int]:
 
 
 def _cmd_study(args) -> int:
-    from strain2d.atomic import atomic_dir, check_writable
-    from strain2d.export import write_json
-    from strain2d.report import parse_formats, study_outputs, write_study_report
-    from strain2d.study import load_specimens, plain_summary, read_manifest, study_statistics
+    from strain2d.report import parse_formats, write_study
+    from strain2d.study import read_manifest
 
     formats = parse_formats(args.figure_format)
     parts = [c.strip() for c in args.compare.split(",")]
@@ -505,43 +503,17 @@ def _cmd_study(args) -> int:
         raise InputError("give run folders or --manifest, not both")
     if not args.manifest and not args.runs:
         raise InputError("give the run folders to combine, or --manifest CSV")
-    inputs = [args.manifest] if args.manifest else list(args.runs)
-    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
-    entries = read_manifest(args.manifest) if args.manifest else [{"run": r} for r in args.runs]
-    specimens = load_specimens(entries)
-    stats = study_statistics(specimens, a=parts[0], b=parts[1], alpha=args.alpha)
-    with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
-        extra = study_outputs(tmp, specimens, stats, formats=formats)
-        summary = {
-            "software": {"name": "strain2d", "version": __version__},
-            "created": datetime.now(UTC).isoformat(timespec="seconds"),
-            "command": ["strain2d", *sys.argv[1:]] if sys.argv else [],
-            "inputs": {
-                "manifest": args.manifest,
-                "runs": [str(e["run"]) for e in entries],
-            },
-            "parameters": {"compare": parts, "alpha": args.alpha, "formats": list(formats)},
-            "specimens": [
-                {
-                    "specimen": s.name,
-                    "group": s.group,
-                    "run": str(s.run.path),
-                    "run_software": s.run.summary.get("software"),
-                    "endpoint": s.endpoint,
-                    "endpoint_source": s.endpoint_source,
-                }
-                for s in specimens
-            ],
-            "plain_summary": plain_summary(stats),
-            "outputs": [
-                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
-                "report.html",
-                "summary.json",
-            ],
-            "figures": extra["figures"],
-        }
-        write_json(tmp / "summary.json", summary)
-        write_study_report(tmp, summary, stats)
+    entries = read_manifest(args.manifest) if args.manifest else args.runs
+    summary = write_study(
+        args.out,
+        entries,
+        compare=(parts[0], parts[1]),
+        alpha=args.alpha,
+        formats=formats,
+        overwrite=args.overwrite,
+        manifest=args.manifest,
+        command=["strain2d", *sys.argv[1:]] if sys.argv else [],
+    )
     if not args.quiet:
         for line in summary["plain_summary"]:
             print(line)

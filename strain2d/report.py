@@ -30,7 +30,10 @@ __all__ = [
     "endpoint_of",
     "parse_formats",
     "run_outputs",
+    "study_outputs",
     "write_run_report",
+    "write_study",
+    "write_study_report",
 ]
 
 FIGURE_FORMATS = ("png", "svg", "pdf")
@@ -592,3 +595,94 @@ def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) ->
     out = folder / "report.html"
     doc.write(out)
     return out
+
+
+def write_study(
+    out: str | os.PathLike,
+    runs: Sequence,
+    *,
+    compare: tuple[str, str] = ("Exx", "Eyy"),
+    alpha: float = 0.05,
+    formats: Sequence[str] = ("png",),
+    overwrite: bool = False,
+    manifest: str | os.PathLike | None = None,
+    command: Sequence[str] | None = None,
+) -> dict:
+    """Combine ``analyze`` run folders into a study folder (what ``strain2d study`` does).
+
+    Parameters
+    ----------
+    out : path
+        The study folder to create (written atomically; an existing one is
+        replaced only with ``overwrite``).
+    runs : sequence
+        Run folders, or manifest entries (dicts with ``run`` and optional
+        ``specimen``, ``group``, ``endpoint``; see
+        :func:`strain2d.study.read_manifest`).
+    compare : (a, b)
+        The nodal components compared at each contraction endpoint.
+    manifest : path, optional
+        The manifest the entries came from (recorded, and never overwritten).
+
+    Returns
+    -------
+    dict
+        The study's ``summary.json`` content (``plain_summary`` holds the
+        plain-language sentences); the statistics are in
+        ``OUT/statistics.json``.
+
+    Examples
+    --------
+    After ``strain2d analyze`` wrote ``runs/S01`` and ``runs/S02``::
+
+        summary = write_study("study", ["runs/S01", "runs/S02"])
+        print("\n".join(summary["plain_summary"]))
+    """
+    import sys
+    from datetime import UTC, datetime
+
+    from strain2d import __version__
+    from strain2d.atomic import atomic_dir, check_writable
+    from strain2d.export import write_json
+    from strain2d.study import load_specimens, plain_summary, study_statistics
+
+    entries = [e if isinstance(e, dict) else {"run": Path(e)} for e in runs]
+    inputs = ([str(manifest)] if manifest else []) + [str(e["run"]) for e in entries]
+    check_writable(out, overwrite=overwrite, inputs=inputs)
+    specimens = load_specimens(entries)
+    a, b = compare
+    stats = study_statistics(specimens, a=a, b=b, alpha=alpha)
+    formats = parse_formats(formats)
+    with atomic_dir(out, overwrite=overwrite, inputs=inputs) as tmp:
+        extra = study_outputs(tmp, specimens, stats, formats=formats)
+        summary = {
+            "software": {"name": "strain2d", "version": __version__},
+            "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            "command": list(command) if command is not None else ["python", *sys.argv],
+            "inputs": {
+                "manifest": str(manifest) if manifest else None,
+                "runs": [str(e["run"]) for e in entries],
+            },
+            "parameters": {"compare": [a, b], "alpha": alpha, "formats": list(formats)},
+            "specimens": [
+                {
+                    "specimen": s.name,
+                    "group": s.group,
+                    "run": str(s.run.path),
+                    "run_software": s.run.summary.get("software"),
+                    "endpoint": s.endpoint,
+                    "endpoint_source": s.endpoint_source,
+                }
+                for s in specimens
+            ],
+            "plain_summary": plain_summary(stats),
+            "outputs": [
+                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
+                "report.html",
+                "summary.json",
+            ],
+            "figures": extra["figures"],
+        }
+        write_json(tmp / "summary.json", summary)
+        write_study_report(tmp, summary, stats)
+    return summary
