@@ -169,6 +169,21 @@ def report_figures() -> None:
         image = Image.open(path).convert("RGB")
         image.thumbnail((1000, 1000) if name.startswith("study_") else (760, 760))
         image.save(OUT / name, optimize=True)
+    # one frame of the animation, halfway through the contraction
+    import cv2
+
+    video = cv2.VideoCapture(str(run / "strain_animation.mp4"))
+    try:
+        n = int(video.get(cv2.CAP_PROP_FRAME_COUNT))
+        video.set(cv2.CAP_PROP_POS_FRAMES, n // 3)
+        ok, frame = video.read()
+    finally:
+        video.release()
+    if not ok:
+        raise SystemExit("cannot read the demo's strain_animation.mp4")
+    image = Image.fromarray(frame[..., ::-1])
+    image.thumbnail((760, 760))
+    image.save(OUT / "run_animation_frame.png", optimize=True)
 
 
 if __name__ == "__main__":
