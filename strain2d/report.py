@@ -111,6 +111,20 @@ def endpoint_of(
     }
 
 
+class _FigureLog:
+    """The ``figures/`` folder of a run or study and the list of what went into it."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.dir = folder / "figures"
+        self.dir.mkdir(exist_ok=True)
+        self.items: list[dict] = []
+
+    def add(self, paths, caption: str) -> None:
+        files = [str(Path(p).relative_to(self.folder)) for p in paths]
+        self.items.append({"files": files, "caption": caption})
+
+
 def _capture(frames: Iterable[np.ndarray], wanted: set[int], store: dict) -> Iterable[np.ndarray]:
     for k, image in enumerate(frames):
         if k in wanted:
@@ -186,14 +200,8 @@ def run_outputs(
     def when(k: int) -> str:
         return f"frame {k}" + (f" (t = {times[k]:.3g} s)" if unit == "s" else "")
 
-    figdir = folder / "figures"
-    figdir.mkdir(exist_ok=True)
-    written: list[dict] = []
-
-    def record(paths, caption: str) -> None:
-        written.append(
-            {"files": [str(Path(p).relative_to(folder)) for p in paths], "caption": caption}
-        )
+    log = _FigureLog(folder)
+    figdir, record, written = log.dir, log.add, log.items
 
     # one pass over the video: the animation, and the images under the contour maps
     images: dict[int, np.ndarray] = {}
@@ -425,14 +433,8 @@ def study_outputs(
 
     folder = Path(folder)
     a, b = stats["components"]
-    figdir = folder / "figures"
-    figdir.mkdir(exist_ok=True)
-    written: list[dict] = []
-
-    def record(paths, caption: str) -> None:
-        written.append(
-            {"files": [str(Path(p).relative_to(folder)) for p in paths], "caption": caption}
-        )
+    log = _FigureLog(folder)
+    figdir, record, written = log.dir, log.add, log.items
 
     units = {s.run.time_unit for s in specimens}
     time_unit = units.pop() if len(units) == 1 else "frame"
