@@ -57,7 +57,7 @@ def check_writable(
     Refused: an existing ``path`` without ``overwrite``; an existing path of
     the other kind (a folder where a file goes, or the reverse); a missing
     parent folder; the working directory or one of its parents; a path that
-    is, or holds, one of ``inputs``.
+    is, or holds, one of ``inputs``, or lies inside an input folder.
     """
     path = Path(path)
     target = path.resolve()
@@ -75,6 +75,8 @@ def check_writable(
         s = Path(source).resolve()
         if s == target or target in s.parents:
             raise InputError(f"the output {path} would replace the input {source}")
+        if s in target.parents and s.is_dir():
+            raise InputError(f"the output {path} lies inside the input folder {source}")
     parent = target.parent
     if not parent.is_dir():
         raise InputError(f"output folder {parent} does not exist")

@@ -11,7 +11,6 @@ folder and its ``summary.json`` into a self-contained ``report.html``.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Callable, Iterable, Sequence
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from strain2d.errors import InputError
+from strain2d.export import write_json
 from strain2d.html import HtmlReport
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
@@ -81,25 +81,40 @@ def endpoint_of(
     """
     T = field.n_frames
     t = np.arange(T, dtype=float) if times is None else np.asarray(times, float)
-    detected = None
-    if T >= 3:
+    curves = _mean_curves(field, components)
+    valid = np.flatnonzero(np.isfinite(curves).all(axis=1))
+    last_valid = int(valid[-1]) if valid.size else -1
+    detected, status = None, "detected"
+    if last_valid < 2:
+        status = "too few frames with strain to detect it; the last frame is used"
+    else:
+        # frames after the last one with data tell nothing: detect on the rest
         detected = contraction_endpoint(
-            _mean_curves(field, components),
-            times=t,
+            curves[: last_valid + 1],
+            times=t[: last_valid + 1],
             rate_tolerance=rate_tolerance,
             relative_tolerance=relative_tolerance,
         )
+        if detected == last_valid < T - 1:
+            status = (
+                f"not reached: the strain is unknown after frame {last_valid} (points lost), "
+                "and still changing there"
+            )
+        elif detected == T - 1:
+            status = "not reached: still deforming at the last frame"
     if frame is not None:
         if not -T <= frame < T:
             raise InputError(f"--endpoint {frame} is outside the frames 0..{T - 1}")
         chosen, source = frame % T, "given"
     else:
-        chosen, source = (T - 1 if detected is None else detected), "detected"
+        chosen = T - 1 if detected is None else detected
+        source = status
     return {
         "frame": int(chosen),
         "time": float(t[chosen]),
         "source": source,
         "detected_frame": detected,
+        "detection": status,
         "method": (
             f"last frame into which the rate of the mean {', '.join(components)} exceeds "
             + (
@@ -253,13 +268,18 @@ def run_outputs(
 
     node = nodal_scalars(field)
     a, b = "Exx", "Eyy"
-    tests = paired_node_tests(
-        node[a][k_end], node[b][k_end], positions=field.points[k_end], n_boot=n_boot
-    )
-    tests["label"] = "node-level paired t-test"
+    try:
+        tests = paired_node_tests(
+            node[a][k_end], node[b][k_end], positions=field.points[k_end], n_boot=n_boot
+        )
+        tests["label"] = "node-level paired t-test"
+    except InputError as exc:  # too few nodes with values on that frame
+        tests = {"error": f"frame {k_end}: {exc}"}
     values = {c: node[c][k_end][np.isfinite(node[c][k_end])] for c in (a, b, "Exy")}
     fig = fg.plot_strain_violins(
-        values, title=f"nodal strain at the contraction endpoint, {when(k_end)}", tests=tests
+        values,
+        title=f"nodal strain at the contraction endpoint, {when(k_end)}",
+        tests=None if "error" in tests else tests,
     )
     record(
         fg.save_figure(fig, figdir / f"violins_frame{k_end:04d}", formats),
@@ -288,17 +308,8 @@ def run_outputs(
         "nodal_strain": table,
         "paired": {"components": [a, b], **tests},
     }
-    with open(folder / "statistics.json", "w", encoding="utf-8") as f:
-        json.dump(statistics, f, indent=2, default=_json_default)
+    write_json(folder / "statistics.json", statistics)
     return {"contraction_endpoint": ep, "statistics": statistics, "figures": written}
-
-
-def _json_default(obj):
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    raise TypeError(f"cannot write {type(obj).__name__} to JSON")
 
 
 def _embeddable(folder: Path, files: list[str]) -> Path | None:
@@ -365,9 +376,14 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
         if summary.get("time_axis", {}).get("unit") == "s":
             text += f" (t = {ep['time']:.4g} s)"
         if ep["source"] == "given":
-            text += f", given by the user (detected: frame {ep.get('detected_frame')})."
-        else:
+            text += (
+                f", given by the user (detection: frame {ep.get('detected_frame')}, "
+                f"{ep.get('detection', 'detected')})."
+            )
+        elif ep["source"] == "detected":
             text += f", detected: {ep['method']}."
+        else:
+            text += f": the contraction endpoint was {ep['source']}."
         doc.paragraph(text)
     stats = summary.get("statistics")
     if stats:
@@ -375,8 +391,11 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
         rows = [{"component": k, **v} for k, v in stats["nodal_strain"].items() if v.get("n", 0)]
         doc.table(rows, columns=["component", "mean", "sd", "min", "max", "n"])
         paired = stats["paired"]
-        a, b = paired["components"]
+        a, b = paired.get("components", ("Exx", "Eyy"))
         doc.heading(f"{a} against {b}: node-level paired tests")
+        if "error" in paired:
+            doc.paragraph(f"Not computed: {paired['error']}.", css="note")
+            paired = {}
         lo, hi = paired.get("mean_difference_ci", [float("nan")] * 2)
         dlo, dhi = paired.get("cohens_dz_ci", [float("nan")] * 2)
         doc.table(
@@ -392,7 +411,8 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
                 {"quantity": "Moran's I permutation p", "value": _p(paired.get("morans_p"))},
             ]
         )
-        doc.paragraph(paired.get("note", ""), css="note")
+        if paired:
+            doc.paragraph(paired.get("note", ""), css="note")
     _embed_figures(doc, folder, summary.get("figures") or [])
     doc.heading("Parameters and provenance (summary.json)")
     doc.json_block({k: v for k, v in summary.items() if k not in ("figures", "statistics")})
@@ -499,8 +519,7 @@ def study_outputs(
             writer.writerow(
                 [r[c] for c in columns] + [r["node_level"].get(c, "") for c in node_cols]
             )
-    with open(folder / "statistics.json", "w", encoding="utf-8") as f:
-        json.dump(stats, f, indent=2, default=_json_default)
+    write_json(folder / "statistics.json", stats)
     return {"figures": written}
 
 

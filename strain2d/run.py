@@ -90,35 +90,46 @@ def _read_summary(path: Path) -> dict:
     if not file.is_file():
         raise InputError(f"{path} is not an analyze output folder: summary.json is missing")
     try:
-        with open(file, encoding="utf-8") as f:
+        with open(file, encoding="utf-8-sig") as f:
             summary = json.load(f)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"{file} cannot be read: {exc}") from None
-    if not isinstance(summary, dict) or "software" not in summary:
+    if not isinstance(summary, dict) or not isinstance(summary.get("software"), dict):
         raise InputError(f"{file} is not a strain2d summary (no 'software' entry)")
+    for key in ("source", "time_axis", "contraction_endpoint"):
+        if summary.get(key) is not None and not isinstance(summary[key], dict):
+            raise InputError(f"{file}: '{key}' must be an object, got {summary[key]!r}")
     return summary
+
+
+def _whole(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
 
 
 def _read_nodes(file: Path) -> np.ndarray:
     if not file.is_file():
         raise InputError(f"{file.parent}: strain_nodes.csv is missing")
     try:
-        with open(file, newline="", encoding="utf-8") as f:
+        with open(file, newline="", encoding="utf-8-sig") as f:
             header = next(csv.reader(f), None)
-            if header is None:
-                raise InputError(f"{file} is empty")
-            header = [h.strip() for h in header]
-            if tuple(header) != NODE_COLUMNS:
-                missing = [c for c in NODE_COLUMNS if c not in header]
-                what = f"lacks the columns {', '.join(missing)}" if missing else "has other columns"
-                raise InputError(f"{file} {what} (expected {','.join(NODE_COLUMNS)})")
-            table = np.loadtxt(f, delimiter=",", ndmin=2)
+            rows = f.read()
     except UnicodeDecodeError:
         raise InputError(f"{file} is not a text CSV file") from None
+    if header is None:
+        raise InputError(f"{file} is empty")
+    header = [h.strip() for h in header]
+    if tuple(header) != NODE_COLUMNS:
+        missing = [c for c in NODE_COLUMNS if c not in header]
+        what = f"lacks the columns {', '.join(missing)}" if missing else "has other columns"
+        raise InputError(f"{file} {what} (expected {','.join(NODE_COLUMNS)})")
+    if not rows.strip():
+        raise InputError(f"{file} has no rows")
+    try:
+        table = np.loadtxt(rows.splitlines(), delimiter=",", ndmin=2)
     except ValueError as exc:
         raise InputError(f"{file} has a malformed row: {exc}") from None
-    if table.size == 0:
-        raise InputError(f"{file} has no rows")
+    if table.shape[1] != len(NODE_COLUMNS):
+        raise InputError(f"{file}: rows must have {len(NODE_COLUMNS)} values")
     return table
 
 
@@ -141,15 +152,18 @@ def load_run(path: str | os.PathLike) -> Run:
         unreadable, truncated or inconsistent.
     """
     path = Path(path)
-    if not path.is_dir():
+    if not path.exists():
         raise InputError(f"run folder {path} does not exist")
+    if not path.is_dir():
+        raise InputError(f"{path} is not a folder: give an analyze output folder")
     summary = _read_summary(path)
     file = path / "strain_nodes.csv"
     table = _read_nodes(file)
     col = {name: i for i, name in enumerate(NODE_COLUMNS)}
     frame = table[:, col["frame"]]
     point = table[:, col["point"]]
-    if not (np.all(frame == np.round(frame)) and np.all(point == np.round(point))):
+    whole = np.isfinite(frame) & np.isfinite(point)
+    if not (whole.all() and np.all(frame == np.round(frame)) and np.all(point == np.round(point))):
         raise InputError(f"{file}: frame and point must be whole numbers")
     frame = frame.astype(np.int64)
     point = point.astype(np.int64)
@@ -166,25 +180,31 @@ def load_run(path: str | os.PathLike) -> Run:
         raise InputError(f"{file} repeats or skips (frame, point) pairs")
     grid = table.reshape(T, N, -1)
     positions = grid[..., [col["x"], col["y"]]]
-    if not np.isfinite(positions).all():
-        raise InputError(f"{file}: node positions must be finite")
     visible = grid[..., col["visible"]] != 0
+    # a lost point may have no position (imported tracks); a visible one must
+    if not np.isfinite(positions[visible]).all() or not np.isfinite(positions[0]).all():
+        raise InputError(f"{file}: positions of visible nodes must be finite")
     nodal = {k: grid[..., col[k]].copy() for k in COMPONENTS}
 
-    frames_used = summary.get("source", {}).get("frames_used")
+    frames_used = (summary.get("source") or {}).get("frames_used")
+    if frames_used is not None and not _whole(frames_used):
+        raise InputError(f"{path / 'summary.json'}: source.frames_used must be a whole number")
     if frames_used is not None and frames_used != T:
         raise InputError(
             f"{path}: summary.json says {frames_used} frames but strain_nodes.csv has {T}"
         )
-    fps = summary.get("time_axis", {}).get("fps")
-    if fps is not None and not (isinstance(fps, int | float) and math.isfinite(fps) and fps > 0):
+    fps = (summary.get("time_axis") or {}).get("fps")
+    if fps is not None and (
+        isinstance(fps, bool)
+        or not (isinstance(fps, int | float) and math.isfinite(fps) and fps > 0)
+    ):
         raise InputError(f"{path / 'summary.json'}: time_axis.fps must be a positive number")
     times = np.arange(T) / fps if fps else np.arange(T, dtype=float)
     ep = summary.get("contraction_endpoint") or {}
     endpoint, source = T - 1, "last frame"
     if "frame" in ep:
         endpoint = ep["frame"]
-        if not isinstance(endpoint, int) or not 0 <= endpoint < T:
+        if not _whole(endpoint) or not 0 <= endpoint < T:
             raise InputError(
                 f"{path / 'summary.json'}: contraction_endpoint.frame must be a frame "
                 f"index 0..{T - 1}, got {endpoint!r}"

@@ -60,6 +60,7 @@ def contraction_endpoint(
     int
         The endpoint frame; the last frame when the strain is still changing
         there (the contraction had not finished when the video ended).
+        Frames where a component is NaN (lost) count as still changing.
 
     Examples
     --------
@@ -81,12 +82,16 @@ def contraction_endpoint(
     # rate of the change arriving at each frame (backward differences)
     rate = np.zeros_like(c)
     rate[1:] = np.abs(np.diff(c, axis=0)) / np.diff(t)[:, None]
-    rate[~np.isfinite(rate)] = 0.0
-    speed = rate.max(axis=1)
-    top = float(speed.max())
-    if top == 0.0:
-        return 0
+    known = np.isfinite(rate)
+    # a rate that cannot be computed (a lost value next to the frame) is not
+    # evidence that the tissue stopped: count it as still moving
+    speed = np.where(known.all(axis=1), np.where(known, rate, 0.0).max(axis=1), np.inf)
+    speed[0] = 0.0
+    finite = speed[np.isfinite(speed)]
+    top = float(finite.max()) if finite.size else 0.0
     tol = relative_tolerance * top if rate_tolerance is None else float(rate_tolerance)
+    if top == 0.0 and rate_tolerance is None:
+        tol = 0.0
     above = np.flatnonzero(speed > tol)
     # the last frame the strain was still moving into; after it, it stays put
     return int(above[-1]) if above.size else 0

@@ -18,7 +18,9 @@ by default Exx and Eyy at each specimen's contraction endpoint):
   groups.  Its fixed effects are tested with the Wald z that statsmodels
   reports and, because a handful of specimens makes z anticonservative, with a
   t reference on ``n_specimens - n_fixed_effects`` degrees of freedom (the
-  between-within approximation), which is the p-value the summary uses;
+  specimen-level, or containment, degrees of freedom: the fixed effects vary
+  between specimens only, so the specimens are the replicates), which is the
+  p-value the summary uses;
 * with exactly two groups, Welch's t-test between the groups' specimen mean
   differences, and the group contrast of the mixed model;
 * a plain-language summary of what is and is not significant at ``alpha``.
@@ -28,7 +30,7 @@ References
 * N. M. Laird, J. H. Ware, Random-effects models for longitudinal data,
   Biometrics 38 (1982) 963-974, doi:10.2307/2529876.
 * J. C. Pinheiro, D. M. Bates, Mixed-Effects Models in S and S-PLUS, Springer
-  2000 (between-within degrees of freedom, sec. 2.4.2).
+  2000 (degrees of freedom of fixed effects at the specimen level, sec. 2.4.2).
 * S. E. Lazic, The problem of pseudoreplication in neuroscientific studies,
   BMC Neuroscience 11 (2010) 5, doi:10.1186/1471-2202-11-5.
 """
@@ -101,6 +103,8 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
         raise InputError(f"manifest {path} does not exist") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
+    # header names are matched without surrounding spaces and case
+    rows = [{(k or "").strip().lower(): v for k, v in row.items()} for row in rows]
     if not rows or "run" not in rows[0]:
         raise InputError(f"manifest {path} needs a header with a 'run' column and one row per run")
     entries = []
@@ -117,11 +121,14 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
                 raise InputError(
                     f"manifest {path}, line {i}: endpoint must be a frame index, got {endpoint!r}"
                 ) from None
+        group = (row.get("group") or "").strip()
+        if group.lower() == "all":
+            raise InputError(f"manifest {path}, line {i}: 'all' is reserved; rename the group")
         entries.append(
             {
                 "run": run_path,
                 "specimen": (row.get("specimen") or "").strip() or run_path.name,
-                "group": (row.get("group") or "").strip(),
+                "group": group,
                 "endpoint": endpoint if endpoint != "" else None,
             }
         )
@@ -151,7 +158,12 @@ def load_specimens(entries: list[dict]) -> list[Specimen]:
     names = [s.name for s in specimens]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise InputError(f"specimen names must be unique; repeated: {', '.join(dup)}")
+        raise InputError(
+            f"specimen names must be unique; repeated: {', '.join(dup)} (name them in a "
+            "manifest's specimen column)"
+        )
+    if any(s.group.lower() == "all" for s in specimens):
+        raise InputError("'all' is reserved; rename the group")
     return specimens
 
 
@@ -220,7 +232,7 @@ def mixed_model(
     -------
     dict
         ``effects``: a list of {``term``, ``estimate``, ``se``, ``z_p`` (Wald),
-        ``df``, ``t_p`` (t reference, between-within df), ``ci`` (t interval)};
+        ``df``, ``t_p`` (t reference, specimen-level df), ``ci`` (t interval)};
         ``contrasts`` likewise (groups only); ``specimen_variance``,
         ``residual_variance``, ``icc``, ``n_nodes``, ``n_specimens``,
         ``converged``, ``warnings``, ``formula``.
@@ -245,24 +257,35 @@ def mixed_model(
     if n_spec < 2:
         raise InputError(f"a mixed-effects model needs at least 2 specimens, got {n_spec}")
 
+    if frame["specimen"].value_counts().max() < 2:
+        raise InputError("a mixed-effects model needs a specimen with at least 2 nodes")
+
     def fit(formula: str):
         caught: list[str] = []
         with warnings.catch_warnings(record=True) as record:
             warnings.simplefilter("always")
-            model = smf.mixedlm(formula, frame, groups=frame["specimen"])
-            result = model.fit(reml=True)
+            try:
+                model = smf.mixedlm(formula, frame, groups=frame["specimen"])
+                result = model.fit(reml=True)
+                # statsmodels computes these lazily: inside the warning filter
+                fe, bse = result.fe_params.copy(), result.bse_fe.copy()
+                cov_re, scale = np.asarray(result.cov_re).copy(), float(result.scale)
+            except (ValueError, np.linalg.LinAlgError) as exc:
+                raise InputError(f"the mixed-effects model cannot be fitted: {exc}") from None
         for w in record:
             message = str(w.message).splitlines()[0].rstrip(".")
             if message not in caught:
                 caught.append(message)
-        return result, caught
+        fitted = {"fe": fe, "bse": bse, "cov_re": cov_re, "scale": scale}
+        fitted["converged"] = bool(getattr(result, "converged", True))
+        return fitted, caught
 
     def terms(result, names: list[str], df: int) -> list[dict]:
         q = stats.t.ppf(0.5 + confidence / 2, df) if df > 0 else float("nan")
         out = []
         for name, key in names:
-            est = unit * float(result.fe_params[key])
-            se = unit * float(result.bse_fe[key])
+            est = unit * float(result["fe"][key])
+            se = unit * float(result["bse"][key])
             z = est / se if se > 0 else float("nan")
             out.append(
                 {
@@ -287,18 +310,18 @@ def mixed_model(
     else:
         formula = "d ~ 0 + C(group)"
         result, caught = fit(formula)
-        keys = list(result.fe_params.index)
+        keys = list(result["fe"].index)
         # keys follow pandas' category order (sorted): name them from the keys
         names = [(f"mean difference, {k[len('C(group)[') : -1]}", k) for k in keys]
         effects = terms(result, names, n_spec - len(groups))
         base = sorted(groups)[0]
         contrast_result, caught2 = fit("d ~ C(group)")
         caught += [c for c in caught2 if c not in caught]
-        keys = [k for k in contrast_result.fe_params.index if k != "Intercept"]
+        keys = [k for k in contrast_result["fe"].index if k != "Intercept"]
         names = [(f"{k[len('C(group)[T.') : -1]} - {base}", k) for k in keys]
         contrasts = terms(contrast_result, names, n_spec - len(groups))
-    tau2 = unit**2 * float(np.asarray(result.cov_re)[0, 0])
-    sigma2 = unit**2 * float(result.scale)
+    tau2 = unit**2 * float(result["cov_re"][0, 0])
+    sigma2 = unit**2 * result["scale"]
     return {
         "formula": formula.replace("C(group)", "group") + " + (1 | specimen)",
         "method": "REML (statsmodels MixedLM)",
@@ -309,8 +332,10 @@ def mixed_model(
         "icc": tau2 / (tau2 + sigma2) if tau2 + sigma2 > 0 else float("nan"),
         "n_nodes": len(frame),
         "n_specimens": n_spec,
-        "converged": bool(getattr(result, "converged", True)),
+        "converged": result["converged"],
         "warnings": caught,
+        # p-values of a fit that did not converge cleanly are reported, not used
+        "usable": result["converged"] and not caught,
         "p_value_used": "t_p: t reference on n_specimens - n_fixed_effects degrees of freedom",
     }
 
@@ -379,7 +404,11 @@ def study_statistics(
     groups = list(dict.fromkeys(s.group for s in specimens))
     has_groups = any(groups)
     if has_groups and not all(groups):
-        raise InputError("give every specimen a group, or none")
+        lacking = [s.name for s in specimens if not s.group]
+        raise InputError(f"give every specimen a group, or none; without: {', '.join(lacking)}")
+    # a specimen without a single node holding both values has nothing to compare
+    excluded = [r["specimen"] for r in rows if r["n_nodes"] == 0]
+    used = [r for r in rows if r["n_nodes"] > 0]
 
     def level(sel: list[dict]) -> dict:
         return specimen_tests(
@@ -388,24 +417,32 @@ def study_statistics(
             confidence=confidence,
         )
 
-    specimen_level = {"all": level(rows)}
+    specimen_level = {"all": level(used)}
     if has_groups:
         for g in groups:
-            specimen_level[g] = level([r for r in rows if r["group"] == g])
-    model = None
-    if len(specimens) >= 2:
-        d = np.concatenate(long_d)
-        model = mixed_model(
-            d, np.array(long_s), np.array(long_g) if has_groups else None, confidence=confidence
-        )
+            specimen_level[g] = level([r for r in used if r["group"] == g])
+    model, model_note = None, ""
+    if len(used) >= 2:
+        try:
+            model = mixed_model(
+                np.concatenate(long_d),
+                np.array(long_s),
+                np.array(long_g) if has_groups else None,
+                confidence=confidence,
+            )
+        except InputError as exc:
+            model_note = str(exc)
+    else:
+        model_note = "a mixed-effects model needs at least 2 specimens with values"
     compared = None
     if has_groups and len(groups) == 2:
         from scipy import stats
 
         g0, g1 = sorted(groups)
-        d0 = np.array([r["mean_difference"] for r in rows if r["group"] == g0])
-        d1 = np.array([r["mean_difference"] for r in rows if r["group"] == g1])
-        compared = {"groups": [g0, g1], "difference": float(d1.mean() - d0.mean())}
+        d0 = np.array([r["mean_difference"] for r in used if r["group"] == g0])
+        d1 = np.array([r["mean_difference"] for r in used if r["group"] == g1])
+        gap = float(d1.mean() - d0.mean()) if d0.size and d1.size else float("nan")
+        compared = {"groups": [g0, g1], "difference": gap}
         if d0.size >= 2 and d1.size >= 2:
             w = stats.ttest_ind(d1, d0, equal_var=False)
             compared.update(welch_t=float(w.statistic), welch_p=float(w.pvalue))
@@ -420,9 +457,11 @@ def study_statistics(
         "alpha": alpha,
         "confidence": confidence,
         "specimens": rows,
+        "excluded": excluded,
         "groups": groups if has_groups else [],
         "specimen_level": specimen_level,
         "mixed_model": model,
+        "mixed_model_note": model_note,
         "groups_compared": compared,
     }
 
@@ -439,18 +478,28 @@ def _verdict(p: float, alpha: float) -> str:
     return "significant" if p < alpha else "not significant"
 
 
+_NORMAL = ("Exx", "Eyy", "E1", "E2")
+
+
 def plain_summary(stats: dict) -> list[str]:
     """Sentences saying what is and is not significant, for a report or a terminal."""
     a, b = stats["components"]
     alpha = stats["alpha"]
     pct = round(100 * stats["confidence"])
     lines = []
+    if stats.get("excluded"):
+        lines.append(
+            f"Left out (no node with both {a} and {b} at the endpoint): "
+            f"{', '.join(stats['excluded'])}."
+        )
     levels = stats["specimen_level"]
     model = stats["mixed_model"]
     effects = {}
     if model:
         for e in model["effects"]:
             effects[e["term"].removeprefix("mean difference").removeprefix(", ") or "all"] = e
+        if len(stats["groups"]) == 1 and "all" in effects:
+            effects[stats["groups"][0]] = effects.pop("all")
     keys = stats["groups"] or ["all"]
     for key in keys:
         t = levels[key]
@@ -465,28 +514,45 @@ def plain_summary(stats: dict) -> list[str]:
             continue
         lo, hi = t["mean_difference_ci"]
         diff = t["mean_difference"]
+        verdict = _verdict(t["t_p"], alpha)
         sentence = (
             f"{head}, {a} - {b} at the contraction endpoint averaged {diff:+.4f} "
             f"({pct}% CI {lo:+.4f} to {hi:+.4f}); the paired t-test on specimen means gives "
-            f"{_p(t['t_p'])}: {_verdict(t['t_p'], alpha)} at alpha = {alpha:g}"
+            f"{_p(t['t_p'])}: {verdict} at alpha = {alpha:g}"
         )
-        if math.isfinite(t["t_p"]) and t["t_p"] < alpha:
-            which = a if diff < 0 else b
-            sentence += f" ({which} is the more negative, i.e. the stronger shortening)"
+        if verdict == "significant":
+            low, high = (a, b) if diff < 0 else (b, a)
+            sentence += f" ({low} is lower than {high}"
+            rows = [r for r in stats["specimens"] if key == "all" or r["group"] == key]
+            means = [r[f"mean_{c}"] for r in rows if r["n_nodes"] for c in (a, b)]
+            if a in _NORMAL and b in _NORMAL and means and max(means) < 0:
+                sentence += f": {low} shortens more"
+            sentence += ")"
         sentence += "."
         e = effects.get(key)
-        if e is not None:
+        if e is not None and model["usable"]:
             agree = _verdict(e["t_p"], alpha)
             sentence += (
                 f" The mixed-effects model (specimen as random effect) estimates "
                 f"{e['estimate']:+.4f}, {_p(e['t_p'])} ({agree})."
             )
-            if agree != _verdict(t["t_p"], alpha):
-                sentence += (
-                    " The two tests disagree (the model pools the between-specimen variance "
-                    "over all groups); with this few specimens treat the result as inconclusive."
+            if "cannot" not in agree + verdict and agree != verdict:
+                why = (
+                    "the model pools the between-specimen variance over all groups"
+                    if len(stats["groups"]) > 1
+                    else "the model weights specimens by their node counts and spread"
                 )
-        if math.isfinite(t["t_p"]) and t["t_p"] >= alpha:
+                sentence += (
+                    f" The two tests disagree ({why}); with this few specimens treat the "
+                    "result as inconclusive."
+                )
+        elif e is not None:
+            sentence += (
+                " The mixed-effects model did not fit cleanly ("
+                + ("; ".join(model["warnings"]) or "no convergence")
+                + "); its p-value is reported but not used."
+            )
+        if verdict == "not significant":
             sentence += (
                 " Not significant does not mean equal: the interval shows the differences "
                 "the data still allow."
@@ -494,6 +560,8 @@ def plain_summary(stats: dict) -> list[str]:
         if n < 6:
             sentence += f" With {n} specimens the Wilcoxon signed-rank test cannot reach p < 0.05."
         lines.append(sentence)
+    if stats.get("mixed_model_note"):
+        lines.append(f"No mixed-effects model: {stats['mixed_model_note']}.")
     comp = stats["groups_compared"]
     if comp is not None:
         g0, g1 = comp["groups"]
@@ -501,6 +569,11 @@ def plain_summary(stats: dict) -> list[str]:
             f"Between groups, the mean {a} - {b} of {g1} differs from that of {g0} by "
             f"{comp['difference']:+.4f}; Welch's t-test on specimen means gives "
             f"{_p(comp['welch_p'])}: {_verdict(comp['welch_p'], alpha)}."
+        )
+    elif model and model["contrasts"] and model["usable"]:
+        parts = [f"{c['term']} {c['estimate']:+.4f} ({_p(c['t_p'])})" for c in model["contrasts"]]
+        lines.append(
+            f"Between groups (mixed-model contrasts of {a} - {b}): " + "; ".join(parts) + "."
         )
     node = [r["node_level"] for r in stats["specimens"] if "t_p" in r["node_level"]]
     if node:
@@ -511,6 +584,4 @@ def plain_summary(stats: dict) -> list[str]:
             "samples and describe that specimen's field, not the population; use the "
             "specimen-level results above for conclusions about the tissue."
         )
-    if model and model["warnings"]:
-        lines.append("The mixed-model fit reported: " + "; ".join(model["warnings"]) + ".")
     return lines

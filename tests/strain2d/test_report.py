@@ -58,7 +58,7 @@ def test_run_folder_has_every_figure_and_the_statistics(run_dir):
     out, summary = run_dir
     ep = summary["contraction_endpoint"]
     # the equibiaxial video stretches until its last frame: no hold, endpoint = last frame
-    assert ep["frame"] == 5 and ep["source"] == "detected"
+    assert ep["frame"] == 5 and ep["source"] == "not reached: still deforming at the last frame"
     figs = out / "figures"
     for stem in ("strain_frame0002", "strain_frame0005", "principal_directions_frame0005",
                  "strain_curves", "violins_frame0005"):  # fmt: skip
@@ -269,9 +269,56 @@ def test_tracked_study_report(tracked_study):
     page = _parse(out / "report.html")
     text = " ".join(page.text)
     assert "group anisotropic (4 specimens)" in text and "group isotropic (4 specimens)" in text
-    assert "not significant" in text and "Exx is the more negative" in text
+    assert "not significant" in text and "Exx is lower than Eyy: Exx shortens more" in text
     with open(out / "specimens.csv", newline="") as f:
         import csv
 
         rows = list(csv.DictReader(f))
     assert [r["specimen"] for r in rows] == [f"S{i:02d}" for i in range(1, 9)]
+
+
+def test_lost_data_is_not_taken_for_a_finished_contraction():
+    """Points lost from frame 5: the strain after it is unknown, not 'still'."""
+    ref = np.array([[x, y] for y in range(5) for x in range(5)], float) * 20
+    pos = np.array([ref @ np.diag([1 - 0.02 * k, 1 - 0.01 * k]) for k in range(12)])
+    visible = np.ones((12, 25), bool)
+    visible[5:] = False
+    field = compute_strain(ref, pos, grid_triangles(5, 5), visible=visible)
+    ep = endpoint_of(field)
+    assert ep["frame"] == 4 and ep["source"].startswith("not reached")
+    assert "unknown after frame 4" in ep["source"]
+    # a contraction still going at the last frame is not called detected either
+    field = compute_strain(ref, pos, grid_triangles(5, 5))
+    ep = endpoint_of(field)
+    assert ep["frame"] == 11 and ep["source"] == "not reached: still deforming at the last frame"
+
+
+def test_run_outputs_survive_an_endpoint_without_nodes(tmp_path):
+    from strain2d.report import run_outputs, write_run_report
+    from strain2d.tracks import Tracks
+
+    ref = np.array([[x, y] for y in range(5) for x in range(5)], float) * 20 + 20
+    pos = np.array([ref @ np.diag([1 - 0.02 * k, 1 - 0.01 * k]) for k in range(8)])
+    visible = np.ones((8, 25), bool)
+    visible[6:] = False
+    field = compute_strain(ref, pos, grid_triangles(5, 5), visible=visible)
+    tracks = Tracks(pos, visible, visible.astype(float))
+    frames = np.random.default_rng(0).uniform(0, 255, (8, 140, 140)).astype(np.uint8)
+    extra = run_outputs(
+        tmp_path, field, tracks, frames=lambda: iter(frames), times=np.arange(8.0),
+        time_unit="frame", endpoint=7, animation="none", n_boot=50,
+    )  # fmt: skip
+    paired = extra["statistics"]["paired"]
+    assert "error" in paired and "frame 7" in paired["error"]
+    stats_text = (tmp_path / "statistics.json").read_text()
+    json.loads(stats_text, parse_constant=lambda c: pytest.fail(f"{c} is not JSON"))
+    write_run_report(tmp_path, {"software": {}, **extra})
+    assert "Not computed" in (tmp_path / "report.html").read_text()
+
+
+def test_study_output_inside_a_run_folder_is_refused(run_dir, tmp_path, capsys):
+    out, _ = run_dir
+    capsys.readouterr()
+    assert main(["-q", "study", str(out), "--out", str(out / "study")]) == 2
+    assert "inside the input folder" in capsys.readouterr().err
+    assert not (out / "study").exists()

@@ -191,7 +191,7 @@ def test_study_finds_the_effect_only_where_it_exists(study_dir):
     text = " ".join(plain_summary(stats))
     assert "group anisotropic (5 specimens)" in text
     assert "p < 0.001: significant" in text and "not significant" in text
-    assert "Exx is the more negative" in text
+    assert "Exx is lower than Eyy: Exx shortens more" in text
     assert "node-level" in text.lower()
 
 
@@ -256,3 +256,121 @@ def test_study_arguments_are_checked(study_dir):
         study_statistics(specimens, alpha=1.5)
     with pytest.raises(InputError, match="at least one run"):
         load_specimens([])
+
+
+def test_lost_nodes_without_positions_load(tmp_path):
+    """Imported tracks may give a lost point no position at all; such a run is usable."""
+    field = _field(0.8, 0.9, rng=np.random.default_rng(0))
+    _write_run(tmp_path / "r", field, endpoint=8)
+    csv_path = tmp_path / "r" / "strain_nodes.csv"
+    lines = csv_path.read_text().splitlines()
+    # node 3 lost (no position, no strain) from frame 5 on
+    for i, line in enumerate(lines[1:], start=1):
+        values = line.split(",")
+        if int(values[0]) >= 5 and values[1] == "3":
+            values[2:7] = ["nan", "nan", "nan", "nan", "0"]
+            values[7:] = ["nan"] * len(values[7:])
+            lines[i] = ",".join(values)
+    csv_path.write_text("\n".join(lines) + "\n")
+    run = load_run(tmp_path / "r")
+    assert not run.visible[5, 3] and np.isnan(run.nodal["Exx"][8, 3])
+    assert np.isfinite(run.nodal["Exx"][8, :3]).all()
+
+
+@pytest.mark.parametrize(
+    ("summary", "message"),
+    [
+        ({"software": {}, "source": "video"}, "'source' must be an object"),
+        ({"software": {}, "contraction_endpoint": "frame 3"}, "must be an object"),
+        ({"software": {}, "contraction_endpoint": {"frame": True}}, "contraction_endpoint"),
+        ({"software": {}, "time_axis": {"fps": True}}, "fps must be a positive"),
+        ({"software": {}, "source": {"frames_used": "12"}}, "frames_used must be a whole"),
+        ({"software": "strain2d"}, "not a strain2d summary"),
+    ],
+)
+def test_ill_typed_summaries_give_one_clear_error(tmp_path, summary, message):
+    _write_run(tmp_path / "r", _field(0.8, 0.9, rng=np.random.default_rng(0)))
+    (tmp_path / "r" / "summary.json").write_text(json.dumps(summary))
+    with pytest.raises(InputError, match=message):
+        load_run(tmp_path / "r")
+
+
+def test_node_table_with_bom_loads_and_header_only_is_refused(tmp_path):
+    _write_run(tmp_path / "r", _field(0.8, 0.9, rng=np.random.default_rng(0)))
+    nodes = tmp_path / "r" / "strain_nodes.csv"
+    nodes.write_bytes(b"\xef\xbb\xbf" + nodes.read_bytes())
+    assert load_run(tmp_path / "r").n_points == 49
+    nodes.write_text(nodes.read_text(encoding="utf-8-sig").splitlines()[0] + "\n")
+    with pytest.raises(InputError, match="has no rows"):  # and no warning (warnings are errors)
+        load_run(tmp_path / "r")
+    (tmp_path / "f").write_text("x")
+    with pytest.raises(InputError, match="is not a folder"):
+        load_run(tmp_path / "f")
+
+
+def test_manifest_headers_are_matched_loosely_and_all_is_reserved(study_dir, tmp_path):
+    root, _ = study_dir
+    manifest = tmp_path / "m.csv"
+    a, b = root / "runs" / "ani0", root / "runs" / "iso0"
+    manifest.write_text(f" Run , Specimen , GROUP \n{a}, A , g1\n{b},B,g2\n")
+    entries = read_manifest(manifest)
+    assert [(e["specimen"], e["group"]) for e in entries] == [("A", "g1"), ("B", "g2")]
+    manifest.write_text(f"run,group\n{root / 'runs' / 'ani0'},all\n")
+    with pytest.raises(InputError, match="reserved"):
+        read_manifest(manifest)
+
+
+def test_a_specimen_without_values_is_left_out_by_name(study_dir, tmp_path):
+    import shutil
+
+    root, _ = study_dir
+    empty = tmp_path / "empty"
+    shutil.copytree(root / "runs" / "ani0", empty)
+    lines = (empty / "strain_nodes.csv").read_text().splitlines()
+    for i, line in enumerate(lines[1:], start=1):
+        values = line.split(",")
+        if values[0] == "8":
+            values[7:] = ["nan"] * len(values[7:])
+            lines[i] = ",".join(values)
+    (empty / "strain_nodes.csv").write_text("\n".join(lines) + "\n")
+    entries = [
+        {"run": empty, "specimen": "E", "group": "g"},
+        {"run": root / "runs" / "ani1", "group": "g"},
+        {"run": root / "runs" / "ani2", "group": "g"},
+        {"run": root / "runs" / "iso0", "group": "h"},
+        {"run": root / "runs" / "iso1", "group": "h"},
+    ]
+    stats = study_statistics(load_specimens(entries), n_boot=100)
+    assert stats["excluded"] == ["E"]
+    assert stats["specimen_level"]["g"]["n"] == 2
+    assert math.isfinite(stats["groups_compared"]["welch_p"])
+    assert stats["mixed_model"]["n_specimens"] == 4
+    text = " ".join(plain_summary(stats))
+    assert "Left out (no node with both Exx and Eyy at the endpoint): E." in text
+    # only one specimen with values: no model, said plainly
+    stats = study_statistics(load_specimens(entries[:2]), n_boot=100)
+    assert stats["mixed_model"] is None and "at least 2 specimens" in stats["mixed_model_note"]
+    assert "No mixed-effects model" in " ".join(plain_summary(stats))
+
+
+def test_summary_wording_is_neutral_for_other_components(study_dir):
+    """J (an area ratio, about 0.7) against Exx: 'lower', never 'shortens'."""
+    root, _ = study_dir
+    entries = [{"run": root / "runs" / f"ani{i}"} for i in range(5)]
+    stats = study_statistics(load_specimens(entries), a="Exx", b="J", n_boot=100)
+    text = " ".join(plain_summary(stats))
+    assert "Exx is lower than J)" in text and "shortens" not in text
+    assert "model pools" not in text  # that explanation is for several groups
+
+
+def test_single_group_gets_its_model_sentence(study_dir):
+    root, _ = study_dir
+    entries = [{"run": root / "runs" / f"ani{i}", "group": "only"} for i in range(5)]
+    stats = study_statistics(load_specimens(entries), n_boot=100)
+    text = " ".join(plain_summary(stats))
+    assert "In group only (5 specimens)" in text and "The mixed-effects model" in text
+
+
+def test_mixed_model_errors_are_input_errors():
+    with pytest.raises(InputError, match="at least 2 nodes"):
+        mixed_model(np.array([0.1, 0.2, 0.15]), np.array(["a", "b", "c"]))
