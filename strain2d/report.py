@@ -577,7 +577,7 @@ def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) ->
         doc.paragraph(
             f"{model['formula']}, fitted by {model['method']} on {model['n_nodes']} nodes of "
             f"{model['n_specimens']} specimens, where d = {a} - {b} at each node. p (t) uses "
-            "a t reference with the between-within degrees of freedom; p (z) is the Wald z "
+            "a t reference with specimen-level degrees of freedom; p (z) is the Wald z "
             "statsmodels reports, anticonservative with few specimens."
         )
         doc.table(
