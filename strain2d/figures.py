@@ -1187,6 +1187,21 @@ def plot_strain_violins(
     return fig
 
 
+def _group_label(ax, group: str, x: float, offset_pt: float) -> None:
+    """A group's name in bold under the x axis, centred at data ``x``."""
+    ax.annotate(
+        group,
+        xy=(x, 0),
+        xycoords=("data", "axes fraction"),
+        xytext=(0, offset_pt),
+        textcoords="offset points",
+        ha="center",
+        va="top",
+        fontsize=10,
+        fontweight="bold",
+    )
+
+
 def plot_study_violins(
     specimens: Sequence[Mapping],
     *,
@@ -1284,17 +1299,7 @@ def plot_study_violins(
     ax.set_xlim(positions[0][0] - step, positions[-1][-1] + step)
     if any(g for g in group_spans):
         for group, (g0, g1) in group_spans.items():
-            ax.annotate(
-                group,
-                xy=(0.5 * (g0 + g1), 0),
-                xycoords=("data", "axes fraction"),
-                xytext=(0, -26),
-                textcoords="offset points",
-                ha="center",
-                va="top",
-                fontsize=10,
-                fontweight="bold",
-            )
+            _group_label(ax, group, 0.5 * (g0 + g1), -26)
         ax.set_xlabel("specimen (group)", labelpad=20)
     else:
         ax.set_xlabel("specimen")
@@ -1386,17 +1391,7 @@ def plot_specimen_means(
         ticks += [x0, x1]
         ticklabels += [_label(a), _label(b)]
         if group:
-            ax.annotate(
-                group,
-                xy=(0.5 * (x0 + x1), 0),
-                xycoords=("data", "axes fraction"),
-                xytext=(0, -22),
-                textcoords="offset points",
-                ha="center",
-                va="top",
-                fontsize=10,
-                fontweight="bold",
-            )
+            _group_label(ax, group, 0.5 * (x0 + x1), -22)
     ax.set_xticks(ticks, ticklabels)
     ax.set_xlim(-0.6, 3.0 * (len(groups) - 1) + 1.9)
     ax.axhline(0, color="k", lw=0.6)
