@@ -45,3 +45,14 @@ STEREO_MATCH_PX = 0.05
 ROUNDOFF = 1e-12
 #: membrane strain RMSE of reconstruct --strain against the analytic field (the issue's bar)
 STEREO_STRAIN_RMSE = 0.005
+#: synthetic specimens: central differences of the analytic gradient (step 1e-4 px)
+SPECIMEN_FINITE_DIFFERENCE = 1e-7
+#: synthetic specimens: shift between frame 0 and a later frame pulled back by the true map, px
+SPECIMEN_PULLBACK_SHIFT_PX = 0.05
+#: synthetic specimens: OpenCV's pyramidal Lucas-Kanade from one frame's true points to the
+#: next frame, px (median over 25 points; the motions are 3 to 5 px)
+SPECIMEN_LK_TRACK_PX = 0.5
+#: study of tracked synthetic specimens (klt, 192 px): specimen mean Exx, Eyy at the endpoint
+STUDY_TRACKED_MEAN_STRAIN = 0.003
+#: study of analytic fields with 0.05 px noise and a smooth bump: specimen mean Exx, Eyy
+STUDY_FIELD_MEAN_STRAIN = 0.004

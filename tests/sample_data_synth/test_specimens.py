@@ -26,15 +26,18 @@ from sample_data_synth.specimens import (
     make_study,
     specimen_roi,
 )
-from tests.tolerances import EXACT
-
-# local to these tests: central differences of the analytic gradient (step 1e-4 px)
-FINITE_DIFFERENCE = 1e-7
-# shift between frame 0 and a later frame pulled back by the true map, px
-PULLBACK_SHIFT_PX = 0.05
-# OpenCV's pyramidal Lucas-Kanade from one frame's true points to the next frame, px
-# (median over 25 points; the motions are 3 to 5 px)
-LK_TRACK_PX = 0.5
+from tests.tolerances import (
+    EXACT,
+)
+from tests.tolerances import (
+    SPECIMEN_FINITE_DIFFERENCE as FINITE_DIFFERENCE,
+)
+from tests.tolerances import (
+    SPECIMEN_LK_TRACK_PX as LK_TRACK_PX,
+)
+from tests.tolerances import (
+    SPECIMEN_PULLBACK_SHIFT_PX as PULLBACK_SHIFT_PX,
+)
 
 TINY = (Group("anisotropic", 2, lx=0.80, ly=0.92), Group("isotropic", 2, lx=0.86, ly=0.86))
 COLUMNS = [
