@@ -299,6 +299,10 @@ def edge_lengths(points: FloatArray, triangles: IntArray) -> FloatArray:
     return np.linalg.norm(p[:, [1, 2, 0]] - p[:, [2, 0, 1]], axis=-1)
 
 
+#: |cos| of the angle between a triangle's normal and a plane's below which it is edge-on
+_EDGE_ON = 1e-9
+
+
 def folded_triangles(
     points: FloatArray, triangles: IntArray, *, normal: FloatArray | None = None
 ) -> BoolArray:
@@ -320,6 +324,9 @@ def folded_triangles(
     Returns
     -------
     folded : (M,) bool
+        Triangles standing edge-on to the plane (their normal within
+        ``1e-9`` rad of perpendicular to it) do not count as folded: which side
+        they face is decided by round-off, so it would differ between machines.
     """
     p = _check_points3(points)
     tri = np.asarray(triangles)
@@ -330,7 +337,9 @@ def folded_triangles(
         normal = np.cross(axes[:, 0], axes[:, 1])
         if np.sum(n @ normal) < 0:
             normal = -normal
-    return np.asarray(n @ np.asarray(normal, dtype=float) < 0)
+    normal = np.asarray(normal, dtype=float)
+    tolerance = _EDGE_ON * np.linalg.norm(n, axis=1) * np.linalg.norm(normal)
+    return np.asarray(n @ normal < -tolerance)
 
 
 def _sphere_coordinates(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -571,15 +571,43 @@ def test_an_arch_needs_the_cylinder_projection():
 
 
 def test_folded_grid_triangles_are_found():
-    """A grid tracked over an overhang: its consistently oriented triangles flip."""
-    theta, z = np.meshgrid(np.linspace(-0.2, 1.3 * np.pi, 25), np.linspace(0, 1, 4))
-    pts = np.column_stack([np.cos(theta.ravel()), z.ravel(), np.sin(theta.ravel())])
-    tri = grid_triangles(4, 25)
-    # over the plane z = 0 (coordinates x, y) the arc folds back at theta = 0 and pi
-    overhang = np.sin(theta.ravel()[tri].mean(axis=1)) < 0  # the smaller part
+    """A grid tracked over an overhang: its consistently oriented triangles flip.
+
+    The sheet is a graph over z = 0 except where x(s) = s - b sin(ks) runs
+    backwards (b k > 1).  By symmetry its best-fit plane is exactly z = 0,
+    with a wide gap to the other axes, and each grid cell projects onto that
+    plane with signed area proportional to its chord x(s_i+1) - x(s_i): the
+    folded triangles are known without a cross product.
+    """
+    k, c = np.pi, 0.3
+    b = 1.4 / k
+    s = np.linspace(-3, 3, 61)
+    x = s - b * np.sin(k * s)
+    ss, yy = np.meshgrid(s, np.linspace(0, 2, 5))
+    pts = np.column_stack([np.tile(x, 5), yy.ravel(), c * np.cos(k * ss.ravel())])
+    tri = grid_triangles(5, 61)
+    chord = np.diff(x)[(tri % 61).min(axis=1)]
+    overhang = chord < 0  # the smaller part (20 %)
+    assert 0.1 < overhang.mean() < 0.4 and np.abs(chord).min() > 1e-3
     folded = folded_triangles(pts, tri, normal=[0.0, 0.0, 1.0])
     assert np.array_equal(folded, overhang) or np.array_equal(folded, ~overhang)
     np.testing.assert_array_equal(folded_triangles(pts, tri), overhang)
+
+
+def test_folded_triangles_edge_on_to_the_plane_are_not_folded():
+    """An arc swept along y lies in its best-fit plane's normal direction.
+
+    Every triangle stands edge-on to the best-fit plane (the x-z plane), so
+    which side each faces is round-off: none may count as folded, on any machine.
+    """
+    theta, z = np.meshgrid(np.linspace(-0.2, 1.3 * np.pi, 25), np.linspace(0, 1, 4))
+    pts = np.column_stack([np.cos(theta.ravel()), z.ravel(), np.sin(theta.ravel())])
+    tri = grid_triangles(4, 25)
+    assert not folded_triangles(pts, tri).any()
+    # in a plane the surface is a graph over (z = 0), the arc's overhang is found
+    overhang = np.sin(theta.ravel()[tri].mean(axis=1)) < 0
+    folded = folded_triangles(pts, tri, normal=[0.0, 0.0, 1.0])
+    assert np.array_equal(folded, overhang) or np.array_equal(folded, ~overhang)
 
 
 # --- lost points ----------------------------------------------------------------------
