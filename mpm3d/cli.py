@@ -10,19 +10,11 @@ stderr and exit status 2.
 from __future__ import annotations
 
 import argparse
-import logging
-import sys
-import time
-import warnings
 
-from mpm3d.errors import InputError, SourceError
+from mpm3d.errors import InputError
+from tissue_core.cli import ArgumentParser as _Parser
 
 __all__ = ["main"]
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def _number(text: str) -> float:
@@ -135,13 +127,9 @@ def _options(args) -> dict:
 
 
 def _progress(args):
-    start = time.perf_counter()
+    from tissue_core.progress import Progress
 
-    def say(message: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr, flush=True)
-
-    return say
+    return Progress(quiet=args.quiet)
 
 
 def _summary(metrics: dict) -> str:
@@ -159,71 +147,41 @@ def _summary(metrics: dict) -> str:
 
 
 def _cmd_analyze(args) -> int:
-    from mpm3d._output import output_folder
     from mpm3d.analyze import analyze_stack, write_analysis
+    from tissue_core.outputs import atomic_dir
 
     say = _progress(args)
-    with output_folder(args.out, overwrite=args.overwrite, inputs=[args.stack]) as tmp:
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.stack]) as tmp:
         analysis = analyze_stack(args.stack, progress=say, **_options(args))
         say("writing results")
         write_analysis(analysis, tmp, figures=not args.no_figures)
-    if not args.quiet:
-        print(f"{args.stack}: {_summary(analysis.metrics)}", file=sys.stderr)
-        print(f"results in {args.out}", file=sys.stderr)
+    say(f"{args.stack}: {_summary(analysis.metrics)}")
+    say(f"results in {args.out}")
     return 0
 
 
 def _cmd_compare(args) -> int:
-    from mpm3d._output import output_folder
     from mpm3d.compare import compare_stacks, write_comparison
+    from tissue_core.outputs import atomic_dir
 
     say = _progress(args)
     icp = {"auto": None, "on": True, "off": False}[args.icp]
-    with output_folder(args.out, overwrite=args.overwrite, inputs=[args.before, args.after]) as tmp:
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.before, args.after]) as tmp:
         report, first, second = compare_stacks(
             args.before, args.after, icp=icp, progress=say, **_options(args)
         )
         say("writing results")
         write_comparison(report, first, second, tmp, figures=not args.no_figures)
-    if not args.quiet:
-        for row in report["changes"]:
-            if row["change"] is not None and row["metric"] in (
-                "fold_wavelength_um",
-                "fold_height_um",
-                "max_fold_height_um",
-                "Sq_um",
-            ):
-                print(
-                    f"{row['metric']}: {row['before']:.1f} -> {row['after']:.1f}",
-                    file=sys.stderr,
-                )
-        print(f"results in {args.out}", file=sys.stderr)
+    shown = ("fold_wavelength_um", "fold_height_um", "max_fold_height_um", "Sq_um")
+    for row in report["changes"]:
+        if row["change"] is not None and row["metric"] in shown:
+            say(f"{row['metric']}: {row['before']:.1f} -> {row['after']:.1f}")
+    say(f"results in {args.out}")
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    parser = _build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="%(levelname)s: %(message)s",
-    )
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            try:
-                return args.handler(args)
-            finally:
-                for w in caught:
-                    if issubclass(w.category, UserWarning):
-                        print(f"mpm3d {args.command}: warning: {w.message}", file=sys.stderr)
-    except (InputError, SourceError) as exc:
-        print(f"mpm3d {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except OSError as exc:
-        print(f"mpm3d {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"mpm3d {args.command}: interrupted; no output written", file=sys.stderr)
-        return 130
+    from tissue_core.cli import run_command
+
+    return run_command("mpm3d", _build_parser().parse_args(argv), argv=argv)

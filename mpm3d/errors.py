@@ -1,21 +1,16 @@
 """Exceptions and warnings for problems a user can cause.
 
-They subclass the built-in ``ValueError`` / ``OSError`` / ``UserWarning`` so
+The errors are the toolkit's (:mod:`tissue_core.errors`); they and the
+warnings subclass the built-in ``ValueError`` / ``OSError`` / ``UserWarning`` so
 callers can catch them generically; ``python -m mpm3d`` turns the errors into
 one line on stderr and exit status 2, and the warnings into one line each.
 """
 
 from __future__ import annotations
 
+from tissue_core.errors import InputError, SourceError
+
 __all__ = ["InputError", "MissingSpacingWarning", "SourceError", "SurfaceOutsideWarning"]
-
-
-class InputError(ValueError):
-    """Invalid option, channel, spacing or stack content (e.g. no surface found)."""
-
-
-class SourceError(OSError):
-    """A stack file that is missing, unreadable or not a z-stack."""
 
 
 class MissingSpacingWarning(UserWarning):

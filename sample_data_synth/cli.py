@@ -33,13 +33,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import shutil
-import sys
-import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
-from pathlib import Path
 
 import numpy as np
 
@@ -54,11 +47,9 @@ from sample_data_synth.stereo import (
     save_calibration_views,
     save_stereo_scene,
 )
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+from tissue_core.cli import ArgumentParser as _Parser
+from tissue_core.outputs import atomic_dir
+from tissue_core.progress import Progress
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -145,27 +136,6 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-@contextmanager
-def _output_folder(out: Path, overwrite: bool) -> Iterator[Path]:
-    """A temporary folder beside ``out`` that replaces it once the body succeeds."""
-    if out.exists() and not overwrite:
-        raise ValueError(f"{out} exists; pass --overwrite to replace it")
-    if not out.absolute().parent.is_dir():
-        raise ValueError(f"output folder {out.absolute().parent} does not exist")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.absolute().parent))
-    try:
-        yield tmp
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(tmp, 0o777 & ~mask)  # mkdtemp made it private
-        if out.exists():
-            shutil.rmtree(out) if out.is_dir() else out.unlink()
-        os.replace(tmp, out)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-
-
 def _cmd_video(args) -> int:
     cases = list(CASES) if args.case == "all" else [args.case]
     if any(c not in CASES for c in cases):
@@ -180,24 +150,19 @@ def _cmd_video(args) -> int:
         value = getattr(args, name)
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"--{name.replace('_', '-')} must be a number >= 0, got {value}")
-    with _output_folder(Path(args.out), args.overwrite) as tmp:
+    say = Progress(quiet=args.quiet)
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         for case in cases:
-
-            def progress(done: int, total: int, case=case) -> None:
-                if not args.quiet:
-                    print(f"\r{case}: frame {done}/{total}", end="", file=sys.stderr, flush=True)
-
-            video = make_case(
-                case,
-                size=args.size,
-                n_frames=args.frames,
-                read_noise=args.read_noise,
-                shot_gain=args.shot_gain,
-                rng=args.seed,
-                progress=progress,
-            )
-            if not args.quiet:
-                print(file=sys.stderr)
+            with say.task(f"rendering {case}") as progress:
+                video = make_case(
+                    case,
+                    size=args.size,
+                    n_frames=args.frames,
+                    read_noise=args.read_noise,
+                    shot_gain=args.shot_gain,
+                    rng=args.seed,
+                    progress=progress,
+                )
             for fmt in formats:
                 write_video(video.frames, tmp / f"{case}.{fmt}")
             truth = video.truth
@@ -210,6 +175,7 @@ def _cmd_video(args) -> int:
                 F=np.stack([truth.gradient(grid, k) for k in range(truth.n_frames)]),
                 E=np.stack([truth.strain(grid, k) for k in range(truth.n_frames)]),
             )
+    say(f"results in {args.out}")
     return 0
 
 
@@ -237,26 +203,22 @@ def _cmd_stack(args) -> int:
     if args.slices is not None and args.slices < 2:
         raise ValueError(f"--slices must be >= 2, got {args.slices}")
     suffix = ".tif" if args.format == "imagej" else ".ome.tif"
-    with _output_folder(Path(args.out), args.overwrite) as tmp:
+    say = Progress(quiet=args.quiet)
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         for case in cases:
-
-            def progress(done: int, total: int, case=case) -> None:
-                if not args.quiet:
-                    print(f"\r{case}: slice {done}/{total}", end="", file=sys.stderr, flush=True)
-
-            stack = make_stack_case(
-                case,
-                size=args.size,
-                spacing=spacing,
-                n_slices=args.slices,
-                rng=args.seed,
-                progress=progress,
-            )
-            if not args.quiet:
-                print(file=sys.stderr)
+            with say.task(f"rendering {case}", unit="slice") as progress:
+                stack = make_stack_case(
+                    case,
+                    size=args.size,
+                    spacing=spacing,
+                    n_slices=args.slices,
+                    rng=args.seed,
+                    progress=progress,
+                )
             write_stack(tmp / f"{case}{suffix}", stack, format=args.format)
             save_stack_truth(tmp / case, stack)
             del stack
+    say(f"results in {args.out}")
     return 0
 
 
@@ -284,43 +246,34 @@ def _cmd_stereo(args) -> int:
     if not (np.isfinite(args.noise) and args.noise >= 0):
         raise ValueError(f"--noise must be a number >= 0, got {args.noise}")
     rig = default_rig(image_size=_parse_size(args.size))
-    with _output_folder(Path(args.out), args.overwrite) as tmp:
+    say = Progress(quiet=args.quiet)
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         for case in cases:
-            unit = "view" if case == "calibration" else "frame"
-
-            def progress(done: int, total: int, case=case, unit=unit) -> None:
-                if not args.quiet:
-                    camera = "left" if done <= total // 2 else "right"
-                    k = done if done <= total // 2 else done - total // 2
-                    print(
-                        f"\r{case}: {camera} {unit} {k}/{total // 2}",
-                        end="",
-                        file=sys.stderr,
-                        flush=True,
+            unit = "image"  # left and right views (or frames) together
+            with say.task(f"rendering {case} (left and right)", unit=unit) as progress:
+                if case == "calibration":
+                    views = render_calibration_views(
+                        rig,
+                        board,
+                        n_views=args.views,
+                        rng=args.seed,
+                        noise=args.noise,
+                        progress=progress,
                     )
-
+                else:
+                    scene = render_surface_scene(
+                        rig,
+                        case,
+                        n_frames=args.frames,
+                        rng=args.seed,
+                        noise=args.noise,
+                        progress=progress,
+                    )
             if case == "calibration":
-                views = render_calibration_views(
-                    rig,
-                    board,
-                    n_views=args.views,
-                    rng=args.seed,
-                    noise=args.noise,
-                    progress=progress,
-                )
                 save_calibration_views(tmp / case, views)
             else:
-                scene = render_surface_scene(
-                    rig,
-                    case,
-                    n_frames=args.frames,
-                    rng=args.seed,
-                    noise=args.noise,
-                    progress=progress,
-                )
                 save_stereo_scene(tmp / case, scene)
-            if not args.quiet:
-                print(file=sys.stderr)
+    say(f"results in {args.out}")
     return 0
 
 
@@ -344,17 +297,9 @@ def _cmd_study(args) -> int:
     design = tuple(replace(g, n=args.per_group) for g in DEFAULT_DESIGN)
     n_specimens = sum(g.n for g in design)
 
-    def progress(done: int, total: int) -> None:
-        if not args.quiet:
-            specimen, frame = divmod(done - 1, args.frames)
-            print(
-                f"\rstudy: specimen {specimen + 1}/{n_specimens}, frame {frame + 1}/{args.frames}",
-                end="",
-                file=sys.stderr,
-                flush=True,
-            )
-
-    with _output_folder(Path(args.out), args.overwrite) as tmp:
+    say = Progress(quiet=args.quiet)
+    description = f"rendering {n_specimens} specimens x {args.frames} frames"
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp, say.task(description) as progress:
         make_study(
             tmp,
             design=design,
@@ -365,8 +310,7 @@ def _cmd_study(args) -> int:
             rng=args.seed,
             progress=progress,
         )
-        if not args.quiet:
-            print(file=sys.stderr)
+    say(f"results in {args.out}")
     return 0
 
 
@@ -381,17 +325,9 @@ def main(argv: list[str] | None = None) -> int:
         for name, description in STEREO_CASES.items():
             print(f"{name:12s} {description} (stereo)")
         return 0
-    try:
-        commands = {
-            "video": _cmd_video,
-            "stack": _cmd_stack,
-            "stereo": _cmd_stereo,
-            "study": _cmd_study,
-        }
-        return commands[args.command](args)
-    except (ValueError, OSError) as exc:
-        print(f"sample_data_synth {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"sample_data_synth {args.command}: interrupted; no output written", file=sys.stderr)
-        return 130
+    from tissue_core.cli import run_command
+
+    handlers = {"video": _cmd_video, "stack": _cmd_stack, "stereo": _cmd_stereo}
+    args.handler = {**handlers, "study": _cmd_study}[args.command]
+    # the renderers check their own arguments with ValueError
+    return run_command("sample_data_synth", args, argv=argv, errors=(ValueError,))

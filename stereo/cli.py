@@ -160,7 +160,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def _cmd_calibrate(args) -> int:
     from stereo.calibration import calibrate_stereo, parse_board
-    from strain2d.atomic import atomic_file, check_writable
+    from tissue_core.outputs import atomic_file, check_writable
 
     board = parse_board(args.board)
     left, right = _expand(args.left, "left"), _expand(args.right, "right")
@@ -195,7 +195,7 @@ def _cmd_calibrate(args) -> int:
 
 def _cmd_import(args) -> int:
     from stereo.calibration import load_calibration
-    from strain2d.atomic import atomic_file
+    from tissue_core.outputs import atomic_file
 
     calib = load_calibration(*args.files)
     calib.unit = args.unit
@@ -213,8 +213,8 @@ def _load_calib(paths):
 
 def _cmd_match(args) -> int:
     from stereo.match import match_views
-    from strain2d.atomic import atomic_file, check_writable
     from strain2d.grid import read_points_csv
+    from tissue_core.outputs import atomic_file, check_writable
 
     inputs = [args.left_image, args.right_image, args.points, *(args.calib or [])]
     check_writable(args.out, overwrite=args.overwrite, kind="file", inputs=inputs)
@@ -260,9 +260,9 @@ def _cmd_match(args) -> int:
 def _cmd_reconstruct(args) -> int:
     from stereo.reconstruct import reconstruct
     from strain2d import __version__
-    from strain2d.atomic import atomic_dir, check_writable
     from strain2d.frames import open_frames
     from strain2d.grid import make_grid, parse_grid, parse_roi, read_points_csv
+    from tissue_core.outputs import atomic_dir, check_writable
 
     inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
@@ -387,8 +387,10 @@ def _cmd_reconstruct(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from strain2d.errors import run_command
     from surface_strain.cli import UsageError
     from surface_strain.io import PointsError
+    from tissue_core.cli import run_command
 
-    return run_command("stereo", _build_parser().parse_args(argv), errors=(UsageError, PointsError))
+    return run_command(
+        "stereo", _build_parser().parse_args(argv), argv=argv, errors=(UsageError, PointsError)
+    )

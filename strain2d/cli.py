@@ -332,12 +332,17 @@ def _track_source(args):
 
 
 def _cmd_track(args) -> int:
-    from strain2d.atomic import atomic_file, check_writable
-    from strain2d.tracks import write_tracks_csv
+    from strain2d.tracks import TRACK_COLUMNS, write_tracks_csv
+    from tissue_core.outputs import atomic_file, check_writable, csv_header_is
 
-    check_writable(args.out, overwrite=args.overwrite, kind="file", inputs=_inputs(args))
+    kwargs = {
+        "overwrite": args.overwrite,
+        "inputs": _inputs(args),
+        "is_result": csv_header_is(*TRACK_COLUMNS),
+    }
+    check_writable(args.out, kind="file", **kwargs)
     _, _, tracks = _track_source(args)
-    with atomic_file(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
+    with atomic_file(args.out, **kwargs) as tmp:
         write_tracks_csv(tmp, tracks)
     lost = int((~tracks.visible[-1]).sum())
     log.info("tracked %d points over %d frames, %d lost", tracks.n_points, tracks.n_frames, lost)
@@ -366,7 +371,6 @@ def _final_stats(field) -> dict:
 def _cmd_analyze(args) -> int:
     import numpy as np
 
-    from strain2d.atomic import atomic_dir, check_writable
     from strain2d.export import (
         write_json,
         write_pvd,
@@ -377,6 +381,7 @@ def _cmd_analyze(args) -> int:
     from strain2d.pipeline import strain_from_tracks
     from strain2d.report import parse_formats, run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
+    from tissue_core.outputs import atomic_dir, check_writable
 
     t_start = time.perf_counter()
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
@@ -521,7 +526,6 @@ def _cmd_study(args) -> int:
 
 
 def _cmd_benchmark(args) -> int:
-    from strain2d.atomic import atomic_dir, check_writable
     from strain2d.benchmark import (
         SWEEPS,
         benchmark_markdown,
@@ -530,6 +534,7 @@ def _cmd_benchmark(args) -> int:
         sweep_markdown,
     )
     from strain2d.export import write_json
+    from tissue_core.outputs import atomic_dir, check_writable
 
     check_writable(args.out, overwrite=args.overwrite)
     from sample_data_synth.cases import CASES
@@ -588,6 +593,6 @@ def _cmd_benchmark(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from strain2d.errors import run_command
+    from tissue_core.cli import run_command
 
-    return run_command("strain2d", _build_parser().parse_args(argv))
+    return run_command("strain2d", _build_parser().parse_args(argv), argv=argv)

@@ -663,9 +663,9 @@ def write_study(
     from datetime import UTC, datetime
 
     from strain2d import __version__
-    from strain2d.atomic import atomic_dir, check_writable
     from strain2d.export import write_json
     from strain2d.study import load_specimens, plain_summary, study_statistics
+    from tissue_core.outputs import atomic_dir, check_writable
 
     entries = [e if isinstance(e, dict) else {"run": Path(e)} for e in runs]
     inputs = ([str(manifest)] if manifest else []) + [str(e["run"]) for e in entries]

@@ -231,9 +231,9 @@ def write_strain_folder(
 
 
 def _cmd_compute(args) -> int:
-    from strain2d.atomic import atomic_dir, check_writable
     from surface_strain.field import nodal_scalars
     from surface_strain.io import read_points3d
+    from tissue_core.outputs import atomic_dir, check_writable
 
     check_writable(args.out, overwrite=args.overwrite, inputs=[args.points])
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
@@ -269,9 +269,12 @@ def _cmd_compute(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from strain2d.errors import run_command
     from surface_strain.io import PointsError
+    from tissue_core.cli import run_command
 
     return run_command(
-        "surface_strain", _build_parser().parse_args(argv), errors=(UsageError, PointsError)
+        "surface_strain",
+        _build_parser().parse_args(argv),
+        argv=argv,
+        errors=(UsageError, PointsError),
     )

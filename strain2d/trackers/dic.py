@@ -75,6 +75,7 @@ from scipy.spatial import cKDTree
 from strain2d.errors import InputError
 from strain2d.trackers import register_tracker
 from strain2d.tracks import Tracks
+from tissue_core.interrupt import deferred_interrupt
 
 # Warp parameters p = (u, v, du/dx, du/dy, dv/dx, dv/dy[, uxx, uxy, uyy, vxx, vxy, vyy]):
 # x' = x0 + u + (1 + ux) dx + uy dy [+ uxx dx^2 / 2 + uxy dx dy + uyy dy^2 / 2], etc.
@@ -291,20 +292,24 @@ class _Correlator:
             return self.match_numpy(coefficients, ref, idx, p0)
         full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
         rows = slice(None) if full else idx
-        return kernel(
-            coefficients,
+        arrays = (
             np.ascontiguousarray(ref.centers[rows]),
             np.ascontiguousarray(ref.f[rows]),
             np.ascontiguousarray(ref.norm[rows, 0]),
             np.ascontiguousarray(ref.G[rows]),
             np.ascontiguousarray(p0, dtype=np.float64),
-            self.ex,
-            self.ey,
-            self.half,
-            self.tolerance,
-            self.max_iterations,
-            self.zncc_min,
         )
+        with deferred_interrupt():  # Ctrl-C inside the kernel would surface as SystemError
+            return kernel(
+                coefficients,
+                *arrays,
+                self.ex,
+                self.ey,
+                self.half,
+                self.tolerance,
+                self.max_iterations,
+                self.zncc_min,
+            )
 
     def match_numpy(
         self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray

@@ -16,6 +16,7 @@ import tifffile
 from sample_data_synth import make_stack_case, write_stack
 from tests.mpm3d.helpers import axis_diff, cli, listing, rel_err
 from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SURFACE_RMS_ZSTEPS
+from tissue_core.outputs import MARKER
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -29,7 +30,7 @@ FIGURES = {
 #: options for a quick, quiet run
 FAST = ("--no-surface", "--no-figures", "-q")
 TABLES = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif"}
-FULL = TABLES | {"surface.vtp", "surface.ply", "figures"} | set(FIGURES)
+FULL = TABLES | {"surface.vtp", "surface.ply", "figures", MARKER} | set(FIGURES)
 
 
 def read_csv(path: Path) -> list[dict]:
@@ -103,9 +104,9 @@ def test_analyze_writes_every_file_and_reports(after_run):
     assert [p.name for p in out.parent.iterdir()] == [out.name]
     err = after_run["stderr"].splitlines()
     assert "warning" not in after_run["stderr"] and "error" not in after_run["stderr"]
-    assert err[-1] == f"results in {out}"
-    assert err[-2].startswith(f"{after_run['path']}: folds: wavelength")
-    assert all(line.startswith("[") for line in err[:-2])  # progress messages
+    assert err[-1].endswith(f"] results in {out}")
+    assert f"] {after_run['path']}: folds: wavelength" in err[-2]
+    assert all(line.startswith("[") for line in err)  # timestamped progress messages
 
 
 def test_analyze_metrics_match_the_truth(after_run):
@@ -241,7 +242,7 @@ def test_analyze_without_surface_and_figures(mpm_pair, tmp_path, capsys):
     path, case = mpm_pair["before"]
     out = tmp_path / "before_out"
     assert cli("analyze", path, "--out", out, "--no-surface", "--no-figures") == 0
-    assert listing(out) == TABLES
+    assert listing(out) == TABLES | {MARKER}
     m = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
     assert m["input"] == "before.tif"
     assert m["n_surface_triangles"] is None and m["parameters"]["surface"] is False
@@ -250,8 +251,8 @@ def test_analyze_without_surface_and_figures(mpm_pair, tmp_path, capsys):
     captured = capsys.readouterr()
     assert captured.out == ""
     lines = captured.err.splitlines()
-    assert lines[-1] == f"results in {out}"
-    assert all(line.startswith("[") for line in lines[:-2])  # progress, then the summary
+    assert lines[-1].endswith(f"] results in {out}")
+    assert all(line.startswith("[") for line in lines)  # timestamped steps, then the summary
     assert "warning" not in captured.err
 
 
@@ -294,13 +295,13 @@ def test_plain_tiff_with_spacing(small, tmp_path, capsys):
     assert rel_err(m["fold_wavelength_um"], case.info["wavelength_um"]) < MPM_FOLD_RELATIVE
 
 
-def test_overwrite_replaces_an_existing_output(small, tmp_path, capsys):
+def test_overwrite_replaces_an_earlier_result(small, tmp_path, capsys):
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "old.txt").write_text("old")
+    assert cli("analyze", small["ome"], "--out", out, "--no-surface", "-q") == 0
+    assert "figures" in listing(out)
     assert cli("analyze", small["ome"], "--out", out, "--overwrite", *FAST) == 0
     assert capsys.readouterr().err == ""
-    assert listing(out) == TABLES
+    assert listing(out) == TABLES | {MARKER}
     assert [p.name for p in tmp_path.iterdir()] == ["out"]  # no scratch or replaced folder
 
 
@@ -361,10 +362,11 @@ def test_existing_output_is_left_untouched(small, tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
     (out / "keep.txt").write_text("mine")
-    assert cli("analyze", small["ome"], "--out", out, "-q") == 2
-    assert_one_error_line(capsys.readouterr(), "exists", "--overwrite")
-    assert listing(tmp_path) == {"out", "out/keep.txt"}
-    assert (out / "keep.txt").read_text() == "mine"
+    for flags in ([], ["--overwrite"]):  # not a result of the toolkit: never replaced
+        assert cli("analyze", small["ome"], "--out", out, "-q", *flags) == 2
+        assert_one_error_line(capsys.readouterr(), "not a result of this toolkit")
+        assert listing(tmp_path) == {"out", "out/keep.txt"}
+        assert (out / "keep.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize("overwrite", [False, True])
@@ -377,12 +379,7 @@ def test_output_never_replaces_the_input(small, tmp_path, capsys, target, overwr
     flags = ["--overwrite"] if overwrite else []
     assert cli("analyze", stack, "--out", out, "-q", *flags) == 2
     line = assert_one_error_line(capsys.readouterr())
-    if not overwrite:
-        assert "exists" in line
-    elif target == "folder":
-        assert "would replace the input" in line
-    else:
-        assert "is a file" in line
+    assert "would replace the input" in line
     assert listing(tmp_path) == {"data", "data/stack.ome.tif"}
     assert stack.read_bytes() == small["ome"].read_bytes()
 

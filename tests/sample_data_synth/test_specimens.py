@@ -38,6 +38,7 @@ from tests.tolerances import (
 from tests.tolerances import (
     SPECIMEN_PULLBACK_SHIFT_PX as PULLBACK_SHIFT_PX,
 )
+from tissue_core.outputs import MARKER
 
 TINY = (Group("anisotropic", 2, lx=0.80, ly=0.92), Group("isotropic", 2, lx=0.86, ly=0.86))
 COLUMNS = [
@@ -362,9 +363,12 @@ def test_cli_study_end_to_end(tmp_path, capsys):
     out = tmp_path / "study"
     args = ["study", "--out", str(out), "--size", "96", "--frames", "5", "--per-group", "1"]
     assert main([*args, "--seed", "3"]) == 0
-    assert "study: specimen 2/2, frame 5/5" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "] rendering 2 specimens x 5 frames: 10/10 frames in " in err
+    assert err.splitlines()[-1].endswith(f"] results in {out}")
     names = sorted(p.name for p in out.iterdir())
     assert names == [
+        MARKER,
         "S01.avi",
         "S01_truth.json",
         "S01_truth.npz",

@@ -19,6 +19,7 @@ from sample_data_synth import (
 )
 from sample_data_synth.cli import main
 from tests.tolerances import EXACT
+from tissue_core.outputs import MARKER
 
 #: the urothelium's 50 % edge against the true surface depth, in units of dz
 EDGE_DZ = 0.1
@@ -316,6 +317,7 @@ def test_cli_writes_stacks_and_truth(tmp_path, capsys):
     args = ["stack", "--case", "pair", "--size", "24", "--spacing", "4,5,5", "-q"]
     assert main([*args, "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
+        MARKER,
         "after.tif",
         "after_truth.json",
         "after_truth.npz",
@@ -331,6 +333,7 @@ def test_cli_writes_stacks_and_truth(tmp_path, capsys):
     ome = ["stack", "--case", "after", "--size", "16", "--format", "ome", "-q"]
     assert main([*ome, "--out", str(out), "--overwrite"]) == 0
     assert sorted(p.name for p in out.iterdir()) == [
+        MARKER,
         "after.ome.tif",
         "after_truth.json",
         "after_truth.npz",

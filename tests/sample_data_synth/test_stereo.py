@@ -26,6 +26,7 @@ from sample_data_synth import (
 )
 from sample_data_synth.cli import main
 from tests.tolerances import EXACT
+from tissue_core.outputs import MARKER
 
 # --- this module's tolerances ---
 #: undistortion followed by cv2.projectPoints, pixels (the issue's bar: 1e-4)
@@ -475,7 +476,7 @@ def test_cli_writes_every_case(tmp_path, capsys):
     args = ["stereo", "--size", "192x144", "--views", "2", "--frames", "2", "--out", str(out)]
     assert main([*args, "-q"]) == 0
     assert capsys.readouterr().err == ""
-    assert sorted(p.name for p in out.iterdir()) == ["calibration", "dome", "stretch"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "calibration", "dome", "stretch"]
     names = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}
     assert {"calibration/left/view_01.png", "calibration/right/view_00.png"} <= names
     assert {"calibration/rig.json", "calibration/poses.json"} <= names
@@ -488,7 +489,7 @@ def test_cli_writes_every_case(tmp_path, capsys):
     assert main([*args, "-q"]) == 2
     assert "exists" in capsys.readouterr().err
     assert main([*args, "-q", "--overwrite", "--case", "calibration"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["calibration"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "calibration"]
     assert main(["list"]) == 0
     assert {"calibration", "stretch", "dome"} <= set(capsys.readouterr().out.split())
 

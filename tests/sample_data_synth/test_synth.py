@@ -15,6 +15,7 @@ from sample_data_synth import (
 )
 from sample_data_synth.cli import main
 from tests.tolerances import EXACT, RENDER_GRAY_LEVELS
+from tissue_core.outputs import MARKER
 
 
 def brute_force(pattern, deformation, t, shape):
@@ -147,6 +148,7 @@ def test_cli_writes_videos_and_truth(tmp_path, capsys):
     )
     names = sorted(p.name for p in out.iterdir())
     assert names == [
+        MARKER,
         "rotation.avi",
         "rotation.mp4",
         "rotation.tif",

@@ -86,30 +86,21 @@ def test_analyze_writes_the_contracted_outputs(small_case, tmp_path):
 
 def test_existing_output_needs_overwrite(small_case, tmp_path, capsys):
     folder, _ = small_case
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "keep.txt").write_text("mine")
+    run = ["-q", "analyze", str(folder / "eq.tif"), "--grid", "3x3", "--animation", "none"]
+    for flags in ([], ["--overwrite"]):  # a folder of the user's is never replaced
+        assert main([*run, "--out", str(mine), *flags]) == 2
+        assert "is not a result of this toolkit" in capsys.readouterr().err
+        assert [p.name for p in mine.iterdir()] == ["keep.txt"]
     out = tmp_path / "run"
-    out.mkdir()
-    (out / "keep.txt").write_text("mine")
-    rc = main(["analyze", str(folder / "eq.tif"), "--out", str(out)])
-    assert rc == 2
+    assert main([*run, "--out", str(out)]) == 0
+    assert main([*run, "--out", str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err
-    assert (out / "keep.txt").read_text() == "mine"
-    assert (
-        main(
-            [
-                "-q",
-                "analyze",
-                str(folder / "eq.tif"),
-                "--grid",
-                "3x3",
-                "--out",
-                str(out),
-                "--overwrite",
-            ]
-        )
-        == 0
-    )
-    assert not (out / "keep.txt").exists()
-    assert (out / "summary.json").is_file()
+    first = (out / "summary.json").stat().st_mtime_ns
+    assert main([*run, "--out", str(out), "--overwrite"]) == 0
+    assert (out / "summary.json").stat().st_mtime_ns > first
 
 
 def test_interrupted_run_leaves_nothing_behind(small_case, tmp_path, monkeypatch, capsys):

@@ -155,9 +155,10 @@ def test_errors_exit_2_with_one_line(tmp_path, capsys):
                "--out", out) == 2  # fmt: skip
     one_line(capsys)
     out.mkdir()
-    assert cli("compute", src, "--out", out) == 2
-    assert "exists" in one_line(capsys)
-    assert not (tmp_path / "o" / "strain.pvd").exists()
+    (out / "notes.txt").write_text("mine")
+    assert cli("compute", src, "--out", out, "--overwrite") == 2
+    assert "not a result of this toolkit" in one_line(capsys)
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
 
 
 @pytest.mark.parametrize("fps", ["0", "nan"])

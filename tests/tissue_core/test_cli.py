@@ -1,0 +1,141 @@
+"""The command runner, progress lines and Ctrl-C inside compiled code."""
+
+import argparse
+import io
+import os
+import re
+import signal
+import warnings
+
+import numpy as np
+import pytest
+from numba import njit
+
+from tissue_core.cli import ArgumentParser, run_command
+from tissue_core.errors import InputError
+from tissue_core.interrupt import deferred_interrupt, is_interrupt
+from tissue_core.progress import Progress, close_open_lines
+
+
+def run(handler, capsys, **kwargs) -> tuple[int, str]:
+    args = argparse.Namespace(command="go", handler=handler, verbose=False)
+    status = run_command("tool", args, argv=["go"], **kwargs)
+    return status, capsys.readouterr().err
+
+
+def test_errors_are_one_line_and_exit_2(capsys):
+    def fail(args):
+        raise InputError("bad value\nin two lines")
+
+    assert run(fail, capsys) == (2, "tool go: error: bad value in two lines\n")
+
+    def disk_full(args):
+        raise OSError(28, "No space left on device", "/data/out/tracks.csv")
+
+    status, err = run(disk_full, capsys)
+    assert status == 2 and err.count("\n") == 1 and "No space left" in err
+
+
+def test_warnings_are_one_line_and_numerical_ones_stay_in_the_log(capsys):
+    def warn(args):
+        warnings.warn("the stack has no spacing", UserWarning, stacklevel=1)
+        return 0
+
+    assert run(warn, capsys) == (0, "tool go: warning: the stack has no spacing\n")
+
+
+def _interrupted_in_compiled_code(args):
+    """What numba does when SIGINT arrives during a call back into Python."""
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("<function _numba_unpickle> returned a result") from exc
+    except SystemError as exc:
+        raise SystemError("CPUDispatcher(<function icgn>) returned a result") from exc
+
+
+def test_ctrl_c_in_compiled_code_is_an_interruption(capsys):
+    status, err = run(_interrupted_in_compiled_code, capsys)
+    assert status == 130
+    assert err == "tool go: interrupted; no output written\n"
+
+    def other_system_error(args):
+        raise SystemError("a real bug")
+
+    with pytest.raises(SystemError, match="a real bug"):
+        run(other_system_error, capsys)
+    assert not is_interrupt(SystemError("x"))
+
+
+def test_ctrl_c_while_a_bar_is_open_starts_a_new_line(capsys, monkeypatch):
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    screen = Terminal()
+    say = Progress(stream=screen)
+
+    def interrupted(args):
+        task = say.task("tracking (dic)")
+        task(3, 31)
+        raise KeyboardInterrupt
+
+    status, err = run(interrupted, capsys)
+    assert status == 130 and err == "tool go: interrupted; no output written\n"
+    assert "tracking (dic)" in screen.getvalue()  # the bar was drawn, then cleared
+    assert screen.getvalue().endswith("\r") or "\x1b" in screen.getvalue()[-8:]
+
+
+def test_argument_parser_errors_are_one_line(capsys):
+    parser = ArgumentParser(prog="tool")
+    parser.add_argument("--n", type=int)
+    with pytest.raises(SystemExit) as info:
+        parser.parse_args(["--n", "x"])
+    assert info.value.code == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_progress_in_a_log_is_timestamped_lines():
+    log = io.StringIO()
+    say = Progress(stream=log, interval=0.0)
+    say("reading the video")
+    with say.task("tracking (dic)") as task:
+        for k in range(1, 4):
+            task(k, 3)
+    say("results in out/")
+    lines = log.getvalue().splitlines()
+    assert all(re.match(r"\[ +\d+\.\d s\] ", line) for line in lines), lines
+    assert lines[0].endswith("] reading the video")
+    assert lines[1].endswith("] tracking (dic): 1/3 frames")
+    assert re.search(r"\] tracking \(dic\): 3/3 frames in \d+\.\d s$", lines[-2])
+    assert lines[-1].endswith("] results in out/")
+    quiet = io.StringIO()
+    q = Progress(stream=quiet, quiet=True, interval=0.0)
+    q("x")
+    with q.task("y") as task:
+        task(1, 1)
+    assert quiet.getvalue() == ""
+    close_open_lines()
+
+
+@njit(cache=False)
+def _busy(n):  # pragma: no cover - compiled
+    total = 0.0
+    for i in range(n):
+        total += np.sqrt(i)
+    return total
+
+
+def test_ctrl_c_is_deferred_to_the_end_of_a_compiled_call():
+    _busy(10)
+    done = []
+    with pytest.raises(KeyboardInterrupt):
+        with deferred_interrupt():
+            os.kill(os.getpid(), signal.SIGINT)  # arrives "inside" the block
+            done.append(_busy(1000))
+            done.append("after the kernel")
+    assert done[1] == "after the kernel"  # the block ran to its end first
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with deferred_interrupt():  # no signal: nothing raised
+        _busy(10)

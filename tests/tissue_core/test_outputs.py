@@ -1,0 +1,191 @@
+"""Outputs never replace what the toolkit did not write."""
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+from tissue_core.errors import InputError
+from tissue_core.outputs import (
+    MARKER,
+    atomic_dir,
+    atomic_file,
+    check_writable,
+    csv_header_is,
+    first_unknown_entry,
+    json_from_toolkit,
+    read_marker,
+    recorded_command,
+)
+
+
+def tree(folder: Path) -> dict[str, bytes | None]:
+    """Every entry under ``folder`` with its bytes (None for folders)."""
+    return {
+        p.relative_to(folder).as_posix(): (p.read_bytes() if p.is_file() else None)
+        for p in sorted(folder.rglob("*"))
+    }
+
+
+def write_result(out: Path, files=("a.csv", "figures/b.png"), **kwargs) -> None:
+    with atomic_dir(out, **kwargs) as tmp:
+        for name in files:
+            (tmp / name).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / name).write_text(name)
+
+
+def test_a_result_carries_a_marker_listing_its_files(tmp_path):
+    out = tmp_path / "run"
+    token = recorded_command.set(["strain2d", "analyze", "v.avi"])
+    try:
+        write_result(out)
+    finally:
+        recorded_command.reset(token)
+    marker = read_marker(out)
+    assert marker["files"] == ["a.csv", "figures", "figures/b.png"]
+    assert marker["command"] == ["strain2d", "analyze", "v.avi"]
+    assert marker["software"]["name"] == "tissue-strain" and marker["software"]["version"]
+    assert first_unknown_entry(out) is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no scratch left
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_a_folder_of_the_users_is_never_replaced(tmp_path, overwrite):
+    thesis = tmp_path / "thesis"
+    (thesis / "chapters").mkdir(parents=True)
+    (thesis / "chapters" / "one.tex").write_text("the work of years")
+    before = tree(thesis)
+    with pytest.raises(InputError, match=r"not a result of this toolkit.*left as it is"):
+        write_result(thesis, overwrite=overwrite)
+    assert tree(thesis) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["thesis"]
+
+
+def test_a_users_file_inside_a_result_stops_the_overwrite(tmp_path):
+    out = tmp_path / "run"
+    write_result(out)
+    with pytest.raises(InputError, match=r"exists .an earlier result.; pass --overwrite"):
+        write_result(out)
+    (out / "figures" / "my_annotations.svg").write_text("mine")
+    before = tree(out)
+    with pytest.raises(InputError, match=r"holds figures/my_annotations.svg, which the earlier"):
+        write_result(out, overwrite=True)
+    assert tree(out) == before
+    (out / "figures" / "my_annotations.svg").unlink()
+    (out / "notes").mkdir()  # an empty folder of the user's counts too
+    with pytest.raises(InputError, match="holds notes"):
+        write_result(out, overwrite=True)
+    (out / "notes").rmdir()
+    (out / ".DS_Store").write_bytes(b"\0")  # what a file browser adds does not
+    write_result(out, files=["c.txt"], overwrite=True)
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "c.txt"]
+
+
+def test_nested_results_are_the_toolkits(tmp_path):
+    data = tmp_path / "study_data"
+    write_result(data, files=["S01.avi", "runs/.keep"])
+    write_result(data / "runs" / "S01")  # strain2d analyze --out inside the study folder
+    assert first_unknown_entry(data) is None
+    (data / "runs" / "S01" / "mine.txt").write_text("mine")
+    assert first_unknown_entry(data) == "runs/S01/mine.txt"
+    with pytest.raises(InputError, match=r"runs/S01/mine.txt"):
+        write_result(data, overwrite=True)
+    (data / "runs" / "S01" / "mine.txt").unlink()
+    write_result(data, files=["S01.avi"], overwrite=True)
+    assert sorted(p.name for p in data.iterdir()) == [MARKER, "S01.avi"]
+
+
+def test_a_damaged_or_foreign_marker_does_not_count(tmp_path):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "x.csv").write_text("x")
+    for text in ("{", "[]", json.dumps({"kind": "other", "files": ["x.csv"]}),
+                 json.dumps({"kind": "tissue-strain result", "files": "x.csv"})):  # fmt: skip
+        (out / MARKER).write_text(text)
+        assert read_marker(out) is None
+        with pytest.raises(InputError, match="not a result"):
+            write_result(out, overwrite=True)
+    assert (out / "x.csv").read_text() == "x"
+
+
+def test_empty_folder_is_used_and_symlinks_are_refused(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    write_result(empty)
+    assert read_marker(empty) is not None
+    link = tmp_path / "link"
+    link.symlink_to(empty, target_is_directory=True)
+    with pytest.raises(InputError, match="symbolic link"):
+        write_result(link, overwrite=True)
+    assert read_marker(empty) is not None
+
+
+def test_outputs_never_replace_inputs_or_the_working_directory(tmp_path, monkeypatch):
+    data = tmp_path / "data"
+    data.mkdir()
+    video = data / "v.avi"
+    video.write_bytes(b"video")
+    for out, message in (
+        (data, "would replace the input"),
+        (data / "run", "inside the input folder"),
+    ):
+        with pytest.raises(InputError, match=message):
+            check_writable(out, overwrite=True, inputs=[data])
+    with pytest.raises(InputError, match="would replace the input"):
+        check_writable(video, overwrite=True, kind="file", inputs=[video])
+    monkeypatch.chdir(data)
+    for out in (".", "..", str(tmp_path)):
+        with pytest.raises(InputError, match="working directory"):
+            check_writable(out, overwrite=True)
+    with pytest.raises(InputError, match="does not exist"):
+        check_writable(tmp_path / "no" / "run", overwrite=False)
+    assert video.read_bytes() == b"video"
+
+
+def test_an_error_inside_leaves_nothing_and_names_the_output(tmp_path):
+    out = tmp_path / "run"
+    with pytest.raises(OSError, match=r"run/figures/x.png") as info:
+        with atomic_dir(out) as tmp:
+            open(tmp / "figures" / "x.png", "rb")
+    assert ".tmp-" not in str(info.value)
+    with pytest.raises(InputError) as info:
+        with atomic_dir(out) as tmp:
+            raise InputError(f"cannot write {tmp / 'a.csv'}")
+    assert str(info.value) == f"cannot write {out / 'a.csv'}"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_file_is_replaced_only_when_the_toolkit_wrote_it(tmp_path):
+    is_tracks = csv_header_is("frame", "point", "x", "y")
+    mine = tmp_path / "tracks.csv"
+    mine.write_text("my thesis\n")
+    for overwrite, message in ((False, "pass --overwrite"), (True, "not a file this toolkit")):
+        with pytest.raises(InputError, match=message):
+            with atomic_file(mine, overwrite=overwrite, is_result=is_tracks) as tmp:
+                tmp.write_text("frame,point,x,y\n")
+    assert mine.read_text() == "my thesis\n"
+    mine.write_text("\ufeffFrame, point,x,y,visible\n0,0,1,2,1\n")  # BOM, spaces, case
+    with atomic_file(mine, overwrite=True, is_result=is_tracks) as tmp:
+        tmp.write_text("frame,point,x,y\n")
+    assert mine.read_text() == "frame,point,x,y\n"
+    with pytest.raises(InputError, match="not a file this toolkit"):
+        check_writable(mine, overwrite=True, kind="file")  # no recogniser: never replaced
+    calib = tmp_path / "calib.json"
+    calib.write_text(json.dumps({"left": 1}))
+    assert not json_from_toolkit("left", "right")(calib)
+    calib.write_text(json.dumps({"left": 1, "right": 2}))
+    assert json_from_toolkit("left", "right")(calib)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.json", "tracks.csv"]
+
+
+def test_finished_outputs_get_the_umask_permissions(tmp_path):
+    mask = os.umask(0o027)
+    try:
+        write_result(tmp_path / "run")
+        with atomic_file(tmp_path / "t.csv") as tmp:
+            tmp.write_text("x")
+    finally:
+        os.umask(mask)
+    assert (tmp_path / "run").stat().st_mode & 0o777 == 0o750
+    assert (tmp_path / "t.csv").stat().st_mode & 0o777 == 0o640

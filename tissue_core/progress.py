@@ -1,0 +1,148 @@
+"""Progress on stderr for the command lines: timestamped steps, and counters.
+
+Every command prints what it does as timestamped lines (``[  12.3 s] tracking
+(dic): 31/31 frames``), whether stderr is a terminal or a log file, so that
+a batch job's log shows where the time went and where the results are.  On a
+terminal a long loop also shows a live bar (tqdm); in a log it prints a line
+every ``interval`` seconds instead.  ``quiet`` silences all of it.  The
+library itself never prints: it takes a ``progress`` callback, and these
+objects are such callbacks.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+__all__ = ["Progress", "close_open_lines"]
+
+#: counters whose terminal bar is on screen now (closed before an error line)
+_OPEN: list[Task] = []
+
+
+def close_open_lines() -> None:
+    """End every live progress bar, so that what follows starts on a clean line."""
+    for task in list(_OPEN):
+        task.close(report=False)
+
+
+class Progress:
+    """Timestamped progress lines on ``stream`` (stderr), counted from creation.
+
+    Parameters
+    ----------
+    quiet : bool
+        Print nothing.
+    stream : text stream, optional
+        Default ``sys.stderr`` (looked up when printing, so tests can capture it).
+    interval : float
+        Seconds between the lines a counter prints when ``stream`` is not a terminal.
+    """
+
+    def __init__(
+        self, *, quiet: bool = False, stream: TextIO | None = None, interval: float = 10.0
+    ) -> None:
+        self.quiet = quiet
+        self._stream = stream
+        self.interval = interval
+        self.start = time.perf_counter()
+
+    @property
+    def stream(self) -> TextIO:
+        return self._stream if self._stream is not None else sys.stderr
+
+    @property
+    def is_terminal(self) -> bool:
+        try:
+            return self.stream.isatty()
+        except (AttributeError, ValueError):
+            return False
+
+    def elapsed(self) -> float:
+        return time.perf_counter() - self.start
+
+    def say(self, message: str) -> None:
+        """Print ``[ELAPSED s] message`` (a step, a result, where the output went)."""
+        if self.quiet:
+            return
+        close_open_lines()
+        print(f"[{self.elapsed():6.1f} s] {message}", file=self.stream, flush=True)
+
+    __call__ = say
+
+    def task(self, description: str, *, unit: str = "frame") -> Task:
+        """A counter for a loop: call it with ``(done, total)``; use it as a context manager."""
+        return Task(self, description, unit)
+
+
+class Task:
+    """A counted step of a :class:`Progress`: a bar on a terminal, periodic lines in a log."""
+
+    def __init__(self, progress: Progress, description: str, unit: str) -> None:
+        self.progress = progress
+        self.description = description
+        self.unit = unit
+        self.done = 0
+        self.total: int | None = None
+        self._bar = None
+        self._start = time.perf_counter()
+        self._last_line = self._start
+        self._closed = False
+
+    def __enter__(self) -> Task:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(report=exc_type is None)
+
+    def _count(self) -> str:
+        of = f"/{self.total}" if self.total is not None else ""
+        return f"{self.done}{of} {self.unit}s"
+
+    def __call__(self, done: int, total: int | None = None) -> None:
+        p = self.progress
+        if p.quiet or self._closed:
+            return
+        self.done = int(done)
+        if total is not None:
+            self.total = int(total)
+        if p.is_terminal:
+            if self._bar is None:
+                from tqdm import tqdm
+
+                self._bar = tqdm(
+                    desc=self.description,
+                    unit=self.unit,
+                    total=self.total,
+                    leave=False,
+                    file=p.stream,
+                    dynamic_ncols=True,
+                )
+                _OPEN.append(self)
+            if self.total is not None and self._bar.total != self.total:
+                self._bar.total = self.total
+            self._bar.update(self.done - self._bar.n)
+            return
+        now = time.perf_counter()
+        if now - self._last_line >= p.interval:
+            self._last_line = now
+            print(
+                f"[{p.elapsed():6.1f} s] {self.description}: {self._count()}",
+                file=p.stream,
+                flush=True,
+            )
+
+    def close(self, *, report: bool = True) -> None:
+        """Remove the bar; with ``report``, print how much was done and how long it took."""
+        if self._closed:
+            return
+        self._closed = True
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+        if self in _OPEN:
+            _OPEN.remove(self)
+        if report and not self.progress.quiet and self.done:
+            took = time.perf_counter() - self._start
+            self.progress.say(f"{self.description}: {self._count()} in {took:.1f} s")
