@@ -1,5 +1,3 @@
-import sys
+from tissue_core.cli import run_module
 
-from sample_data_synth.cli import main
-
-sys.exit(main())
+run_module("sample_data_synth.cli")

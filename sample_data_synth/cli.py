@@ -74,6 +74,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.set_defaults(handler=_cmd_video)
     p = sub.add_parser("stack", help="render MPM z-stacks of a folded lumen with ground truth")
     p.add_argument(
         "--case",
@@ -93,6 +94,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.set_defaults(handler=_cmd_stack)
     p = sub.add_parser(
         "stereo", help="render stereo calibration views and deforming surfaces with ground truth"
     )
@@ -115,6 +117,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
+    p.set_defaults(handler=_cmd_stereo)
     p = sub.add_parser(
         "study", help="render a multi-specimen contraction study with known anisotropy"
     )
@@ -132,7 +135,8 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    sub.add_parser("list", help="list the cases")
+    p.set_defaults(handler=_cmd_study)
+    sub.add_parser("list", help="list the cases").set_defaults(handler=_cmd_list)
     return parser
 
 
@@ -314,20 +318,19 @@ def _cmd_study(args) -> int:
     return 0
 
 
+def _cmd_list(args) -> int:
+    for name, spec in CASES.items():
+        print(f"{name:12s} {spec.description}")
+    for name, spec in STACK_CASES.items():
+        print(f"{name:12s} {spec.description}")
+    for name, description in STEREO_CASES.items():
+        print(f"{name:12s} {description} (stereo)")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    args = _build_parser().parse_args(argv)
-    if args.command == "list":
-        for name, spec in CASES.items():
-            print(f"{name:12s} {spec.description}")
-        for name, spec in STACK_CASES.items():
-            print(f"{name:12s} {spec.description}")
-        for name, description in STEREO_CASES.items():
-            print(f"{name:12s} {description} (stereo)")
-        return 0
     from tissue_core.cli import run_command
 
-    handlers = {"video": _cmd_video, "stack": _cmd_stack, "stereo": _cmd_stereo}
-    args.handler = {**handlers, "study": _cmd_study}[args.command]
     # the renderers check their own arguments with ValueError
-    return run_command("sample_data_synth", args, argv=argv, errors=(ValueError,))
+    return run_command("sample_data_synth", _build_parser(), argv, errors=(ValueError,))

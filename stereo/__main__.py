@@ -1,5 +1,3 @@
-import sys
+from tissue_core.cli import run_module
 
-from stereo.cli import main
-
-sys.exit(main())
+run_module("stereo.cli")

@@ -1,5 +1,3 @@
-import sys
+from tissue_core.cli import run_module
 
-from strain2d.cli import main
-
-sys.exit(main())
+run_module("strain2d.cli")

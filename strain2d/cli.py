@@ -595,4 +595,4 @@ def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     from tissue_core.cli import run_command
 
-    return run_command("strain2d", _build_parser().parse_args(argv), argv=argv)
+    return run_command("strain2d", _build_parser(), argv)

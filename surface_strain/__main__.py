@@ -1,5 +1,3 @@
-import sys
+from tissue_core.cli import run_module
 
-from surface_strain.cli import main
-
-sys.exit(main())
+run_module("surface_strain.cli")

@@ -272,9 +272,4 @@ def main(argv: list[str] | None = None) -> int:
     from surface_strain.io import PointsError
     from tissue_core.cli import run_command
 
-    return run_command(
-        "surface_strain",
-        _build_parser().parse_args(argv),
-        argv=argv,
-        errors=(UsageError, PointsError),
-    )
+    return run_command("surface_strain", _build_parser(), argv, errors=(UsageError, PointsError))

@@ -27,7 +27,7 @@ from tissue_core.interrupt import is_interrupt
 from tissue_core.outputs import recorded_command
 from tissue_core.progress import close_open_lines
 
-__all__ = ["ArgumentParser", "one_line", "run_command"]
+__all__ = ["ArgumentParser", "one_line", "run_command", "run_module"]
 
 log = logging.getLogger(__name__)
 
@@ -58,33 +58,42 @@ def _show_warning(prefix: str):
 
 def run_command(
     prog: str,
-    args: argparse.Namespace,
-    *,
+    parser: argparse.ArgumentParser,
     argv: list[str] | None = None,
+    *,
     errors: tuple[type[BaseException], ...] = (),
 ) -> int:
-    """Run ``args.handler(args)`` the way every command of the toolkit does; return the status.
+    """Parse ``argv`` and run the command's handler the way every command of the toolkit does.
 
     Parameters
     ----------
     prog : str
         The program's name, e.g. ``"strain2d"``.
-    args : argparse.Namespace
-        Parsed arguments with ``handler`` and ``command``; ``verbose`` turns
-        on INFO logging.
+    parser : argparse.ArgumentParser
+        Its subcommands set ``command`` and ``handler`` (a function of the
+        parsed arguments returning the exit status); ``verbose`` turns on
+        INFO logging.
     argv : list of str, optional
-        The arguments that were parsed (default ``sys.argv[1:]``), recorded
-        in the marker of every result folder.
+        The arguments (default ``sys.argv[1:]``), recorded in the marker of
+        every result folder.
     errors : tuple of exception types
         Further exceptions that are the user's doing.
+
+    Returns
+    -------
+    int
+        0 on success, 2 for an error the user can fix, 130 after Ctrl-C.
     """
-    logging.basicConfig(
-        level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
-        format="%(levelname)s: %(message)s",
-    )
-    prefix = f"{prog} {args.command}"
-    token = recorded_command.set([prog, *(sys.argv[1:] if argv is None else argv)])
+    argv = sys.argv[1:] if argv is None else list(argv)
+    prefix = prog
+    token = recorded_command.set([prog, *argv])
     try:
+        args = parser.parse_args(argv)
+        prefix = f"{prog} {args.command}"
+        logging.basicConfig(
+            level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
+            format="%(levelname)s: %(message)s",
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("always", UserWarning)
             warnings.showwarning = _show_warning(prefix)
@@ -94,16 +103,29 @@ def run_command(
                 close_open_lines()
                 print(f"{prefix}: error: {one_line(exc)}", file=sys.stderr, flush=True)
                 return 2
-            except KeyboardInterrupt:
-                return _interrupted(prefix)
             except SystemError as exc:  # compiled code interrupted mid-call
                 if is_interrupt(exc):
                     return _interrupted(prefix)
                 raise
-    except KeyboardInterrupt:  # a second Ctrl-C while the first was being handled
+    except KeyboardInterrupt:  # also a second Ctrl-C while the first was handled
         return _interrupted(prefix)
     finally:
         recorded_command.reset(token)
+
+
+def run_module(cli_module: str) -> None:
+    """``python -m PACKAGE``: import ``cli_module`` and exit with its ``main()``'s status.
+
+    Ctrl-C during the imports ends with exit status 130 and no traceback, as
+    it does later.
+    """
+    import importlib
+
+    try:
+        main = importlib.import_module(cli_module).main
+    except KeyboardInterrupt:
+        sys.exit(_interrupted(cli_module.split(".")[0]))
+    sys.exit(main())
 
 
 def _interrupted(prefix: str) -> int:

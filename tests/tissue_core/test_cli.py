@@ -1,6 +1,5 @@
 """The command runner, progress lines and Ctrl-C inside compiled code."""
 
-import argparse
 import io
 import os
 import re
@@ -18,8 +17,10 @@ from tissue_core.progress import Progress, close_open_lines
 
 
 def run(handler, capsys, **kwargs) -> tuple[int, str]:
-    args = argparse.Namespace(command="go", handler=handler, verbose=False)
-    status = run_command("tool", args, argv=["go"], **kwargs)
+    parser = ArgumentParser(prog="tool")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("go").set_defaults(handler=handler)
+    status = run_command("tool", parser, ["go"], **kwargs)
     return status, capsys.readouterr().err
 
 
@@ -85,6 +86,15 @@ def test_ctrl_c_while_a_bar_is_open_starts_a_new_line(capsys, monkeypatch):
     assert status == 130 and err == "tool go: interrupted; no output written\n"
     assert "tracking (dic)" in screen.getvalue()  # the bar was drawn, then cleared
     assert screen.getvalue().endswith("\r") or "\x1b" in screen.getvalue()[-8:]
+
+
+def test_ctrl_c_while_parsing_is_an_interruption(capsys, monkeypatch):
+    def interrupted(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ArgumentParser, "parse_args", interrupted)
+    status, err = run(lambda args: 0, capsys)
+    assert (status, err) == (130, "tool: interrupted; no output written\n")
 
 
 def test_argument_parser_errors_are_one_line(capsys):

@@ -1,0 +1,149 @@
+"""The contract every command keeps on bad input, checked the same way for all of them.
+
+Each package's ``test_bad_input.py`` runs its command lines on broken,
+hostile and conflicting input through :func:`assert_refused`: exit status 2,
+exactly one line on stderr (after any timestamped progress lines) that starts
+with ``PROG COMMAND: error:`` and names the file or option and the problem,
+no traceback, inputs byte-identical, no output and no temporary file left
+behind, and nothing of the user's removed.  :func:`interrupt` sends Ctrl-C
+to a real process at a chosen moment: exit 130 and one line, or (when the
+command had already finished) exit 0 and a complete result; never a
+traceback, never half a result.
+
+``scripts/bad_input_counts.py`` counts these cases per command for the
+README's reliability section; the tests are named
+``test_bad_input[COMMAND-FAMILY-CASE]`` (or ``test_interrupt[COMMAND-...]``)
+so that it can.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: families of bad input, as the README's reliability section names them
+FAMILIES = (
+    "missing",  # files and folders that are not there
+    "empty",  # empty files, folders without images
+    "truncated",  # files cut short
+    "wrong-type",  # a text file named .tif, a video that is an image, ...
+    "stack",  # big-endian, float, NaN, odd dtypes (accepted: see the mpm3d tests)
+    "csv",  # NaN, inf, strings, duplicates, BOM, missing columns
+    "option",  # out-of-range, negative, non-finite option values
+    "conflict",  # options that contradict each other
+    "output",  # unwritable, foreign, or inside an input folder
+    "interrupt",  # Ctrl-C at a random moment
+)
+
+
+def snapshot(*paths: str | os.PathLike) -> dict[str, bytes | None]:
+    """Bytes of every file under ``paths`` (None for folders), to compare before and after."""
+    out: dict[str, bytes | None] = {}
+    for path in map(Path, paths):
+        if path.is_dir():
+            out[str(path)] = None
+            for p in sorted(path.rglob("*")):
+                out[str(p)] = p.read_bytes() if p.is_file() else None
+        elif path.exists():
+            out[str(path)] = path.read_bytes()
+    return out
+
+
+def scratch_left(folder: str | os.PathLike) -> list[str]:
+    """Temporary files and folders the atomic writers left in ``folder``."""
+    return [p.name for p in Path(folder).iterdir() if ".tmp-" in p.name or ".old-" in p.name]
+
+
+def assert_refused(
+    main: Callable[[list[str]], int],
+    argv: Sequence[object],
+    capsys,
+    *,
+    prog: str,
+    fragments: Sequence[str] = (),
+    inputs: Sequence[str | os.PathLike] = (),
+    out: str | os.PathLike | None = None,
+) -> str:
+    """Run ``main(argv)`` in-process and check the bad-input contract; return the error line.
+
+    ``fragments`` must all appear in the error line (name the file or option
+    and the problem); ``inputs`` must be byte-identical afterwards; ``out``
+    (the output the command was asked to write) must be as it was before:
+    absent, or with the same content, and with no temporary sibling.
+    """
+    argv = [str(a) for a in argv]
+    watched = [*inputs, *([out] if out is not None else [])]
+    before = snapshot(*watched)
+    status = main(argv)
+    captured = capsys.readouterr()
+    err = captured.err
+    assert "Traceback" not in err, err
+    lines = [line for line in err.splitlines() if line.strip()]
+    errors = [line for line in lines if not line.startswith("[")]  # not progress
+    assert status == 2, f"exit {status} for {argv}: {err}"
+    assert len(errors) == 1, f"not one error line for {argv}:\n{err}"
+    line = errors[0]
+    assert lines[-1] == line, err
+    assert line.startswith(f"{prog} ") and ": error: " in line, line
+    for fragment in fragments:
+        assert fragment in line, f"{fragment!r} not in: {line}"
+    assert snapshot(*watched) == before, f"{argv} changed its inputs or output"
+    if out is not None and Path(out).resolve().parent.is_dir():
+        assert scratch_left(Path(out).resolve().parent) == []
+    return line
+
+
+def interrupt(
+    argv: Sequence[object],
+    *,
+    after: float,
+    out: str | os.PathLike,
+    inputs: Sequence[str | os.PathLike] = (),
+    cwd: str | os.PathLike | None = None,
+    timeout: float = 240,
+) -> tuple[int, str]:
+    """Start ``python ARGV...``, send SIGINT ``after`` seconds later, check the contract.
+
+    Returns ``(status, stderr)``: 130 with one line ``...: interrupted; no
+    output written`` and no output, or 0 when it finished first (then the
+    output exists).  Inputs are byte-identical either way.
+    """
+    before = snapshot(*inputs)
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen(
+        [sys.executable, *map(str, argv)],
+        cwd=cwd or REPO,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + after
+    while proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise
+    out = Path(out)
+    assert "Traceback" not in err, err
+    assert proc.returncode in (0, 130), f"exit {proc.returncode}: {err}"
+    if proc.returncode == 130:
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert lines[-1].endswith(": interrupted; no output written"), err
+        assert not out.exists(), f"{out} was written although interrupted"
+    else:
+        assert out.exists()
+    assert scratch_left(out.resolve().parent) == []
+    assert snapshot(*inputs) == before
+    return proc.returncode, err
