@@ -16,8 +16,21 @@ as acquired.  Three kinds of file are understood, through tifffile_:
   resolution tags when ``ResolutionUnit`` is physical, but such files carry
   no Z step, so their spacing must be passed by the caller.
 
-Uncompressed, contiguous files (what ImageJ and tifffile write by default) are
-memory-mapped read-only; other files are decoded into memory once.
+Pixels may be of any real type a microscope, ImageJ/Fiji or tifffile writes
+(``uint8`` to ``uint64``, ``int8`` to ``int64``, ``float16`` to ``float64``,
+NaN voxels included, and 1-bit ``bool``), in either byte order.  Memory:
+
+* uncompressed, contiguous files in the machine's byte order (what ImageJ and
+  tifffile write by default on x86 and ARM) are memory-mapped read-only: no
+  copy is made, pages are read as the analysis touches them;
+* big-endian files (ImageJ's default), compressed or fragmented files are
+  decoded into memory once, in the machine's byte order and the file's type:
+  one copy of the pixel data;
+* ``float16`` stacks become ``float32`` (twice the file's pixel bytes) and
+  1-bit ``bool`` stacks ``uint8`` (one byte a voxel), the narrowest types the
+  compiled kernels take.
+
+Complex stacks are refused with one :class:`~mpm3d.errors.InputError`.
 
 .. _tifffile: https://github.com/cgohlke/tifffile
 """
@@ -28,6 +41,7 @@ import logging
 import math
 import os
 import struct
+import sys
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -90,7 +104,8 @@ _PAGE_AXES = ("Q", "I")
 _RANGE_SAMPLE_VOXELS = 1_000_000
 #: percentiles of a channel's intensity that map to 0 and 65535 in a combination
 _RANGE_PERCENTILES = (0.1, 99.9)
-#: float32 bytes per channel per z-chunk while combining channels
+#: the TIFF byte order that needs no conversion on this machine
+_NATIVE_ORDER = "<" if sys.byteorder == "little" else ">"
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -103,9 +118,11 @@ class Stack:
     Attributes
     ----------
     data : (Z, C, Y, X) ndarray
-        Intensities in the file's own dtype and units.  A read-only view of
-        a :class:`numpy.memmap` when ``memmapped``, else an in-memory array;
-        either way possibly a transposed view of the file's axis order.
+        Intensities in the file's own units and type, in the machine's byte
+        order (``float16`` read as ``float32``, 1-bit ``bool`` as ``uint8``
+        0 and 1).  Read-only: a view of a :class:`numpy.memmap` when
+        ``memmapped``, else an in-memory array; either way possibly a
+        transposed view of the file's axis order.
     spacing : (3,) tuple of float
         Voxel size ``(dz, dy, dx)`` in micrometres.  ``(1.0, 1.0, 1.0)``
         when the spacing is unknown (``spacing_source == "none"``).
@@ -122,7 +139,8 @@ class Stack:
         e.g. ``"ZCYX"`` (ImageJ), ``"CZYX"`` (OME), ``"ZYX"``, ``"IYX"``.
     memmapped : bool
         True when ``data`` is memory-mapped from the file, False when the
-        file had to be decoded (compressed or fragmented data).
+        file had to be decoded (compressed or fragmented data, the other
+        byte order, ``float16`` or ``bool`` pixels).
     """
 
     data: np.ndarray
@@ -223,17 +241,19 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
     -------
     Stack
         ``data`` is ``(Z, C, Y, X)``: a view of the file's axes in their
-        stored order, memory-mapped when the file is uncompressed and
-        contiguous, else decoded into memory once.
+        stored order, memory-mapped when the file is uncompressed,
+        contiguous and in the machine's byte order, else decoded into memory
+        once (see the module's notes on memory).
 
     Raises
     ------
     SourceError
         When the file is missing, a folder, or not a readable TIFF.
     InputError
-        When ``spacing`` is not three finite positive numbers, or the file
-        is not a single z-stack: a 2D image, a time series (``T > 1``), RGB
-        samples, or axes that cannot be told apart.
+        When ``spacing`` is not three finite positive numbers, the pixels
+        are complex or not numbers, or the file is not a single z-stack: a
+        2D image, a time series (``T > 1``), RGB samples, or axes that
+        cannot be told apart.
 
     Warns
     -----
@@ -261,11 +281,14 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
         with tifffile.TiffFile(name) as tif:
             series = tif.series[0]
             axes, shape = series.axes, tuple(series.shape)
+            _check_dtype(series.dtype, name)
             order = _zcyx_order(axes, shape, name)
             meta_spacing, source, names, found = _metadata(tif, axes, shape)
-            memmapped = series.dataoffset is not None
+            native = series.dtype.itemsize == 1 or tif.byteorder == _NATIVE_ORDER
+            memmapped = series.dataoffset is not None and native and series.dtype != np.float16
             if not memmapped:
-                array = series.asarray()
+                array = _kernel_dtype(series.asarray())
+                array.flags.writeable = False  # as a memory map is
         if memmapped:
             array = tifffile.memmap(name, series=0, mode="r")
     except (tifffile.TiffFileError, ValueError, struct.error, OSError, IndexError) as exc:
@@ -419,6 +442,26 @@ def _check_spacing(spacing: Sequence[float], argument: str) -> Spacing:
     if len(values) != 3 or not all(math.isfinite(v) and v > 0 for v in values):
         raise InputError(message)
     return values
+
+
+def _check_dtype(dtype: np.dtype, path: str) -> None:
+    """Refuse pixels that are not real numbers."""
+    if dtype.kind == "c":
+        raise InputError(
+            f"{path} holds complex pixels ({dtype}); save the magnitude or the real part "
+            "as a real-valued stack"
+        )
+    if dtype.kind not in "biuf":
+        raise InputError(f"{path} has pixels of type {dtype}, not intensities mpm3d can read")
+
+
+def _kernel_dtype(array: np.ndarray) -> np.ndarray:
+    """``array`` in a type the compiled kernels take: bool as uint8, float16 as float32."""
+    if array.dtype == np.bool_:
+        return array.view(np.uint8)
+    if array.dtype == np.float16:
+        return array.astype(np.float32)
+    return array
 
 
 def _zcyx_order(axes: str, shape: tuple[int, ...], path: str) -> dict[str, str]:
