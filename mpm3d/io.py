@@ -30,7 +30,10 @@ NaN voxels included, and 1-bit ``bool``), in either byte order.  Memory:
   1-bit ``bool`` stacks ``uint8`` (one byte a voxel), the narrowest types the
   compiled kernels take.
 
-Complex stacks are refused with one :class:`~mpm3d.errors.InputError`.
+Complex stacks are refused with one :class:`~mpm3d.errors.InputError`, and
+files that are cut short or damaged (an ImageJ hyperstack with fewer planes
+than its metadata announces, a page beyond the end of the file) with one
+:class:`~mpm3d.errors.SourceError` that says so.
 
 .. _tifffile: https://github.com/cgohlke/tifffile
 """
@@ -40,10 +43,12 @@ from __future__ import annotations
 import logging
 import math
 import os
-import struct
+import re
 import sys
+import threading
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Literal, get_args
@@ -106,6 +111,11 @@ _RANGE_SAMPLE_VOXELS = 1_000_000
 _RANGE_PERCENTILES = (0.1, 99.9)
 #: the TIFF byte order that needs no conversion on this machine
 _NATIVE_ORDER = "<" if sys.byteorder == "little" else ">"
+#: what tifffile logs when the chain of pages or a page's data is broken
+_DAMAGE = re.compile(
+    r"page|IFD|corrupted|ByteCounts|StripOffsets|data offset|ImageJ series metadata",
+    re.IGNORECASE,
+)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -248,7 +258,8 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
     Raises
     ------
     SourceError
-        When the file is missing, a folder, or not a readable TIFF.
+        When the file is missing, a folder, empty, not a readable TIFF, or
+        truncated or damaged.
     InputError
         When ``spacing`` is not three finite positive numbers, the pixels
         are complex or not numbers, or the file is not a single z-stack: a
@@ -274,29 +285,40 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
         raise SourceError(f"stack file not found: {name}")
     if os.path.isdir(name):
         raise SourceError(f"stack path is a folder, not a TIFF file: {name}")
+    if os.path.getsize(name) == 0:
+        raise SourceError(f"{name} is empty (0 bytes), not a TIFF stack")
 
     import tifffile
 
     try:
-        with tifffile.TiffFile(name) as tif:
-            series = tif.series[0]
-            axes, shape = series.axes, tuple(series.shape)
-            _check_dtype(series.dtype, name)
-            order = _zcyx_order(axes, shape, name)
-            meta_spacing, source, names, found = _metadata(tif, axes, shape)
-            native = series.dtype.itemsize == 1 or tif.byteorder == _NATIVE_ORDER
-            memmapped = series.dataoffset is not None and native and series.dtype != np.float16
-            if not memmapped:
-                array = _kernel_dtype(series.asarray())
-                array.flags.writeable = False  # as a memory map is
-        if memmapped:
-            array = tifffile.memmap(name, series=0, mode="r")
-    except (tifffile.TiffFileError, ValueError, struct.error, OSError, IndexError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise SourceError(f"cannot read {name} as a TIFF stack: {exc}") from None
+        with _tifffile_messages() as messages:
+            with tifffile.TiffFile(name) as tif:
+                series = tif.series[0]
+                axes, shape = series.axes, tuple(series.shape)
+                _check_complete(tif, series, name, messages)
+                _check_dtype(series.dtype, name)
+                order = _zcyx_order(axes, shape, name)
+                meta_spacing, source, names, found = _metadata(tif, axes, shape)
+                native = series.dtype.itemsize == 1 or tif.byteorder == _NATIVE_ORDER
+                memmapped = series.dataoffset is not None and native and series.dtype != np.float16
+                if not memmapped:
+                    array = _kernel_dtype(series.asarray())
+                    array.flags.writeable = False  # as a memory map is
+            if memmapped:
+                array = tifffile.memmap(name, series=0, mode="r")
+        if array.size != math.prod(shape):
+            raise SourceError(
+                f"{name} is damaged: it holds {array.size} values for a stack of shape {shape}"
+            )
+        array = array.reshape(shape)
+    except (InputError, SourceError):
+        raise
+    except MemoryError as exc:
+        raise SourceError(f"cannot read {name}: not enough memory to decode it ({exc})") from None
+    except Exception as exc:  # a damaged file can make tifffile raise almost anything
+        raise SourceError(f"cannot read {name} as a TIFF stack: {_reason(exc)}") from None
 
-    data = _to_zcyx(array.reshape(shape), axes, order)
+    data = _to_zcyx(array, axes, order)
     if names is None or len(names) != data.shape[1]:
         names = tuple(str(i) for i in range(data.shape[1]))
 
@@ -442,6 +464,83 @@ def _check_spacing(spacing: Sequence[float], argument: str) -> Spacing:
     if len(values) != 3 or not all(math.isfinite(v) and v > 0 for v in values):
         raise InputError(message)
     return values
+
+
+@contextmanager
+def _tifffile_messages() -> Iterator[list[str]]:
+    """Collect what tifffile logs while this thread reads a file, instead of printing it.
+
+    tifffile reports a broken page chain or a corrupted tag as a log
+    message and carries on with what it could read; :func:`read_stack`
+    turns such messages into one error.  Every message is logged again at
+    INFO, under this module's name.
+    """
+    messages: list[str] = []
+    thread = threading.get_ident()
+
+    def collect(record: logging.LogRecord) -> bool:
+        if record.thread != thread:
+            return True
+        text = record.getMessage()
+        logger.info("tifffile: %s", text)
+        if record.levelno >= logging.ERROR and _DAMAGE.search(text):
+            messages.append(text)
+        return False
+
+    tiff_logger = logging.getLogger("tifffile")
+    tiff_logger.addFilter(collect)
+    try:
+        yield messages
+    finally:
+        tiff_logger.removeFilter(collect)
+
+
+def _check_complete(tif, series, path: str, messages: list[str]) -> None:
+    """Raise SourceError when the file is cut short or its pages are damaged."""
+    size = tif.filehandle.size
+    n_pages = len(tif.pages)  # indexes every page: a broken chain is logged here
+    md = tif.imagej_metadata if tif.is_imagej else None
+    announced = md.get("images") if isinstance(md, Mapping) else None
+    planes = math.prod(n for a, n in zip(series.axes, series.shape, strict=True) if a not in "YXS")
+    if isinstance(announced, int) and announced > planes:
+        raise SourceError(
+            f"{path} is truncated or damaged: its ImageJ metadata announces {announced} "
+            f"images but the file holds {n_pages} page{'s' if n_pages != 1 else ''} "
+            f"({size} bytes)"
+        )
+    if messages:
+        detail = re.sub(r"^<[^>]*>\s*", "", messages[0])
+        raise SourceError(f"{path} is truncated or damaged: {detail} (the file has {size} bytes)")
+    if series.dataoffset is not None:
+        end = series.dataoffset + series.size * series.dtype.itemsize
+    else:
+        end = 0
+        for page in series.pages:
+            if page is None:
+                raise SourceError(f"{path} is truncated or damaged: a page of the stack is missing")
+            ends = [o + c for o, c in zip(page.dataoffsets, page.databytecounts, strict=False)]
+            end = max([end, *ends])
+    if end > size:
+        raise SourceError(
+            f"{path} is truncated: its pixel data runs to byte {end} but the file "
+            f"ends at byte {size}"
+        )
+
+
+def _reason(exc: Exception) -> str:
+    """Why tifffile could not read a file, in words (its exception's type when it says nothing)."""
+    text = "".join(c if c.isprintable() else "?" for c in str(exc).strip("'\" "))[:200]
+    match = re.search(r"<COMPRESSION\.(\w+): \d+> requires the 'imagecodecs' package", text)
+    if match:
+        return (
+            f"its pixels are {match.group(1)}-compressed, which needs the imagecodecs "
+            "package: pip install imagecodecs"
+        )
+    import tifffile
+
+    if isinstance(exc, tifffile.TiffFileError | OSError | ValueError) and text:
+        return text
+    return f"{type(exc).__name__}: {text}" if text else f"{type(exc).__name__} in tifffile"
 
 
 def _check_dtype(dtype: np.dtype, path: str) -> None:

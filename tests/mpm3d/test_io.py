@@ -1,3 +1,4 @@
+import logging
 import math
 
 import numpy as np
@@ -327,3 +328,122 @@ def test_parse_spacing():
     for bad in ["4,1.24", "a,b,c", "4,0,1", "4,1,inf", ""]:
         with pytest.raises(InputError, match=r"--spacing must be Z,Y,X in micrometres, got '"):
             parse_spacing(bad)
+
+
+# --------------------------------------------------------------------------- damaged files
+
+
+def _cut(path, fraction):
+    """Keep the first ``fraction`` of the file's bytes, as an interrupted copy does."""
+    raw = path.read_bytes()
+    path.write_bytes(raw[: int(len(raw) * fraction)])
+    return path
+
+
+@pytest.mark.parametrize("fraction", [0.6, 0.3, 0.05])
+def test_truncated_imagej_hyperstack_is_named_truncated(tmp_path, fraction):
+    path = _cut(_write_imagej(tmp_path / "s.tif", _zcyx(z=20, y=16, x=16)), fraction)
+    with pytest.raises(SourceError) as info:
+        read_stack(path)
+    message = str(info.value)
+    assert message.startswith(f"{path} is truncated or damaged: ")
+    assert "ImageJ metadata announces 40 images but the file holds 1 page" in message
+    assert "\n" not in message
+
+
+@pytest.mark.parametrize(
+    "write",
+    [
+        pytest.param(lambda p, d: _write_ome(p, np.moveaxis(d, 1, 0)), id="ome"),
+        pytest.param(
+            lambda p, d: tifffile.imwrite(p, d[:, 0], photometric="minisblack"), id="pages"
+        ),
+        pytest.param(
+            lambda p, d: tifffile.imwrite(p, d[:, 0], photometric="minisblack", metadata=None),
+            id="bare-pages",
+        ),
+        pytest.param(lambda p, d: _write_imagej(p, d, compression="zlib"), id="imagej-zlib"),
+    ],
+)
+def test_truncated_files_are_named_truncated(tmp_path, write):
+    path = tmp_path / "s.tif"
+    write(path, _zcyx(z=20, y=16, x=16))
+    _cut(path, 0.6)
+    with pytest.raises(SourceError, match=r"is truncated or damaged: .*invalid page offset"):
+        read_stack(path, spacing=(4, 1, 1))
+
+
+def _tags_first_tiff(path, data, *, compression=1):
+    """A classic little-endian TIFF of uint16 pages whose tags all precede the pixels."""
+    import struct
+
+    z, h, w = data.shape
+    ifd_size = 2 + 9 * 12 + 4
+    first_pixel = 8 + z * ifd_size
+    out = bytearray(struct.pack("<2sHI", b"II", 42, 8))
+    for k in range(z):
+        tags = [
+            (256, 3, w),  # ImageWidth, SHORT
+            (257, 3, h),  # ImageLength
+            (258, 3, 16),  # BitsPerSample
+            (259, 3, compression),  # Compression: 1 none
+            (262, 3, 1),  # PhotometricInterpretation: min-is-black
+            (273, 4, first_pixel + k * h * w * 2),  # StripOffsets, LONG
+            (277, 3, 1),  # SamplesPerPixel
+            (278, 3, h),  # RowsPerStrip
+            (279, 4, h * w * 2),  # StripByteCounts
+        ]
+        out += struct.pack("<H", len(tags))
+        for code, kind, value in tags:
+            out += struct.pack("<HHI", code, kind, 1) + struct.pack(
+                "<I" if kind == 4 else "<HH", *((value,) if kind == 4 else (value, 0))
+            )
+        out += struct.pack("<I", 8 + (k + 1) * ifd_size if k < z - 1 else 0)
+    out += data.astype("<u2").tobytes()
+    path.write_bytes(bytes(out))
+    return path
+
+
+@pytest.mark.parametrize("cut", [0, 100, 3000])
+def test_pixel_data_past_the_end_is_named_truncated(tmp_path, cut):
+    """Every page's tags are there, but the last bytes of the pixels are not."""
+    data = _zcyx(z=6, c=1, y=32, x=32)[:, 0]
+    path = _tags_first_tiff(tmp_path / "s.tif", data)
+    if not cut:  # the whole file reads back
+        np.testing.assert_array_equal(read_stack(path, spacing=(4, 1, 1)).data[:, 0], data)
+        return
+    path.write_bytes(path.read_bytes()[:-cut])
+    with pytest.raises(SourceError, match=r"is truncated: its pixel data runs to byte \d+ but"):
+        read_stack(path, spacing=(4, 1, 1))
+
+
+def test_lzw_without_imagecodecs_names_the_package(tmp_path):
+    try:
+        import imagecodecs  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        pytest.skip("imagecodecs is installed: LZW files are read")
+    path = _tags_first_tiff(tmp_path / "s.tif", _zcyx(z=3, c=1, y=8, x=8)[:, 0], compression=5)
+    with pytest.raises(SourceError) as info:
+        read_stack(path, spacing=(4, 1, 1))
+    assert str(info.value) == (
+        f"cannot read {path} as a TIFF stack: its pixels are LZW-compressed, which needs "
+        "the imagecodecs package: pip install imagecodecs"
+    )
+
+
+def test_tifffile_messages_become_the_error_not_log_lines(tmp_path, caplog):
+    """The CLI logs WARNING and above to stderr: tifffile's own lines would break the one line."""
+    path = _cut(_write_imagej(tmp_path / "s.tif", _zcyx(z=20, y=16, x=16)), 0.6)
+    with caplog.at_level(logging.DEBUG), pytest.raises(SourceError):
+        read_stack(path)
+    assert [r for r in caplog.records if r.levelno >= logging.WARNING] == []
+    assert any("tifffile: " in r.getMessage() for r in caplog.records)  # -v shows them
+
+
+def test_empty_file(tmp_path):
+    path = tmp_path / "empty.tif"
+    path.touch()
+    with pytest.raises(SourceError, match=r"empty\.tif is empty \(0 bytes\), not a TIFF stack"):
+        read_stack(path)
