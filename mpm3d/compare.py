@@ -19,13 +19,14 @@ import json
 import logging
 import math
 import os
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from mpm3d.analyze import Analysis, _clean, analyze_stack, write_analysis
-from mpm3d.errors import InputError
+from mpm3d.errors import InputError, SourceError
 
 __all__ = [
     "align_heightmaps",
@@ -203,6 +204,39 @@ def _resample(height: np.ndarray, spacing, target_shape, target_spacing) -> np.n
     return ndimage.map_coordinates(height, [rr, cc], order=1, mode="nearest")
 
 
+def _analyze_side(
+    label: str, path: str | os.PathLike, say: Callable[[str], None], options: dict
+) -> Analysis:
+    """:func:`analyze_stack` on one side; its errors and warnings name the side and the stack.
+
+    Two stacks go through the same steps with the same options, so an error
+    such as "no surface found" must say which stack it is about.
+    """
+    name = os.fspath(path)
+
+    def named(message: object) -> str:
+        text = str(message)
+        return f"{label} stack: {text}" if name in text else f"{label} stack {name}: {text}"
+
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            analysis = analyze_stack(path, progress=lambda m: say(f"{label}: {m}"), **options)
+    except InputError as exc:
+        raise InputError(named(exc)) from exc
+    except OSError as exc:  # SourceError, and the system's own (permissions, a full disk)
+        raise SourceError(named(exc)) from exc
+    finally:
+        for record in caught:  # shown even when the analysis failed
+            if issubclass(record.category, UserWarning):
+                warnings.warn(record.category(named(record.message)), stacklevel=3)
+            else:
+                warnings.warn_explicit(
+                    record.message, record.category, record.filename, record.lineno
+                )
+    return analysis
+
+
 def compare_stacks(
     before: str | os.PathLike,
     after: str | os.PathLike,
@@ -231,14 +265,19 @@ def compare_stacks(
         if not options.get("surface", True):
             raise InputError("ICP refinement needs the isosurfaces: drop --no-surface")
         _open3d()
-    first = analyze_stack(before, progress=lambda m: say(f"before: {m}"), **options)
-    second = analyze_stack(after, progress=lambda m: say(f"after: {m}"), **options)
+    first = _analyze_side("before", before, say, options)
+    second = _analyze_side("after", after, say, options)
     sp_b = first.heightmap.spacing[1:]
     sp_a = second.heightmap.spacing[1:]
     h_b = first.height_um
     h_a = _resample(second.height_um, sp_a, h_b.shape, sp_b)
     say("aligning")
-    alignment = align_heightmaps(h_b, h_a, spacing=sp_b)
+    try:
+        alignment = align_heightmaps(h_b, h_a, spacing=sp_b)
+    except InputError as exc:
+        raise InputError(
+            f"aligning the before stack {before} with the after stack {after}: {exc}"
+        ) from exc
     if icp is None:
         try:
             import open3d  # noqa: F401

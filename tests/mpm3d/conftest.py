@@ -17,3 +17,13 @@ def mpm_pair(tmp_path_factory):
         save_stack_truth(folder / name, case)
         out[name] = (path, case)
     return out
+
+
+@pytest.fixture(scope="session")
+def mpm_small(tmp_path_factory):
+    """``(path, case)``: a 96 x 96 px "before" stack (5 um pixels, 4 um z-step), ImageJ."""
+    folder = tmp_path_factory.mktemp("mpm_small")
+    case = make_stack_case("before", size=96, spacing=(4.0, 5.0, 5.0), rng=1)
+    path = folder / "small.tif"
+    write_stack(path, case)
+    return path, case

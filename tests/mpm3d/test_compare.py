@@ -10,6 +10,7 @@ import sys
 
 import numpy as np
 import pytest
+import tifffile
 from scipy import ndimage
 
 from mpm3d.compare import COMPARED, align_heightmaps, icp_refine, metric_changes
@@ -152,12 +153,102 @@ def test_icp_refine_names_the_extra(no_open3d):
         icp_refine(None, None, shift_xy_um=(0.0, 0.0))
 
 
-def test_compare_missing_stack(mpm_pair, tmp_path, capsys):
-    args = ("compare", tmp_path / "gone.tif", mpm_pair["after"][0], "--out", tmp_path / "cmp")
-    assert cli(*args, "-q") == 2
+def _uniform(folder):
+    path = folder / "uniform.tif"
+    metadata = {"axes": "ZCYX", "spacing": 4.0, "unit": "um"}
+    tifffile.imwrite(
+        path,
+        np.full((8, 2, 16, 16), 7, np.uint16),
+        imagej=True,
+        resolution=(0.2, 0.2),
+        metadata=metadata,
+    )
+    return path
+
+
+def _truncated(folder, source):
+    path = folder / "cut.tif"
+    raw = source.read_bytes()
+    path.write_bytes(raw[: int(0.6 * len(raw))])
+    return path
+
+
+def _flat_image(folder):
+    path = folder / "slice.tif"
+    tifffile.imwrite(path, np.zeros((16, 16), np.uint16))
+    return path
+
+
+#: id: (which side is bad, its maker, extra options, fragments of the error line)
+SIDE_ERRORS = {
+    "before-missing": ("before", lambda f, s: f / "gone.tif", (), ["not found"]),
+    "after-missing": ("after", lambda f, s: f / "gone.tif", (), ["not found"]),
+    "after-truncated": ("after", _truncated, (), ["truncated"]),
+    "after-uniform": ("after", lambda f, s: _uniform(f), (), ["the stack is uniform"]),
+    "after-2d": ("after", lambda f, s: _flat_image(f), (), ["2D image"]),
+    "before-threshold": ("before", None, ("--threshold", "65535"), ["no surface found"]),
+    "before-channel": ("before", None, ("--channel", "7"), ["channel 7 out of range"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SIDE_ERRORS))
+def test_compare_errors_name_the_stack(mpm_small, tmp_path, capsys, case):
+    """The same options go to two stacks: an error must say which one it is about."""
+    side, make, extra, fragments = SIDE_ERRORS[case]
+    good = mpm_small[0]
+    bad = good if make is None else make(tmp_path, good)
+    before, after = (bad, good) if side == "before" else (good, bad)
+    out = tmp_path / "cmp"
+    assert (
+        cli("compare", before, after, "--out", out, "--no-surface", "--no-figures", "-q", *extra)
+        == 2
+    )
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert len(lines) == 1, captured.err
+    line = lines[0]
+    assert line.startswith(f"mpm3d compare: error: {side} stack"), line
+    assert str(bad) in line, line
+    for fragment in fragments:
+        assert fragment in line, line
+    assert not out.exists()
+
+
+def test_compare_big_endian_with_itself(mpm_small, tmp_path, capsys):
+    """A stack and its big-endian copy (ImageJ's default): the same surface, no change."""
+    path, case = mpm_small
+    dz, dy, dx = case.spacing
+    big = tmp_path / "big-endian.tif"
+    tifffile.imwrite(
+        big,
+        case.stack,
+        imagej=True,
+        byteorder=">",
+        resolution=(1 / dx, 1 / dy),
+        metadata={"axes": "ZCYX", "spacing": dz, "unit": "um"},
+    )
+    out = tmp_path / "cmp"
+    assert cli("compare", path, big, "--out", out, "--no-surface", "--no-figures", "-q") == 0
+    assert capsys.readouterr().err == ""
+    report = json.loads((out / "compare.json").read_text(encoding="utf-8"))
+    for row in report["changes"]:
+        assert row["change"] in (0, None), row
+    alignment = report["alignment"]
+    assert alignment["shift_x_um"] == pytest.approx(0, abs=MPM_SHIFT_PX * dx)
+    assert alignment["shift_y_um"] == pytest.approx(0, abs=MPM_SHIFT_PX * dy)
+    assert alignment["overlap_correlation"] > 0.999
+
+
+def test_compare_warnings_name_the_stack(mpm_small, tmp_path, capsys):
+    path, case = mpm_small
+    plain = tmp_path / "plain.tif"
+    tifffile.imwrite(plain, case.stack[:, 1], photometric="minisblack", metadata=None)
+    out = tmp_path / "cmp"
+    args = ("compare", path, plain, "--out", out, "--channel", "0", "--no-surface", "--no-figures")
+    assert cli(*args, "-q") == 0
     lines = capsys.readouterr().err.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("mpm3d compare: error: stack file not found")
-    assert list(tmp_path.iterdir()) == []
+    assert len(lines) == 1, lines
+    assert lines[0].startswith(f"mpm3d compare: warning: after stack: {plain}: no voxel spacing")
 
 
 # --------------------------------------------------------------------------- alignment
