@@ -9,13 +9,15 @@ STACK.tif --out DIR`` and ``python -m mpm3d compare BEFORE.tif AFTER.tif
 --out DIR``.
 """
 
-from importlib import metadata as _metadata
-
 from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
 
-try:
-    __version__ = _metadata.version("tissue-strain")
-except _metadata.PackageNotFoundError:  # pragma: no cover - source tree without install
-    __version__ = "0+unknown"
+
+def __getattr__(name: str):
+    if name == "__version__":  # read from the package metadata only when asked
+        from tissue_core.version import __version__
+
+        return __version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["InputError", "MissingSpacingWarning", "SourceError", "__version__"]

@@ -16,13 +16,15 @@ once:
 It imports none of the toolkit's packages.
 """
 
-from importlib import metadata as _metadata
-
 from tissue_core.errors import InputError, SourceError
 
-try:
-    __version__ = _metadata.version("tissue-strain")
-except _metadata.PackageNotFoundError:  # a source tree that is not installed
-    __version__ = "0+unknown"
+
+def __getattr__(name: str):
+    if name == "__version__":  # read from the package metadata only when asked
+        from tissue_core.version import __version__
+
+        return __version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = ["InputError", "SourceError", "__version__"]
