@@ -10,7 +10,7 @@ import inspect
 import logging
 import sys
 import time
-from collections.abc import Callable
+import warnings
 from datetime import UTC, datetime
 
 from strain2d import __version__
@@ -249,17 +249,10 @@ def _build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _progress(args, desc: str) -> tuple[Callable[[int, int | None], None], Callable[[], None]]:
-    from tqdm import tqdm
+def _progress(args):
+    from tissue_core.progress import Progress
 
-    bar = tqdm(desc=desc, unit="frame", disable=True if args.quiet else None, leave=False)
-
-    def update(done: int, total: int | None) -> None:
-        if total is not None and bar.total != total:
-            bar.total = total
-        bar.update(done - bar.n)
-
-    return update, bar.close
+    return Progress(quiet=args.quiet)
 
 
 def _tracker_options(args) -> dict:
@@ -310,24 +303,32 @@ def _open(args):
     return open_frames(args.source, start=args.start, stop=args.stop, step=args.step)
 
 
-def _track_source(args):
+def _track_source(args, say, check=None):
     """Open the frames, place the points and track them: (source, point_info, tracks).
 
+    ``check(n_frames)`` runs once the frames are counted, before tracking.
     ``source`` is an :class:`~strain2d.frames.EndFrames` wrapper, so the first and
     last frames need not be decoded again afterwards."""
     from strain2d.frames import EndFrames
     from strain2d.pipeline import track
 
     source = EndFrames(_open(args))  # keeps the first and last frames for the figures
+    h, w = source.shape
+    say(f"{source.names[0]}: {len(source)} frames of {w}x{h} px ({source.kind})")
+    if check is not None:
+        check(len(source))
     points, point_info = _reference_points(args, source)
     options = _tracker_options(args)
-    update, close = _progress(args, f"tracking ({args.tracker})")
-    try:
+    n = "the imported" if points is None else str(len(points))
+    with say.task(f"tracking {n} points ({args.tracker})") as update:
         tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
-    finally:
-        close()
     if tracks.n_frames != len(source):
-        raise SourceError(f"tracked {tracks.n_frames} frames but the source has {len(source)}")
+        raise SourceError(
+            f"{source.names[0]}: {tracks.n_frames} frames were tracked but the source has "
+            f"{len(source)}"
+        )
+    lost = int((~tracks.visible[-1]).sum())
+    say(f"{tracks.n_points} points over {tracks.n_frames} frames, {lost} lost on the last one")
     return source, point_info, tracks
 
 
@@ -341,11 +342,11 @@ def _cmd_track(args) -> int:
         "is_result": csv_header_is(*TRACK_COLUMNS),
     }
     check_writable(args.out, kind="file", **kwargs)
-    _, _, tracks = _track_source(args)
+    say = _progress(args)
+    _, _, tracks = _track_source(args, say)
     with atomic_file(args.out, **kwargs) as tmp:
         write_tracks_csv(tmp, tracks)
-    lost = int((~tracks.visible[-1]).sum())
-    log.info("tracked %d points over %d frames, %d lost", tracks.n_points, tracks.n_frames, lost)
+    say(f"tracks in {args.out}")
     return 0
 
 
@@ -386,24 +387,42 @@ def _cmd_analyze(args) -> int:
     t_start = time.perf_counter()
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
         raise InputError(f"--fps must be a positive number, got {args.fps}")
+    if not 0 <= args.min_triangle_quality < 1:
+        raise InputError(
+            f"--min-triangle-quality must lie in [0, 1), got {args.min_triangle_quality}"
+        )
     if not 0 < args.endpoint_tolerance < 1:
         raise InputError(
             f"--endpoint-tolerance must lie between 0 and 1, got {args.endpoint_tolerance}"
         )
     formats = parse_formats(args.figure_format)
     map_frames = _frame_list(args.maps_at, "--maps-at")
+    _frame_number(args.endpoint, "--endpoint")
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
-    source, point_info, tracks = _track_source(args)
+    say = _progress(args)
+
+    def frames_exist(n: int) -> None:
+        for flag, frames in (("--endpoint", [args.endpoint]), ("--maps-at", map_frames)):
+            bad = [k for k in frames if k is not None and k >= n]
+            if bad:
+                raise InputError(f"{flag} {bad[0]} is outside the frames 0..{n - 1}")
+
+    source, point_info, tracks = _track_source(args, say, check=frames_exist)
     t_tracked = time.perf_counter()
     grid_shape = point_info.get("grid_shape")
     field = strain_from_tracks(
         tracks, grid_shape=grid_shape, min_triangle_quality=args.min_triangle_quality
     )
     t_strain = time.perf_counter()
+    say(f"strain on {field.n_triangles} triangles")
     times = np.arange(tracks.n_frames) / args.fps if args.fps else np.arange(tracks.n_frames)
     last = tracks.n_frames - 1
     if not np.isfinite(field.nodal_E[-1]).any():
-        log.warning("no node has a valid strain on the last frame: every triangle lost a point")
+        warnings.warn(
+            "no node has a valid strain on the last frame: every triangle lost a point",
+            UserWarning,
+            stacklevel=1,
+        )
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         write_tracks_csv(tmp / "tracks.csv", tracks)
         write_strain_nodes_csv(tmp / "strain_nodes.csv", field)
@@ -413,8 +432,7 @@ def _cmd_analyze(args) -> int:
         figs.mkdir()
         first_img, last_img = source.ends()
         plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
-        update, close = _progress(args, "figures")
-        try:
+        with say.task("figures and animation", unit="frame") as update:
             extra = run_outputs(
                 tmp,
                 field,
@@ -430,8 +448,6 @@ def _cmd_analyze(args) -> int:
                 formats=formats,
                 progress=update,
             )
-        finally:
-            close()
         t_figures = time.perf_counter()
         extra["figures"].insert(
             0,
@@ -484,6 +500,9 @@ def _cmd_analyze(args) -> int:
         }
         write_json(tmp / "summary.json", summary)
         write_run_report(tmp, summary)
+    ep = summary["contraction_endpoint"]
+    say(f"contraction endpoint: frame {ep['frame']} ({ep['source']})")
+    say(f"results in {args.out}")
     return 0
 
 
@@ -491,9 +510,19 @@ def _frame_list(text: str | None, flag: str) -> list[int]:
     if not text:
         return []
     try:
-        return [int(v) for v in text.split(",") if v.strip()]
+        frames = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise InputError(f"{flag} takes comma-separated frame numbers, got {text!r}") from None
+    for k in frames:
+        _frame_number(k, flag)
+    return frames
+
+
+def _frame_number(k: int | None, flag: str) -> int | None:
+    """Frames are counted from 0 (the reference) in every option, never from the end."""
+    if k is not None and k < 0:
+        raise InputError(f"{flag} takes frame numbers from 0 (the reference frame), got {k}")
+    return k
 
 
 def _cmd_study(args) -> int:
@@ -501,6 +530,8 @@ def _cmd_study(args) -> int:
     from strain2d.study import read_manifest
 
     formats = parse_formats(args.figure_format)
+    if not 0 < args.alpha < 1:
+        raise InputError(f"--alpha must lie between 0 and 1, got {args.alpha}")
     parts = [c.strip() for c in args.compare.split(",")]
     if len(parts) != 2:
         raise InputError(f"--compare takes two components A,B, got {args.compare!r}")
@@ -522,6 +553,7 @@ def _cmd_study(args) -> int:
     if not args.quiet:
         for line in summary["plain_summary"]:
             print(line)
+    _progress(args)(f"results in {args.out}")
     return 0
 
 
@@ -536,6 +568,8 @@ def _cmd_benchmark(args) -> int:
     from strain2d.export import write_json
     from tissue_core.outputs import atomic_dir, check_writable
 
+    if args.seed < 0:
+        raise InputError(f"--seed must be a whole number >= 0, got {args.seed}")
     check_writable(args.out, overwrite=args.overwrite)
     from sample_data_synth.cases import CASES
 
@@ -551,10 +585,7 @@ def _cmd_benchmark(args) -> int:
             if not get_tracker(name).needs_frames:
                 raise InputError(f"the {name} tracker reads files and cannot be benchmarked")
 
-    def say(message: str) -> None:
-        if not args.quiet:
-            print(message, file=sys.stderr, flush=True)
-
+    say = _progress(args)
     from strain2d.grid import parse_grid
 
     grid = parse_grid(args.grid)
@@ -588,6 +619,7 @@ def _cmd_benchmark(args) -> int:
             (tmp / f"sweep_{kind}.md").write_text(sweep_markdown(sweep))
     if not args.quiet:
         print(table)
+    say(f"results in {args.out}")
     return 0
 
 

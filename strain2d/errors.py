@@ -9,4 +9,8 @@ from __future__ import annotations
 
 from tissue_core.errors import InputError, SourceError
 
-__all__ = ["InputError", "SourceError"]
+__all__ = ["InputError", "PointsLeftOutWarning", "SourceError"]
+
+
+class PointsLeftOutWarning(UserWarning):
+    """Some points cannot be used on the reference frame and are left out of the mesh."""

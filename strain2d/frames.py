@@ -24,6 +24,19 @@ TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".jp2", ".webp"})
 
 
+def _video_capture(path: Path):
+    """An OpenCV capture whose FFmpeg backend keeps quiet on stderr.
+
+    FFmpeg prints its own lines about damaged files ("Slice pointer chain
+    broken"); the toolkit reports the problem itself, in one line.  Set
+    ``OPENCV_FFMPEG_LOGLEVEL`` (e.g. 24) to see them.
+    """
+    import cv2
+
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
+    return cv2.VideoCapture(str(path))
+
+
 def _natural_key(path: Path) -> list:
     return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", path.name)]
 
@@ -154,7 +167,7 @@ class FrameSource:
         if self.kind == "video":
             import cv2
 
-            cap = cv2.VideoCapture(str(self._paths[0]))
+            cap = _video_capture(self._paths[0])
             try:
                 if not cap.isOpened():
                     raise SourceError(f"cannot read video {self._paths[0]}")
@@ -191,9 +204,7 @@ class FrameSource:
         return len(self._paths)
 
     def _count_video_frames(self) -> int:
-        import cv2
-
-        cap = cv2.VideoCapture(str(self._paths[0]))
+        cap = _video_capture(self._paths[0])
         n = 0
         while cap.grab():
             n += 1
@@ -214,7 +225,7 @@ class FrameSource:
         if self.kind == "video":
             import cv2
 
-            cap = cv2.VideoCapture(str(self._paths[0]))
+            cap = _video_capture(self._paths[0])
             try:
                 if wanted.start:
                     cap.set(cv2.CAP_PROP_POS_FRAMES, wanted.start)
@@ -222,7 +233,11 @@ class FrameSource:
                 while i < wanted.stop:
                     ok, frame = cap.read()
                     if not ok:
-                        break
+                        raise SourceError(
+                            f"{self._paths[0]}: frame {i} of the {self._n_source} the video "
+                            "announces cannot be decoded (the file is truncated or damaged; "
+                            f"--stop {i} uses the frames before it)"
+                        )
                     if (i - wanted.start) % wanted.step == 0:
                         yield to_gray(frame, order="bgr")
                     i += 1

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
-from strain2d.errors import InputError
+from strain2d.errors import InputError, PointsLeftOutWarning
 from strain2d.grid import validate_points
 from strain2d.trackers import get_tracker
 from strain2d.tracks import Tracks
@@ -59,7 +60,37 @@ def track(
             raise InputError(f"tracker {tracker!r}: {exc}") from None
         raise
     validate_points(tracks.reference)
+    _check_reference_visibility(tracks, tracker)
     return tracks
+
+
+def _check_reference_visibility(tracks: Tracks, tracker: str) -> None:
+    """Say which points cannot be used from the reference frame on; refuse if too few remain."""
+    lost = np.flatnonzero(~tracks.visible[0])
+    if lost.size == 0:
+        return
+    n = tracks.n_points
+    named = ", ".join(
+        f"point {i} at ({tracks.reference[i, 0]:g}, {tracks.reference[i, 1]:g})" for i in lost[:3]
+    )
+    more = f" and {lost.size - 3} more" if lost.size > 3 else ""
+    why = (
+        "not visible, or not finite, on frame 0 of the imported tracks"
+        if tracker == "imported"
+        else "too close to the image edge for the tracker's window, or on texture it cannot follow"
+    )
+    if n - lost.size < 3:
+        raise InputError(
+            f"only {n - lost.size} of {n} points can be used on the reference frame with the "
+            f"{tracker} tracker ({named}{more} cannot: {why}); at least 3 are needed"
+        )
+    warnings.warn(
+        PointsLeftOutWarning(
+            f"{lost.size} of {n} points cannot be used on the reference frame and are left out "
+            f"of the strain ({named}{more}): {why}"
+        ),
+        stacklevel=3,
+    )
 
 
 def strain_from_tracks(

@@ -37,6 +37,8 @@ __all__ = [
 ]
 
 FIGURE_FORMATS = ("png", "svg", "pdf")
+#: largest change of the mean strains (from the reference) that counts as no deformation
+NO_DEFORMATION = 1e-4
 ANIMATIONS = ("mp4", "gif", "none")
 
 
@@ -72,21 +74,35 @@ def endpoint_of(
     rate_tolerance: float | None = None,
     relative_tolerance: float = 0.05,
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
+    min_change: float = NO_DEFORMATION,
 ) -> dict:
     """The contraction endpoint of a run: detected from the mean strains, or ``frame``.
 
+    When the mean strains never move more than ``min_change`` away from
+    their reference values, there is no contraction to find an endpoint of:
+    the source is ``"none: no deformation ..."`` and the last frame is used.
+
     Returns a dict for ``summary.json``: ``frame``, ``time``, ``source``
-    (``"detected"`` or ``"given"``), the method and tolerance, and the
-    detected frame even when one was given, so the two can be compared.
+    (``"detected"`` or ``"given"``, else why there is none), the method and
+    tolerance, and the detected frame even when one was given, so the two can
+    be compared.
     """
     T = field.n_frames
+    if frame is not None and not 0 <= frame < T:
+        raise InputError(f"--endpoint {frame} is outside the frames 0..{T - 1}")
     t = np.arange(T, dtype=float) if times is None else np.asarray(times, float)
     curves = _mean_curves(field, components)
     valid = np.flatnonzero(np.isfinite(curves).all(axis=1))
     last_valid = int(valid[-1]) if valid.size else -1
+    change = float(np.abs(curves[valid] - curves[valid[:1]]).max()) if valid.size else 0.0
     detected, status = None, "detected"
     if last_valid < 2:
         status = "too few frames with strain to detect it; the last frame is used"
+    elif change < min_change:
+        status = (
+            f"none: no deformation (the mean {', '.join(components)} change by at most "
+            f"{change:.1e} over the video, below {min_change:g}); the last frame is used"
+        )
     else:
         # frames after the last one with data tell nothing: detect on the rest
         detected = contraction_endpoint(
@@ -103,9 +119,7 @@ def endpoint_of(
         elif detected == T - 1:
             status = "not reached: still deforming at the last frame"
     if frame is not None:
-        if not -T <= frame < T:
-            raise InputError(f"--endpoint {frame} is outside the frames 0..{T - 1}")
-        chosen, source = frame % T, "given"
+        chosen, source = frame, "given"
     else:
         chosen = T - 1 if detected is None else detected
         source = status
@@ -198,7 +212,7 @@ def run_outputs(
     T = field.n_frames
     if animation not in ANIMATIONS:
         raise InputError(f"unknown animation {animation!r}; choose from {', '.join(ANIMATIONS)}")
-    bad = [k for k in map_frames if not -T <= k < T]
+    bad = [k for k in map_frames if not 0 <= k < T]
     if bad:
         raise InputError(f"--maps-at frame {bad[0]} is outside the frames 0..{T - 1}")
     ep = endpoint_of(
@@ -209,7 +223,7 @@ def run_outputs(
         relative_tolerance=relative_tolerance,
     )
     k_end = ep["frame"]
-    maps = sorted({*(k % T for k in map_frames), k_end, T - 1})
+    maps = sorted({*map_frames, k_end, T - 1})
     unit = "s" if time_unit == "s" else "frame"
 
     def when(k: int) -> str:

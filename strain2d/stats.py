@@ -131,6 +131,10 @@ def morans_i(
     return observed, (count + 1) / (permutations + 1)
 
 
+#: relative spread of paired differences below which they count as identical
+_ROUNDOFF = 1e-12
+
+
 def paired_node_tests(
     a: np.ndarray,
     b: np.ndarray,
@@ -169,7 +173,12 @@ def paired_node_tests(
     if n < 3:
         raise InputError(f"a paired test needs at least 3 nodes with both values, got {n}")
     sd = float(d.std(ddof=1))
-    t = stats.ttest_rel(x[ok], y[ok])
+    scale = float(max(np.abs(x[ok]).max(), np.abs(y[ok]).max()))
+    # differences that do not vary beyond round-off have no t statistic or effect size
+    spread = sd > _ROUNDOFF * scale
+    if not spread:
+        sd = 0.0
+    t = stats.ttest_rel(x[ok], y[ok]) if spread else None
     nonzero = d[d != 0]
     w_p = float(stats.wilcoxon(nonzero).pvalue) if nonzero.size >= 1 else 1.0
     gen = np.random.default_rng(rng)
@@ -178,7 +187,12 @@ def paired_node_tests(
     means = boot.mean(axis=1)
     sds = boot.std(axis=1, ddof=1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        dz_boot = np.where(sds > 0, means / sds, np.nan)
+        dz_boot = np.where(sds > _ROUNDOFF * scale, means / sds, np.nan)
+    dz_ci = (
+        [float(np.nanquantile(dz_boot, q)) for q in ((1 - confidence) / 2, (1 + confidence) / 2)]
+        if np.isfinite(dz_boot).any()
+        else [float("nan"), float("nan")]
+    )
     lo, hi = (1 - confidence) / 2, 1 - (1 - confidence) / 2
     result = {
         "n": n,
@@ -188,10 +202,7 @@ def paired_node_tests(
         "t_p": float(t.pvalue) if sd > 0 else float("nan"),
         "wilcoxon_p": w_p,
         "cohens_dz": float(d.mean() / sd) if sd > 0 else float("nan"),
-        "cohens_dz_ci": [
-            float(np.nanquantile(dz_boot, lo)),
-            float(np.nanquantile(dz_boot, hi)),
-        ],
+        "cohens_dz_ci": dz_ci,
         "confidence": confidence,
         "note": (
             "node-level tests: the nodes of one specimen are treated as independent samples, "

@@ -118,9 +118,12 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
             try:
                 endpoint = int(endpoint)
             except ValueError:
+                endpoint = -1
+            if endpoint < 0:
                 raise InputError(
-                    f"manifest {path}, line {i}: endpoint must be a frame index, got {endpoint!r}"
-                ) from None
+                    f"manifest {path}, line {i}: endpoint must be a frame number from 0 "
+                    f"(the reference frame), got {row.get('endpoint')!r}"
+                )
         group = (row.get("group") or "").strip()
         if group.lower() == "all":
             raise InputError(f"manifest {path}, line {i}: 'all' is reserved; rename the group")

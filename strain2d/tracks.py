@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import csv
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -155,6 +157,26 @@ def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
     return Tracks(pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)})
 
 
+def _read_numpy(path: Path, suffix: str):
+    with open(path, "rb") as f:  # closed also when NumPy gives up on a damaged file
+        if suffix == ".npy":
+            return np.asarray(np.load(f, allow_pickle=False), dtype=float), None, None
+        return _read_npz(path, np.load(f, allow_pickle=False))
+
+
+def _read_npz(path: Path, data):
+    with data:
+        key = next((k for k in ("positions", "tracks") if k in data.files), None)
+        if key is None:
+            raise InputError(f"{path} needs an array named 'positions' (T, N, 2)")
+        pos = np.asarray(data[key], dtype=float)
+        vis = np.asarray(data["visible"]) if "visible" in data.files else None
+        qual = np.asarray(data["quality"], dtype=float) if "quality" in data.files else None
+    if vis is not None and vis.dtype.kind not in "biuf":
+        raise InputError(f"{path}: visible must hold booleans or 0/1, got {vis.dtype}")
+    return pos, vis, qual
+
+
 def read_tracks(path: str | os.PathLike) -> Tracks:
     """Read tracks from ``.csv``, ``.npy`` or ``.npz`` (see the module docstring)."""
     path = Path(path)
@@ -165,21 +187,12 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
         return _read_csv(path)
     if suffix in (".npy", ".npz"):
         try:
-            data = np.load(path, allow_pickle=False)
-            if suffix == ".npy":
-                pos, vis, qual = data, None, None
-            else:
-                key = next((k for k in ("positions", "tracks") if k in data.files), None)
-                if key is None:
-                    raise InputError(f"{path} needs an array named 'positions' (T, N, 2)")
-                pos = data[key]
-                vis = data["visible"] if "visible" in data.files else None
-                qual = data["quality"] if "quality" in data.files else None
-            pos = np.asarray(pos, dtype=float)
-        except (ValueError, TypeError, OSError, EOFError) as exc:
-            if isinstance(exc, InputError):
-                raise
-            raise InputError(f"cannot read {path}: {exc}") from None
+            pos, vis, qual = _read_numpy(path, suffix)
+        except InputError:
+            raise
+        except (ValueError, TypeError, OSError, EOFError, KeyError, zipfile.BadZipFile,
+                zlib.error) as exc:  # fmt: skip
+            raise InputError(f"cannot read {path} as NumPy tracks: {exc}") from None
         if pos.ndim != 3 or pos.shape[2] != 2:
             raise InputError(f"{path}: positions must have shape (T, N, 2), got {pos.shape}")
         for name, arr in (("visible", vis), ("quality", qual)):

@@ -43,6 +43,20 @@ FAMILIES = (
 )
 
 
+def parse_case_id(case: str) -> tuple[str, str, str]:
+    """``"import-calib-csv-nan-focal"`` -> ``("import-calib", "csv", "nan-focal")``."""
+    found = [(case.find(f"-{f}-"), f) for f in FAMILIES if case.find(f"-{f}-") > 0]
+    if not found:
+        raise ValueError(f"bad-input case {case!r} names no family of {FAMILIES}")
+    at, family = min(found)
+    return case[:at], family, case[at + len(family) + 2 :]
+
+
+def message_lines(err: str) -> list[str]:
+    """The lines of stderr that are not timestamped progress (``[  1.2 s] ...``)."""
+    return [line for line in err.splitlines() if line.strip() and not line.startswith("[")]
+
+
 def snapshot(*paths: str | os.PathLike) -> dict[str, bytes | None]:
     """Bytes of every file under ``paths`` (None for folders), to compare before and after."""
     out: dict[str, bytes | None] = {}
@@ -86,7 +100,7 @@ def assert_refused(
     err = captured.err
     assert "Traceback" not in err, err
     lines = [line for line in err.splitlines() if line.strip()]
-    errors = [line for line in lines if not line.startswith("[")]  # not progress
+    errors = message_lines(err)
     assert status == 2, f"exit {status} for {argv}: {err}"
     assert len(errors) == 1, f"not one error line for {argv}:\n{err}"
     line = errors[0]

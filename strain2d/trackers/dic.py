@@ -559,8 +559,10 @@ def track_dic(
         raise InputError(f"--shape-function must be affine or quadratic, got {shape_function!r}")
     if subset < 7 or subset % 2 == 0:
         raise InputError(f"--subset must be an odd number >= 7, got {subset}")
-    if not (-1 < zncc_min < 1) or not (-1 <= update_below < 1):
-        raise InputError("zncc_min and update_below must lie between -1 and 1")
+    if not -1 < zncc_min < 1:
+        raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
+    if not -1 <= update_below < 1:
+        raise InputError(f"update_below must lie between -1 and 1, got {update_below}")
     if max_iterations < 1 or not (np.isfinite(tolerance) and tolerance > 0):
         raise InputError("max_iterations must be >= 1 and tolerance a positive number")
     points = np.asarray(points, dtype=float).reshape(-1, 2)

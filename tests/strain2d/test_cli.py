@@ -559,3 +559,93 @@ def test_dic_summary_records_reference_updates(small_case, tmp_path):
     assert summary["tracker"]["name"] == "dic"
     assert summary["tracker"]["options"]["shape_function"] == "affine"
     assert len(summary["tracker"]["reference_updates"]) == 9
+
+
+# ---- what a user sees when stderr is a log file, and a few answers that must be honest
+
+
+def _run_logged(args, cwd):
+    """Run ``python -m strain2d ARGS`` with stderr in a pipe (a log file, not a terminal)."""
+    return subprocess.run(
+        [sys.executable, "-m", "strain2d", *map(str, args)],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+
+
+def test_progress_is_timestamped_lines_when_stderr_is_a_log(small_case, tmp_path):
+    folder, _ = small_case
+    out = tmp_path / "run"
+    res = _run_logged(["analyze", folder / "eq.avi", "--grid", "3x3", "--animation", "none",
+                       "--out", out], tmp_path)  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    lines = res.stderr.splitlines()
+    steps = [line for line in lines if line.startswith("[")]
+    assert any("6 frames of 200x200 px" in line for line in steps), lines
+    assert any("tracking 9 points (dic): 6/6 frames in" in line for line in steps), lines
+    assert lines[-1].endswith(f"] results in {out}")
+    assert all(line.startswith(("[", "strain2d analyze: warning:")) for line in lines), lines
+    res = _run_logged(["track", folder / "eq.avi", "--grid", "3x3", "--out", tmp_path / "t.csv"],
+                      tmp_path)  # fmt: skip
+    assert res.returncode == 0 and res.stderr.splitlines()[-1].endswith("] tracks in " + str(
+        tmp_path / "t.csv"))  # fmt: skip
+    res = _run_logged(["-q", "track", folder / "eq.avi", "--grid", "3x3", "--out",
+                       tmp_path / "t2.csv"], tmp_path)  # fmt: skip
+    assert res.returncode == 0 and res.stderr == ""
+
+
+def test_a_truncated_video_is_named_and_ffmpeg_keeps_quiet(small_case, tmp_path):
+    folder, _ = small_case
+    data = (folder / "eq.avi").read_bytes()
+    cut = tmp_path / "cut.avi"
+    cut.write_bytes(data[: len(data) // 2])
+    res = _run_logged(["analyze", cut, "--grid", "3x3", "--out", tmp_path / "run"], tmp_path)
+    assert res.returncode == 2
+    lines = [line for line in res.stderr.splitlines() if not line.startswith("[")]
+    assert len(lines) == 1, res.stderr  # no line of FFmpeg's own
+    assert "cut.avi: frame 2 of the 6" in lines[0] and "truncated or damaged" in lines[0]
+    assert "--stop 2" in lines[0]
+    assert not (tmp_path / "run").exists()
+
+
+def test_points_the_tracker_cannot_use_on_the_reference_frame_are_named(small_case, tmp_path,
+                                                                        capsys):  # fmt: skip
+    folder, _ = small_case
+    points = tmp_path / "p.csv"
+    points.write_text("x,y\n0,0\n100,100\n199,10\n50,150\n150,150\n")
+    out = tmp_path / "run"
+    argv = ["analyze", str(folder / "eq.avi"), "--points", str(points), "--animation", "none"]
+    assert main([*argv, "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    warning = [line for line in err.splitlines() if ": warning: " in line]
+    assert len(warning) == 1 and "2 of 5 points cannot be used on the reference frame" in (
+        warning[0])  # fmt: skip
+    assert "point 0 at (0, 0), point 2 at (199, 10)" in warning[0]
+    assert "image edge" in warning[0]
+    points.write_text("x,y\n0,0\n100,100\n199,10\n199,199\n")  # only one point left
+    assert main([*argv, "--out", str(tmp_path / "run2")]) == 2
+    err = capsys.readouterr().err
+    assert "only 1 of 4 points can be used on the reference frame" in err
+    assert not (tmp_path / "run2").exists()
+
+
+def test_a_video_without_deformation_has_no_contraction_endpoint(tmp_path, capsys):
+    from scipy import ndimage
+
+    rng = np.random.default_rng(0)
+    texture = ndimage.gaussian_filter(rng.uniform(0, 255, (160, 160)), 2)
+    texture = np.clip((texture - texture.mean()) * 8 + 128, 0, 255)
+    noisy = [np.clip(texture + rng.normal(0, 1, texture.shape), 0, 255) for _ in range(8)]
+    for name, frames in (("still.tif", [texture] * 8), ("noisy.tif", noisy)):
+        tifffile.imwrite(tmp_path / name, np.stack(frames).astype(np.uint8))
+        for tracker in ("dic", "klt"):
+            out = tmp_path / f"{name}-{tracker}"
+            assert main(["-q", "analyze", str(tmp_path / name), "--grid", "4x4", "--tracker",
+                         tracker, "--animation", "none", "--out", str(out)]) == 0  # fmt: skip
+            assert capsys.readouterr().err == ""  # no warning of NumPy's either
+            ep = json.loads((out / "summary.json").read_text())["contraction_endpoint"]
+            assert ep["source"].startswith("none: no deformation"), (name, tracker, ep)
+            assert ep["frame"] == 7 and ep["detected_frame"] is None
+            assert "no deformation" in (out / "report.html").read_text()

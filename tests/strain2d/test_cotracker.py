@@ -20,6 +20,7 @@ from strain2d.cli import main
 from strain2d.errors import InputError
 from strain2d.grid import make_grid
 from strain2d.trackers.cotracker import _device, crop_box, load_cotracker3, track_cotracker
+from tests.badinput import message_lines
 from tests.strain2d import cotracker_standin
 from tests.strain2d.cotracker_standin import StandInPredictor
 from tests.tolerances import COTRACKER_STANDIN_PX
@@ -422,7 +423,7 @@ def test_cli_without_a_model_in_a_fresh_process(tmp_path, video_file):
         capture_output=True,
         text=True,
     )
-    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert res.returncode == 2 and len(message_lines(res.stderr)) == 1, res.stderr
     assert "--cotracker-repo" in res.stderr
 
 

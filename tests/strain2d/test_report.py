@@ -126,9 +126,10 @@ def test_endpoint_is_found_where_the_contraction_holds():
     times = np.arange(12) * 0.5
     ep = endpoint_of(field, times=times)
     assert ep["frame"] == 7 and ep["time"] == pytest.approx(3.5)
-    assert endpoint_of(field, frame=-1)["frame"] == 11
-    with pytest.raises(InputError, match="outside"):
-        endpoint_of(field, frame=12)
+    assert endpoint_of(field, frame=11)["frame"] == 11
+    for frame in (12, -1):  # frames count from the reference, never from the end
+        with pytest.raises(InputError, match="outside"):
+            endpoint_of(field, frame=frame)
 
 
 def test_figure_formats_are_checked():

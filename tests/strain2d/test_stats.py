@@ -73,3 +73,13 @@ def test_paired_tests_check_their_input():
         paired_node_tests(np.zeros(5), np.zeros(4))
     with pytest.raises(InputError):
         paired_node_tests(np.array([1.0, np.nan]), np.array([0.0, 0.0]))
+
+
+def test_paired_tests_of_identical_components_warn_of_nothing():
+    """No deformation: Exx = Eyy to round-off at every node (NumPy's warnings are errors here)."""
+    rng = np.random.default_rng(3)
+    exx = rng.normal(0, 1e-16, 40)
+    for b in (exx, exx + rng.normal(0, 1e-30, 40)):
+        result = paired_node_tests(exx, b, positions=rng.uniform(0, 100, (40, 2)))
+        assert np.isnan(result["t"]) and np.isnan(result["t_p"])
+        assert np.isnan(result["cohens_dz"]) and np.isnan(result["cohens_dz_ci"]).all()

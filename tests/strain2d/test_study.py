@@ -155,9 +155,10 @@ def test_manifest_paths_groups_and_endpoint_override(study_dir, tmp_path):
     manifest.write_text(f"run,endpoint\n{root / 'runs' / 'ani0'},50\n")
     with pytest.raises(InputError, match="outside frames"):
         load_specimens(read_manifest(manifest))
-    manifest.write_text(f"run,endpoint\n{root / 'runs' / 'ani0'},five\n")
-    with pytest.raises(InputError, match="frame index"):
-        read_manifest(manifest)
+    for bad in ("five", "-1"):  # frames count from the reference, never from the end
+        manifest.write_text(f"run,endpoint\n{root / 'runs' / 'ani0'},{bad}\n")
+        with pytest.raises(InputError, match="frame number from 0"):
+            read_manifest(manifest)
     manifest.write_text("specimen\nA\n")
     with pytest.raises(InputError, match="'run' column"):
         read_manifest(manifest)

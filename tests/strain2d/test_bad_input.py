@@ -1,0 +1,360 @@
+"""Bad input for every strain2d command: exit 2, one line naming the file, nothing touched.
+
+See tests/badinput.py for the contract and the families.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import tifffile
+
+from strain2d.cli import main
+from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id, snapshot
+
+PROG = "strain2d"
+
+
+@pytest.fixture(scope="module")
+def inputs(small_case, tmp_path_factory):
+    """Copies of the small video and files broken in every way the matrix needs."""
+    folder, video = small_case
+    d = tmp_path_factory.mktemp("bad_inputs")
+    c = SimpleNamespace(dir=d, truth=video.truth)
+    c.avi = d / "eq.avi"
+    c.tif = d / "eq.tif"
+    shutil.copy(folder / "eq.avi", c.avi)
+    shutil.copy(folder / "eq.tif", c.tif)
+    data = c.avi.read_bytes()
+    (d / "truncated.avi").write_bytes(data[: len(data) // 2])
+    (d / "header_only.avi").write_bytes(data[:200])
+    (d / "empty.avi").write_bytes(b"")
+    (d / "text.avi").write_text("not a video\n")
+    tif = c.tif.read_bytes()
+    (d / "truncated.tif").write_bytes(tif[: len(tif) // 2])
+    (d / "text.tif").write_text("not a tiff\n")
+    tifffile.imwrite(d / "one_frame.tif", np.zeros((64, 64), np.uint8))
+    tifffile.imwrite(d / "rgb_channels.tif", np.zeros((3, 2, 64, 64), np.uint8), imagej=True,
+                     metadata={"axes": "TCYX"})  # fmt: skip
+    (d / "no_images").mkdir()
+    (d / "no_images" / "readme.txt").write_text("x")
+    (d / "frames").mkdir()
+    (d / "frames" / "f0.png").write_bytes(b"\x89PNG broken")
+    (d / "frames" / "f1.png").write_bytes(b"\x89PNG broken")
+    csv = {
+        "nan": "x,y\n10,10\nnan,50\n60,60\n",
+        "inf": "x,y\n10,10\ninf,50\n60,60\n",
+        "text": "x,y\n10,10\nten,50\n60,60\n",
+        "duplicate": "x,y\n10,10\n10,10\n60,60\n40,90\n",
+        "two_points": "x,y\n10,10\n60,60\n",
+        "collinear": "x,y\n10,10\n20,20\n30,30\n",
+        "outside": "x,y\n10,10\n60,60\n500,20\n",
+        "no_header": "10,10\n60,60\n20,80\n",
+        "empty": "",
+        "header_only": "x,y\n",
+        "binary": "\x00\x01\x02\xff",
+    }
+    for name, text in csv.items():
+        mode = "wb" if name == "binary" else "w"
+        with open(d / f"points_{name}.csv", mode) as f:
+            f.write(text.encode("latin-1") if mode == "wb" else text)
+    (d / "points_bom.csv").write_bytes(b"\xef\xbb\xbfx,y\n10,10\n60,60\nnan,1\n")
+    # track files from another tool, broken
+    corners = [(10, 10), (90, 10), (50, 80)]
+    rows = [f"{t},{i},{x},{y},1,1\n" for t in range(2) for i, (x, y) in enumerate(corners)]
+    good = "frame,point,x,y,visible,quality\n" + "".join(rows)
+    tracks = {
+        "missing_row": good.rsplit("\n", 2)[0] + "\n",
+        "duplicate_row": good + "1,2,50,80,1,1\n",
+        "text": good.replace("90,10", "ninety,10", 1),
+        "negative_index": good.replace("1,2,", "-1,2,", 1),
+        "no_columns": "a,b\n1,2\n",
+    }
+    for name, text in tracks.items():
+        (d / f"tracks_{name}.csv").write_text(text)
+    np.savez(d / "tracks_ok.npz", positions=np.zeros((2, 3, 2)))
+    (d / "tracks_corrupt.npz").write_bytes((d / "tracks_ok.npz").read_bytes()[:100])
+    np.save(d / "tracks_shape.npy", np.zeros((2, 3)))
+    np.savez(d / "tracks_named.npz", coords=np.zeros((2, 3, 2)))
+    np.savez(d / "tracks_strings.npz", positions=np.array([["a", "b"]]))
+    (d / "tracks.parquet").write_bytes(b"PAR1")
+    # the user's own folder, and a manifest
+    c.mine = d / "thesis"
+    c.mine.mkdir()
+    (c.mine / "chapter1.tex").write_text("years of work")
+    (d / "manifest_norun.csv").write_text("specimen,group\nS01,a\n")
+    (d / "manifest_missing.csv").write_text("run,group\nnowhere,a\n")
+    (d / "manifest_endpoint.csv").write_text("run,endpoint\nnowhere,-1\n")
+    (d / "not_a_run").mkdir()
+    return c
+
+
+def _analyze(c, *extra):
+    return ["-q", "analyze", c.avi, "--grid", "3x3", "--animation", "none", *extra]
+
+
+def _track(c, *extra):
+    return ["-q", "track", c.avi, "--grid", "3x3", *extra]
+
+
+def _points_file(name):
+    return lambda c, o: ["track", c.avi, "--points", c.dir / f"points_{name}.csv", "--out", o]
+
+
+def _tracks_file(name):
+    return lambda c, o: ["track", "--tracker", "imported", c.avi, "--tracks-file",
+                         c.dir / f"tracks_{name}.csv", "--out", o]  # fmt: skip
+
+
+# Each case: id, argv builder (inputs, output path) -> argv, fragments the line must hold.
+CASES = [
+    # ---- missing
+    ("analyze-missing-video", lambda c, o: ["analyze", c.dir / "nope.avi", "--out", o],
+     ["nope.avi"]),
+    ("track-missing-video", lambda c, o: ["track", c.dir / "nope.mp4", "--out", o], ["nope.mp4"]),
+    ("analyze-missing-points", lambda c, o: ["analyze", c.avi, "--points", c.dir / "nope.csv",
+     "--out", o], ["nope.csv"]),
+    ("track-missing-tracks-file", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "nope.csv", "--out", o], ["nope.csv"]),
+    ("study-missing-run", lambda c, o: ["study", c.dir / "nowhere", "--out", o], ["nowhere"]),
+    ("study-missing-manifest", lambda c, o: ["study", "--manifest", c.dir / "nope.csv",
+     "--out", o], ["nope.csv"]),
+    ("study-missing-run-in-manifest", lambda c, o: ["study", "--manifest",
+     c.dir / "manifest_missing.csv", "--out", o], ["nowhere"]),
+    # ---- empty
+    ("analyze-empty-video", lambda c, o: ["analyze", c.dir / "empty.avi", "--out", o],
+     ["empty.avi"]),
+    ("analyze-empty-folder", lambda c, o: ["analyze", c.dir / "no_images", "--out", o],
+     ["no_images", "no images"]),
+    ("analyze-empty-one-frame", lambda c, o: ["analyze", c.dir / "one_frame.tif", "--out", o],
+     ["one_frame.tif", "frame"]),
+    ("track-empty-points", lambda c, o: ["track", c.avi, "--points", c.dir / "points_empty.csv",
+     "--out", o], ["points_empty.csv"]),
+    ("track-empty-points-header-only", lambda c, o: ["track", c.avi, "--points",
+     c.dir / "points_header_only.csv", "--out", o], ["at least 3 points"]),
+    ("study-empty-run-folder", lambda c, o: ["study", c.dir / "not_a_run", "--out", o],
+     ["not_a_run"]),
+    ("study-empty-manifest-no-run-column", lambda c, o: ["study", "--manifest",
+     c.dir / "manifest_norun.csv", "--out", o], ["manifest_norun.csv", "run"]),
+    # ---- truncated
+    ("analyze-truncated-avi", lambda c, o: ["analyze", c.dir / "truncated.avi", "--grid", "3x3",
+     "--out", o], ["truncated.avi", "truncated or damaged"]),
+    ("analyze-truncated-avi-header", lambda c, o: ["analyze", c.dir / "header_only.avi",
+     "--out", o], ["header_only.avi"]),
+    ("analyze-truncated-tif", lambda c, o: ["analyze", c.dir / "truncated.tif", "--grid", "3x3",
+     "--out", o], ["truncated.tif"]),
+    ("track-truncated-npz", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_corrupt.npz", "--out", o], ["tracks_corrupt.npz"]),
+    ("track-truncated-tracks-missing-row", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_missing_row.csv", "--out", o],
+     ["tracks_missing_row.csv", "one row for each"]),
+    # ---- wrong type
+    ("analyze-wrong-type-text-avi", lambda c, o: ["analyze", c.dir / "text.avi", "--out", o],
+     ["text.avi"]),
+    ("analyze-wrong-type-text-tif", lambda c, o: ["analyze", c.dir / "text.tif", "--out", o],
+     ["text.tif"]),
+    ("analyze-wrong-type-broken-pngs", lambda c, o: ["analyze", c.dir / "frames", "--out", o],
+     ["f0.png"]),
+    ("analyze-wrong-type-channels", lambda c, o: ["analyze", c.dir / "rgb_channels.tif",
+     "--out", o], ["rgb_channels.tif", "channels"]),
+    ("analyze-wrong-type-csv-as-video", lambda c, o: ["analyze", c.dir / "points_nan.csv",
+     "--out", o], ["points_nan.csv"]),
+    ("track-wrong-type-tracks-parquet", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks.parquet", "--out", o], ["tracks.parquet"]),
+    ("track-wrong-type-npy-shape", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_shape.npy", "--out", o], ["tracks_shape.npy", "(T, N, 2)"]),
+    ("track-wrong-type-npz-names", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_named.npz", "--out", o], ["tracks_named.npz", "positions"]),
+    ("track-wrong-type-npz-strings", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_strings.npz", "--out", o], ["tracks_strings.npz"]),
+    ("track-wrong-type-points-binary", lambda c, o: ["track", c.avi, "--points",
+     c.dir / "points_binary.csv", "--out", o], ["points_binary.csv"]),
+    ("study-wrong-type-video-as-run", lambda c, o: ["study", c.avi, "--out", o], ["eq.avi"]),
+    # ---- CSV content
+    *[(f"track-csv-points-{name}", _points_file(name), [fragment])
+      for name, fragment in [("nan", "finite"), ("inf", "finite"), ("text", "points_text.csv"),
+                             ("duplicate", "given twice"), ("two_points", "at least 3"),
+                             ("collinear", "collinear"), ("outside", "outside"),
+                             ("no_header", "points_no_header.csv"), ("bom", "finite")]],
+    *[(f"track-csv-tracks-{name}", _tracks_file(name), [f"tracks_{name}.csv"])
+      for name in ("duplicate_row", "text", "negative_index", "no_columns")],
+    # ---- options out of range
+    ("analyze-option-grid-1x5", lambda c, o: ["analyze", c.avi, "--grid", "1x5", "--out", o],
+     ["--grid"]),
+    ("analyze-option-grid-text", lambda c, o: ["analyze", c.avi, "--grid", "7by7", "--out", o],
+     ["--grid"]),
+    ("analyze-option-roi-outside", lambda c, o: ["analyze", c.avi, "--roi", "0,0,900,900",
+     "--out", o], ["--roi"]),
+    ("analyze-option-roi-inverted", lambda c, o: ["analyze", c.avi, "--roi", "150,150,20,20",
+     "--out", o], ["--roi"]),
+    ("analyze-option-roi-nan", lambda c, o: ["analyze", c.avi, "--roi", "nan,0,100,100",
+     "--out", o], ["--roi"]),
+    ("analyze-option-start-negative", lambda c, o: ["analyze", c.avi, "--start=-1", "--out", o],
+     [">= 0"]),
+    ("analyze-option-step-zero", lambda c, o: ["analyze", c.avi, "--step", "0", "--out", o],
+     ["--step"]),
+    ("analyze-option-start-past-end", lambda c, o: ["analyze", c.avi, "--start", "50",
+     "--out", o], ["selects no frame"]),
+    ("analyze-option-endpoint-negative", lambda c, o: _analyze(c, "--endpoint=-1", "--out", o),
+     ["--endpoint", "from 0"]),
+    ("analyze-option-endpoint-past-end", lambda c, o: _analyze(c, "--endpoint", "6", "--out", o),
+     ["--endpoint 6", "outside the frames 0..5"]),
+    ("analyze-option-maps-at-negative", lambda c, o: _analyze(c, "--maps-at=-2", "--out", o),
+     ["--maps-at", "from 0"]),
+    ("analyze-option-maps-at-text", lambda c, o: _analyze(c, "--maps-at", "1,two", "--out", o),
+     ["--maps-at"]),
+    ("analyze-option-fps-zero", lambda c, o: _analyze(c, "--fps", "0", "--out", o), ["--fps"]),
+    ("analyze-option-fps-nan", lambda c, o: _analyze(c, "--fps", "nan", "--out", o), ["--fps"]),
+    ("analyze-option-endpoint-tolerance", lambda c, o: _analyze(c, "--endpoint-tolerance", "1.5",
+     "--out", o), ["--endpoint-tolerance"]),
+    ("analyze-option-figure-format", lambda c, o: _analyze(c, "--figure-format", "bmp",
+     "--out", o), ["bmp"]),
+    ("analyze-option-unknown-tracker", lambda c, o: _analyze(c, "--tracker", "magic", "--out", o),
+     ["magic"]),
+    ("analyze-option-subset-even", lambda c, o: _analyze(c, "--subset", "30", "--out", o),
+     ["subset"]),
+    ("analyze-option-subset-tiny", lambda c, o: _analyze(c, "--subset", "3", "--out", o),
+     ["subset"]),
+    ("analyze-option-zncc-min", lambda c, o: _analyze(c, "--zncc-min", "2", "--out", o),
+     ["--zncc-min"]),
+    ("track-option-window-zero", lambda c, o: _track(c, "--tracker", "klt", "--window", "0",
+     "--out", o), ["--window"]),
+    ("track-option-levels-negative", lambda c, o: _track(c, "--tracker", "klt", "--levels=-1",
+     "--out", o), ["--levels"]),
+    ("track-option-fb-threshold-nan", lambda c, o: _track(c, "--tracker", "klt", "--fb-threshold",
+     "nan", "--out", o), ["--fb-threshold"]),
+    ("analyze-option-min-triangle-quality", lambda c, o: ["analyze", c.avi, "--points",
+     c.dir / "points_duplicate.csv", "--min-triangle-quality", "2", "--out", o],
+     ["--min-triangle-quality"]),
+    ("study-option-alpha", lambda c, o: ["study", c.dir / "not_a_run", "--alpha", "1.5",
+     "--out", o], ["--alpha"]),
+    ("study-option-compare", lambda c, o: ["study", c.dir / "not_a_run", "--compare", "Exx",
+     "--out", o], ["--compare"]),
+    ("study-option-manifest-endpoint", lambda c, o: ["study", "--manifest",
+     c.dir / "manifest_endpoint.csv", "--out", o], ["manifest_endpoint.csv"]),
+    ("benchmark-option-seed-negative", lambda c, o: ["benchmark", "--quick", "--seed=-1",
+     "--out", o], ["--seed"]),
+    ("benchmark-option-unknown-case", lambda c, o: ["benchmark", "--quick", "--cases", "bend",
+     "--out", o], ["bend"]),
+    ("benchmark-option-unknown-sweep", lambda c, o: ["benchmark", "--quick", "--sweep", "wind",
+     "--out", o], ["wind"]),
+    ("benchmark-option-imported-tracker", lambda c, o: ["benchmark", "--quick", "--trackers",
+     "imported", "--out", o], ["imported"]),
+    ("benchmark-option-grid", lambda c, o: ["benchmark", "--quick", "--grid", "0x3", "--out", o],
+     ["--grid"]),
+    # ---- conflicting options
+    ("analyze-conflict-points-and-grid", lambda c, o: ["analyze", c.avi, "--points",
+     c.dir / "points_nan.csv", "--grid", "3x3", "--out", o], ["--points", "--grid"]),
+    ("analyze-conflict-klt-option-with-dic", lambda c, o: _analyze(c, "--window", "21",
+     "--out", o), ["--window", "dic"]),
+    ("track-conflict-tracks-file-with-dic", lambda c, o: _track(c, "--tracks-file",
+     c.dir / "tracks_ok.npz", "--out", o), ["--tracks-file", "dic"]),
+    ("track-conflict-imported-without-file", lambda c, o: ["track", "--tracker", "imported",
+     c.avi, "--out", o], ["--tracks-file"]),
+    ("study-conflict-runs-and-manifest", lambda c, o: ["study", c.dir / "not_a_run",
+     "--manifest", c.dir / "manifest_norun.csv", "--out", o], ["--manifest"]),
+    ("study-conflict-nothing-to-combine", lambda c, o: ["study", "--out", o], ["run folders"]),
+]
+
+
+def _output_cases():
+    """Outputs that may not be written: the contract holds for every command."""
+    cases = []
+    for command, builder in (("analyze", lambda c, o: _analyze(c, "--out", o)),
+                             ("track", lambda c, o: _track(c, "--out", o))):  # fmt: skip
+        cases += [
+            (f"{command}-output-is-the-input", (lambda b: lambda c, o: b(c, c.avi))(builder),
+             ["would replace the input"]),
+            (f"{command}-output-missing-parent", (lambda b: lambda c, o: b(c, c.dir / "no" / "x"))(
+                builder), ["does not exist"]),
+            (f"{command}-output-users-folder",
+             (lambda b: lambda c, o: b(c, c.mine))(builder), ["thesis"]),
+            (f"{command}-output-users-folder-overwrite",
+             (lambda b: lambda c, o: [*b(c, c.mine), "--overwrite"])(builder), ["thesis"]),
+            (f"{command}-output-working-directory",
+             (lambda b: lambda c, o: [*b(c, "."), "--overwrite"])(builder),
+             ["working directory"]),
+        ]
+    cases += [
+        ("analyze-output-inside-input-folder", lambda c, o: ["-q", "analyze", c.dir / "frames",
+         "--out", c.dir / "frames" / "run"], ["inside the input folder"]),
+        ("track-output-users-file", lambda c, o: _track(c, "--out", c.mine / "chapter1.tex",
+         "--overwrite"), ["chapter1.tex", "not a file this toolkit writes"]),
+        ("track-output-is-a-folder", lambda c, o: _track(c, "--out", c.dir / "no_images",
+         "--overwrite"), ["is a folder"]),
+        ("study-output-users-folder", lambda c, o: ["study", c.dir / "not_a_run", "--out",
+         c.mine, "--overwrite"], ["thesis"]),
+        ("benchmark-output-users-folder", lambda c, o: ["benchmark", "--quick", "--out", c.mine,
+         "--overwrite"], ["thesis"]),
+    ]
+    if os.geteuid() != 0:  # root writes anywhere: the case means nothing there
+        cases.append(("analyze-output-read-only-folder", lambda c, o: _analyze(
+            c, "--out", c.dir / "read_only" / "run"), ["read_only"]))
+    return cases
+
+
+ALL = CASES + _output_cases()
+
+
+@pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
+def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
+    monkeypatch.chdir(inputs.dir)
+    (inputs.dir / "read_only").mkdir(mode=0o555, exist_ok=True)
+    out = tmp_path / "out"
+    argv = [str(a) for a in build(inputs, out)]
+    if "-q" not in argv:
+        argv = ["-q", *argv]
+    assert_refused(main, argv, capsys, prog=PROG, fragments=fragments, inputs=[inputs.dir],
+                   out=out)  # fmt: skip
+    assert not out.exists()
+
+
+def test_bad_input_cases_name_their_command_and_family():
+    for case, *_ in ALL:
+        command, _family, name = parse_case_id(case)
+        assert command in ("analyze", "track", "study", "benchmark") and name, case
+    assert len({case for case, *_ in ALL}) == len(ALL)
+
+
+# ---- Ctrl-C at chosen moments of a real run (a process of its own) ------------------------
+
+
+@pytest.fixture(scope="module")
+def long_video(tmp_path_factory):
+    """A video long enough that Ctrl-C lands inside tracking (the compiled IC-GN kernel)."""
+    from sample_data_synth import make_case, write_video
+
+    folder = tmp_path_factory.mktemp("long")
+    video = make_case("rotation", size=400, n_frames=40, rng=2)
+    write_video(video.frames, folder / "rotation.avi")
+    return folder / "rotation.avi"
+
+
+@pytest.mark.parametrize(
+    "after", [0.3, 1.0, 2.0, 3.5, 5.0], ids=lambda s: f"analyze-interrupt-{s}s"
+)
+def test_interrupt(long_video, tmp_path, after):
+    out = tmp_path / "run"
+    status, err = interrupt(
+        ["-m", "strain2d", "analyze", long_video, "--grid", "40x40", "--animation", "none",
+         "--out", out],
+        after=after, out=out, inputs=[long_video.parent],
+    )  # fmt: skip
+    if status == 130:
+        assert message_lines(err) == ["strain2d analyze: interrupted; no output written"], err
+    assert [p.name for p in tmp_path.iterdir()] == ([] if status == 130 else ["run"])
+
+
+def test_a_foreign_folder_survives_an_overwrite_attempt_untouched(inputs, capsys):
+    before = snapshot(inputs.mine)
+    for flags in ([], ["--overwrite"]):
+        assert main(["-q", "analyze", str(inputs.avi), "--grid", "3x3", "--out",
+                     str(inputs.mine), *flags]) == 2  # fmt: skip
+        assert "is not a result of this toolkit" in capsys.readouterr().err
+    assert snapshot(inputs.mine) == before
+    assert Path(inputs.mine / "chapter1.tex").read_text() == "years of work"
