@@ -70,7 +70,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--shot-gain", type=float, default=0.02, help="shot-noise variance per gray level (0.02)"
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -90,7 +90,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--spacing", default="4,2.5,2.5", help="DZ,DY,DX in um (4,2.5,2.5)")
     p.add_argument("--format", default="imagej", help="imagej or ome (imagej)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -113,7 +113,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=11, help="frames of the surface cases (11)")
     p.add_argument("--size", default="1024x768", help="image WIDTHxHEIGHT in px (1024x768)")
     p.add_argument("--noise", type=float, default=1.0, help="sensor noise in gray levels (1.0)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
@@ -131,13 +131,23 @@ def _build_parser() -> argparse.ArgumentParser:
         default=0.04,
         help="amplitude of the smooth strain heterogeneity, 0 to 0.2 (0.04)",
     )
-    p.add_argument("--seed", type=int, default=0, help="random seed (0)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
     p.set_defaults(handler=_cmd_study)
     sub.add_parser("list", help="list the cases").set_defaults(handler=_cmd_list)
     return parser
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 0, got {text!r}")
+    return value
 
 
 def _cmd_video(args) -> int:
