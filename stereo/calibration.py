@@ -42,12 +42,15 @@ import numpy as np
 from strain2d.errors import InputError, SourceError
 
 __all__ = [
+    "CALIBRATION_KEYS",
     "Board",
     "Calibration",
+    "CalibrationValueError",
     "calibrate_stereo",
     "detect_board",
     "load_calibration",
     "parse_board",
+    "strict_json",
 ]
 
 log = logging.getLogger(__name__)
@@ -168,23 +171,190 @@ def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarra
     return corners.reshape(-1, 2).astype(np.float64), ids.ravel().astype(np.int64)
 
 
+#: largest deviation of ``R @ R.T`` from the identity accepted for a rotation
+ROTATION_TOLERANCE = 1e-6
+#: the lengths of OpenCV's distortion vectors (0: no distortion)
+DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)
+#: the keys :meth:`Calibration.save` always writes (how a calibration of this toolkit is known)
+CALIBRATION_KEYS = (
+    "image_size", "K_left", "dist_left", "K_right", "dist_right", "R", "T", "rms_px", "unit",
+    "baseline", "convention",
+)  # fmt: skip
+_REQUIRED = ("image_size", "K_left", "dist_left", "K_right", "dist_right", "R", "T")
+
+
+class CalibrationValueError(InputError):
+    """A calibration value that is not part of a camera model; ``field`` names it."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field} {message}")
+        self.field = field
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(
+        value, bool | np.bool_
+    )
+
+
+def _numbers(value, field: str, shape_text: str, *, max_depth: int = 2) -> np.ndarray:
+    """``value`` (nested lists of numbers, or a numeric array) as a float64 array.
+
+    Text, booleans, ``None``, objects and ragged lists are refused: a calibration
+    holds numbers only.
+    """
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind not in "iuf":
+            raise CalibrationValueError(field, f"must be {shape_text} of numbers")
+        return value.astype(np.float64)
+
+    def numeric(v, depth: int) -> bool:
+        if _is_number(v):
+            return True
+        return (
+            isinstance(v, list | tuple)
+            and depth < max_depth
+            and all(numeric(x, depth + 1) for x in v)
+        )
+
+    if not numeric(value, 0):
+        raise CalibrationValueError(
+            field, f"must be {shape_text} of numbers, got {_describe(value)}"
+        )
+    try:
+        return np.array(value, dtype=np.float64)
+    except OverflowError:  # an integer beyond float range
+        raise CalibrationValueError(field, "must hold finite numbers") from None
+    except ValueError:  # ragged
+        raise CalibrationValueError(
+            field, f"must be {shape_text} of numbers, got {_describe(value)}"
+        ) from None
+
+
+def _describe(value) -> str:
+    text = repr(value.tolist() if isinstance(value, np.ndarray) else value)
+    return text if len(text) <= 60 else f"{text[:57]}..."
+
+
+def _matrix(value, field: str) -> np.ndarray:
+    m = _numbers(value, field, "a 3 x 3 matrix")
+    if m.shape != (3, 3):
+        raise CalibrationValueError(field, f"must be a 3 x 3 matrix, got shape {m.shape}")
+    if not np.isfinite(m).all():
+        raise CalibrationValueError(field, "must hold finite numbers (it holds NaN or inf)")
+    return m
+
+
+def _camera_matrix(value, field: str) -> np.ndarray:
+    K = _matrix(value, field)
+    if not (K[0, 0] > 0 and K[1, 1] > 0):
+        raise CalibrationValueError(
+            field, f"must have positive focal lengths fx, fy, got {K[0, 0]:g}, {K[1, 1]:g}"
+        )
+    if K[1, 0] != 0 or tuple(K[2]) != (0, 0, 1):
+        raise CalibrationValueError(
+            field, "must be a camera matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]]"
+        )
+    return K
+
+
+def _rotation(value, field: str) -> np.ndarray:
+    R = _matrix(value, field)
+    # a rotation's entries lie in [-1, 1]: bound them before multiplying (no overflow)
+    off = float(np.abs(np.clip(R, -2, 2) @ np.clip(R, -2, 2).T - np.eye(3)).max())
+    if off > ROTATION_TOLERANCE or np.abs(R).max() > 2:
+        raise CalibrationValueError(
+            field,
+            f"is not a rotation: R R^T differs from the identity by {off:.3g} "
+            f"(at most {ROTATION_TOLERANCE:g} allowed)",
+        )
+    if np.linalg.det(R) < 0:
+        raise CalibrationValueError(field, "is not a rotation: it is a reflection (det R = -1)")
+    return R
+
+
+def _translation(value, field: str) -> np.ndarray:
+    T = _numbers(value, field, "3 numbers").ravel()
+    if T.size != 3:
+        raise CalibrationValueError(field, f"must hold 3 numbers, got {T.size}")
+    if not np.isfinite(T).all():
+        raise CalibrationValueError(field, "must hold finite numbers (it holds NaN or inf)")
+    scale = float(np.abs(T).max())
+    baseline = scale * float(np.linalg.norm(T / scale)) if scale > 0 else 0.0
+    if not 0 < baseline < 1e9:
+        raise CalibrationValueError(
+            field,
+            f"gives the baseline |T| = {baseline:g}: the two cameras must be apart "
+            "(0 < |T| < 1e9 in the calibration's unit)",
+        )
+    return T
+
+
+def _distortion(value, field: str) -> np.ndarray:
+    from stereo.camera import _coefficients
+
+    d = _numbers(value, field, "a list").ravel()
+    if d.size not in DISTORTION_LENGTHS:
+        raise CalibrationValueError(
+            field, f"must hold 4, 5, 8, 12 or 14 coefficients (OpenCV's models), got {d.size}"
+        )
+    if not np.isfinite(d).all():
+        raise CalibrationValueError(field, "must hold finite numbers (it holds NaN or inf)")
+    try:
+        _coefficients(d)
+    except ValueError:
+        raise CalibrationValueError(
+            field, "has tilted-sensor terms (tau x, tau y), which are not supported"
+        ) from None
+    if d.size < 5:
+        d = np.concatenate([d, np.zeros(5 - d.size)])
+    return d
+
+
+def _image_size(value) -> tuple[int, int]:
+    size = _numbers(value, "image_size", "[width, height]").ravel()
+    if (
+        size.size != 2
+        or not np.isfinite(size).all()
+        or (size != np.round(size)).any()
+        or (size < 1).any()
+        or (size > 2**31 - 1).any()
+    ):
+        raise CalibrationValueError(
+            "image_size", f"must be [width, height] in whole pixels > 0, got {_describe(value)}"
+        )
+    return int(size[0]), int(size[1])
+
+
 @dataclass
 class Calibration:
     """A calibrated stereo rig (OpenCV conventions, see :mod:`stereo.camera`).
+
+    Every value is checked when the calibration is made (so also when it is
+    read): ``R`` must be a rotation (orthonormal to :data:`ROTATION_TOLERANCE`,
+    det +1), the focal lengths positive, every number finite, the distortion
+    vectors of a length OpenCV accepts, the image size whole pixels and the
+    baseline ``|T|`` positive.
 
     Attributes
     ----------
     image_size : (width, height) px
     K_left, K_right : (3, 3) camera matrices
-    dist_left, dist_right : (5,) distortion (k1, k2, p1, p2, k3)
+    dist_left, dist_right : (5,) distortion (k1, k2, p1, p2, k3), or OpenCV's
+        8, 12 or 14 coefficients
     R, T : (3, 3), (3,) ``x_right = R x_left + T``
     rms_px : float
-        RMS reprojection error of the rig over all kept views.
+        RMS reprojection error of the rig over all kept views (NaN: unknown).
     unit : str
         Unit of ``T`` and of triangulated points (the board's square size unit).
     extra : dict
         Per-camera RMS, per-view errors, rejected images and why, board,
         software version.
+
+    Raises
+    ------
+    CalibrationValueError
+        (an :class:`~tissue_core.errors.InputError`) naming the value that is wrong.
     """
 
     image_size: tuple[int, int]
@@ -199,38 +369,23 @@ class Calibration:
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        from stereo.camera import _coefficients
-
-        try:
-            w, h = (int(v) for v in self.image_size)
-        except (TypeError, ValueError):
-            raise InputError(
-                f"calibration image_size must be [width, height], got {self.image_size!r}"
-            ) from None
-        if w < 1 or h < 1:
-            raise InputError(f"calibration image_size must be positive, got {[w, h]}")
-        self.image_size = (w, h)
-        for name, shape in (("K_left", (3, 3)), ("K_right", (3, 3)), ("R", (3, 3)), ("T", (3,))):
-            try:
-                value = np.asarray(getattr(self, name), np.float64)
-            except (TypeError, ValueError):
-                raise InputError(f"calibration {name} must be a {shape} array of numbers") from None
-            if name == "T":
-                value = value.ravel()
-            if value.shape != shape or not np.isfinite(value).all():
-                raise InputError(f"calibration {name} must be a finite {shape} array")
-            setattr(self, name, value)
-        for name in ("dist_left", "dist_right"):
-            try:
-                given = np.asarray(getattr(self, name), np.float64).ravel()
-                _coefficients(given)
-            except (TypeError, ValueError) as exc:
-                raise InputError(f"calibration {name}: {exc}") from None
-            if not np.isfinite(given).all():
-                raise InputError(f"calibration {name} must be finite")
-            if given.size < 5:
-                given = np.concatenate([given, np.zeros(5 - given.size)])
-            setattr(self, name, given)
+        self.image_size = _image_size(self.image_size)
+        self.K_left = _camera_matrix(self.K_left, "K_left")
+        self.K_right = _camera_matrix(self.K_right, "K_right")
+        self.dist_left = _distortion(self.dist_left, "dist_left")
+        self.dist_right = _distortion(self.dist_right, "dist_right")
+        self.R = _rotation(self.R, "R")
+        self.T = _translation(self.T, "T")
+        rms = float("nan") if self.rms_px is None else self.rms_px
+        if not _is_number(rms) or math.isinf(rms) or rms < 0:
+            raise CalibrationValueError(
+                "rms_px", f"must be a number >= 0 (or null), got {_describe(self.rms_px)}"
+            )
+        self.rms_px = float(rms)
+        if not isinstance(self.unit, str) or not self.unit.strip():
+            raise CalibrationValueError("unit", f"must be a name such as mm, got {self.unit!r}")
+        if not isinstance(self.extra, dict):
+            raise CalibrationValueError("extra", "must be a dict")
 
     @property
     def baseline(self) -> float:
@@ -252,47 +407,75 @@ class Calibration:
             "convention": "OpenCV: x_right = R x_left + T; pixel (0, 0) is the centre "
             "of the top-left pixel; distortion (k1, k2, p1, p2, k3)",
         }
-        out.update(self.extra)
+        out.update({k: v for k, v in self.extra.items() if k not in out})
         return out
 
     @classmethod
     def from_dict(cls, d: dict) -> Calibration:
-        try:
-            keys = ("image_size", "K_left", "dist_left", "K_right", "dist_right", "R", "T")
-            values = {k: d[k] for k in keys}
-        except (KeyError, TypeError) as exc:
-            raise InputError(f"calibration is missing {exc}") from None
-        extra = {
-            k: v
-            for k, v in d.items()
-            if k not in (*keys, "rms_px", "unit", "baseline", "convention")
-        }
-        rms = d.get("rms_px")
+        """A calibration from :meth:`to_dict`'s layout (``baseline`` is recomputed)."""
+        if not isinstance(d, dict):
+            raise InputError(
+                f"a calibration must be an object with the keys {', '.join(_REQUIRED)}"
+            )
+        missing = [k for k in _REQUIRED if k not in d]
+        if missing:
+            verb = "is" if len(missing) == 1 else "are"
+            raise InputError(
+                f"{', '.join(missing)} {verb} missing (a calibration holds {', '.join(_REQUIRED)})"
+            )
+        extra = {k: v for k, v in d.items() if k not in CALIBRATION_KEYS}
         return cls(
-            **values,
-            rms_px=float("nan") if rms is None else float(rms),
-            unit=str(d.get("unit", "mm")),
+            **{k: d[k] for k in _REQUIRED},
+            rms_px=d.get("rms_px"),
+            unit=d.get("unit", "mm"),
             extra=extra,
         )
 
     def save(self, path: str | os.PathLike) -> None:
+        """Write the calibration as strict JSON (non-finite numbers in ``extra`` as null)."""
         with open(path, "w", encoding="utf-8") as f:
-            json.dump(self.to_dict(), f, indent=2)
+            json.dump(strict_json(self.to_dict()), f, indent=2, allow_nan=False)
             f.write("\n")
 
 
+def strict_json(value):
+    """``value`` with every non-finite float replaced by None, so that it is valid JSON.
+
+    Examples
+    --------
+    >>> strict_json({"a": [1.0, float("nan")], "b": float("inf"), "c": "x"})
+    {'a': [1.0, None], 'b': None, 'c': 'x'}
+    """
+    if isinstance(value, dict):
+        return {k: strict_json(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [strict_json(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return strict_json(value.tolist())
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
 def _node_value(node):
-    """A FileStorage node as a number, an array (matrices, nested sequences) or None."""
+    """A FileStorage node as a number, an array, a string, or a list (ragged or mixed).
+
+    None for empty nodes and maps that are not matrices.
+    """
     if node.isInt() or node.isReal():
         return node.real()
+    if node.isString():
+        return node.string()
     if node.isSeq():
         items = [_node_value(node.at(i)) for i in range(node.size())]
-        if any(v is None for v in items):
-            return None
         try:
             return np.asarray(items, np.float64)
-        except ValueError:  # ragged
-            return None
+        except (ValueError, TypeError):  # ragged, or not numbers: the checks say what
+            return items
     if node.isMap():
         try:
             mat = node.mat()  # an !!opencv-matrix
@@ -303,37 +486,68 @@ def _node_value(node):
 
 
 def _opencv_file(path: Path) -> dict:
-    """Matrices and numbers from an OpenCV FileStorage (YAML/XML) file, by lower-case name."""
+    """Values of an OpenCV FileStorage (YAML/XML) file by lower-case name: (name, value)."""
     import cv2
+
+    from tissue_core.interrupt import is_interrupt
 
     try:
         fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
         opened = fs.isOpened()
-    except (cv2.error, SystemError):
+    except (cv2.error, SystemError) as exc:
+        if is_interrupt(exc):
+            raise KeyboardInterrupt from None
         opened = False
     if not opened:
         raise InputError(f"{path}: not a readable calibration file (OpenCV YAML/XML or JSON)")
     try:
+        root = fs.root()
+        if not root.isMap():
+            raise InputError(
+                f"{path}: not a readable calibration file (OpenCV YAML/XML holding named "
+                "matrices such as M1, D1, R, T)"
+            )
         out = {}
-        for key in fs.root().keys():
+        for key in root.keys():
             value = _node_value(fs.getNode(key))
             if value is not None:
-                out[key.lower()] = value
+                out[key.lower()] = (key, value)
         return out
     except (cv2.error, SystemError) as exc:
-        raise InputError(f"{path}: cannot read the calibration ({exc})") from None
+        if is_interrupt(exc):
+            raise KeyboardInterrupt from None
+        reason = getattr(exc, "err", None) or str(exc)
+        raise InputError(f"{path}: cannot read the calibration ({reason.strip()})") from None
     finally:
         fs.release()
 
 
+#: names under which OpenCV files hold each value (matched ignoring case)
 _ALIASES = {
-    "K_left": ("k_left", "m1", "k1", "cameramatrix1", "camera_matrix_left", "cameramatrixleft"),
-    "dist_left": ("dist_left", "d1", "distcoeffs1", "dist_coeffs_left", "distortion_left"),
-    "K_right": ("k_right", "m2", "k2", "cameramatrix2", "camera_matrix_right", "cameramatrixright"),
-    "dist_right": ("dist_right", "d2", "distcoeffs2", "dist_coeffs_right", "distortion_right"),
-    "R": ("r",),
-    "T": ("t",),
+    "K_left": ("M1", "K_left", "cameraMatrix1", "camera_matrix_left", "cameraMatrixLeft", "K1"),
+    "dist_left": ("D1", "dist_left", "distCoeffs1", "dist_coeffs_left", "distortion_left"),
+    "K_right": ("M2", "K_right", "cameraMatrix2", "camera_matrix_right", "cameraMatrixRight", "K2"),
+    "dist_right": ("D2", "dist_right", "distCoeffs2", "dist_coeffs_right", "distortion_right"),
+    "R": ("R",),
+    "T": ("T",),
 }
+
+
+def _read_json_calibration(path: Path) -> Calibration:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8-sig"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: not a valid calibration JSON ({exc})") from None
+    except RecursionError:
+        raise InputError(f"{path}: not a valid calibration JSON (nested too deeply)") from None
+    if not isinstance(data, dict):
+        raise InputError(
+            f"{path}: a calibration JSON must hold an object, not {type(data).__name__}"
+        )
+    try:
+        return Calibration.from_dict(data)
+    except InputError as exc:
+        raise InputError(f"{path}: {exc}") from None
 
 
 def load_calibration(*paths: str | os.PathLike) -> Calibration:
@@ -344,56 +558,73 @@ def load_calibration(*paths: str | os.PathLike) -> Calibration:
     the usual names (``M1/D1/M2/D2``, ``K1/K2``, ``cameraMatrix1``...,
     ``R``, ``T``), the image size under ``image_size``/``imageSize`` or
     ``image_width``/``image_height``.
+
+    Every value is checked (see :class:`Calibration`).
+
+    Raises
+    ------
+    SourceError
+        A file that is missing, a folder, or empty.
+    InputError
+        A file that is not a calibration, or a value that is not part of a
+        camera model; one line naming the file and the value.
     """
     if not paths:
         raise InputError("no calibration file given")
-    first = Path(paths[0])
+    paths = tuple(Path(p) for p in paths)
     for p in paths:
-        if not Path(p).is_file():
+        if p.is_dir():
+            raise SourceError(f"{p} is a folder, not a calibration file")
+        if not p.is_file():
             raise SourceError(f"calibration file not found: {p}")
-    head = first.read_bytes()[:64].lstrip()
-    if first.suffix.lower() == ".json" or head.startswith(b"{"):
-        try:
-            data = json.loads(first.read_text(encoding="utf-8"))
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-            raise InputError(f"{first}: not a valid calibration JSON ({exc})") from None
-        if not isinstance(data, dict):
-            raise InputError(f"{first}: a calibration JSON must hold an object")
-        try:
-            return Calibration.from_dict(data)
-        except (ValueError, TypeError) as exc:
-            raise InputError(f"{first}: {exc}") from None
-    if len(paths) > 1 and any(Path(p).suffix.lower() == ".json" for p in paths):
-        raise InputError("give one calibration JSON, or OpenCV YAML/XML files")
-    merged: dict = {}
+        if p.stat().st_size == 0:
+            raise SourceError(f"{p} is empty: not a calibration file")
+    first = paths[0]
+
+    def is_json(p: Path) -> bool:
+        with open(p, "rb") as f:
+            head = f.read(64).removeprefix(b"\xef\xbb\xbf").lstrip()
+        return p.suffix.lower() == ".json" or head.startswith(b"{")
+
+    if any(is_json(p) for p in paths):
+        if len(paths) > 1:
+            names = ", ".join(map(str, paths))
+            raise InputError(
+                f"give one calibration JSON, or OpenCV YAML/XML files (intrinsics, "
+                f"extrinsics), not {names}"
+            )
+        return _read_json_calibration(first)
+    merged: dict = {}  # lower-case name -> (file, name in the file, value)
     for p in paths:
-        merged.update(_opencv_file(Path(p)))
-    values = {}
-    for name, aliases in _ALIASES.items():
-        found = next((merged[a] for a in aliases if a in merged), None)
+        for key, (name, value) in _opencv_file(p).items():
+            merged[key] = (p, name, value)
+    values, origin = {}, {}
+    for field_name, aliases in _ALIASES.items():
+        found = next((merged[a.lower()] for a in aliases if a.lower() in merged), None)
         if found is None:
             raise InputError(
-                f"{', '.join(map(str, paths))}: no {name} (looked for {', '.join(aliases)})"
+                f"{', '.join(map(str, paths))}: no {field_name} (looked for {', '.join(aliases)})"
             )
-        values[name] = found
+        origin[field_name] = found[:2]
+        values[field_name] = found[2]
     if "image_size" in merged or "imagesize" in merged:
-        size = np.asarray(merged.get("image_size", merged.get("imagesize"))).ravel()
+        found = merged.get("image_size", merged.get("imagesize"))
+        origin["image_size"] = found[:2]
+        size = found[2]
     elif "image_width" in merged and "image_height" in merged:
-        size = np.array([merged["image_width"], merged["image_height"]])
+        origin["image_size"] = (merged["image_width"][0], "image_width, image_height")
+        size = [merged["image_width"][2], merged["image_height"][2]]
     else:
         raise InputError(
             f"{', '.join(map(str, paths))}: no image size (image_size, or image_width and "
             "image_height); add it to the file"
         )
-    if size.size != 2:
-        raise InputError(f"{first}: image_size must hold width and height, got {size.tolist()}")
     try:
-        calib = Calibration(image_size=(int(size[0]), int(size[1])), **values)
-    except (ValueError, TypeError) as exc:
-        raise InputError(f"{first}: {exc}") from None
-    if not 0 < calib.baseline < 1e9:
-        raise InputError(f"{first}: implausible baseline |T| = {calib.baseline:g}")
-    return calib
+        return Calibration(image_size=size, **values)
+    except CalibrationValueError as exc:
+        path, name = origin.get(exc.field, (first, exc.field))
+        label = exc.field if name == exc.field else f"{name} ({exc.field})"
+        raise InputError(f"{path}: {label}{str(exc)[len(exc.field) :]}") from None
 
 
 def _per_view_rms(obj, img, rvecs, tvecs, K, dist) -> np.ndarray:

@@ -1,0 +1,234 @@
+"""Calibrations are checked when they are made or read: a value that is not part of a camera
+model is refused with one line naming the file and the value, whatever the file holds."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from stereo.calibration import Calibration, CalibrationValueError, load_calibration
+from tests.stereo.conftest import write_opencv_yaml
+from tissue_core.errors import InputError, SourceError
+
+
+@pytest.fixture(scope="module")
+def good() -> dict:
+    """A valid calibration, as :meth:`Calibration.to_dict` writes it."""
+    R, _ = cv2.Rodrigues(np.array([0.01, -0.16, 0.005]))
+    return Calibration(
+        image_size=(1024, 768),
+        K_left=[[1400.0, 0, 520], [0, 1405, 380], [0, 0, 1]],
+        dist_left=[-0.08, 0.05, 0.001, -0.0005, 0.0],
+        K_right=[[1390.0, 0.5, 505], [0, 1392, 390], [0, 0, 1]],
+        dist_right=[-0.07, 0.04, -0.0008, 0.0006, 0.01],
+        R=R,
+        T=[-120.0, 1.0, 8.0],
+        rms_px=0.05,
+    ).to_dict()
+
+
+#: (change, field named, words of the message)
+BAD = [
+    ({"R": [[2.0, 0, 0], [0, 2.0, 0], [0, 0, 2.0]]}, "R", "not a rotation"),
+    ({"R": [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -1.0]]}, "R", "reflection"),
+    ({"R": [[1.0, 1e-4, 0], [0, 1.0, 0], [0, 0, 1.0]]}, "R", "not a rotation"),
+    ({"R": [[1e300, 0, 0], [0, 1e300, 0], [0, 0, 1e300]]}, "R", "not a rotation"),
+    ({"K_left": [[-1400.0, 0, 520], [0, 1405, 380], [0, 0, 1]]}, "K_left", "focal"),
+    ({"K_right": [[1390.0, 0, 505], [0, 0.0, 390], [0, 0, 1]]}, "K_right", "focal"),
+    ({"K_left": [[1400.0, 0, 520], [0, 1405, 380], [0, 0, 2]]}, "K_left", "camera matrix"),
+    ({"K_left": [[1400.0, 0, float("nan")], [0, 1405, 380], [0, 0, 1]]}, "K_left", "finite"),
+    ({"K_left": [[1400.0, 0, 520], [0, 1405, 380]]}, "K_left", "3 x 3"),
+    ({"K_left": [["1400", 0, 520], [0, 1405, 380], [0, 0, 1]]}, "K_left", "numbers"),
+    ({"K_left": [[True, 0, 520], [0, 1405, 380], [0, 0, 1]]}, "K_left", "numbers"),
+    ({"K_left": [[10**400, 0, 520], [0, 1405, 380], [0, 0, 1]]}, "K_left", "finite"),
+    ({"dist_left": [0.1, 0.0, 0.0, 0.0, 0.0, 0.0]}, "dist_left", "got 6"),
+    ({"dist_right": [0.1, 0.0, 0.0]}, "dist_right", "got 3"),
+    ({"dist_right": [0.1, 0.0, float("inf"), 0.0, 0.0]}, "dist_right", "finite"),
+    ({"dist_left": "none"}, "dist_left", "numbers"),
+    ({"image_size": [1024.5, 768]}, "image_size", "whole pixels"),
+    ({"image_size": [0, 768]}, "image_size", "whole pixels"),
+    ({"image_size": [float("inf"), 768]}, "image_size", "whole pixels"),
+    ({"image_size": [float("nan"), 768]}, "image_size", "whole pixels"),
+    ({"image_size": [1024, 768, 3]}, "image_size", "whole pixels"),
+    ({"image_size": ["1024", "768"]}, "image_size", "numbers"),
+    ({"T": [0.0, 0.0, 0.0]}, "T", "baseline"),
+    ({"T": [float("nan"), 0.0, 0.0]}, "T", "finite"),
+    ({"T": [1e300, 1e300, 0.0]}, "T", "baseline"),
+    ({"T": [1.0, 2.0]}, "T", "3 numbers"),
+    ({"rms_px": "small"}, "rms_px", "number"),
+    ({"rms_px": -1.0}, "rms_px", "number"),
+    ({"unit": 5}, "unit", "name"),
+    ({"unit": ""}, "unit", "name"),
+]
+
+
+@pytest.mark.parametrize(("change", "field", "words"), BAD, ids=[f"{b[1]}-{i}" for i, b in
+                                                                 enumerate(BAD)])  # fmt: skip
+def test_a_value_that_is_no_camera_model_is_refused_naming_the_file_and_field(
+    good, tmp_path, change, field, words
+):
+    path = tmp_path / "calib.json"
+    path.write_text(json.dumps({**good, **change}))
+    with pytest.raises(InputError) as info:
+        load_calibration(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {field} "), message
+    assert words in message and "\n" not in message
+
+
+def test_the_constructor_checks_too(good):
+    values = {k: good[k] for k in ("image_size", "K_left", "dist_left", "K_right", "dist_right")}
+    with pytest.raises(CalibrationValueError, match="not a rotation") as info:
+        Calibration(**values, R=2 * np.eye(3), T=good["T"])
+    assert info.value.field == "R"
+
+
+def test_a_rotation_to_a_millionth_is_accepted(good, tmp_path):
+    R = np.asarray(good["R"]) + 2e-7  # as printed with 6 to 7 significant digits
+    path = tmp_path / "calib.json"
+    path.write_text(json.dumps({**good, "R": R.tolist()}))
+    assert load_calibration(path).R == pytest.approx(R)
+
+
+def test_a_missing_value_is_named(good, tmp_path):
+    path = tmp_path / "calib.json"
+    path.write_text(json.dumps({k: v for k, v in good.items() if k != "T"}))
+    with pytest.raises(InputError, match=r"calib.json: T is missing"):
+        load_calibration(path)
+
+
+def test_opencv_files_name_the_file_and_the_name_the_value_has_there(good, tmp_path):
+    path = tmp_path / "stereo.yml"
+    write_opencv_yaml(path, {**good, "K_right": [[-1390.0, 0, 505], [0, 1392, 390], [0, 0, 1]]})
+    with pytest.raises(InputError, match=r"stereo.yml: M2 \(K_right\) must have positive focal"):
+        load_calibration(path)
+    # the pair of files of OpenCV's stereo sample: the error names the one holding R
+    intrinsics, extrinsics = tmp_path / "intrinsics.yml", tmp_path / "extrinsics.yml"
+    fs = cv2.FileStorage(str(intrinsics), cv2.FILE_STORAGE_WRITE)
+    for key, name in (("K_left", "M1"), ("dist_left", "D1"), ("K_right", "M2"),
+                      ("dist_right", "D2")):  # fmt: skip
+        fs.write(name, np.asarray(good[key]))
+    fs.write("image_width", 1024)
+    fs.write("image_height", 768)
+    fs.release()
+    fs = cv2.FileStorage(str(extrinsics), cv2.FILE_STORAGE_WRITE)
+    fs.write("R", 2 * np.eye(3))
+    fs.write("T", np.asarray(good["T"]))
+    fs.release()
+    with pytest.raises(InputError, match=r"extrinsics.yml: R is not a rotation"):
+        load_calibration(intrinsics, extrinsics)
+
+
+@pytest.mark.parametrize("size", [[float("inf"), 768], [1024, float("nan")], [1024.5, 768]])
+def test_opencv_image_size_must_be_whole_pixels(good, tmp_path, size):
+    path = tmp_path / "stereo.yml"
+    write_opencv_yaml(path, {**good, "image_size": size})
+    with pytest.raises(InputError, match=r"stereo.yml: image_size must be \[width, height\]"):
+        load_calibration(path)
+
+
+def test_json_and_opencv_files_are_not_mixed(good, tmp_path):
+    js, yml = tmp_path / "calib.json", tmp_path / "stereo.yml"
+    js.write_text(json.dumps(good))
+    write_opencv_yaml(yml, good)
+    for paths in ((js, yml), (yml, js)):
+        with pytest.raises(InputError, match="give one calibration JSON"):
+            load_calibration(*paths)
+
+
+@pytest.mark.parametrize("content", [b"", None])
+def test_empty_files_and_folders_are_named(tmp_path, content):
+    path = tmp_path / "calib.json"
+    if content is None:
+        path.mkdir()
+    else:
+        path.write_bytes(content)
+    with pytest.raises(SourceError, match="is a folder" if content is None else "is empty"):
+        load_calibration(path)
+
+
+def test_a_bom_and_nan_in_extra_values_are_read_and_saved_as_strict_json(good, tmp_path):
+    path = tmp_path / "calib.json"
+    text = json.dumps({**good, "views": [{"image": "a.png", "rms_left_px": float("nan")}]})
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    calib = load_calibration(path)
+    out = tmp_path / "again.json"
+    calib.save(out)
+    strict = json.loads(out.read_text(), parse_constant=pytest.fail)
+    assert strict["views"][0]["rms_left_px"] is None
+
+
+# --------------------------------------------------------------------------- property tests
+
+#: any JSON value
+json_values = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner),
+    max_leaves=20,
+)
+_PROPERTY = settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+
+
+def _loads_or_refuses(path) -> None:
+    try:
+        calib = load_calibration(path)
+    except (InputError, SourceError) as exc:
+        assert str(exc) and "\n" not in str(exc).strip()
+        return
+    assert isinstance(calib, Calibration)
+    assert np.isfinite(calib.K_left).all() and calib.baseline > 0
+
+
+@_PROPERTY
+@given(value=json_values)
+def test_any_json_value_loads_or_is_refused_in_one_line(tmp_path, value):
+    path = tmp_path / "calib.json"
+    path.write_text(json.dumps(value))
+    _loads_or_refuses(path)
+
+
+@_PROPERTY
+@given(key=st.sampled_from(["image_size", "K_left", "dist_left", "K_right", "dist_right", "R",
+                            "T", "rms_px", "unit"]), value=json_values)  # fmt: skip
+def test_any_value_of_one_field_loads_or_is_refused_in_one_line(good, tmp_path, key, value):
+    path = tmp_path / "calib.json"
+    path.write_text(json.dumps({**good, key: value}))
+    _loads_or_refuses(path)
+
+
+@_PROPERTY
+@given(
+    suffix=st.sampled_from([".json", ".yml", ".xml", ""]),
+    text=st.text(st.characters(blacklist_categories=["Cs"]), max_size=200),
+)
+def test_any_text_loads_or_is_refused_in_one_line(tmp_path, suffix, text):
+    path = tmp_path / f"calib{suffix}"
+    path.write_text(text, encoding="utf-8")
+    _loads_or_refuses(path)
+
+
+@_PROPERTY
+@given(suffix=st.sampled_from([".json", ".yml", ".xml", ".yaml"]), data=st.binary(max_size=200))
+def test_any_bytes_load_or_are_refused_in_one_line(tmp_path, suffix, data):
+    path = tmp_path / f"calib{suffix}"
+    path.write_bytes(data)
+    _loads_or_refuses(path)
+
+
+@_PROPERTY
+@given(cut=st.integers(0, 2000), suffix=st.sampled_from([".json", ".yml"]))
+def test_a_calibration_cut_anywhere_loads_or_is_refused_in_one_line(good, tmp_path, cut, suffix):
+    whole = tmp_path / f"whole{suffix}"
+    if suffix == ".json":
+        whole.write_text(json.dumps(good, indent=2))
+    else:
+        write_opencv_yaml(whole, good)
+    data = whole.read_bytes()
+    path = tmp_path / f"calib{suffix}"
+    path.write_bytes(data[: cut % (len(data) + 1)])
+    _loads_or_refuses(path)
