@@ -6,8 +6,9 @@ change, which a frame-to-frame tracker cannot bridge directly.  So
 
 1. estimates a homography from the left to the right image from SIFT
    features (Lowe 2004) matched with the ratio test and, when a calibration
-   is given, kept only if they satisfy the epipolar constraint; RANSAC
-   (MAGSAC++) fits it;
+   is given, kept only within :data:`FEATURE_EPIPOLAR_FACTOR` times
+   ``max_epipolar_px`` of their epipolar line (keypoints are located less
+   precisely than correlated subsets); RANSAC (MAGSAC++) fits it;
 2. warps the right image onto the left one with that homography (cubic
    interpolation), which removes the disparity and most of the perspective
    difference;
@@ -38,9 +39,19 @@ import numpy as np
 
 from strain2d.errors import InputError
 
-__all__ = ["Matches", "epipolar_distance", "estimate_homography", "match_views"]
+__all__ = [
+    "FEATURE_EPIPOLAR_FACTOR",
+    "Matches",
+    "epipolar_distance",
+    "estimate_homography",
+    "match_views",
+]
 
 log = logging.getLogger(__name__)
+
+#: the feature matches that relate the views are kept within this many times the
+#: epipolar tolerance of the final matches (SIFT keypoints are located to about a pixel)
+FEATURE_EPIPOLAR_FACTOR = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +153,13 @@ def estimate_homography(
     pb = np.float64([kb[m.trainIdx].pt for m in good]).reshape(-1, 2)
     if calib is not None and len(pa):
         keep = epipolar_distance(pa, pb, calib) <= max_epipolar_px
+        if keep.sum() < 8 <= len(pa):
+            raise InputError(
+                f"only {int(keep.sum())} of {len(pa)} feature matches between the views lie "
+                f"within {max_epipolar_px:g} px of their epipolar lines: check that the "
+                "calibration is of these cameras as they were set up (or allow more with "
+                "--max-epipolar)"
+            )
         pa, pb = pa[keep], pb[keep]
     if len(pa) < 8:
         raise InputError(
@@ -184,7 +202,8 @@ def match_views(
         The ``dic`` correlation (see :func:`strain2d.trackers.dic.track_dic`).
     max_epipolar_px : float
         With a calibration, matches further from their epipolar line are
-        not visible.
+        not visible, and the feature matches that relate the views are kept
+        within :data:`FEATURE_EPIPOLAR_FACTOR` times this.
     homography : (3, 3), optional
         A left-to-right homography to start from instead of the SIFT one.
 
@@ -221,13 +240,24 @@ def match_views(
         raise InputError(f"the matching subset must be an odd number >= 7, got {subset}")
     if not (np.isfinite(max_epipolar_px) and max_epipolar_px > 0):
         raise InputError(f"the epipolar tolerance must be a positive number, got {max_epipolar_px}")
+    if calib is not None and tuple(calib.image_size) != (a.shape[1], a.shape[0]):
+        w, h = calib.image_size
+        raise InputError(
+            f"the calibration is for {w}x{h} images, the views are {a.shape[1]}x{a.shape[0]}"
+        )
     info: dict = {}
     if homography is None:
         mask = np.zeros(a.shape, np.uint8)
         lo = np.floor(points.min(axis=0) - 3 * subset).astype(int).clip(0)
         hi = np.ceil(points.max(axis=0) + 3 * subset).astype(int)
         mask[lo[1] : hi[1], lo[0] : hi[0]] = 255
-        H, info = estimate_homography(a, b, calib=calib, mask=mask)
+        H, info = estimate_homography(
+            a,
+            b,
+            calib=calib,
+            mask=mask,
+            max_epipolar_px=FEATURE_EPIPOLAR_FACTOR * max_epipolar_px,
+        )
     else:
         H = np.asarray(homography, np.float64)
     warped = cv2.warpPerspective(
@@ -262,6 +292,9 @@ def match_views(
             "shape_function": shape_function,
             "zncc_min": zncc_min,
             "max_epipolar_px": max_epipolar_px if calib is not None else None,
+            "feature_max_epipolar_px": (
+                FEATURE_EPIPOLAR_FACTOR * max_epipolar_px if calib is not None else None
+            ),
             "homography": H.tolist(),
         }
     )
