@@ -344,3 +344,10 @@ def main(argv: list[str] | None = None) -> int:
 
     # the renderers check their own arguments with ValueError
     return run_command("sample_data_synth", _build_parser(), argv, errors=(ValueError,))
+
+
+def entry() -> None:
+    """The console script ``sample-data-synth``: like ``python -m sample_data_synth``."""
+    from tissue_core.cli import run_module
+
+    run_module(__name__)

@@ -628,3 +628,10 @@ def main(argv: list[str] | None = None) -> int:
     from tissue_core.cli import run_command
 
     return run_command("strain2d", _build_parser(), argv)
+
+
+def entry() -> None:
+    """The console script ``strain2d``: like ``python -m strain2d``."""
+    from tissue_core.cli import run_module
+
+    run_module(__name__)

@@ -95,7 +95,10 @@ def assert_refused(
     argv = [str(a) for a in argv]
     watched = [*inputs, *([out] if out is not None else [])]
     before = snapshot(*watched)
-    status = main(argv)
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse's own usage errors
+        status = exc.code
     captured = capsys.readouterr()
     err = captured.err
     assert "Traceback" not in err, err

@@ -114,18 +114,26 @@ def run_command(
 
 
 def run_module(cli_module: str) -> None:
-    """``python -m PACKAGE``: import ``cli_module`` and exit with its ``main()``'s status.
+    """``python -m PACKAGE`` and the console scripts: run ``cli_module.main()`` and exit.
 
     Ctrl-C during the imports ends with exit status 130 and no traceback, as
     it does later.
     """
     import importlib
+    import os
 
     try:
-        main = importlib.import_module(cli_module).main
-    except KeyboardInterrupt:
-        sys.exit(_interrupted(cli_module.split(".")[0]))
-    sys.exit(main())
+        status = importlib.import_module(cli_module).main()
+    except KeyboardInterrupt:  # while importing, or building the parser
+        status = _interrupted(cli_module.split(".")[0])
+    if status == 130:
+        # When Ctrl-C lands in code run by exec() (SciPy's imports do that), CPython
+        # marks the interrupt as unhandled and, at exit, kills itself with SIGINT even
+        # though it was handled: leave at once with the status the contract promises.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(130)
+    sys.exit(status)
 
 
 def _interrupted(prefix: str) -> int:
