@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
+import warnings
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -81,7 +81,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--projection",
         choices=["plane", "sphere", "cylinder"],
-        default="plane",
+        default=None,
         help="Delaunay meshing of scattered points: in their best-fit plane (default), or "
         "on the best-fit sphere or cylinder for caps and tubes too curved for one plane",
     )
@@ -114,6 +114,13 @@ def mesh_for(
     from surface_strain.mesh import delaunay_triangles, grid_triangles
 
     n = points.shape[1]
+    given = [flag for flag, value in (("--triangles", args.triangles), ("--grid", args.grid),
+             ("--projection", getattr(args, "projection", None))) if value]  # fmt: skip
+    if len(given) > 1:
+        raise UsageError(
+            f"{' and '.join(given)} each choose the mesh: give one of them "
+            "(--projection applies to the Delaunay mesh of scattered points)"
+        )
     if args.triangles:
         return read_triangles(args.triangles, n), f"given ({Path(args.triangles).name})"
     grid = None
@@ -123,7 +130,7 @@ def mesh_for(
         except ValueError:
             raise UsageError(f"--grid must be COLSxROWS, got {args.grid!r}") from None
         grid = (cols, rows)
-    else:
+    elif not getattr(args, "projection", None):  # an explicit --projection asks for Delaunay
         info = summary.get("points") if isinstance(summary, dict) else None
         given = info.get("grid") if isinstance(info, dict) else None
         if isinstance(given, list) and len(given) == 2:
@@ -142,7 +149,7 @@ def mesh_for(
     ok = visible[0]
     if ok.sum() < 3:
         raise UsageError("fewer than 3 points are visible on the reference frame")
-    projection = getattr(args, "projection", "plane")
+    projection = getattr(args, "projection", None) or "plane"
     try:
         tri_ok = delaunay_triangles(ref[ok], projection=projection)
     except ValueError as exc:
@@ -179,6 +186,15 @@ def write_strain_folder(
     triangles = np.asarray(triangles)[~lost[np.asarray(triangles)].any(axis=1)]
     if len(triangles) == 0:
         raise UsageError("no triangle has all three points visible on the reference frame")
+    if lost.any():
+        index = np.flatnonzero(lost)
+        named = ", ".join(str(i) for i in index[:5]) + (" ..." if index.size > 5 else "")
+        warnings.warn(
+            f"{index.size} of {lost.size} points are lost (not visible, or NaN) on the "
+            f"reference frame and are left out of the mesh: point(s) {named}",
+            UserWarning,
+            stacklevel=2,
+        )
     reference = points[0].copy()
     if lost.any():
         reference[lost] = reference[~lost].mean(axis=0)
@@ -234,12 +250,15 @@ def _cmd_compute(args) -> int:
     from surface_strain.field import nodal_scalars
     from surface_strain.io import read_points3d
     from tissue_core.outputs import atomic_dir, check_writable
+    from tissue_core.progress import Progress
 
     check_writable(args.out, overwrite=args.overwrite, inputs=[args.points])
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
         raise UsageError(f"--fps must be a positive number, got {args.fps}")
     parse_directions(args.directions)  # fail before the work
+    say = Progress(quiet=args.quiet)
     points, visible = read_points3d(args.points)
+    say(f"{args.points}: {points.shape[1]} points over {points.shape[0]} frames")
     summary_in = _stereo_summary(Path(args.points))
     unit = args.unit or summary_in.get("unit") or "mm"
     triangles, how = mesh_for(points, visible, args, summary_in)
@@ -256,14 +275,13 @@ def _cmd_compute(args) -> int:
             figures=not args.no_figures,
             source=Path(args.points).name,
         )
-    if not args.quiet:
-        e1 = nodal_scalars(field)["E1"][-1]
-        print(
-            f"{field.n_points} points, {field.n_triangles} triangles ({how}), "
-            f"{field.n_frames} frames; last frame E1 mean {np.nanmean(e1):.4f}; "
-            f"results in {args.out}",
-            file=sys.stderr,
-        )
+    e1 = nodal_scalars(field)["E1"][-1]
+    e1_mean = f"{np.nanmean(e1):.4f}" if np.isfinite(e1).any() else "- (no valid node)"
+    say(
+        f"{field.n_points} points, {field.n_triangles} triangles ({how}), "
+        f"{field.n_frames} frames; last frame E1 mean {e1_mean}"
+    )
+    say(f"results in {args.out}")
     return 0
 
 
@@ -273,3 +291,10 @@ def main(argv: list[str] | None = None) -> int:
     from tissue_core.cli import run_command
 
     return run_command("surface_strain", _build_parser(), argv, errors=(UsageError, PointsError))
+
+
+def entry() -> None:
+    """The console script ``surface-strain``: like ``python -m surface_strain``."""
+    from tissue_core.cli import run_module
+
+    run_module(__name__)

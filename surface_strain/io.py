@@ -75,12 +75,19 @@ def read_points3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
                 if frame < 0 or point < 0:
                     raise PointsError(f"{path}, line {line}: negative frame or point index")
                 rows.append((frame, point, *xyz, vis))
-    except UnicodeDecodeError:
-        raise PointsError(f"{path}: not a text CSV file") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise PointsError(f"{path}: not a text CSV file ({exc})") from None
     if not rows:
         raise PointsError(f"{path}: no rows")
     data = np.array([r[:5] for r in rows], np.float64)
     vis = np.array([r[5] for r in rows], bool)
+    infinite = np.flatnonzero(np.isinf(data[:, 2:5]).any(axis=1))
+    if infinite.size:
+        frame, point = (int(v) for v in data[infinite[0], :2])
+        raise PointsError(
+            f"{path}: point {point} on frame {frame} has an infinite coordinate "
+            "(write lost points as NaN, or empty, with visible = 0)"
+        )
     T, N = int(data[:, 0].max()) + 1, int(data[:, 1].max()) + 1
     if len(rows) != T * N:
         raise PointsError(
@@ -108,18 +115,23 @@ def read_triangles(path: str | os.PathLike, n_points: int) -> np.ndarray:
     if not path.is_file():
         raise PointsError(f"triangles file not found: {path}")
     out = []
-    with open(path, newline="", encoding="utf-8-sig") as f:
-        for line, row in enumerate(csv.reader(f), start=1):
-            if not row or all(not c.strip() for c in row):
-                continue
-            try:
-                if len(row) < 3:
-                    raise ValueError
-                out.append([int(c) for c in row[:3]])
-            except ValueError:
-                if line == 1:
-                    continue  # the header
-                raise PointsError(f"{path}, line {line}: not three point indices: {row}") from None
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            for line, row in enumerate(csv.reader(f), start=1):
+                if not row or all(not c.strip() for c in row):
+                    continue
+                try:
+                    if len(row) < 3:
+                        raise ValueError
+                    out.append([int(c) for c in row[:3]])
+                except ValueError:
+                    if line == 1:
+                        continue  # the header
+                    raise PointsError(
+                        f"{path}, line {line}: not three point indices: {row}"
+                    ) from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise PointsError(f"{path}: not a text CSV file of triangles ({exc})") from None
     tri = np.asarray(out, np.int64).reshape(-1, 3)
     if len(tri) == 0:
         raise PointsError(f"{path}: no triangles")

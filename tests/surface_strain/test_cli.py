@@ -12,6 +12,7 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
 from surface_strain.cli import main
+from tests.badinput import message_lines
 from tests.tolerances import EXACT
 
 
@@ -131,7 +132,8 @@ def test_rigid_motion_of_a_curved_sheet_gives_zero_strain_and_stereo_layout_work
 
 
 def one_line(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
+    """The one error line, after any timestamped progress lines."""
+    err = message_lines(capsys.readouterr().err)
     assert len(err) == 1 and "error" in err[0], err
     return err[0]
 

@@ -1,0 +1,178 @@
+"""Bad input for ``surface_strain compute``: exit 2, one line naming the file, nothing touched.
+
+See tests/badinput.py for the contract and the families.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from surface_strain.cli import main
+from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id
+from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
+
+PROG = "surface_strain"
+
+
+def _set_column(row: str, k: int, value: str) -> str:
+    cells = row.split(",")
+    cells[k] = value
+    return ",".join(cells)
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("bad_points")
+    c = SimpleNamespace(dir=d)
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    c.points = d / "points3d.csv"
+    _write(c.points, points)
+    good = c.points.read_text()
+    header, *rows = good.splitlines()
+    broken = {
+        "empty": "",
+        "header_only": header + "\n",
+        "no_xyz": "frame,point,X,Y\n0,0,1,2\n",
+        "text": good.replace(rows[3], rows[3].replace(rows[3].split(",")[2], "left", 1), 1),
+        "infinite": good.replace(rows[3], rows[3].replace(rows[3].split(",")[2], "inf", 1), 1),
+        "missing_row": "\n".join([header, *rows[:-1]]) + "\n",
+        "duplicate_row": "\n".join([header, *rows, rows[5]]) + "\n",
+        "negative_index": "\n".join([header, "-1" + rows[0][1:], *rows[1:]]) + "\n",
+        "bom_text": "\ufeff" + good.replace(rows[2], _set_column(rows[2], 3, "y"), 1),
+        "truncated": good[: len(good) // 2].rsplit(",", 2)[0] + "\n",
+        "all_lost": "\n".join([header] + [",".join([*r.split(",")[:-1], "0"]) for r in rows])
+        + "\n",
+    }
+    for name, text in broken.items():
+        (d / f"points_{name}.csv").write_text(text)
+    (d / "points_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
+    (d / "points.xlsx").write_bytes(b"PK\x03\x04")
+    tri = {"outside": "p0,p1,p2\n0,1,99\n", "repeat": "p0,p1,p2\n0,1,1\n",
+           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n"}  # fmt: skip
+    for name, text in tri.items():
+        (d / f"tri_{name}.csv").write_text(text)
+    (d / "tri_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
+    c.mine = d / "thesis"
+    c.mine.mkdir()
+    (c.mine / "notes.txt").write_text("mine")
+    return c
+
+
+def _compute(c, *extra, points=None):
+    return ["compute", points or c.points, *extra]
+
+
+CASES = [
+    ("compute-missing-points", lambda c, o: _compute(c, "--out", o, points=c.dir / "no.csv"),
+     ["no.csv", "not found"]),
+    ("compute-missing-triangles", lambda c, o: _compute(c, "--triangles", c.dir / "no.csv",
+     "--out", o), ["no.csv"]),
+    ("compute-empty-file", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_empty.csv"), ["points_empty.csv", "empty"]),
+    ("compute-empty-header-only", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_header_only.csv"), ["points_header_only.csv", "no rows"]),
+    ("compute-empty-triangles", lambda c, o: _compute(c, "--triangles", c.dir / "tri_empty.csv",
+     "--out", o), ["tri_empty.csv", "no triangles"]),
+    ("compute-empty-all-lost", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_all_lost.csv"), ["points_all_lost.csv", "reference frame"]),
+    ("compute-truncated-rows", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_truncated.csv"), ["points_truncated.csv"]),
+    ("compute-truncated-missing-row", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_missing_row.csv"), ["points_missing_row.csv", "one row for each"]),
+    ("compute-wrong-type-binary", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_binary.csv"), ["points_binary.csv"]),
+    ("compute-wrong-type-xlsx", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points.xlsx"), ["points.xlsx"]),
+    ("compute-wrong-type-folder", lambda c, o: _compute(c, "--out", o, points=c.dir),
+     ["not found"]),
+    ("compute-wrong-type-binary-triangles", lambda c, o: _compute(c, "--triangles",
+     c.dir / "tri_binary.csv", "--out", o), ["tri_binary.csv"]),
+    *[(f"compute-csv-{name}", (lambda n: lambda c, o: _compute(
+        c, "--out", o, points=c.dir / f"points_{n}.csv"))(name), [f"points_{name}.csv", fragment])
+      for name, fragment in [("no_xyz", "missing column"), ("text", "not a number"),
+                             ("infinite", "infinite"), ("duplicate_row", "row"),
+                             ("negative_index", "negative"), ("bom_text", "not a number")]],
+    *[(f"compute-csv-triangles-{name}", (lambda n: lambda c, o: _compute(
+        c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv"])
+      for name in ("outside", "repeat", "text", "two_columns")],
+    ("compute-option-fps-zero", lambda c, o: _compute(c, "--fps", "0", "--out", o), ["--fps"]),
+    ("compute-option-fps-inf", lambda c, o: _compute(c, "--fps", "inf", "--out", o), ["--fps"]),
+    ("compute-option-grid-1x25", lambda c, o: _compute(c, "--grid", "1x25", "--out", o),
+     ["2 x 2"]),
+    ("compute-option-grid-wrong-count", lambda c, o: _compute(c, "--grid", "4x4", "--out", o),
+     ["4x4 grid has 16 points"]),
+    ("compute-option-grid-text", lambda c, o: _compute(c, "--grid", "five", "--out", o),
+     ["--grid"]),
+    ("compute-option-directions-cone", lambda c, o: _compute(c, "--directions", "cone:1,2",
+     "--out", o), ["--directions"]),
+    ("compute-option-directions-nan", lambda c, o: _compute(c, "--directions",
+     "vectors:nan,0,0:0,1,0", "--out", o), ["finite"]),
+    ("compute-option-directions-parallel", lambda c, o: _compute(c, "--directions",
+     "vectors:0,0,1:0,0,2", "--grid", "5x5", "--out", o), []),
+    ("compute-option-projection", lambda c, o: _compute(c, "--projection", "torus", "--out", o),
+     ["--projection"]),
+    ("compute-conflict-triangles-and-grid", lambda c, o: _compute(c, "--triangles",
+     c.dir / "tri_outside.csv", "--grid", "5x5", "--out", o), ["--triangles and --grid"]),
+    ("compute-conflict-grid-and-projection", lambda c, o: _compute(c, "--grid", "5x5",
+     "--projection", "sphere", "--out", o), ["--grid and --projection"]),
+    ("compute-output-is-the-input", lambda c, o: _compute(c, "--out", c.points, "--overwrite"),
+     ["would replace the input"]),
+    ("compute-output-inside-input-folder", lambda c, o: _compute(c, "--out", c.dir / "run",
+     points=c.dir), ["inside the input folder"]),
+    ("compute-output-users-folder", lambda c, o: _compute(c, "--out", c.mine), ["thesis"]),
+    ("compute-output-users-folder-overwrite", lambda c, o: _compute(c, "--out", c.mine,
+     "--overwrite"), ["thesis", "not a result"]),
+    ("compute-output-missing-parent", lambda c, o: _compute(c, "--out", c.dir / "no" / "run"),
+     ["does not exist"]),
+    ("compute-output-working-directory", lambda c, o: _compute(c, "--out", ".", "--overwrite"),
+     ["working directory"]),
+]
+
+
+@pytest.mark.parametrize(("case", "build", "fragments"), CASES, ids=[c[0] for c in CASES])
+def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
+    monkeypatch.chdir(inputs.dir)
+    out = tmp_path / "out"
+    argv = [str(a) for a in build(inputs, out)]
+    argv.insert(1, "-q")
+    assert_refused(main, argv, capsys, prog=PROG, fragments=fragments, inputs=[inputs.dir],
+                   out=out)  # fmt: skip
+    assert not out.exists()
+
+
+def test_bad_input_cases_name_their_command_and_family():
+    for case, *_ in CASES:
+        command, _family, name = parse_case_id(case)
+        assert command == "compute" and name, case
+    assert len({c[0] for c in CASES}) == len(CASES)
+
+
+def test_points_lost_on_the_reference_frame_are_named(inputs, tmp_path, capsys):
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    visible = np.ones(points.shape[:2], bool)
+    visible[0, [3, 7]] = False
+    points[0, 12] = np.nan
+    src = tmp_path / "p.csv"
+    _write(src, points, visible)
+    assert main(["compute", str(src), "--grid", "5x5", "--no-figures", "--out",
+                 str(tmp_path / "o")]) == 0  # fmt: skip
+    lines = message_lines(capsys.readouterr().err)
+    assert lines == [
+        "surface_strain compute: warning: 3 of 25 points are lost (not visible, or NaN) on the "
+        "reference frame and are left out of the mesh: point(s) 3, 7, 12"
+    ]
+
+
+@pytest.mark.parametrize("after", [0.3, 1.0, 2.5], ids=lambda s: f"compute-interrupt-{s}s")
+def test_interrupt(tmp_path, after):
+    points, *_ = _tilted_sheet_tracks(n=40, frames=40)
+    src = tmp_path / "p.csv"
+    _write(src, points)
+    out = tmp_path / "run"
+    status, err = interrupt(["-m", "surface_strain", "compute", src, "--out", out], after=after,
+                            out=out, inputs=[src])  # fmt: skip
+    if status == 130:  # before the command is parsed the line names the program only
+        assert message_lines(err)[-1].startswith("surface_strain")
