@@ -1,0 +1,103 @@
+"""Bad options for every sample_data_synth command: exit 2, one line, nothing written.
+
+See tests/badinput.py for the contract and the families.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from sample_data_synth.cli import main
+from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id
+
+PROG = "sample_data_synth"
+
+CASES = [
+    # ---- video
+    ("video-option-unknown-case", ["video", "--case", "bend"], ["bend"]),
+    ("video-option-size-small", ["video", "--size", "10"], ["--size"]),
+    ("video-option-size-text", ["video", "--size", "big"], ["--size"]),
+    ("video-option-frames-one", ["video", "--frames", "1"], ["--frames"]),
+    ("video-option-formats", ["video", "--formats", "avi,gif"], ["--formats"]),
+    ("video-option-formats-empty", ["video", "--formats", ","], ["--formats"]),
+    ("video-option-read-noise-negative", ["video", "--read-noise=-1"], ["--read-noise"]),
+    ("video-option-read-noise-nan", ["video", "--read-noise", "nan"], ["--read-noise"]),
+    ("video-option-shot-gain-inf", ["video", "--shot-gain", "inf"], ["--shot-gain"]),
+    ("video-option-seed-negative", ["video", "--seed=-1"], ["--seed"]),
+    # ---- stack
+    ("stack-option-unknown-case", ["stack", "--case", "during"], ["during"]),
+    ("stack-option-spacing-two", ["stack", "--spacing", "4,5"], ["--spacing"]),
+    ("stack-option-spacing-zero", ["stack", "--spacing", "0,5,5"], ["--spacing"]),
+    ("stack-option-spacing-nan", ["stack", "--spacing", "nan,5,5"], ["--spacing"]),
+    ("stack-option-format", ["stack", "--format", "zarr"], ["--format"]),
+    ("stack-option-size-small", ["stack", "--size", "8"], ["--size"]),
+    ("stack-option-slices-one", ["stack", "--slices", "1"], ["--slices"]),
+    ("stack-option-seed-negative", ["stack", "--seed=-3"], ["--seed"]),
+    # ---- stereo
+    ("stereo-option-unknown-case", ["stereo", "--case", "sphere"], ["sphere"]),
+    ("stereo-option-board", ["stereo", "--board", "chess:9x6:10"], ["chess"]),
+    ("stereo-option-board-squares", ["stereo", "--board", "checkerboard:1x6:10"], []),
+    ("stereo-option-views-zero", ["stereo", "--views", "0"], ["--views"]),
+    ("stereo-option-frames-one", ["stereo", "--frames", "1"], ["--frames"]),
+    ("stereo-option-size", ["stereo", "--size", "1024"], ["--size"]),
+    ("stereo-option-size-small", ["stereo", "--size", "32x32"], ["--size"]),
+    ("stereo-option-noise-negative", ["stereo", "--noise=-2"], ["--noise"]),
+    # ---- study
+    ("study-option-texture", ["study", "--texture", "wood"], ["--texture"]),
+    ("study-option-per-group-zero", ["study", "--per-group", "0"], ["--per-group"]),
+    ("study-option-frames-two", ["study", "--frames", "2"], ["--frames"]),
+    ("study-option-heterogeneity", ["study", "--heterogeneity", "1"], ["--heterogeneity"]),
+    ("study-option-heterogeneity-nan", ["study", "--heterogeneity", "nan"], ["--heterogeneity"]),
+    ("study-option-size-small", ["study", "--size", "32"], ["--size"]),
+]
+
+OUTPUT_CASES = [
+    (f"{command}-output-{name}", [command, *extra], fragments)
+    for command in ("video", "stack", "stereo", "study")
+    for name, extra, fragments in (
+        ("users-folder", ["@mine"], ["thesis", "not a result"]),
+        ("users-folder-overwrite", ["@mine", "--overwrite"], ["thesis", "not a result"]),
+        ("working-directory", ["@cwd", "--overwrite"], ["working directory"]),
+        ("missing-parent", ["@nowhere"], ["does not exist"]),
+    )
+]
+
+ALL = CASES + OUTPUT_CASES
+
+
+@pytest.mark.parametrize(("case", "argv", "fragments"), ALL, ids=[c[0] for c in ALL])
+def test_bad_input(tmp_path, capsys, monkeypatch, case, argv, fragments):
+    mine = tmp_path / "thesis"
+    mine.mkdir()
+    (mine / "chapter.tex").write_text("years of work")
+    here = tmp_path / "here"
+    here.mkdir()
+    (here / "data.csv").write_text("x,y\n")
+    monkeypatch.chdir(here)
+    out = tmp_path / "out"
+    where = {"@mine": mine, "@cwd": ".", "@nowhere": tmp_path / "no" / "out"}
+    target = next((where[a] for a in argv if a in where), out)
+    args = [a for a in argv if a not in where]
+    full = [args[0], "-q", *args[1:], "--out", str(target)]
+    assert_refused(main, full, capsys, prog=PROG, fragments=fragments, inputs=[mine, here],
+                   out=out)  # fmt: skip
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["here", "thesis"]
+
+
+def test_bad_input_cases_name_their_command_and_family():
+    for case, *_ in ALL:
+        command, _family, name = parse_case_id(case)
+        assert command in ("video", "stack", "stereo", "study") and name, case
+    assert len({c[0] for c in ALL}) == len(ALL)
+
+
+@pytest.mark.parametrize("after", [0.3, 1.5, 3.0], ids=lambda s: f"study-interrupt-{s}s")
+def test_interrupt(tmp_path, after):
+    out = tmp_path / "study"
+    status, err = interrupt(
+        ["-m", "sample_data_synth", "study", "--size", "128", "--frames", "20", "--out", out],
+        after=after, out=out,
+    )  # fmt: skip
+    if status == 130:
+        assert message_lines(err)[-1].endswith(": interrupted; no output written")
+        assert [p.name for p in tmp_path.iterdir()] == []
