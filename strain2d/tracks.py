@@ -160,8 +160,16 @@ def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
 def _read_numpy(path: Path, suffix: str):
     with open(path, "rb") as f:  # closed also when NumPy gives up on a damaged file
         if suffix == ".npy":
-            return np.asarray(np.load(f, allow_pickle=False), dtype=float), None, None
+            return _real(path, "positions", np.load(f, allow_pickle=False)), None, None
         return _read_npz(path, np.load(f, allow_pickle=False))
+
+
+def _real(path: Path, name: str, array) -> np.ndarray:
+    """``array`` as float, refusing what is not real numbers (text, complex, objects)."""
+    array = np.asarray(array)
+    if array.dtype.kind not in "biuf":
+        raise InputError(f"{path}: {name} must hold real numbers, got {array.dtype}")
+    return array.astype(float)
 
 
 def _read_npz(path: Path, data):
@@ -169,11 +177,9 @@ def _read_npz(path: Path, data):
         key = next((k for k in ("positions", "tracks") if k in data.files), None)
         if key is None:
             raise InputError(f"{path} needs an array named 'positions' (T, N, 2)")
-        pos = np.asarray(data[key], dtype=float)
-        vis = np.asarray(data["visible"]) if "visible" in data.files else None
-        qual = np.asarray(data["quality"], dtype=float) if "quality" in data.files else None
-    if vis is not None and vis.dtype.kind not in "biuf":
-        raise InputError(f"{path}: visible must hold booleans or 0/1, got {vis.dtype}")
+        pos = _real(path, key, data[key])
+        vis = _real(path, "visible", data["visible"]) if "visible" in data.files else None
+        qual = _real(path, "quality", data["quality"]) if "quality" in data.files else None
     return pos, vis, qual
 
 
