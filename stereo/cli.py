@@ -14,6 +14,7 @@ import argparse
 import csv
 import glob
 import json
+import math
 import re
 import sys
 import time
@@ -22,14 +23,17 @@ from pathlib import Path
 
 import numpy as np
 
-from strain2d.errors import InputError, SourceError
+from tissue_core.cli import ArgumentParser
+from tissue_core.errors import InputError, SourceError
 
 __all__ = ["main"]
 
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:
-        self.exit(2, f"{self.prog}: error: {message}\n")
+#: the header of the CSV ``stereo match`` writes
+MATCH_COLUMNS = (
+    "point", "x_left", "y_left", "x_right", "y_right", "quality", "visible", "epipolar_px"
+)  # fmt: skip
+#: the grid ``reconstruct`` places without --points or --grid
+_DEFAULT_GRID = "7x7"
 
 
 def _natural(path: str) -> list:
@@ -51,13 +55,72 @@ def _expand(pattern: str, side: str) -> list[str]:
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
 
 
-def _read_gray(path: str) -> np.ndarray:
-    import cv2
+def _check_unit(unit: str) -> None:
+    if not unit.strip():
+        raise InputError(f"--unit must be the name of a length unit, e.g. mm, got {unit!r}")
 
-    image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise SourceError(f"cannot read the image {path}")
-    return image
+
+def _check_match_options(args) -> None:
+    """--match-subset and --max-epipolar, before anything is read."""
+    subset = args.match_subset
+    if subset < 7 or subset % 2 == 0:
+        raise InputError(f"--match-subset must be an odd number >= 7, got {subset}")
+    tolerance = args.max_epipolar
+    if not (math.isfinite(tolerance) and tolerance > 0):
+        raise InputError(f"--max-epipolar must be a positive number of pixels, got {tolerance}")
+
+
+def _check_subset_fits(option: str, subset: int, shape: tuple[int, int], what: str) -> None:
+    h, w = shape
+    if subset >= min(h, w):
+        raise InputError(f"{option} {subset} is larger than the {w}x{h} {what}")
+
+
+def _check_calibration_size(calib, calib_paths, shape: tuple[int, int], source: str) -> None:
+    """The calibration must be for images of the size the command reads."""
+    h, w = shape
+    cw, ch = calib.image_size
+    if (cw, ch) != (w, h):
+        name = " + ".join(Path(p).name for p in calib_paths)
+        raise InputError(
+            f"{name} is for {cw}x{ch} images, {source} is {w}x{h}: "
+            "use the calibration of the cameras and resolution that took these images"
+        )
+
+
+def _read_points(path: str, shape: tuple[int, int], *, for_strain: bool) -> np.ndarray:
+    """Points (N, 2) of a CSV file with columns x,y, checked against the image; errors name
+    the file.  ``for_strain``: the points must also carry a mesh (3 or more, not collinear)."""
+    from strain2d.grid import read_points_csv, validate_points
+
+    points = read_points_csv(path)
+    if len(points) == 0:
+        raise InputError(f"{path} holds no points (a header x,y and one row per point)")
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+    if bad.size:
+        i = int(bad[0])
+        raise InputError(
+            f"{path}: point {i} ({points[i, 0]:g}, {points[i, 1]:g}) is not finite; "
+            "give numbers for x and y"
+        )
+    _, first = np.unique(points, axis=0, return_index=True)
+    if len(first) < len(points):
+        i = sorted(set(range(len(points))) - set(first.tolist()))[0]
+        raise InputError(f"{path}: point {i} ({points[i, 0]:g}, {points[i, 1]:g}) is given twice")
+    h, w = shape
+    outside = (points < 0).any(axis=1) | (points[:, 0] > w - 1) | (points[:, 1] > h - 1)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        raise InputError(
+            f"{path}: point {i} ({points[i, 0]:g}, {points[i, 1]:g}) lies outside the "
+            f"{w}x{h} px left image"
+        )
+    if for_strain:
+        try:
+            validate_points(points, (h, w))
+        except InputError as exc:
+            raise InputError(f"{path}: {exc}") from None
+    return points
 
 
 def _say(args):
@@ -71,8 +134,8 @@ def _say(args):
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="stereo", description="Stereo calibration and 3D point tracks.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    parser = ArgumentParser(prog="stereo", description="Stereo calibration and 3D point tracks.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
 
     p = sub.add_parser("calibrate", help="calibrate a camera pair from target images")
     p.add_argument("--left", required=True, help="left images: a glob pattern or a folder")
@@ -114,15 +177,19 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--calib", nargs="+", required=True, help="calibration (JSON or OpenCV YAML)")
     p.add_argument("--left", nargs="+", required=True, help="left video, TIFF, folder or images")
     p.add_argument("--right", nargs="+", required=True, help="right video, TIFF, folder or images")
-    p.add_argument("--grid", default="7x7", help="grid COLSxROWS (default 7x7)")
+    p.add_argument("--grid", help=f"grid COLSxROWS (default {_DEFAULT_GRID})")
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in left-image pixels")
-    p.add_argument("--points", help="CSV with columns x,y instead of a grid")
-    p.add_argument("--tracker", default="dic", help="2D tracker: dic, klt (default dic)")
-    p.add_argument("--subset", type=int, help="dic subset side in px (default 31)")
+    p.add_argument("--points", help="CSV with columns x,y instead of a grid (--grid, --roi)")
+    p.add_argument(
+        "--tracker",
+        default="dic",
+        help="2D tracker that follows the points through each video: dic, klt, or another "
+        "that tracks frames (default dic)",
+    )
+    p.add_argument("--subset", type=int, help="dic subset side in px (odd, default 31)")
     p.add_argument(
         "--shape-function",
         choices=["affine", "quadratic"],
-        default="quadratic",
         help="dic subset warp (default quadratic: curved surfaces seen in perspective)",
     )
     p.add_argument("--max-reproj", type=float, default=1.0, help="px; worse points are dropped")
@@ -133,8 +200,8 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--directions",
-        default="xy",
-        help="with --strain: frame of Exx, Eyy, Exy (xy, vectors:..., cylinder:..., sphere:...)",
+        help="with --strain: frame of Exx, Eyy, Exy (xy, vectors:..., cylinder:..., sphere:...; "
+        "default xy)",
     )
     _match_args(p)
     p.add_argument("--out", required=True, help="output folder")
@@ -148,7 +215,11 @@ def _match_args(p: argparse.ArgumentParser) -> None:
         "--match-subset", type=int, default=41, help="subset side for the cross-view match (41)"
     )
     p.add_argument(
-        "--max-epipolar", type=float, default=1.0, help="px from the epipolar line allowed (1.0)"
+        "--max-epipolar",
+        type=float,
+        default=1.0,
+        help="px from the epipolar line allowed for a match (1.0); the feature matches that "
+        "relate the views are kept within 3 times this",
     )
 
 
@@ -158,27 +229,44 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-v", "--verbose", action="store_true", help="log details")
 
 
+def _calibration_file():
+    """Recognises a calibration JSON this toolkit wrote (so --overwrite may replace it)."""
+    from stereo.calibration import CALIBRATION_KEYS
+    from tissue_core.outputs import json_from_toolkit
+
+    return json_from_toolkit(*CALIBRATION_KEYS)
+
+
+def _folders(*patterns: str) -> list[str]:
+    """The patterns that name folders: inputs an output may not go into."""
+    return [p for p in patterns if Path(p).is_dir()]
+
+
 def _cmd_calibrate(args) -> int:
     from stereo.calibration import calibrate_stereo, parse_board
+    from stereo.images import read_gray
     from tissue_core.outputs import atomic_file, check_writable
 
     board = parse_board(args.board)
+    _check_unit(args.unit)
     left, right = _expand(args.left, "left"), _expand(args.right, "right")
     if len(left) != len(right):
         raise InputError(f"unequal image counts: {len(left)} left and {len(right)} right")
-    check_writable(args.out, overwrite=args.overwrite, kind="file", inputs=left + right)
+    inputs = [*left, *right, *_folders(args.left, args.right)]
+    writing = {"overwrite": args.overwrite, "inputs": inputs, "is_result": _calibration_file()}
+    check_writable(args.out, kind="file", **writing)
     say = _say(args)
     names = [f"{Path(a).name} / {Path(b).name}" for a, b in zip(left, right, strict=True)]
     calib = calibrate_stereo(
-        [_read_gray(f) for f in left],
-        [_read_gray(f) for f in right],
+        [read_gray(f) for f in left],
+        [read_gray(f) for f in right],
         board,
         names=names,
         unit=args.unit,
         fix_k3=not args.free_k3,
         progress=say,
     )
-    with atomic_file(args.out, overwrite=args.overwrite, inputs=left + right) as tmp:
+    with atomic_file(args.out, **writing) as tmp:
         calib.save(tmp)
     if not args.quiet:
         for r in calib.extra["rejected"]:
@@ -195,12 +283,15 @@ def _cmd_calibrate(args) -> int:
 
 def _cmd_import(args) -> int:
     from stereo.calibration import load_calibration
-    from tissue_core.outputs import atomic_file
+    from tissue_core.outputs import atomic_file, check_writable
 
+    _check_unit(args.unit)
+    writing = {"overwrite": args.overwrite, "inputs": args.files, "is_result": _calibration_file()}
+    check_writable(args.out, kind="file", **writing)
     calib = load_calibration(*args.files)
     calib.unit = args.unit
     calib.extra["imported_from"] = [Path(f).name for f in args.files]
-    with atomic_file(args.out, overwrite=args.overwrite, inputs=args.files) as tmp:
+    with atomic_file(args.out, **writing) as tmp:
         calib.save(tmp)
     return 0
 
@@ -212,15 +303,29 @@ def _load_calib(paths):
 
 
 def _cmd_match(args) -> int:
+    from stereo.images import read_gray
     from stereo.match import match_views
-    from strain2d.grid import read_points_csv
-    from tissue_core.outputs import atomic_file, check_writable
+    from tissue_core.outputs import atomic_file, check_writable, csv_header_is
 
+    _check_match_options(args)
     inputs = [args.left_image, args.right_image, args.points, *(args.calib or [])]
-    check_writable(args.out, overwrite=args.overwrite, kind="file", inputs=inputs)
+    writing = {
+        "overwrite": args.overwrite,
+        "inputs": inputs,
+        "is_result": csv_header_is(*MATCH_COLUMNS),
+    }
+    check_writable(args.out, kind="file", **writing)
     calib = _load_calib(args.calib)
-    left, right = _read_gray(args.left_image), _read_gray(args.right_image)
-    points = read_points_csv(args.points)
+    left, right = read_gray(args.left_image), read_gray(args.right_image)
+    if left.shape != right.shape:
+        raise InputError(
+            f"the views differ in size: {args.left_image} is {left.shape[1]}x{left.shape[0]}, "
+            f"{args.right_image} is {right.shape[1]}x{right.shape[0]}"
+        )
+    if calib is not None:
+        _check_calibration_size(calib, args.calib, left.shape, args.left_image)
+    _check_subset_fits("--match-subset", args.match_subset, left.shape, "images")
+    points = _read_points(args.points, left.shape, for_strain=False)
     m = match_views(
         left,
         right,
@@ -229,13 +334,10 @@ def _cmd_match(args) -> int:
         subset=args.match_subset,
         max_epipolar_px=args.max_epipolar,
     )
-    with atomic_file(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
+    with atomic_file(args.out, **writing) as tmp:
         with open(tmp, "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f)
-            w.writerow(
-                ["point", "x_left", "y_left", "x_right", "y_right", "quality", "visible",
-                 "epipolar_px"]
-            )  # fmt: skip
+            w.writerow(MATCH_COLUMNS)
             for i in range(len(points)):
                 w.writerow(
                     [
@@ -257,39 +359,95 @@ def _cmd_match(args) -> int:
     return 0
 
 
-def _cmd_reconstruct(args) -> int:
-    from stereo.reconstruct import reconstruct
-    from strain2d import __version__
-    from strain2d.frames import open_frames
-    from strain2d.grid import make_grid, parse_grid, parse_roi, read_points_csv
-    from tissue_core.outputs import atomic_dir, check_writable
+def _check_reconstruct_options(args) -> None:
+    """Every option of ``reconstruct`` that can be judged before anything is read."""
+    from strain2d.trackers import available_trackers
 
-    inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])
-    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
-    if not (np.isfinite(args.max_reproj) and args.max_reproj > 0):
-        raise InputError(f"--max-reproj must be a positive number, got {args.max_reproj}")
-    calib = _load_calib(args.calib)
-    left, right = open_frames(args.left), open_frames(args.right)
-    if args.points:
-        points = read_points_csv(args.points)
-        point_info = {"source": Path(args.points).name}
-    else:
-        shape = parse_grid(args.grid)
-        roi = parse_roi(args.roi) if args.roi else None
-        points = make_grid(left.shape, shape=shape, roi=roi)
-        point_info = {"grid": list(shape), "roi": list(roi) if roi else None}
+    if args.points and (args.grid is not None or args.roi is not None):
+        raise InputError("give either --points or --grid/--roi, not both")
+    if args.directions is not None and not args.strain:
+        raise InputError("--directions sets the frame of the strain: it needs --strain")
+    usable = [name for name, spec in available_trackers().items() if spec.needs_frames]
+    if args.tracker not in usable:
+        what = "reads tracks made elsewhere" if args.tracker in available_trackers() else None
+        reason = (
+            f"the {args.tracker} tracker {what}; reconstruct tracks both videos itself"
+            if what
+            else f"unknown tracker {args.tracker!r}"
+        )
+        raise InputError(f"--tracker {args.tracker}: {reason}: use one of {', '.join(usable)}")
+    if args.tracker != "dic":
+        for option, value in (("--subset", args.subset), ("--shape-function", args.shape_function)):
+            if value is not None:
+                raise InputError(f"{option} is an option of the dic tracker, not {args.tracker}")
+    if args.subset is not None and (args.subset < 7 or args.subset % 2 == 0):
+        raise InputError(f"--subset must be an odd number >= 7, got {args.subset}")
+    if not (math.isfinite(args.max_reproj) and args.max_reproj > 0):
+        raise InputError(f"--max-reproj must be a positive number of pixels, got {args.max_reproj}")
+    _check_match_options(args)
     if args.strain:
         from surface_strain.cli import parse_directions
 
-        parse_directions(args.directions)  # fail before the work
+        parse_directions(args.directions or "xy")
+
+
+def _grid_points(args, shape: tuple[int, int]) -> tuple[np.ndarray, dict]:
+    from strain2d.grid import default_roi, make_grid, parse_grid, parse_roi
+
+    text = args.grid or _DEFAULT_GRID
+    cols, rows = parse_grid(text)
+    roi = parse_roi(args.roi) if args.roi else None
+    if roi is not None and not all(math.isfinite(v) for v in roi):
+        raise InputError(f"--roi must be four finite numbers X0,Y0,X1,Y1, got {args.roi!r}")
+    x0, y0, x1, y1 = roi or default_roi(shape)
+    if x1 > x0 and y1 > y0 and (cols - 1 > x1 - x0 or rows - 1 > y1 - y0):
+        raise InputError(
+            f"--grid {text} puts points less than a pixel apart in the region "
+            f"{x0:g},{y0:g},{x1:g},{y1:g}; choose fewer points"
+        )
+    points = make_grid(shape, shape=(cols, rows), roi=roi)
+    return points, {"grid": [cols, rows], "roi": list(roi) if roi else None}
+
+
+def _source_name(source) -> str:
+    return source.names[0] if len(source.names) == 1 else f"{source.names[0]} ..."
+
+
+def _cmd_reconstruct(args) -> int:
+    from stereo.calibration import strict_json
+    from stereo.reconstruct import reconstruct
+    from strain2d import __version__
+    from strain2d.frames import open_frames
+    from tissue_core.outputs import atomic_dir, check_writable
+
+    _check_reconstruct_options(args)
+    inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])
+    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
+    calib = _load_calib(args.calib)
+    left, right = open_frames(args.left), open_frames(args.right)
+    if len(left) != len(right):
+        raise InputError(
+            f"the views have different frame counts: {len(left)} in {_source_name(left)}, "
+            f"{len(right)} in {_source_name(right)}"
+        )
+    _check_calibration_size(calib, args.calib, left.shape, _source_name(left))
+    _check_calibration_size(calib, args.calib, right.shape, _source_name(right))
+    _check_subset_fits("--match-subset", args.match_subset, left.shape, "frames")
+    if args.subset is not None:
+        _check_subset_fits("--subset", args.subset, left.shape, "frames")
+    if args.points:
+        points = _read_points(args.points, left.shape, for_strain=True)
+        point_info = {"source": Path(args.points).name}
+    else:
+        points, point_info = _grid_points(args, left.shape)
+    directions = args.directions or "xy"
+    shape_function = args.shape_function or "quadratic"
     say = _say(args)
     options = {}
     if args.tracker == "dic":
-        options["shape_function"] = args.shape_function
-        if args.subset:
+        options["shape_function"] = shape_function
+        if args.subset is not None:
             options["subset"] = args.subset
-    elif args.subset:
-        raise InputError("--subset is an option of the dic tracker")
     rec = reconstruct(
         left,
         right,
@@ -335,6 +493,11 @@ def _cmd_reconstruct(args) -> int:
             "created": datetime.now(UTC).isoformat(timespec="seconds"),
             "inputs": {"left": left.names, "right": right.names, "calib": args.calib},
             "unit": calib.unit,
+            "calibration": {
+                "image_size": list(calib.image_size),
+                "baseline": calib.baseline,
+                "rms_px": calib.rms_px,  # NaN (null) for a calibration made elsewhere
+            },
             "frames": rec.n_frames,
             "points": {"n": rec.n_points, **point_info},
             "visible_fraction": float(rec.visible.mean()),
@@ -343,15 +506,16 @@ def _cmd_reconstruct(args) -> int:
             "parameters": {
                 "tracker": args.tracker,
                 "subset": args.subset,
-                "shape_function": args.shape_function if args.tracker == "dic" else None,
+                "shape_function": shape_function if args.tracker == "dic" else None,
                 "match_subset": args.match_subset,
                 "max_epipolar_px": args.max_epipolar,
                 "max_reproj_px": args.max_reproj,
+                "directions": directions if args.strain else None,
             },
             "match": rec.meta["match"],
         }
         with open(tmp / "summary.json", "w", encoding="utf-8") as f:
-            json.dump(summary, f, indent=2)
+            json.dump(strict_json(summary), f, indent=2, allow_nan=False)
             f.write("\n")
         if args.strain:
             from surface_strain.cli import write_strain_folder
@@ -370,7 +534,7 @@ def _cmd_reconstruct(args) -> int:
                 rec.visible,
                 triangles,
                 mesh_method=how,
-                directions=args.directions,
+                directions=directions,
                 unit=calib.unit,
                 source="points3d.csv",
             )
@@ -392,3 +556,10 @@ def main(argv: list[str] | None = None) -> int:
     from tissue_core.cli import run_command
 
     return run_command("stereo", _build_parser(), argv, errors=(UsageError, PointsError))
+
+
+def entry() -> None:
+    """The console script ``stereo``: like ``python -m stereo``."""
+    from tissue_core.cli import run_module
+
+    run_module(__name__)

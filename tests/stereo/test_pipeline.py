@@ -176,7 +176,7 @@ def test_reconstruct_errors(stretch, tmp_path, capsys):
     (tmp_path / "wrong.json").write_text(json.dumps(wrong))
     assert cli("reconstruct", "--calib", tmp_path / "wrong.json", *args,
                "--out", tmp_path / "r") == 2  # fmt: skip
-    assert "the calibration is for 640x480" in one_error_line(capsys)
+    assert "wrong.json is for 640x480 images" in one_error_line(capsys)
     assert not (tmp_path / "r").exists()
 
 

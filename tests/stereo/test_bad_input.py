@@ -1,0 +1,905 @@
+"""``python -m stereo`` on broken, hostile and conflicting input: every command ends with one
+line naming the file or option and the problem (exit 2), leaves its inputs and anything of the
+user's byte-identical, and writes nothing; Ctrl-C during a real run ends with exit 130 and no
+output (see :mod:`tests.badinput`)."""
+
+from __future__ import annotations
+
+import copy
+import json
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stereo.cli import main
+from tests.badinput import FAMILIES, assert_refused, interrupt
+from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
+from tissue_core.outputs import MARKER
+
+W, H = SMALL_SIZE
+
+
+def run(argv: list[str]) -> int:
+    """``main``, with argparse's own refusals (SystemExit) as an exit status too."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+# --------------------------------------------------------------------------- broken files
+
+
+def write(tmp: Path, name: str, content: str | bytes) -> Path:
+    path = tmp / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content, encoding="utf-8")
+    return path
+
+
+def cut(source: Path, tmp: Path, name: str | None = None) -> Path:
+    """The first half of ``source`` (a copy cut short, as by a full disk or a killed copy)."""
+    data = source.read_bytes()
+    return write(tmp, name or source.name, data[: len(data) // 2])
+
+
+def folder_with(source: Path, tmp: Path, name: str, change: Callable[[Path], None]) -> Path:
+    """A copy of the frames folder ``source`` with ``change`` applied to it."""
+    folder = tmp / name
+    shutil.copytree(source, folder)
+    change(folder)
+    return folder
+
+
+def calib_json(s: SmallStereo, tmp: Path, change: Callable[[dict], None], name="calib.json"):
+    """The true calibration JSON with ``change`` applied to its dict."""
+    data = json.loads(s.calib.read_text())
+    change(data)
+    return write(tmp, name, json.dumps(data, indent=2))
+
+
+def calib_yml(s: SmallStereo, tmp: Path, change: Callable[[dict], None], name="stereo.yml"):
+    """The true calibration as an OpenCV YAML file with ``change`` applied first."""
+    data = copy.deepcopy(json.loads(s.calib.read_text()))
+    change(data)
+    path = tmp / name
+    write_opencv_yaml(path, data)
+    return path
+
+
+def setter(path: tuple, value) -> Callable[[dict], None]:
+    def change(d: dict) -> None:
+        target = d
+        for key in path[:-1]:
+            target = target[key]
+        target[path[-1]] = value
+
+    return change
+
+
+def points_csv(tmp: Path, text: str, name="points.csv") -> Path:
+    return write(tmp, name, text)
+
+
+def sheet_points(s: SmallStereo) -> list[str]:
+    """Rows ``x,y`` of the sheet's points."""
+    return [f"{x!r},{y!r}" for x, y in s.truth["left_px"][0]]
+
+
+R2I = [[2.0, 0, 0], [0, 2.0, 0], [0, 0, 2.0]]
+REFLECTION = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, -1.0]]
+
+# --------------------------------------------------------------------------- command lines
+
+
+def base(command: str, s: SmallStereo, tmp: Path) -> dict:
+    """The options of a command that would run, in order; positionals under ``_N`` keys."""
+    if command == "calibrate":
+        board = "checkerboard:9x6:10"
+        out = tmp / "calib.json"
+        return {"--left": s.views_left, "--right": s.views_right, "--board": board,
+                "--out": out, "-q": True}  # fmt: skip
+    if command == "import-calib":
+        return {"_1": s.yml, "--out": tmp / "calib.json"}
+    if command == "match":
+        return {"_1": s.left0, "_2": s.right0, "--points": s.points, "--calib": s.calib,
+                "--out": tmp / "matches.csv", "-q": True}  # fmt: skip
+    return {"--calib": s.calib, "--left": s.left, "--right": s.right, "--points": s.points,
+            "--out": tmp / "rec", "-q": True}  # fmt: skip
+
+
+def command_line(command: str, options: dict) -> list[str]:
+    argv = [command]
+    for key, value in options.items():
+        if value is None or value is False:
+            continue
+        if key.startswith("_"):
+            argv += [str(v) for v in value] if isinstance(value, list) else [str(value)]
+        elif value is True:
+            argv.append(key)
+        elif isinstance(value, list):
+            argv += [key, *map(str, value)]
+        else:
+            argv += [key, str(value)]
+    return argv
+
+
+COMMANDS = ("calibrate", "import-calib", "match", "reconstruct")
+CASES: list = []
+
+
+def case(name: str):
+    """Register the case ``COMMAND-FAMILY-CASE``: a function of (inputs, tmp_path) giving the
+    options to change and the fragments the error line must hold (the file or option, and the
+    problem)."""
+    command = next(c for c in COMMANDS if name.startswith(f"{c}-"))
+    rest = name[len(command) + 1 :]
+    assert any(rest.startswith(f"{family}-") for family in FAMILIES), name
+
+    def register(build: Callable[[SmallStereo, Path], tuple[dict, list[str]]]):
+        CASES.append(pytest.param(command, build, id=name))
+        return build
+
+    return register
+
+
+def user_file(tmp: Path, name: str) -> Path:
+    return write(tmp, name, "my notes: do not lose them\n")
+
+
+def user_folder(tmp: Path, name: str) -> Path:
+    folder = tmp / name
+    folder.mkdir()
+    write(folder, "thesis.tex", "the work of years")
+    return folder
+
+
+def earlier_result_with_a_user_file(tmp: Path, name: str) -> Path:
+    folder = tmp / name
+    folder.mkdir()
+    write(folder, "points3d.csv", "frame,point,X,Y,Z,reproj_error,visible\n")
+    write(folder, MARKER, json.dumps({"kind": "tissue-strain result", "files": ["points3d.csv"]}))
+    write(folder, "my_notes.txt", "added by the user afterwards")
+    return folder
+
+
+def jpeg_copy(source: Path, tmp: Path, name: str) -> Path:
+    import cv2
+
+    path = tmp / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), cv2.imread(str(source), cv2.IMREAD_GRAYSCALE))
+    return path
+
+
+def resized_copy(source: Path, tmp: Path, size: tuple[int, int]) -> Path:
+    import cv2
+
+    path = tmp / "resized.png"
+    cv2.imwrite(str(path), cv2.resize(cv2.imread(str(source), cv2.IMREAD_GRAYSCALE), size))
+    return path
+
+
+# ---- every command: output problems
+
+OUTPUT_NAMES = {"calibrate": "calib.json", "import-calib": "calib.json", "match": "matches.csv"}
+for command, name in OUTPUT_NAMES.items():
+
+    @case(f"{command}-output-existing-user-file")
+    def _(s, t, name=name):
+        return {"--out": user_file(t, name)}, [name, "exists", "--overwrite"]
+
+    @case(f"{command}-output-existing-user-file-overwrite")
+    def _(s, t, name=name):
+        changes = {"--out": user_file(t, name), "--overwrite": True}
+        return changes, [name, "not a file this toolkit writes"]
+
+    @case(f"{command}-output-existing-folder")
+    def _(s, t, name=name):
+        return {"--out": user_folder(t, name)}, [name, "is a folder"]
+
+    @case(f"{command}-output-existing-folder-overwrite")
+    def _(s, t, name=name):
+        return {"--out": user_folder(t, name), "--overwrite": True}, [name, "is a folder"]
+
+
+for command, name in (*OUTPUT_NAMES.items(), ("reconstruct", "rec")):
+
+    @case(f"{command}-output-missing-parent-folder")
+    def _(s, t, name=name):
+        return {"--out": t / "no" / "such" / name}, ["does not exist"]
+
+
+@case("calibrate-output-out-is-an-input-image")
+def _(s, t):
+    image = s.views_left / "view_00.png"
+    changes = {"--left": image, "--right": s.views_right / "view_00.png", "--out": image}
+    return {**changes, "--overwrite": True}, ["would replace the input"]
+
+
+@case("calibrate-output-inside-an-input-folder")
+def _(s, t):
+    return {"--out": s.views_left / "calib.json"}, ["inside the input folder"]
+
+
+@case("import-calib-output-out-is-the-input")
+def _(s, t):
+    return {"_1": s.calib, "--out": s.calib, "--overwrite": True}, ["would replace the input"]
+
+
+@case("match-output-out-is-the-points")
+def _(s, t):
+    return {"--out": s.points, "--overwrite": True}, ["would replace the input"]
+
+
+@case("match-output-out-is-an-image")
+def _(s, t):
+    return {"--out": s.left0, "--overwrite": True}, ["would replace the input"]
+
+
+@case("reconstruct-output-out-is-the-calibration")
+def _(s, t):
+    return {"--out": s.calib, "--overwrite": True}, ["would replace the input"]
+
+
+@case("reconstruct-output-inside-the-left-folder")
+def _(s, t):
+    return {"--out": s.left / "rec"}, ["inside the input folder"]
+
+
+@case("reconstruct-output-holds-the-left-folder")
+def _(s, t):
+    return {"--out": s.left.parent, "--overwrite": True}, ["would replace the input"]
+
+
+@case("reconstruct-output-existing-user-folder")
+def _(s, t):
+    return {"--out": user_folder(t, "rec")}, ["not a result of this toolkit"]
+
+
+@case("reconstruct-output-existing-user-folder-overwrite")
+def _(s, t):
+    return {"--out": user_folder(t, "rec"), "--overwrite": True}, ["not a result of this toolkit"]
+
+
+@case("reconstruct-output-earlier-result-without-overwrite")
+def _(s, t):
+    return {"--out": earlier_result_with_a_user_file(t, "rec")}, ["--overwrite"]
+
+
+@case("reconstruct-output-earlier-result-holding-a-user-file")
+def _(s, t):
+    out = earlier_result_with_a_user_file(t, "rec")
+    return {"--out": out, "--overwrite": True}, ["my_notes.txt"]
+
+
+@case("reconstruct-output-existing-file")
+def _(s, t):
+    return {"--out": user_file(t, "rec")}, ["is a file"]
+
+
+# ---- calibrate: the target images
+
+
+@case("calibrate-missing-left-glob-matches-nothing")
+def _(s, t):
+    return {"--left": f"{t}/none_*.png"}, ["--left", "matches no image files"]
+
+
+@case("calibrate-missing-right-folder")
+def _(s, t):
+    return {"--right": t / "nowhere"}, ["--right", "matches no image files"]
+
+
+@case("calibrate-empty-left-folder")
+def _(s, t):
+    (t / "left").mkdir()
+    return {"--left": t / "left"}, ["--left", "matches no image files"]
+
+
+@case("calibrate-empty-image-file")
+def _(s, t):
+    left = folder_with(s.views_left, t, "left", lambda f: (f / "view_02.png").write_bytes(b""))
+    return {"--left": left}, ["view_02.png", "empty"]
+
+
+@case("calibrate-truncated-png")
+def _(s, t):
+    left = folder_with(s.views_left, t, "left", lambda f: cut(f / "view_03.png", f))
+    return {"--left": left}, ["view_03.png", "truncated"]
+
+
+@case("calibrate-truncated-jpeg")
+def _(s, t):
+    for side, views in (("left", s.views_left), ("right", s.views_right)):
+        for png in sorted(views.glob("*.png")):
+            jpeg_copy(png, t / side, f"{png.stem}.jpg")
+    cut(t / "left" / "view_01.jpg", t / "left")
+    return {"--left": t / "left", "--right": t / "right"}, ["view_01.jpg", "truncated"]
+
+
+@case("calibrate-wrong-type-text-as-png")
+def _(s, t):
+    left = folder_with(s.views_left, t, "left", lambda f: (f / "view_01.png").write_text("hello"))
+    return {"--left": left}, ["view_01.png", "not an image"]
+
+
+@case("calibrate-wrong-type-folder-as-png")
+def _(s, t):
+    def swap(folder: Path) -> None:
+        (folder / "view_04.png").unlink()
+        (folder / "view_04.png").mkdir()
+
+    return {"--right": folder_with(s.views_right, t, "right", swap)}, ["view_04.png", "folder"]
+
+
+@case("calibrate-empty-folder-without-images")
+def _(s, t):
+    write(t / "right", "notes.txt", "view 3 was blurred")
+    return {"--right": t / "right"}, ["--right", "matches no image files"]
+
+
+@case("calibrate-wrong-type-videos-as-images")
+def _(s, t):
+    return {"--left": s.left_video, "--right": s.right_video}, ["left.avi", "not an image"]
+
+
+@case("calibrate-option-board-unknown-dictionary")
+def _(s, t):
+    return {"--board": "charuco:11x8:8:6:DICT_NOPE"}, ["DICT_NOPE"]
+
+
+@case("calibrate-option-board-spec")
+def _(s, t):
+    return {"--board": "square:9x6"}, ["--board must be"]
+
+
+@case("calibrate-option-board-negative-square")
+def _(s, t):
+    return {"--board": "checkerboard:9x6:-10"}, ["--board", "positive square"]
+
+
+@case("calibrate-option-board-nan-square")
+def _(s, t):
+    return {"--board": "checkerboard:9x6:nan"}, ["--board", "positive square"]
+
+
+@case("calibrate-option-board-2x2")
+def _(s, t):
+    return {"--board": "checkerboard:2x2:10"}, ["--board", "at least 3 x 3"]
+
+
+@case("calibrate-option-charuco-marker-larger-than-square")
+def _(s, t):
+    return {"--board": "charuco:11x8:8:9:DICT_4X4_50"}, ["--board", "marker"]
+
+
+@case("calibrate-option-unit-empty")
+def _(s, t):
+    return {"--unit": ""}, ["--unit"]
+
+
+@case("calibrate-conflict-unequal-image-counts")
+def _(s, t):
+    right = folder_with(s.views_right, t, "right", lambda f: (f / "view_04.png").unlink())
+    return {"--right": right}, ["unequal image counts", "5 left and 4 right"]
+
+
+@case("calibrate-conflict-images-differ-in-size")
+def _(s, t):
+    import cv2
+
+    for side, size in (("left", (64, 48)), ("right", (60, 48))):
+        (t / side).mkdir()
+        for k in range(2):
+            cv2.imwrite(str(t / side / f"v{k}.png"), np.zeros(size[::-1], np.uint8))
+    return {"--left": t / "left", "--right": t / "right"}, ["differ in size"]
+
+
+# ---- import-calib (and every reader of a calibration)
+
+
+@case("import-calib-missing-file")
+def _(s, t):
+    return {"_1": t / "stereo.yml"}, ["stereo.yml", "not found"]
+
+
+@case("import-calib-missing-second-file")
+def _(s, t):
+    return {"_1": [s.yml, t / "extrinsics.yml"]}, ["extrinsics.yml", "not found"]
+
+
+@case("import-calib-empty-yml")
+def _(s, t):
+    return {"_1": write(t, "stereo.yml", b"")}, ["stereo.yml", "empty"]
+
+
+@case("import-calib-empty-json")
+def _(s, t):
+    return {"_1": write(t, "in.json", b"")}, ["in.json", "empty"]
+
+
+@case("import-calib-empty-json-object")
+def _(s, t):
+    return {"_1": write(t, "in.json", "{}")}, ["in.json", "image_size"]
+
+
+@case("import-calib-empty-yml-without-matrices")
+def _(s, t):
+    return {"_1": write(t, "stereo.yml", "%YAML:1.0\n---\nname: rig\n")}, ["stereo.yml", "M1"]
+
+
+@case("import-calib-truncated-yml")
+def _(s, t):
+    return {"_1": cut(s.yml, t)}, ["stereo.yml"]
+
+
+@case("import-calib-truncated-json")
+def _(s, t):
+    return {"_1": cut(s.calib, t, "in.json")}, ["in.json", "not a valid calibration JSON"]
+
+
+@case("import-calib-wrong-type-png-as-yml")
+def _(s, t):
+    path = write(t, "stereo.yml", s.left0.read_bytes())
+    return {"_1": path}, ["stereo.yml", "not a readable calibration file"]
+
+
+@case("import-calib-wrong-type-png-as-json")
+def _(s, t):
+    path = write(t, "in.json", s.left0.read_bytes())
+    return {"_1": path}, ["in.json", "not a valid calibration JSON"]
+
+
+@case("import-calib-wrong-type-folder")
+def _(s, t):
+    return {"_1": s.left}, [str(s.left), "folder"]
+
+
+@case("import-calib-wrong-type-json-list")
+def _(s, t):
+    return {"_1": write(t, "in.json", "[1, 2, 3]")}, ["in.json", "object"]
+
+
+@case("import-calib-wrong-type-json-nested-too-deep")
+def _(s, t):
+    return {"_1": write(t, "in.json", "{" + '"a": [' * 100_000)}, ["in.json"]
+
+
+#: calibration contents: (name, change of the JSON dict, fragments of the error line)
+BAD_CALIBRATIONS = [
+    ("R-is-2I", setter(("R",), R2I), ["R", "rotation"]),
+    ("R-is-a-reflection", setter(("R",), REFLECTION), ["R", "rotation"]),
+    ("negative-focal-length", setter(("K_left", 0, 0), -1400.0), ["K_left", "focal"]),
+    ("nan-in-K", setter(("K_left", 0, 2), float("nan")), ["K_left", "finite"]),
+    ("inf-in-T", setter(("T", 1), float("inf")), ["T", "finite"]),
+    ("string-in-R", setter(("R", 0, 0), "1"), ["R", "numbers"]),
+    ("boolean-in-K", setter(("K_right", 2, 2), True), ["K_right", "numbers"]),
+    ("K-2x3", setter(("K_left",), [[1400.0, 0, 256], [0, 1400, 192]]), ["K_left", "3 x 3"]),
+    ("zero-focal-length", setter(("K_right", 1, 1), 0.0), ["K_right", "focal"]),
+    ("K-last-row", setter(("K_left", 2), [0.0, 0.0, 2.0]), ["K_left", "[0, 0, 1]"]),
+    ("distortion-of-6", setter(("dist_left",), [0.1, 0, 0, 0, 0, 0]), ["dist_left", "6"]),
+    ("distortion-of-3", setter(("dist_right",), [0.1, 0, 0]), ["dist_right", "3"]),
+    ("image-size-fraction", setter(("image_size",), [512.5, 384]), ["image_size"]),
+    ("image-size-zero", setter(("image_size",), [0, 384]), ["image_size"]),
+    ("image-size-three", setter(("image_size",), [512, 384, 3]), ["image_size"]),
+    ("image-size-text", setter(("image_size",), "512x384"), ["image_size"]),
+    ("T-zero", setter(("T",), [0.0, 0.0, 0.0]), ["T", "baseline"]),
+    ("T-2-values", setter(("T",), [120.0, 0.0]), ["T", "3"]),
+    ("rms-text", setter(("rms_px",), "small"), ["rms_px"]),
+    ("unit-number", setter(("unit",), 5), ["unit"]),
+    ("missing-R", lambda d: d.pop("R"), ["R", "missing"]),
+]
+for name, change, fragments in BAD_CALIBRATIONS:
+
+    @case(f"import-calib-wrong-type-json-{name}")
+    def _(s, t, change=change, fragments=fragments):
+        return {"_1": calib_json(s, t, change, "in.json")}, ["in.json", *fragments]
+
+
+BAD_YAML = [
+    ("R-is-2I", setter(("R",), R2I), ["R", "rotation"]),
+    ("negative-focal-length", setter(("K_right", 0, 0), -1400.0), ["M2", "focal"]),
+    ("nan-in-K", setter(("K_left", 0, 2), float("nan")), ["M1", "finite"]),
+    ("distortion-of-6", setter(("dist_left",), [0.1, 0, 0, 0, 0, 0]), ["D1", "6"]),
+    ("image-size-inf", setter(("image_size",), [float("inf"), 384]), ["image_size"]),
+    ("image-size-nan", setter(("image_size",), [512, float("nan")]), ["image_size"]),
+    ("T-zero", setter(("T",), [0.0, 0.0, 0.0]), ["T", "baseline"]),
+]
+for name, change, fragments in BAD_YAML:
+
+    @case(f"import-calib-wrong-type-yml-{name}")
+    def _(s, t, change=change, fragments=fragments):
+        return {"_1": calib_yml(s, t, change)}, ["stereo.yml", *fragments]
+
+
+@case("import-calib-wrong-type-yml-pair-R-is-2I")
+def _(s, t):
+    """intrinsics.yml and extrinsics.yml, as OpenCV's stereo sample writes them: the error
+    names the file that holds R."""
+    import cv2
+
+    data = json.loads(s.calib.read_text())
+    intrinsics = cv2.FileStorage(str(t / "intrinsics.yml"), cv2.FILE_STORAGE_WRITE)
+    for key, name in (("K_left", "M1"), ("dist_left", "D1"), ("K_right", "M2"),
+                      ("dist_right", "D2"), ("image_size", "image_size")):  # fmt: skip
+        intrinsics.write(name, np.asarray(data[key], np.float64))
+    intrinsics.release()
+    extrinsics = cv2.FileStorage(str(t / "extrinsics.yml"), cv2.FILE_STORAGE_WRITE)
+    extrinsics.write("R", np.asarray(R2I))
+    extrinsics.write("T", np.asarray(data["T"], np.float64))
+    extrinsics.release()
+    files = [t / "intrinsics.yml", t / "extrinsics.yml"]
+    return {"_1": files}, ["extrinsics.yml", "R", "rotation"]
+
+
+@case("import-calib-wrong-type-yml-R-is-text")
+def _(s, t):
+    text = s.yml.read_text().replace("R: !!opencv-matrix", 'R: "identity"\nX: !!opencv-matrix')
+    return {"_1": write(t, "stereo.yml", text)}, ["stereo.yml", "R", "numbers"]
+
+
+@case("import-calib-wrong-type-yml-without-image-size")
+def _(s, t):
+    write_opencv_yaml(t / "stereo.yml", json.loads(s.calib.read_text()), image_size=False)
+    return {"_1": t / "stereo.yml"}, ["stereo.yml", "image size"]
+
+
+@case("import-calib-conflict-json-and-yml")
+def _(s, t):
+    return {"_1": [s.calib, s.yml]}, ["one calibration JSON"]
+
+
+@case("import-calib-conflict-yml-and-json")
+def _(s, t):
+    return {"_1": [s.yml, s.calib]}, ["one calibration JSON"]
+
+
+@case("import-calib-option-unit-blank")
+def _(s, t):
+    return {"--unit": " "}, ["--unit"]
+
+
+# ---- match and reconstruct: the calibration they read
+
+for command in ("match", "reconstruct"):
+
+    @case(f"{command}-missing-calibration")
+    def _(s, t):
+        return {"--calib": t / "calib.json"}, ["calib.json", "not found"]
+
+    @case(f"{command}-empty-calibration")
+    def _(s, t):
+        return {"--calib": write(t, "calib.json", b"")}, ["calib.json", "empty"]
+
+    @case(f"{command}-truncated-calibration")
+    def _(s, t):
+        return {"--calib": cut(s.calib, t)}, ["calib.json", "not a valid calibration JSON"]
+
+    @case(f"{command}-wrong-type-png-as-calibration")
+    def _(s, t):
+        return {"--calib": write(t, "calib.json", s.left0.read_bytes())}, ["calib.json"]
+
+    for name, change, fragments in BAD_CALIBRATIONS[:4]:
+
+        @case(f"{command}-wrong-type-calibration-{name}")
+        def _(s, t, change=change, fragments=fragments):
+            return {"--calib": calib_json(s, t, change)}, ["calib.json", *fragments]
+
+    @case(f"{command}-wrong-type-calibration-for-another-image-size")
+    def _(s, t):
+        path = calib_json(s, t, setter(("image_size",), [640, 480]))
+        return {"--calib": path}, ["calib.json is for 640x480 images", f"is {W}x{H}"]
+
+    @case(f"{command}-wrong-type-yml-calibration-R-is-2I")
+    def _(s, t):
+        return {"--calib": calib_yml(s, t, setter(("R",), R2I))}, ["stereo.yml", "rotation"]
+
+    @case(f"{command}-conflict-calibration-json-and-yml")
+    def _(s, t):
+        return {"--calib": [s.calib, s.yml]}, ["one calibration JSON"]
+
+
+# ---- match: the images and options
+
+
+@case("match-missing-left-image")
+def _(s, t):
+    return {"_1": t / "left.png"}, ["left.png", "no such file"]
+
+
+@case("match-missing-right-image")
+def _(s, t):
+    return {"_2": t / "right.png"}, ["right.png", "no such file"]
+
+
+@case("match-empty-left-image")
+def _(s, t):
+    return {"_1": write(t, "left.png", b"")}, ["left.png", "empty"]
+
+
+@case("match-truncated-left-png")
+def _(s, t):
+    return {"_1": cut(s.left0, t, "left.png")}, ["left.png", "truncated"]
+
+
+@case("match-truncated-right-jpeg")
+def _(s, t):
+    jpeg = jpeg_copy(s.right0, t / "whole", "right.jpg")
+    return {"_2": cut(jpeg, t)}, ["right.jpg", "truncated"]
+
+
+@case("match-wrong-type-text-as-png")
+def _(s, t):
+    return {"_2": write(t, "right.png", "not an image")}, ["right.png", "not an image"]
+
+
+@case("match-wrong-type-folder-as-image")
+def _(s, t):
+    return {"_1": s.left}, [str(s.left), "folder"]
+
+
+@case("match-wrong-type-points-folder")
+def _(s, t):
+    return {"--points": s.left}, [str(s.left), "folder"]
+
+
+@case("match-wrong-type-points-png")
+def _(s, t):
+    return {"--points": s.left0}, [s.left0.name]
+
+
+@case("match-conflict-images-differ-in-size")
+def _(s, t):
+    return {"_2": resized_copy(s.right0, t, (W - 2, H))}, ["differ in size"]
+
+
+for value, fragment in (("-1", "positive"), ("0", "positive"), ("nan", "positive"),
+                        ("inf", "positive"), ("one", "invalid float")):  # fmt: skip
+
+    @case(f"match-option-max-epipolar-{value}")
+    def _(s, t, value=value, fragment=fragment):
+        return {"--max-epipolar": value}, ["--max-epipolar", fragment]
+
+
+for value in ("2", "-41", "40"):
+
+    @case(f"match-option-match-subset-{value}")
+    def _(s, t, value=value):
+        return {"--match-subset": value}, ["--match-subset", "odd"]
+
+
+@case("match-option-match-subset-larger-than-the-image")
+def _(s, t):
+    return {"--match-subset": 1001}, ["--match-subset", f"{W}x{H}"]
+
+
+# ---- match and reconstruct: the points
+
+#: (case, CSV text, fragments after the file name)
+BAD_POINTS = [
+    ("nan", "x,y\n300,150\nnan,200\n350,220\n", ["point 1", "finite"]),
+    ("inf", "x,y\n300,150\n320,inf\n350,220\n", ["point 1", "finite"]),
+    ("text", "x,y\n300,150\nabc,200\n350,220\n", ["numbers"]),
+    ("empty-cell", "x,y\n300,150\n,200\n350,220\n", ["numbers"]),
+    ("duplicate", "x,y\n300,150\n320,200\n300,150\n350,220\n", ["point 2", "twice"]),
+    ("missing-column", "x,z\n300,150\n320,200\n", ["x,y"]),
+    ("semicolons", "x;y\n300;150\n320;200\n", ["x,y"]),
+    ("bom-and-missing-column", "\ufeffx\n300\n", ["x,y"]),
+    ("empty-file", "", ["x,y"]),
+    ("header-only", "x,y\n", ["no points"]),
+    ("outside-the-image", f"x,y\n300,150\n{W + 5},200\n350,220\n", ["point 1", "outside"]),
+    ("negative", "x,y\n300,150\n-3,200\n350,220\n", ["point 1", "outside"]),
+]
+for command in ("match", "reconstruct"):
+    for name, text, fragments in BAD_POINTS:
+
+        @case(f"{command}-csv-{name}")
+        def _(s, t, text=text, fragments=fragments):
+            return {"--points": write(t, "points.csv", text)}, ["points.csv", *fragments]
+
+    @case(f"{command}-csv-not-utf8")
+    def _(s, t):
+        return {"--points": write(t, "points.csv", b"x,y\n\xff\xfe1,2\n")}, ["points.csv"]
+
+    @case(f"{command}-missing-points")
+    def _(s, t):
+        return {"--points": t / "points.csv"}, ["points.csv"]
+
+
+@case("reconstruct-csv-two-points")
+def _(s, t):
+    return {"--points": write(t, "points.csv", "x,y\n300,150\n320,200\n")}, ["at least 3"]
+
+
+@case("reconstruct-csv-collinear")
+def _(s, t):
+    path = write(t, "points.csv", "x,y\n300,150\n310,160\n320,170\n")
+    return {"--points": path}, ["points.csv", "collinear"]
+
+
+# ---- reconstruct: the videos and options
+
+
+@case("reconstruct-missing-left-folder")
+def _(s, t):
+    return {"--left": t / "left"}, [str(t / "left"), "no such file"]
+
+
+@case("reconstruct-missing-right-video")
+def _(s, t):
+    return {"--left": s.left_video, "--right": t / "right.avi"}, ["right.avi", "no such file"]
+
+
+@case("reconstruct-empty-left-folder")
+def _(s, t):
+    (t / "left").mkdir()
+    return {"--left": t / "left"}, [str(t / "left"), "no images"]
+
+
+@case("reconstruct-empty-right-video")
+def _(s, t):
+    return {"--left": s.left_video, "--right": write(t, "right.avi", b"")}, ["right.avi"]
+
+
+@case("reconstruct-truncated-right-video")
+def _(s, t):
+    return {"--left": s.left_video, "--right": cut(s.right_video, t)}, ["right.avi"]
+
+
+@case("reconstruct-truncated-png-in-the-left-folder")
+def _(s, t):
+    left = folder_with(s.left, t, "left", lambda f: cut(f / "frame_001.png", f))
+    return {"--left": left}, ["frame_001.png"]
+
+
+@case("reconstruct-wrong-type-text-as-png")
+def _(s, t):
+    right = folder_with(s.right, t, "right", lambda f: (f / "frame_001.png").write_text("text"))
+    return {"--right": right}, ["frame_001.png"]
+
+
+@case("reconstruct-wrong-type-png-as-video")
+def _(s, t):
+    return {"--left": write(t, "left.avi", s.left0.read_bytes())}, ["left.avi"]
+
+
+@case("reconstruct-wrong-type-one-image-as-video")
+def _(s, t):
+    return {"--left": s.left0, "--right": s.right0}, ["frame_000.png", "at least 2"]
+
+
+@case("reconstruct-conflict-frame-counts")
+def _(s, t):
+    def add(folder: Path) -> None:
+        shutil.copy(folder / "frame_001.png", folder / "frame_002.png")
+
+    return {"--right": folder_with(s.right, t, "right", add)}, ["2 in", "3 in", "right"]
+
+
+@case("reconstruct-conflict-points-and-grid")
+def _(s, t):
+    return {"--grid": "7x7"}, ["give either --points or --grid/--roi, not both"]
+
+
+@case("reconstruct-conflict-points-and-roi")
+def _(s, t):
+    return {"--roi": "250,130,420,250"}, ["give either --points or --grid/--roi, not both"]
+
+
+@case("reconstruct-conflict-directions-without-strain")
+def _(s, t):
+    return {"--directions": "cylinder:0,0,0:0,1,0"}, ["--directions", "--strain"]
+
+
+@case("reconstruct-conflict-tracker-imported")
+def _(s, t):
+    return {"--tracker": "imported"}, ["--tracker imported", "dic, klt"]
+
+
+@case("reconstruct-conflict-shape-function-with-klt")
+def _(s, t):
+    return {"--tracker": "klt", "--shape-function": "affine"}, ["--shape-function", "dic"]
+
+
+@case("reconstruct-conflict-subset-with-klt")
+def _(s, t):
+    return {"--tracker": "klt", "--subset": 31}, ["--subset", "dic"]
+
+
+@case("reconstruct-option-tracker-unknown")
+def _(s, t):
+    return {"--tracker": "magic"}, ["--tracker", "magic", "dic, klt"]
+
+
+@case("reconstruct-option-shape-function-unknown")
+def _(s, t):
+    return {"--shape-function": "cubic"}, ["--shape-function", "cubic"]
+
+
+for option, value, fragment in (
+    ("--max-epipolar", "-1", "positive"),
+    ("--max-epipolar", "inf", "positive"),
+    ("--match-subset", "2", "odd"),
+    ("--max-reproj", "nan", "positive"),
+    ("--max-reproj", "-0.5", "positive"),
+    ("--max-reproj", "0", "positive"),
+    ("--subset", "0", "odd"),
+    ("--subset", "30", "odd"),
+    ("--subset", "-31", "odd"),
+    ("--subset", "31.5", "invalid int"),
+):
+
+    @case(f"reconstruct-option-{option[2:]}-{value}")
+    def _(s, t, option=option, value=value, fragment=fragment):
+        return {option: value}, [option, fragment]
+
+
+@case("reconstruct-option-subset-larger-than-the-image")
+def _(s, t):
+    return {"--subset": 2001}, ["--subset", f"{W}x{H}"]
+
+
+for option, value, fragment in (
+    ("--grid", "1x1", "1x1"),
+    ("--grid", "seven", "seven"),
+    ("--grid", "7x0", "7x0"),
+    ("--grid", "100000x100000", "100000x100000"),
+    ("--roi", f"10,10,{W + 100},200", "outside"),
+    ("--roi", "400,300,100,50", "X1 > X0"),
+    ("--roi", "nan,10,200,200", "nan"),
+    ("--roi", "10,10,200", "X0,Y0,X1,Y1"),
+):
+
+    @case(f"reconstruct-option-{option[2:]}-{value.replace(',', '_')}")
+    def _(s, t, option=option, value=value, fragment=fragment):
+        return {"--points": None, option: value}, [option, fragment]
+
+
+@case("reconstruct-option-directions-unknown")
+def _(s, t):
+    return {"--strain": True, "--directions": "polar"}, ["--directions", "polar"]
+
+
+@pytest.mark.parametrize(("command", "build"), CASES)
+def test_bad_input(command, build, small_stereo, tmp_path, capsys):
+    changes, fragments = build(small_stereo, tmp_path)
+    options = base(command, small_stereo, tmp_path)
+    options.update(changes)
+    argv = command_line(command, options)
+    out = Path(options["--out"])
+    inputs = [Path(a) for a in argv[1:] if a.strip() and Path(a) != out and Path(a).exists()]
+    assert_refused(run, argv, capsys, prog="stereo", fragments=fragments, inputs=inputs, out=out)
+
+
+def test_every_command_has_cases_of_every_family_that_applies():
+    ids = [p.id for p in CASES]
+    for command in ("calibrate", "import-calib", "match", "reconstruct"):
+        for family in ("missing", "empty", "truncated", "wrong-type", "option", "conflict",
+                       "output"):  # fmt: skip
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
+        if command in ("match", "reconstruct"):
+            assert any(i.startswith(f"{command}-csv-") for i in ids), command
+
+
+# --------------------------------------------------------------------------- Ctrl-C
+
+
+@pytest.mark.parametrize(
+    "after", [0.5, 2.0, 4.0, 7.0], ids=lambda a: f"reconstruct-interrupt-{a:g}s"
+)
+def test_interrupt(after, small_stereo, tmp_path):
+    s = small_stereo
+    out = tmp_path / "rec"
+    inputs = [s.calib, s.left, s.right, s.points]
+    argv = ["-m", "stereo", "reconstruct", "--calib", s.calib, "--left", s.left,
+            "--right", s.right, "--points", s.points, "--strain", "--out", out]  # fmt: skip
+    status, _ = interrupt(argv, after=after, out=out, inputs=inputs)
+    if status == 0:
+        assert (out / "summary.json").is_file() and (out / "strain").is_dir()

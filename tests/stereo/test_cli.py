@@ -1,0 +1,86 @@
+"""``python -m stereo`` replaces its own earlier results with --overwrite (never a user's file),
+writes strict JSON, and reads what spreadsheets write."""
+
+import csv
+import json
+
+import pytest
+
+from stereo.cli import main
+from tests.badinput import assert_refused
+from tests.stereo.conftest import SMALL_SIZE
+
+
+def test_reconstruct_summary_is_strict_json_with_an_imported_calibration(small_stereo, tmp_path):
+    """An OpenCV calibration carries no RMS error (NaN): the summary says null, never NaN."""
+    s = small_stereo
+    calib = tmp_path / "imported.json"
+    assert main(["import-calib", str(s.yml), "--out", str(calib)]) == 0
+    assert json.loads(calib.read_text())["rms_px"] is None
+    out = tmp_path / "rec"
+    argv = ["reconstruct", "--calib", calib, "--left", s.left, "--right", s.right,
+            "--grid", "5x4", "--roi", "280,150,400,240", "--out", out, "-q"]  # fmt: skip
+    assert main([str(a) for a in argv]) == 0
+    summary = json.loads((out / "summary.json").read_text(), parse_constant=pytest.fail)
+    assert summary["calibration"]["rms_px"] is None
+    assert summary["calibration"]["image_size"] == list(SMALL_SIZE)
+    assert summary["points"] == {"n": 20, "grid": [5, 4], "roi": [280.0, 150.0, 400.0, 240.0]}
+    assert summary["parameters"]["shape_function"] == "quadratic"
+    assert summary["parameters"]["directions"] is None
+
+
+def _earlier_match_result(path):
+    path.write_text(
+        "point,x_left,y_left,x_right,y_right,quality,visible,epipolar_px\n"
+        "0,1.0,1.0,1.0,1.0,1.0,1,0.0\n"
+    )
+
+
+def _earlier_calibration(path, small_stereo):
+    assert main(["import-calib", str(small_stereo.yml), "--out", str(path)]) == 0
+
+
+@pytest.mark.parametrize("command", ["calibrate", "import-calib", "match"])
+def test_an_earlier_result_is_replaced_with_overwrite_but_a_users_file_is_not(
+    command, small_stereo, tmp_path, capsys
+):
+    s = small_stereo
+    name = "matches.csv" if command == "match" else "calib.json"
+    out = tmp_path / name
+    if command == "calibrate":
+        argv = ["calibrate", "--left", s.views_left, "--right", s.views_right,
+                "--board", "checkerboard:9x6:10"]  # fmt: skip
+    elif command == "import-calib":
+        argv = ["import-calib", s.yml, "--unit", "cm"]
+    else:
+        argv = ["match", s.left0, s.right0, "--points", s.points, "--calib", s.calib]
+    argv = [str(a) for a in [*argv, "--out", out, "-q"]]
+    # an earlier result of the toolkit: replaced with --overwrite
+    if command == "match":
+        _earlier_match_result(out)
+    else:
+        _earlier_calibration(out, s)
+    assert main([*argv, "--overwrite"]) == 0
+    if command == "match":
+        rows = list(csv.DictReader(out.read_text().splitlines()))
+        assert len(rows) == len(s.truth["left_px"][0])
+    else:
+        calib = json.loads(out.read_text())
+        assert ("imported_from" in calib) == (command == "import-calib")
+        assert calib["unit"] == ("cm" if command == "import-calib" else "mm")
+    # a file of the user's with the same name: left as it is, with or without --overwrite
+    out.write_text("x,y\n1,2\n" if command == "match" else '{"notes": "mine"}\n')
+    for extra in ([], ["--overwrite"]):
+        assert_refused(main, [*argv, *extra], capsys, prog="stereo", fragments=[name], out=out)
+
+
+def test_points_written_by_a_spreadsheet_are_read(small_stereo, tmp_path):
+    """A byte-order mark, spaces and capitals in the header, CRLF line ends."""
+    s = small_stereo
+    rows = [f"{x:.4f},{y:.4f}" for x, y in s.truth["left_px"][0][:5]]
+    points = tmp_path / "points.csv"
+    points.write_bytes(("\ufeff X , Y \r\n" + "\r\n".join(rows) + "\r\n").encode("utf-8"))
+    out = tmp_path / "m.csv"
+    argv = ["match", s.left0, s.right0, "--points", points, "--calib", s.calib, "--out", out]
+    assert main([str(a) for a in [*argv, "-q"]]) == 0
+    assert len(list(csv.DictReader(out.read_text().splitlines()))) == 5
