@@ -24,6 +24,7 @@ final value, so the video is a video and not a before/after pair.
 from __future__ import annotations
 
 import json
+import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -162,6 +163,12 @@ class GroundTruth:
     time_profile: RampHold | None = None
 
     def __post_init__(self) -> None:
+        if self.n_frames < 2:
+            raise ValueError(f"a video needs at least 2 frames, got n_frames={self.n_frames}")
+        if len(self.image_size) != 2 or min(self.image_size) < 1:
+            raise ValueError(f"image_size must be (width, height) > 0, got {self.image_size}")
+        if len(self.roi) != 4 or not all(math.isfinite(v) for v in self.roi):
+            raise ValueError(f"roi must be four finite numbers, got {self.roi}")
         if self.time_profile is not None and self.time_profile.endpoint > self.n_frames - 1:
             raise ValueError(
                 f"the time profile's endpoint {self.time_profile.endpoint} is past the last "
@@ -227,18 +234,39 @@ class GroundTruth:
 
 
 def load_ground_truth(path: str | os.PathLike) -> GroundTruth:
-    """Read ground truth written by :meth:`GroundTruth.save`."""
-    with open(path) as f:
-        d = json.load(f)
-    return GroundTruth(
-        case=d["case"],
-        deformation=deformation_from_dict(d["deformation"]),
-        n_frames=int(d["n_frames"]),
-        image_size=tuple(d["image_size"]),
-        roi=tuple(d["roi"]),
-        params=d.get("params", {}),
-        time_profile=time_profile_from_dict(d["time_profile"]) if "time_profile" in d else None,
-    )
+    """Read ground truth written by :meth:`GroundTruth.save`.
+
+    Raises
+    ------
+    tissue_core.errors.SourceError
+        The file is missing or unreadable.
+    tissue_core.errors.InputError
+        It is not a ground-truth file (malformed JSON, missing or ill-typed keys).
+    """
+    from tissue_core.errors import InputError, SourceError
+
+    try:
+        with open(path, encoding="utf-8") as f:
+            d = json.load(f)
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SourceError(f"cannot read the ground truth {path}: {exc}") from None
+    except ValueError as exc:
+        raise InputError(f"{path} is not a ground-truth file: malformed JSON ({exc})") from None
+    try:
+        return GroundTruth(
+            case=str(d["case"]),
+            deformation=deformation_from_dict(d["deformation"]),
+            n_frames=int(d["n_frames"]),
+            image_size=tuple(int(v) for v in d["image_size"]),
+            roi=tuple(float(v) for v in d["roi"]),
+            params=dict(d.get("params", {})),
+            time_profile=time_profile_from_dict(d["time_profile"]) if "time_profile" in d else None,
+        )
+    except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
+        raise InputError(
+            f"{path} is not a ground-truth file written by sample_data_synth "
+            f"({type(exc).__name__}: {exc})"
+        ) from None
 
 
 @dataclass
