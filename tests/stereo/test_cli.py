@@ -2,12 +2,16 @@
 writes strict JSON, and reads what spreadsheets write."""
 
 import csv
+import importlib
 import json
+import subprocess
+import sys
+import tomllib
 
 import pytest
 
 from stereo.cli import main
-from tests.badinput import assert_refused
+from tests.badinput import REPO, assert_refused
 from tests.stereo.conftest import SMALL_SIZE
 
 
@@ -84,3 +88,16 @@ def test_points_written_by_a_spreadsheet_are_read(small_stereo, tmp_path):
     argv = ["match", s.left0, s.right0, "--points", points, "--calib", s.calib, "--out", out]
     assert main([str(a) for a in [*argv, "-q"]]) == 0
     assert len(list(csv.DictReader(out.read_text().splitlines()))) == 5
+
+
+def test_the_console_script_runs_like_python_m(small_stereo, tmp_path):
+    scripts = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
+    module, name = scripts["stereo"].split(":")
+    assert callable(getattr(importlib.import_module(module), name))
+    code = f"import sys; sys.argv[0] = 'stereo'; from {module} import {name}; {name}()"
+    bad = tmp_path / "calib.json"
+    bad.write_text("{")
+    argv = [sys.executable, "-c", code, "import-calib", str(bad), "--out", str(tmp_path / "c")]
+    proc = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("stereo import-calib: error: ") and "calib.json" in proc.stderr
