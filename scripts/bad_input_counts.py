@@ -73,9 +73,7 @@ def main() -> int:
     for classname, case_id, failed, skipped in outcomes:
         package = next(p for p in PACKAGES if f".{p}." in f".{classname}.")
         command, family, _ = parse_case_id(case_id)
-        key = (
-            f"{package.replace('_', '-') if package == 'sample_data_synth' else package} {command}"
-        )
+        key = f"{package} {command}"
         if skipped:
             continue
         table[key][family] += 1
@@ -86,7 +84,7 @@ def main() -> int:
     shown = [f for f in FAMILIES if any(t[f] for t in table.values())]
     print("| command | " + " | ".join(shown) + " | all | pass |")
     print("|---|" + "---:|" * (len(shown) + 2))
-    for key in sorted(table, key=lambda k: (PACKAGES.index(k.split()[0].replace("-", "_")), k)):
+    for key in sorted(table, key=lambda k: (PACKAGES.index(k.split()[0]), k)):
         counts = table[key]
         cells = [str(counts[f]) if counts[f] else "" for f in shown]
         total = sum(counts.values())
