@@ -43,6 +43,9 @@ def inputs(small_case, tmp_path_factory):
                      metadata={"axes": "TCYX"})  # fmt: skip
     (d / "no_images").mkdir()
     (d / "no_images" / "readme.txt").write_text("x")
+    (d / "mixed").mkdir()
+    for k, width in enumerate((64, 64, 60)):
+        tifffile.imwrite(d / "mixed" / f"f{k}.tif", np.full((64, width), 9 * k, np.uint8))
     (d / "frames").mkdir()
     (d / "frames" / "f0.png").write_bytes(b"\x89PNG broken")
     (d / "frames" / "f1.png").write_bytes(b"\x89PNG broken")
@@ -160,6 +163,8 @@ CASES = [
      ["text.tif"]),
     ("analyze-wrong-type-broken-pngs", lambda c, o: ["analyze", c.dir / "frames", "--out", o],
      ["f0.png"]),
+    ("analyze-wrong-type-mixed-sizes", lambda c, o: ["analyze", c.dir / "mixed", "--grid", "3x3",
+     "--out", o], ["f2.tif", "60x64"]),
     ("analyze-wrong-type-channels", lambda c, o: ["analyze", c.dir / "rgb_channels.tif",
      "--out", o], ["rgb_channels.tif", "channels"]),
     ("analyze-wrong-type-csv-as-video", lambda c, o: ["analyze", c.dir / "points_nan.csv",
