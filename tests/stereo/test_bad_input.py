@@ -284,6 +284,11 @@ def _(s, t):
     return {"--out": user_file(t, "rec")}, ["is a file"]
 
 
+@case("reconstruct-output-existing-file-overwrite")
+def _(s, t):
+    return {"--out": user_file(t, "rec"), "--overwrite": True}, ["is a file"]
+
+
 # ---- calibrate: the target images
 
 
