@@ -244,7 +244,7 @@ def _folders(*patterns: str) -> list[str]:
 
 def _cmd_calibrate(args) -> int:
     from stereo.calibration import calibrate_stereo, parse_board
-    from stereo.images import read_gray
+    from tissue_core.images import read_gray
     from tissue_core.outputs import atomic_file, check_writable
 
     board = parse_board(args.board)
@@ -303,8 +303,8 @@ def _load_calib(paths):
 
 
 def _cmd_match(args) -> int:
-    from stereo.images import read_gray
     from stereo.match import match_views
+    from tissue_core.images import read_gray
     from tissue_core.outputs import atomic_file, check_writable, csv_header_is
 
     _check_match_options(args)

@@ -213,12 +213,9 @@ class FrameSource:
 
     @staticmethod
     def _read_image(path: Path) -> np.ndarray:
-        import cv2
+        from tissue_core.images import read_image
 
-        image = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
-        if image is None:
-            raise SourceError(f"cannot read image {path}")
-        return image
+        return read_image(path)  # whole, or refused in one line (a cut JPEG is not gray rows)
 
     def _iter_raw(self) -> Iterator[np.ndarray]:
         wanted = self._indices

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from stereo.calibration import Calibration, load_calibration
-from stereo.images import read_gray
 from stereo.match import FEATURE_EPIPOLAR_FACTOR, match_views
 from tissue_core.errors import InputError
+from tissue_core.images import read_gray
 
 
 @pytest.fixture(scope="module")

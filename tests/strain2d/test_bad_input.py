@@ -46,6 +46,13 @@ def inputs(small_case, tmp_path_factory):
     (d / "mixed").mkdir()
     for k, width in enumerate((64, 64, 60)):
         tifffile.imwrite(d / "mixed" / f"f{k}.tif", np.full((64, width), 9 * k, np.uint8))
+    import cv2
+
+    (d / "cut_jpeg").mkdir()
+    texture = (np.random.default_rng(0).uniform(0, 255, (64, 64))).astype(np.uint8)
+    jpeg = cv2.imencode(".jpg", texture)[1].tobytes()
+    for k in range(3):
+        (d / "cut_jpeg" / f"f{k}.jpg").write_bytes(jpeg if k < 2 else jpeg[: len(jpeg) // 2])
     (d / "frames").mkdir()
     (d / "frames" / "f0.png").write_bytes(b"\x89PNG broken")
     (d / "frames" / "f1.png").write_bytes(b"\x89PNG broken")
@@ -165,6 +172,8 @@ CASES = [
      ["f0.png"]),
     ("analyze-wrong-type-mixed-sizes", lambda c, o: ["analyze", c.dir / "mixed", "--grid", "3x3",
      "--out", o], ["f2.tif", "60x64"]),
+    ("analyze-truncated-jpeg-in-folder", lambda c, o: ["analyze", c.dir / "cut_jpeg", "--grid",
+     "3x3", "--out", o], ["f2.jpg", "truncated"]),
     ("analyze-wrong-type-channels", lambda c, o: ["analyze", c.dir / "rgb_channels.tif",
      "--out", o], ["rgb_channels.tif", "channels"]),
     ("analyze-wrong-type-csv-as-video", lambda c, o: ["analyze", c.dir / "points_nan.csv",

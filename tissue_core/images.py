@@ -16,7 +16,7 @@ import numpy as np
 
 from tissue_core.errors import SourceError
 
-__all__ = ["cut_short", "read_gray"]
+__all__ = ["cut_short", "read_gray", "read_image"]
 
 _PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -78,6 +78,21 @@ def read_gray(path: str | os.PathLike) -> np.ndarray:
     """
     import cv2
 
+    return read_image(path, flags=cv2.IMREAD_GRAYSCALE)
+
+
+def read_image(path: str | os.PathLike, *, flags: int | None = None) -> np.ndarray:
+    """An image file as OpenCV decodes it with ``flags`` (default: any depth, any colour).
+
+    Raises
+    ------
+    SourceError
+        As :func:`read_gray`.
+    """
+    import cv2
+
+    if flags is None:
+        flags = cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR
     path = Path(path)
     if path.is_dir():
         raise SourceError(f"{path} is a folder, not an image")
@@ -88,7 +103,7 @@ def read_gray(path: str | os.PathLike) -> np.ndarray:
         raise SourceError(f"{path} is empty (0 bytes), not an image")
     if cut_short(data):
         raise SourceError(f"{path} is truncated: the file ends before the image does")
-    image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     if image is None:
         raise SourceError(f"{path} is not an image OpenCV can read")
     return image
