@@ -170,6 +170,8 @@ def analyze_stack(
             "mesh": "points (x, y, depth below slice 0) in um, normals into the lumen; "
             "contoured at each column's half-maximum (background to surface peak)",
             "fold_height_um": "median over folds of each fold's median crest-to-trough height",
+            "fold_wavelength_um": "null with fewer than 2 fold periods in view: "
+            "see fold_wavelength_note and fold_periods_in_view",
             "max_fold_height_um": "the highest fold's median crest-to-trough height",
             "roughness": "ISO 25178-2 on the height map with its least-squares plane removed",
         },

@@ -26,9 +26,10 @@ References
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -391,12 +392,16 @@ class FoldTable:
         ``height_um`` samples, for figures.
     normal : (2,) float
         Unit vector across the folds (x, y).
+    troughs : dict of (T,) arrays
+        One entry per trough found on a profile: ``profile``, ``x_um``,
+        ``y_um``, ``offset_um`` and ``height_um`` (from the quadratic fit).
     """
 
     crests: dict
     folds: dict
     profiles: list
     normal: np.ndarray
+    troughs: dict = field(default_factory=dict)
 
     @property
     def n_folds(self) -> int:
@@ -411,9 +416,12 @@ def _prominent_peaks(
     The profile is first smoothed (Gaussian, ``sigma`` samples) so small
     roughness does not split a crest.  A peak's prominence is its height
     above the higher of the two lowest points between it and the nearest
-    higher sample on either side (or the profile's end), as in topography;
-    peaks under ``prominence`` are dropped, then of peaks closer than
-    ``distance`` samples only the highest is kept.
+    higher sample on either side, as in topography.  A side that reaches the
+    profile's end without a higher sample is open: the fold goes on outside
+    the map, so only the other side counts (a crest near the edge of the
+    field stands out from its one trough in view).  Peaks under
+    ``prominence`` are dropped, then of peaks closer than ``distance``
+    samples only the highest is kept.
     """
     from scipy import ndimage
 
@@ -426,9 +434,15 @@ def _prominent_peaks(
     for i in candidates:
         higher = np.flatnonzero(sm[:i] > sm[i])
         left = sm[higher[-1] if higher.size else 0 : i].min()
+        left_open = higher.size == 0
         higher = np.flatnonzero(sm[i + 1 :] > sm[i])
         right = sm[i + 1 : i + 1 + higher[0] if higher.size else n].min()
-        if sm[i] - max(left, right) >= prominence:
+        right_open = higher.size == 0
+        if left_open != right_open:  # one side runs off the map: the other one counts
+            base = right if left_open else left
+        else:
+            base = max(left, right)
+        if sm[i] - base >= prominence:
             kept.append(i)
     chosen: list[int] = []
     for i in sorted(kept, key=lambda j: -sm[j]):
@@ -437,13 +451,20 @@ def _prominent_peaks(
     return np.asarray(sorted(chosen), np.int64)
 
 
+@functools.lru_cache(maxsize=256)
+def _quadratic_fit(before: int, after: int) -> np.ndarray:
+    """(3, before + after + 1) least-squares map from samples at ``-before..after`` to
+    ``(c2, c1, c0)`` of ``c2 t^2 + c1 t + c0``."""
+    t = np.arange(-before, after + 1, dtype=np.float64)
+    return np.linalg.pinv(np.vander(t, 3))
+
+
 def _extremum(profile: np.ndarray, i: int, half: int) -> float:
     """Height of the extremum near sample ``i`` from a local quadratic fit."""
     lo, hi = max(0, i - half), min(len(profile), i + half + 1)
     if hi - lo < 3:
         return float(profile[i])
-    t = np.arange(lo, hi) - i
-    c2, c1, c0 = np.polyfit(t, profile[lo:hi], 2)
+    c2, c1, c0 = _quadratic_fit(i - lo, hi - 1 - i) @ profile[lo:hi]
     if c2 == 0:
         return float(profile[i])
     tv = -c1 / (2 * c2)
@@ -461,12 +482,15 @@ def fold_profiles(
     profile_spacing_um: float | None = None,
     min_fold_height_um: float | None = None,
     min_profiles: int = 3,
+    fit_fraction: float = 0.1,
 ) -> FoldTable:
     """Per-fold crest-to-trough heights along profiles across the crests.
 
     Straight profiles run across the folds (along the wavevector, at
     ``orientation_deg + 90``) every ``profile_spacing_um`` along the crests
-    (default a quarter wavelength).  On each profile, crests and troughs are
+    (default a sixteenth of a wavelength: many profiles, so that the median
+    over them averages out roughness even where a field of view holds a
+    short stretch of few folds).  On each profile, crests and troughs are
     the peaks and valleys at least half a wavelength apart whose prominence
     is at least ``min_fold_height_um`` (default a fifth of the map's 1-99 %
     height range); their heights come from a quadratic fit over a tenth of a
@@ -505,15 +529,16 @@ def fold_profiles(
     step = min(dx, dy)
     radius = math.hypot(nx * dx, ny * dy) / 2
     s = np.arange(-radius, radius + step, step)
-    gap = profile_spacing_um if profile_spacing_um is not None else wavelength_um / 4
+    gap = profile_spacing_um if profile_spacing_um is not None else wavelength_um / 16
     offsets = np.arange(-radius, radius + gap, gap)
     lo, hi = np.percentile(h, [1, 99])
     min_prom = 0.2 * (hi - lo) if min_fold_height_um is None else float(min_fold_height_um)
     distance = max(1, int(0.5 * wavelength_um / step))
-    half = max(1, round(0.1 * wavelength_um / step))
+    half = max(1, round(fit_fraction * wavelength_um / step))
     rec: dict[str, list] = {k: [] for k in ("profile", "x_um", "y_um", "offset_um", "height_um")}
     rec["width_um"] = []
     rec["sides"] = []
+    low: dict[str, list] = {k: [] for k in ("profile", "x_um", "y_um", "offset_um", "height_um")}
     profiles = []
     for p, v in enumerate(offsets):
         pts = centre + v * crest + s[:, None] * normal
@@ -532,6 +557,12 @@ def fold_profiles(
         profiles.append({"s_um": sp, "x_um": pts[:, 0], "y_um": pts[:, 1], "height_um": prof})
         peaks = _prominent_peaks(prof, distance=distance, prominence=min_prom, sigma=half / 2)
         troughs = _prominent_peaks(-prof, distance=distance, prominence=min_prom, sigma=half / 2)
+        for t in troughs:
+            low["profile"].append(p)
+            low["x_um"].append(pts[t, 0])
+            low["y_um"].append(pts[t, 1])
+            low["offset_um"].append(float(sp[t]))
+            low["height_um"].append(_extremum(prof, int(t), half))
         if peaks.size == 0 or troughs.size == 0:
             continue
         for i in peaks:
@@ -554,8 +585,9 @@ def fold_profiles(
         k: np.asarray(v, np.int64 if k in ("profile", "sides") else np.float64)
         for k, v in rec.items()
     }
+    troughs = {k: np.asarray(v, np.int64 if k == "profile" else np.float64) for k, v in low.items()}
     folds = _group_folds(crests, wavelength_um, min_profiles)
-    return FoldTable(crests=crests, folds=folds, profiles=profiles, normal=normal)
+    return FoldTable(crests=crests, folds=folds, profiles=profiles, normal=normal, troughs=troughs)
 
 
 def _group_folds(crests: dict, wavelength_um: float, min_profiles: int) -> dict:
@@ -589,6 +621,107 @@ def _group_folds(crests: dict, wavelength_um: float, min_profiles: int) -> dict:
     }
 
 
+def _fold_form(
+    height: np.ndarray,
+    *,
+    spacing: tuple[float, float],
+    mask: np.ndarray | None,
+    wavevector: np.ndarray,
+    max_size: int = 128,
+) -> tuple[np.ndarray, float]:
+    """The plane of a joint least-squares fit of a plane and the dominant fold wave.
+
+    A plane fitted alone to a field of view holding a fraction of a fold
+    period takes up part of the folds (a crest on one side tilts it), which
+    biases the height of a fold seen from one side.  Fitting it together
+    with ``cos`` and ``sin`` of ``2 pi k . r`` leaves the folds to the wave;
+    the wave's length is refined from ``1 / |wavevector|`` by minimizing the
+    fit's residual over 0.7..1.4 times ``|k|`` (on the map averaged to at
+    most ``max_size`` pixels a side), which also corrects the periodogram's
+    bias when few periods are in view.
+
+    Returns
+    -------
+    plane : (Y, X) float, um
+        The fitted plane alone, to subtract.
+    wavelength_um : float
+        The refined wavelength.
+    """
+    from scipy.optimize import minimize_scalar
+
+    h = np.asarray(height, np.float64)
+    use = np.isfinite(h) if mask is None else np.asarray(mask, bool) & np.isfinite(h)
+    k0 = np.asarray(wavevector, np.float64)
+
+    def design(shape: tuple[int, int], sp: tuple[float, float], k: np.ndarray) -> np.ndarray:
+        y, x = _coords(shape, sp)
+        yy, xx = np.meshgrid(y, x, indexing="ij")
+        phase = 2 * np.pi * (k[0] * xx + k[1] * yy)
+        return np.stack([np.ones_like(xx), xx, yy, np.cos(phase), np.sin(phase)], -1).reshape(-1, 5)
+
+    f = max(1, math.ceil(max(h.shape) / max_size))
+    ny, nx = h.shape[0] // f, h.shape[1] // f
+    small = np.where(use, h, 0.0)[: ny * f, : nx * f].reshape(ny, f, nx, f).mean(axis=(1, 3))
+    keep = use[: ny * f, : nx * f].reshape(ny, f, nx, f).all(axis=(1, 3)).ravel()
+    if keep.sum() < 5:
+        keep = np.ones(ny * nx, bool)
+    values = small.ravel()[keep]
+
+    def residual(scale: float) -> float:
+        basis = design((ny, nx), (spacing[0] * f, spacing[1] * f), k0 * scale)[keep]
+        coef, *_ = np.linalg.lstsq(basis, values, rcond=None)
+        r = values - basis @ coef
+        return float(r @ r)
+
+    grid = np.linspace(0.7, 1.4, 29)
+    i = int(np.argmin([residual(g) for g in grid]))
+    lo, hi = grid[max(0, i - 1)], grid[min(grid.size - 1, i + 1)]
+    scale = float(minimize_scalar(residual, bounds=(lo, hi), method="bounded").x)
+    basis = design(h.shape, spacing, k0 * scale)
+    coef, *_ = np.linalg.lstsq(basis[use.ravel()], h.ravel()[use.ravel()], rcond=None)
+    plane = (basis[:, :3] @ coef[:3]).reshape(h.shape)
+    return plane, float(1.0 / np.hypot(*(k0 * scale)))
+
+
+def _trough_plane(
+    troughs: dict,
+    *,
+    shape: tuple[int, int],
+    spacing: tuple[float, float],
+    normal: np.ndarray,
+    wavelength_um: float,
+) -> np.ndarray:
+    """The plane through the fold troughs: the base the folds rise from.
+
+    With troughs on lines at least half a wavelength apart across the folds
+    the plane is fitted in full; with one trough line only its tilt along the
+    crests is fitted (the tilt across the folds cannot be told from the
+    height differences between folds), and with fewer than three troughs
+    there is no plane (zeros).
+    """
+    ny, nx = shape
+    dy, dx = spacing
+    x, y, hgt = (np.asarray(troughs.get(k, ()), np.float64) for k in ("x_um", "y_um", "height_um"))
+    if hgt.size < 3:
+        return np.zeros(shape)
+    centre = np.array([(nx - 1) * dx / 2, (ny - 1) * dy / 2])
+    along = np.array([normal[1], -normal[0]])
+
+    def coords(px: np.ndarray, py: np.ndarray):
+        return (px - centre[0]) * along[0] + (py - centre[1]) * along[1], (
+            (px - centre[0]) * normal[0] + (py - centre[1]) * normal[1]
+        )
+
+    a, u = coords(x, y)
+    terms = [np.ones_like(a), a]
+    if np.ptp(u) >= wavelength_um / 2:
+        terms.append(u)
+    coef, *_ = np.linalg.lstsq(np.stack(terms, 1), hgt, rcond=None)
+    yy, xx = np.meshgrid(np.arange(ny) * dy, np.arange(nx) * dx, indexing="ij")
+    ga, gu = coords(xx, yy)
+    return coef[0] + coef[1] * ga + (coef[2] * gu if len(coef) > 2 else 0.0)
+
+
 def fold_metrics(
     height: np.ndarray,
     *,
@@ -596,7 +729,9 @@ def fold_metrics(
     mask: np.ndarray | None = None,
     min_fold_height_um: float | None = None,
     resolution_um: float = 0.0,
-    min_folds_in_view: float = 1.5,
+    min_folds_in_view: float = 2.0,
+    profile_spacing_um: float | None = None,
+    fit_fraction: float = 0.1,
 ) -> tuple[dict, FoldSpectrum, FoldTable]:
     """Every fold and roughness metric of a height map, in one dictionary.
 
@@ -607,44 +742,80 @@ def fold_metrics(
     Folds must stand out: by default at least a fifth of the map's height
     range and at least three times ``resolution_um`` (pass the z-step), so
     a flat or tilted surface, whose height map holds only noise and the
-    z-step staircase, has no folds.  When no fold is found, or the field of
-    view holds fewer than ``min_folds_in_view`` wavelengths, the fold
+    z-step staircase, has no folds.  When no fold is found the fold
     wavelength and heights are None; the roughness parameters are always
     given.
+
+    Fold heights are measured however few folds are in view.  A field that
+    holds part of a fold period tilts a least-squares plane (a crest on one
+    side lifts it), which would bias the height of a fold seen from one side
+    only, so before the profiles the form is removed twice: the plane of a
+    joint fit of a plane and the dominant fold wave, then the plane through
+    the troughs the profiles find (its tilt across the folds only when
+    troughs lie on two lines or more).  The wavelength needs at least
+    ``min_folds_in_view`` periods across the field (the periodogram's peak
+    of fewer periods is biased long); with fewer it is None and
+    ``fold_wavelength_note`` says how many periods were in view.
 
     Returns
     -------
     metrics : dict
-        ``fold_wavelength_um``, ``fold_height_um`` (median over folds of
-        their median crest-to-trough height), ``max_fold_height_um`` (the
-        highest fold's median height), ``n_folds``,
-        ``fold_orientation_deg`` (structure tensor), ``fold_coherency``,
-        ``spectral_orientation_deg``, ``spectral_peak_fraction`` and the ISO
-        25178 parameters of :func:`roughness`.
+        ``fold_wavelength_um`` (None with fewer than ``min_folds_in_view``
+        periods in view), ``fold_wavelength_note`` (why it is None, else
+        None), ``fold_periods_in_view`` (the field's extent across the
+        folds over the fitted fold wave's length), ``fold_height_um``
+        (median over folds of their median crest-to-trough height),
+        ``max_fold_height_um`` (the highest fold's median height),
+        ``n_folds``, ``fold_orientation_deg`` (structure tensor),
+        ``fold_coherency``, ``spectral_orientation_deg``,
+        ``spectral_peak_fraction`` and the ISO 25178 parameters of
+        :func:`roughness`.
     spectrum : FoldSpectrum
     folds : FoldTable
     """
     z = detrend(height, spacing=spacing, mask=mask)
     dy, dx = _lateral(spacing)
-    metrics: dict[str, float | int | None] = {}
+    metrics: dict[str, float | int | str | None] = {}
     spectrum = fold_spectrum(z, spacing=spacing)
     orientation, coherency = fold_orientation(z, spacing=spacing, mask=mask)
     if min_fold_height_um is None:
         lo, hi = np.percentile(z, [1, 99])
         min_fold_height_um = max(0.2 * (hi - lo), 3.0 * float(resolution_um))
-    table = fold_profiles(
-        z,
-        spacing=spacing,
-        orientation_deg=orientation,
-        wavelength_um=spectrum.wavelength_um,
-        min_fold_height_um=min_fold_height_um,
+    form, wavelength = _fold_form(z, spacing=(dy, dx), mask=mask, wavevector=spectrum.wavevector)
+    zf = z - form
+    options = {
+        "spacing": spacing,
+        "orientation_deg": orientation,
+        "wavelength_um": wavelength,
+        "min_fold_height_um": min_fold_height_um,
+        "profile_spacing_um": profile_spacing_um,
+        "fit_fraction": fit_fraction,
+    }
+    # the troughs that set the base plane: a coarser set of profiles finds them
+    first = fold_profiles(zf, **{**options, "profile_spacing_um": wavelength / 4})
+    zf = zf - _trough_plane(
+        first.troughs,
+        shape=z.shape,
+        spacing=(dy, dx),
+        normal=first.normal,
+        wavelength_um=wavelength,
     )
+    table = fold_profiles(zf, **options)
     heights = table.folds["height_um"]
-    field = min(z.shape[0] * dy, z.shape[1] * dx)
-    enough = heights.size > 0 and spectrum.wavelength_um * min_folds_in_view <= field
-    if not enough:
-        heights = heights[:0]
-    metrics["fold_wavelength_um"] = spectrum.wavelength_um if enough else None
+    theta = math.radians(orientation)
+    across = abs(z.shape[1] * dx * math.sin(theta)) + abs(z.shape[0] * dy * math.cos(theta))
+    periods = across / wavelength
+    enough = periods >= min_folds_in_view
+    metrics["fold_wavelength_um"] = spectrum.wavelength_um if enough and heights.size else None
+    metrics["fold_wavelength_note"] = (
+        None
+        if metrics["fold_wavelength_um"] is not None
+        else "no folds found"
+        if not heights.size
+        else f"not measured: about {periods:.1f} fold periods in view, "
+        f"at least {min_folds_in_view:g} needed"
+    )
+    metrics["fold_periods_in_view"] = float(periods)
     metrics["fold_height_um"] = float(np.median(heights)) if heights.size else None
     metrics["max_fold_height_um"] = float(np.max(heights)) if heights.size else None
     metrics["n_folds"] = int(heights.size)

@@ -70,3 +70,41 @@ def test_a_field_smaller_than_a_wavelength_reports_no_wavelength():
     a = analyze_stack(_stack(_slab(80.0 + 30 * np.sin(2 * np.pi * x / 200.0), 50)), surface=False)
     assert a.metrics["fold_wavelength_um"] is None
     assert np.isfinite(a.metrics["Sq_um"])
+
+
+@pytest.mark.parametrize(
+    "phase",
+    [
+        pytest.param(0.0, id="one-whole-fold"),  # a crest in the middle, a trough at each side
+        pytest.param(0.5, id="two-half-folds"),  # two crests seen from their one shared trough
+    ],
+)
+def test_fewer_than_two_periods_still_give_the_fold_heights(tmp_path, phase):
+    """400 um folds in a 640 um field (1.6 periods): the heights of the folds in view are
+    measured; the wavelength is not, and metrics.json says why."""
+    import json
+
+    from sample_data_synth import make_stack_case, write_stack
+    from tests.mpm3d.helpers import cli, rel_err
+    from tests.tolerances import MPM_FOLD_RELATIVE
+
+    case = make_stack_case(
+        "before",
+        size=128,
+        spacing=(4.0, 5.0, 5.0),
+        wavelength_um=400.0,
+        phase_um=phase * 400,
+        rng=1,
+    )
+    path = tmp_path / "partial.tif"
+    write_stack(path, case)
+    out = tmp_path / "out"
+    assert cli("analyze", path, "--out", out, "--no-surface", "--no-figures", "-q") == 0
+    m = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
+    info = case.info
+    assert m["n_folds"] == info["n_folds_in_view"] == (1 if phase == 0 else 2)
+    assert rel_err(m["fold_height_um"], info["median_fold_height_um"]) < MPM_FOLD_RELATIVE
+    assert rel_err(m["max_fold_height_um"], info["max_fold_height_um"]) < MPM_FOLD_RELATIVE
+    assert m["fold_wavelength_um"] is None
+    assert 1.5 < m["fold_periods_in_view"] < 2.0
+    assert m["fold_wavelength_note"].startswith("not measured: about 1.7 fold periods in view")

@@ -142,3 +142,29 @@ def test_bad_arguments_are_named():
         fold_profiles(h, spacing=(1, 1), orientation_deg=0, wavelength_um=0)
     with pytest.raises(InputError, match="8 x 8"):
         fold_spectrum(np.zeros((4, 20)), spacing=(1, 1))
+
+
+@pytest.mark.parametrize("phase", [0.0, 0.25])
+def test_fold_heights_of_a_partial_period_ignore_the_specimens_tilt(phase):
+    """1.6 periods of 400 um folds: a least-squares plane would tilt with the folds; the
+    plane through the troughs does not, and a tilted specimen gives the same heights."""
+    h, info = fold_height_field(
+        (128, 128),
+        (5.0, 5.0),
+        wavelength_um=400.0,
+        orientation_deg=85.0,
+        fold_height_range_um=(80, 120),
+        phase_um=phase * 400,
+        roughness_um=4.0,
+        rng=1,
+    )
+    y, x = np.mgrid[0:128, 0:128] * 5.0
+    flat, _, _ = fold_metrics(h, spacing=(5.0, 5.0), resolution_um=4.0)
+    tilted, _, _ = fold_metrics(h - 0.1 * x + 0.2 * y, spacing=(5.0, 5.0), resolution_um=4.0)
+    for key in ("fold_height_um", "max_fold_height_um"):
+        assert tilted[key] == pytest.approx(flat[key], rel=1e-6)
+    assert flat["n_folds"] == info["n_folds_in_view"]
+    truth = (info["median_fold_height_um"], info["max_fold_height_um"])
+    assert flat["fold_height_um"] == pytest.approx(truth[0], rel=MPM_FOLD_RELATIVE)
+    assert flat["max_fold_height_um"] == pytest.approx(truth[1], rel=MPM_FOLD_RELATIVE)
+    assert flat["fold_wavelength_um"] is None and flat["fold_periods_in_view"] < 2
