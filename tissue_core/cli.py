@@ -23,8 +23,8 @@ import sys
 import warnings
 
 from tissue_core.errors import InputError, SourceError
-from tissue_core.interrupt import is_interrupt
-from tissue_core.outputs import recorded_command
+from tissue_core.interrupt import handling_interrupts, is_interrupt
+from tissue_core.outputs import recorded_command, written
 from tissue_core.progress import close_open_lines
 
 __all__ = ["ArgumentParser", "one_line", "run_command", "run_module"]
@@ -87,6 +87,7 @@ def run_command(
     argv = sys.argv[1:] if argv is None else list(argv)
     prefix = prog
     token = recorded_command.set([prog, *argv])
+    written.clear()
     try:
         args = parser.parse_args(argv)
         prefix = f"{prog} {args.command}"
@@ -94,7 +95,7 @@ def run_command(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
             format="%(levelname)s: %(message)s",
         )
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), handling_interrupts():
             warnings.simplefilter("always", UserWarning)
             warnings.showwarning = _show_warning(prefix)
             try:
@@ -121,10 +122,12 @@ def run_module(cli_module: str) -> None:
     """
     import importlib
     import os
+    import signal
 
     try:
         status = importlib.import_module(cli_module).main()
-    except KeyboardInterrupt:  # while importing, or building the parser
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # done: a late Ctrl-C changes nothing
+    except KeyboardInterrupt:  # while importing, building the parser, or just after main()
         status = _interrupted(cli_module.split(".")[0])
     if status == 130:
         # When Ctrl-C lands in code run by exec() (SciPy's imports do that), CPython
@@ -140,5 +143,10 @@ def _interrupted(prefix: str) -> int:
     close_open_lines()
     # on a terminal, ^C was echoed on the open line
     newline = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
-    print(f"{newline}{prefix}: interrupted; no output written", file=sys.stderr, flush=True)
+    what = (
+        f"interrupted after the results were written to {', '.join(written)}"
+        if written
+        else "interrupted; no output written"
+    )
+    print(f"{newline}{prefix}: {what}", file=sys.stderr, flush=True)
     return 130

@@ -1,45 +1,150 @@
-"""Ctrl-C held back while compiled code runs.
+"""Ctrl-C that arrives where Python cannot raise it cleanly.
 
-A SIGINT that arrives while a numba kernel runs can surface inside the
-kernel's call back into Python and end as ``SystemError: ... returned a
-result with an exception set`` instead of :class:`KeyboardInterrupt`.
-:func:`deferred_interrupt` records the signal instead, lets the kernel
-finish (one frame's work: milliseconds to a second), then raises a clean
-:class:`KeyboardInterrupt`.
+Python turns SIGINT into :class:`KeyboardInterrupt` at the next bytecode,
+wherever that is.  Three places go wrong:
+
+* inside a numba kernel's call back into Python, where it ends as
+  ``SystemError: ... returned a result with an exception set``;
+* inside an import, where a native extension (VTK) that is initialising can
+  be left half-built and crash the process later (SIGSEGV);
+* inside a finalizer or weakref callback, where Python swallows it
+  ("Exception ignored in: ...") and the program runs on.
+
+While :func:`handling_interrupts` is active (the command runner turns it on),
+Ctrl-C in an import is held until the import is done, and one in a finalizer
+is recorded; :func:`deferred_interrupt` holds it for the length of a block
+(a kernel call); :func:`raise_if_interrupted` (called by progress counters and
+before a result is renamed into place) raises what was held.  Outside the
+command runner, Python's own behaviour is left as it is.
 """
 
 from __future__ import annotations
 
 import contextlib
 import signal
+import sys
 import threading
+import time
 from collections.abc import Iterator
 
-__all__ = ["deferred_interrupt", "is_interrupt"]
+__all__ = [
+    "deferred_interrupt",
+    "handling_interrupts",
+    "is_interrupt",
+    "raise_if_interrupted",
+]
+
+
+class _State:
+    pending = False  # a Ctrl-C was held back
+    depth = 0  # nesting of deferred_interrupt blocks
+    redelivering = False
+
+
+_state = _State()
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` runs inside an import (importlib's frames are on its stack)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _redeliver() -> None:
+    """Send SIGINT again once the main thread has left the import it was in."""
+    main = threading.main_thread()
+    try:
+        while main.is_alive():
+            time.sleep(0.02)
+            frame = sys._current_frames().get(main.ident)
+            if frame is None or not _importing(frame):
+                break
+        if _state.pending and _state.depth == 0 and main.is_alive():
+            # to the main thread itself, so that a sleep or a blocking call there wakes up
+            signal.pthread_kill(main.ident, signal.SIGINT)
+    finally:
+        _state.redelivering = False
+
+
+def _handler(signum, frame) -> None:
+    if _state.depth:
+        _state.pending = True
+        return
+    if _importing(frame):
+        _state.pending = True
+        if not _state.redelivering:
+            _state.redelivering = True
+            threading.Thread(target=_redeliver, daemon=True).start()
+        return
+    _state.pending = False
+    raise KeyboardInterrupt
+
+
+def _unraisable(previous):
+    def hook(unraisable) -> None:
+        if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+            _state.pending = True  # swallowed by Python in a finalizer: raise it later
+        else:
+            previous(unraisable)
+
+    return hook
+
+
+@contextlib.contextmanager
+def handling_interrupts() -> Iterator[None]:
+    """Hold Ctrl-C during imports and record one swallowed in a finalizer (main thread only)."""
+    if threading.current_thread() is not threading.main_thread() or (
+        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield
+        return
+    previous_hook = sys.unraisablehook
+    _state.pending = False
+    signal.signal(signal.SIGINT, _handler)
+    sys.unraisablehook = _unraisable(previous_hook)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        sys.unraisablehook = previous_hook
+        _state.pending = False
+
+
+def raise_if_interrupted() -> None:
+    """Raise the KeyboardInterrupt that was held back, if there is one."""
+    if _state.pending and _state.depth == 0:
+        _state.pending = False
+        raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
 def deferred_interrupt() -> Iterator[None]:
     """Run the block with Ctrl-C deferred to its end.
 
-    Outside the main thread, or when SIGINT is not handled by Python's default
-    handler (ignored, or handled by the caller), the block runs unchanged.
+    Outside the main thread, or when SIGINT is handled by someone else's
+    handler (or ignored), the block runs unchanged.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is not signal.default_int_handler:
+    current = signal.getsignal(signal.SIGINT)
+    installed = current is signal.default_int_handler
+    if not installed and current is not _handler:
         yield
         return
-    received: list[int] = []
-    signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
+    if installed:
+        signal.signal(signal.SIGINT, _handler)
+    _state.depth += 1
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-    if received:
-        raise KeyboardInterrupt
+        _state.depth -= 1
+        if installed:
+            signal.signal(signal.SIGINT, current)
+    raise_if_interrupted()
 
 
 def is_interrupt(exc: BaseException) -> bool:

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Literal
 
 from tissue_core.errors import InputError
+from tissue_core.interrupt import raise_if_interrupted
 
 __all__ = [
     "MARKER",
@@ -49,6 +50,10 @@ MARKER = ".tissue-strain-result.json"
 _MARKER_KIND = "tissue-strain result"
 #: files that file browsers drop into any folder they show
 _BROWSER_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
+
+#: the results renamed into place since the command began (cleared by tissue_core.cli), so
+#: that Ctrl-C after them is not reported as "no output written"
+written: list[str] = []
 
 #: the command line being run, recorded in each marker (set by tissue_core.cli)
 recorded_command: contextvars.ContextVar[list[str] | None] = contextvars.ContextVar(
@@ -313,12 +318,17 @@ def atomic_dir(
         check_writable(path, overwrite=overwrite, kind="dir", inputs=inputs, option=option)
         if path.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=parent))
+            raise_if_interrupted()
             with _no_interrupt():  # never leave the old result moved and the new one not
                 os.replace(path, old / path.name)
                 os.replace(tmp, path)
-            shutil.rmtree(old, ignore_errors=True)
+                written.append(str(path))
+                shutil.rmtree(old, ignore_errors=True)
         else:
-            os.replace(tmp, path)
+            raise_if_interrupted()
+            with _no_interrupt():
+                os.replace(tmp, path)
+                written.append(str(path))
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
@@ -350,7 +360,10 @@ def atomic_file(
             raise
         os.chmod(tmp, 0o666 & ~_umask())
         check_writable(path, kind="file", **kwargs)
-        os.replace(tmp, path)
+        raise_if_interrupted()
+        with _no_interrupt():
+            os.replace(tmp, path)
+            written.append(str(path))
     finally:
         if tmp.exists():
             tmp.unlink()

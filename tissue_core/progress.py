@@ -15,6 +15,8 @@ import sys
 import time
 from typing import TextIO
 
+from tissue_core.interrupt import raise_if_interrupted
+
 __all__ = ["Progress", "close_open_lines"]
 
 #: counters whose terminal bar is on screen now (closed before an error line)
@@ -101,6 +103,7 @@ class Task:
         return f"{self.done}{of} {self.unit}s"
 
     def __call__(self, done: int, total: int | None = None) -> None:
+        raise_if_interrupted()  # a Ctrl-C that Python swallowed in a finalizer
         p = self.progress
         if p.quiet or self._closed:
             return

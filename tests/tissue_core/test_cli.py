@@ -149,3 +149,75 @@ def test_ctrl_c_is_deferred_to_the_end_of_a_compiled_call():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
     with deferred_interrupt():  # no signal: nothing raised
         _busy(10)
+
+
+def test_a_ctrl_c_python_swallowed_is_raised_at_the_next_step(capsys):
+    """KeyboardInterrupt in a finalizer: Python prints 'Exception ignored' and runs on."""
+    import gc
+    import weakref
+
+    class Thing:
+        pass
+
+    def interrupted(args):
+        thing = Thing()
+        weakref.finalize(thing, _raise_keyboard_interrupt)
+        del thing
+        gc.collect()  # the finalizer's KeyboardInterrupt is swallowed here
+        say = Progress(quiet=True)
+        with say.task("work") as task:
+            task(1, 2)  # ... and raised here
+        return 0
+
+    status, err = run(interrupted, capsys)
+    assert (status, err) == (130, "tool go: interrupted; no output written\n")
+
+
+def _raise_keyboard_interrupt():
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_after_the_result_was_written_says_so(tmp_path, capsys):
+    from tissue_core.outputs import atomic_dir
+
+    def finished_then_interrupted(args):
+        with atomic_dir(tmp_path / "run") as tmp:
+            (tmp / "a.csv").write_text("x")
+        raise KeyboardInterrupt
+
+    status, err = run(finished_then_interrupted, capsys)
+    assert status == 130
+    assert err == f"tool go: interrupted after the results were written to {tmp_path / 'run'}\n"
+    status, err = run(lambda args: 0, capsys)  # the next command starts afresh
+    assert (status, err) == (0, "")
+
+
+def test_ctrl_c_during_an_import_waits_until_the_module_is_whole(tmp_path, monkeypatch, capsys):
+    """A native extension left half-initialised by Ctrl-C can crash the process later."""
+    import sys
+    import time
+
+    (tmp_path / "slow_module_for_test.py").write_text(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the import\n"
+        "time.sleep(0.2)\n"
+        "WHOLE = True\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reached = []
+
+    def handler(args):
+        import slow_module_for_test
+
+        reached.append(slow_module_for_test.WHOLE)
+        time.sleep(5)  # the held Ctrl-C is delivered here, once the import is done
+        reached.append("slept")
+        return 0
+
+    try:
+        status, err = run(handler, capsys)
+    finally:
+        sys.modules.pop("slow_module_for_test", None)
+    assert (status, err) == (130, "tool go: interrupted; no output written\n")
+    assert reached == [True]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
