@@ -9,6 +9,12 @@ tracks them through both videos and triangulates them
 ``match``, ``reconstruct``.
 """
 
-from strain2d import __version__
-
 __all__ = ["__version__"]
+
+
+def __getattr__(name: str):
+    if name == "__version__":  # read from the package metadata only when asked
+        from tissue_core.version import __version__
+
+        return __version__
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

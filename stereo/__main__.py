@@ -1,3 +1,3 @@
-from tissue_core.cli import run_module
+from tissue_core.main import run
 
-run_module("stereo.cli")
+run("stereo")

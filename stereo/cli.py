@@ -16,8 +16,6 @@ import glob
 import json
 import math
 import re
-import sys
-import time
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -124,13 +122,9 @@ def _read_points(path: str, shape: tuple[int, int], *, for_strain: bool) -> np.n
 
 
 def _say(args):
-    start = time.perf_counter()
+    from tissue_core.progress import Progress
 
-    def say(message: str) -> None:
-        if not args.quiet:
-            print(f"[{time.perf_counter() - start:6.1f} s] {message}", file=sys.stderr, flush=True)
-
-    return say
+    return Progress(quiet=args.quiet)
 
 
 def _build_parser() -> argparse.ArgumentParser:
@@ -268,16 +262,14 @@ def _cmd_calibrate(args) -> int:
     )
     with atomic_file(args.out, **writing) as tmp:
         calib.save(tmp)
-    if not args.quiet:
-        for r in calib.extra["rejected"]:
-            print(f"rejected {r['image']}: {r['reason']}", file=sys.stderr)
-        kept = len(calib.extra["views"])
-        print(
-            f"calibrated on {kept} of {len(left)} pairs: RMS {calib.rms_px:.3f} px "
-            f"(left {calib.extra['rms_left_px']:.3f}, right {calib.extra['rms_right_px']:.3f}), "
-            f"baseline {calib.baseline:.2f} {calib.unit}; written to {args.out}",
-            file=sys.stderr,
-        )
+    for r in calib.extra["rejected"]:
+        say(f"rejected {r['image']}: {r['reason']}")
+    kept = len(calib.extra["views"])
+    say(
+        f"calibrated on {kept} of {len(left)} pairs: RMS {calib.rms_px:.3f} px "
+        f"(left {calib.extra['rms_left_px']:.3f}, right {calib.extra['rms_right_px']:.3f}), "
+        f"baseline {calib.baseline:.2f} {calib.unit}; written to {args.out}"
+    )
     return 0
 
 
@@ -293,6 +285,7 @@ def _cmd_import(args) -> int:
     calib.extra["imported_from"] = [Path(f).name for f in args.files]
     with atomic_file(args.out, **writing) as tmp:
         calib.save(tmp)
+    _say(args)(f"calibration of {' and '.join(args.files)} written to {args.out}")
     return 0
 
 
@@ -351,11 +344,7 @@ def _cmd_match(args) -> int:
                         f"{m.epipolar_px[i]:.4f}",
                     ]
                 )
-    if not args.quiet:
-        print(
-            f"matched {int(m.visible.sum())} of {len(points)} points; written to {args.out}",
-            file=sys.stderr,
-        )
+    _say(args)(f"matched {int(m.visible.sum())} of {len(points)} points; written to {args.out}")
     return 0
 
 
@@ -538,14 +527,13 @@ def _cmd_reconstruct(args) -> int:
                 unit=calib.unit,
                 source="points3d.csv",
             )
-    if not args.quiet:
-        rms = summary["reprojection_rms_px"]
-        print(
-            f"{rec.n_points} points x {rec.n_frames} frames, "
-            f"{100 * summary['visible_fraction']:.1f} % visible, reprojection RMS "
-            f"{'-' if rms is None else f'{rms:.3f}'} px; results in {args.out}",
-            file=sys.stderr,
-        )
+    rms = summary["reprojection_rms_px"]
+    say(
+        f"{rec.n_points} points x {rec.n_frames} frames, "
+        f"{100 * summary['visible_fraction']:.1f} % visible, reprojection RMS "
+        f"{'-' if rms is None else f'{rms:.3f}'} px"
+    )
+    say(f"results in {args.out}")
     return 0
 
 

@@ -23,7 +23,7 @@ import sys
 import warnings
 
 from tissue_core.errors import InputError, SourceError
-from tissue_core.interrupt import handling_interrupts, is_interrupt
+from tissue_core.interrupt import handling_interrupts, is_interrupt, note_interrupted
 from tissue_core.outputs import recorded_command, written
 from tissue_core.progress import close_open_lines
 
@@ -104,6 +104,8 @@ def run_command(
                 close_open_lines()
                 print(f"{prefix}: error: {one_line(exc)}", file=sys.stderr, flush=True)
                 return 2
+            except KeyboardInterrupt:  # here, so that finalizers run under handling_interrupts
+                return _interrupted(prefix)
             except SystemError as exc:  # compiled code interrupted mid-call
                 if is_interrupt(exc):
                     return _interrupted(prefix)
@@ -140,6 +142,7 @@ def run_module(cli_module: str) -> None:
 
 
 def _interrupted(prefix: str) -> int:
+    note_interrupted()
     close_open_lines()
     # on a terminal, ^C was echoed on the open line
     newline = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""

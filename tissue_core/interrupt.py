@@ -21,6 +21,7 @@ command runner, Python's own behaviour is left as it is.
 from __future__ import annotations
 
 import contextlib
+import logging
 import signal
 import sys
 import threading
@@ -31,12 +32,17 @@ __all__ = [
     "deferred_interrupt",
     "handling_interrupts",
     "is_interrupt",
+    "note_interrupted",
     "raise_if_interrupted",
 ]
 
 
+log = logging.getLogger(__name__)
+
+
 class _State:
     pending = False  # a Ctrl-C was held back
+    interrupted = False  # the command is ending because of Ctrl-C
     depth = 0  # nesting of deferred_interrupt blocks
     redelivering = False
 
@@ -87,10 +93,18 @@ def _unraisable(previous):
     def hook(unraisable) -> None:
         if unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
             _state.pending = True  # swallowed by Python in a finalizer: raise it later
+        elif _state.interrupted:
+            # an object that Ctrl-C left half-built fails in its finalizer: not news
+            log.debug("after Ctrl-C: %s in %r", unraisable.exc_value, unraisable.object)
         else:
             previous(unraisable)
 
     return hook
+
+
+def note_interrupted() -> None:
+    """The command is ending because of Ctrl-C: finalizers' errors are its consequences."""
+    _state.interrupted = True
 
 
 @contextlib.contextmanager
@@ -102,7 +116,7 @@ def handling_interrupts() -> Iterator[None]:
         yield
         return
     previous_hook = sys.unraisablehook
-    _state.pending = False
+    _state.pending = _state.interrupted = False
     signal.signal(signal.SIGINT, _handler)
     sys.unraisablehook = _unraisable(previous_hook)
     try:
@@ -110,7 +124,7 @@ def handling_interrupts() -> Iterator[None]:
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         sys.unraisablehook = previous_hook
-        _state.pending = False
+        _state.pending = _state.interrupted = False
 
 
 def raise_if_interrupted() -> None:

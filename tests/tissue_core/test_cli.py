@@ -221,3 +221,19 @@ def test_ctrl_c_during_an_import_waits_until_the_module_is_whole(tmp_path, monke
     assert (status, err) == (130, "tool go: interrupted; no output written\n")
     assert reached == [True]
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_finalizers_of_what_ctrl_c_left_half_built_stay_quiet(capsys):
+    """Ctrl-C inside a constructor leaves an object whose __del__ fails: not a traceback."""
+
+    class HalfBuilt:
+        def __init__(self):
+            raise KeyboardInterrupt  # Ctrl-C before the attribute is set
+
+        def __del__(self):
+            self.expr  # noqa: B018 - AttributeError, as pyparsing's Forward does
+
+    def interrupted(args):
+        HalfBuilt()
+
+    assert run(interrupted, capsys) == (130, "tool go: interrupted; no output written\n")
