@@ -16,17 +16,19 @@ stack (:mod:`mpm3d.io`), find the surface (:mod:`mpm3d.heightmap`), mesh it
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import logging
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from mpm3d.errors import InputError
 from mpm3d.heightmap import HeightMap, height_map
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
@@ -71,6 +73,17 @@ class Analysis:
         return self.heightmap.height_um
 
 
+@contextlib.contextmanager
+def _about(path: str) -> Iterator[None]:
+    """Errors raised in the block name the stack ``path`` they are about."""
+    try:
+        yield
+    except InputError as exc:
+        if path in str(exc):
+            raise
+        raise InputError(f"{path}: {exc}") from exc
+
+
 def analyze_stack(
     source: str | os.PathLike | Stack,
     *,
@@ -110,33 +123,34 @@ def analyze_stack(
     """
     say = progress or (lambda message: None)
     stack = source if isinstance(source, Stack) else read_stack(source, spacing=spacing)
-    say("choosing the channel")
-    volume, channel_label = select_channel(stack, channel)
-    say("finding the surface")
-    hm = height_map(volume, spacing=stack.spacing, threshold=threshold, smooth_um=smooth_um)
-    say("measuring the folds")
-    metrics, spectrum, folds = fold_metrics(
-        hm.height_um,
-        spacing=stack.spacing,
-        mask=hm.valid,
-        min_fold_height_um=min_fold_height_um,
-        resolution_um=stack.spacing[0],
-    )
-    mesh = None
-    if surface:
-        from mpm3d.surface import isosurface
-
-        say("building the isosurface")
-        mesh = isosurface(
-            volume,
+    with _about(stack.path):  # the problem is this stack's: say which it is
+        say("choosing the channel")
+        volume, channel_label = select_channel(stack, channel)
+        say("finding the surface")
+        hm = height_map(volume, spacing=stack.spacing, threshold=threshold, smooth_um=smooth_um)
+        say("measuring the folds")
+        metrics, spectrum, folds = fold_metrics(
+            hm.height_um,
             spacing=stack.spacing,
-            level=0.5,
-            column_scale=(hm.background, hm.peak),
-            depth_um=hm.depth_um,
-            bin=iso_bin,
-            band_um=band_um,
-            decimate=decimate,
+            mask=hm.valid,
+            min_fold_height_um=min_fold_height_um,
+            resolution_um=stack.spacing[0],
         )
+        mesh = None
+        if surface:
+            from mpm3d.surface import isosurface
+
+            say("building the isosurface")
+            mesh = isosurface(
+                volume,
+                spacing=stack.spacing,
+                level=0.5,
+                column_scale=(hm.background, hm.peak),
+                depth_um=hm.depth_um,
+                bin=iso_bin,
+                band_um=band_um,
+                decimate=decimate,
+            )
     del volume
     params = {
         "channel": channel,

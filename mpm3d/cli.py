@@ -110,6 +110,10 @@ def _options(args) -> dict:
         raise InputError(f"--iso-bin must be >= 1, got {args.iso_bin}")
     if not 0 <= args.decimate < 1:
         raise InputError(f"--decimate must be in [0, 1), got {args.decimate}")
+    if args.no_surface:
+        given = [o for o, v in (("--iso-bin", args.iso_bin), ("--decimate", args.decimate)) if v]
+        if given:
+            raise InputError(f"{' and '.join(given)} shape the isosurface that --no-surface skips")
     for name in ("smooth", "min_fold_height"):
         value = getattr(args, name)
         if value is not None and value < 0:

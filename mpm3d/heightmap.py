@@ -120,8 +120,11 @@ def surface_levels(
     """
     step = max(1, round((volume.size / sample) ** (1 / 3)))
     sub = np.asarray(volume[::step, ::step, ::step], dtype=np.float32).ravel()
-    sub = sub[np.isfinite(sub)]
-    if sub.size == 0 or sub.min() == sub.max():
+    finite = np.isfinite(sub)
+    if not finite.any():
+        raise InputError("every voxel is NaN or infinite: there is no surface to find")
+    sub = sub[finite]
+    if sub.min() == sub.max():
         raise InputError("the stack is uniform: there is no surface to find")
     if threshold is None:
         threshold = otsu_threshold(sub)
@@ -197,7 +200,8 @@ def height_map(
     peak_window_um : float
         How far below the first crossing to look for the layer's peak.
     smooth_um : float, optional
-        Gaussian sigma of the final smoothing; 0 turns it off.
+        Gaussian sigma of the final smoothing; 0 turns it off.  At most the
+        field of view's longer side.
     min_cnr : float
         Least contrast-to-noise ratio of a measured column.
     outlier_um : float, optional
@@ -236,8 +240,16 @@ def height_map(
     for name, value in (("peak_window_um", peak_window_um), ("min_cnr", min_cnr)):
         if not (math.isfinite(value) and value >= 0):
             raise InputError(f"{name} must be a number >= 0, got {value}")
+    sigma_um = max(dx, dy) if smooth_um is None else float(smooth_um)
+    if not (math.isfinite(sigma_um) and sigma_um >= 0):
+        raise InputError(f"smooth_um must be a number >= 0, got {smooth_um}")
+    if sigma_um > max(ny * dy, nx * dx):
+        raise InputError(
+            f"a smoothing of {sigma_um:g} um (--smooth) is wider than the field of view "
+            f"({ny * dy:g} x {nx * dx:g} um)"
+        )
     threshold, background, noise = surface_levels(volume, threshold=threshold)
-    window = max(1, math.ceil(peak_window_um / dz))
+    window = max(1, math.ceil(min(peak_window_um / dz, nz)))  # slices, at most the stack
     depth = np.empty((ny, nx), np.float64)
     peak = np.empty((ny, nx), np.float64)
     log.info("height map: threshold %g, background %g, noise %g", threshold, background, noise)
@@ -273,7 +285,6 @@ def height_map(
             stacklevel=2,
         )
     depth_um = fill_gaps(depth_um, valid)
-    sigma_um = max(dx, dy) if smooth_um is None else float(smooth_um)
     if sigma_um > 0:
         depth_um = smooth_map(depth_um, (sigma_um / dy, sigma_um / dx))
     peaks = peak[valid]

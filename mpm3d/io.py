@@ -109,6 +109,8 @@ _PAGE_AXES = ("Q", "I")
 _RANGE_SAMPLE_VOXELS = 1_000_000
 #: percentiles of a channel's intensity that map to 0 and 65535 in a combination
 _RANGE_PERCENTILES = (0.1, 99.9)
+#: the voxel sizes a command line accepts, um: anything outside is in other units
+_SPACING_RANGE_UM = (1e-3, 1e4)
 #: the TIFF byte order that needs no conversion on this machine
 _NATIVE_ORDER = "<" if sys.byteorder == "little" else ">"
 #: what tifffile logs when the chain of pages or a page's data is broken
@@ -204,7 +206,8 @@ def parse_spacing(text: str) -> Spacing:
     Parameters
     ----------
     text : str
-        Three comma-separated positive numbers ``dz,dy,dx`` in micrometres.
+        Three comma-separated numbers ``dz,dy,dx`` in micrometres, each
+        between 0.001 and 10000 (a value outside is in other units).
 
     Returns
     -------
@@ -214,7 +217,7 @@ def parse_spacing(text: str) -> Spacing:
     Raises
     ------
     InputError
-        When ``text`` is not three finite positive numbers.
+        When ``text`` is not three numbers in that range.
 
     Examples
     --------
@@ -233,6 +236,9 @@ def parse_spacing(text: str) -> Spacing:
         raise InputError(message) from None
     if not all(math.isfinite(v) and v > 0 for v in values):
         raise InputError(message)
+    lo, hi = _SPACING_RANGE_UM
+    if not all(lo <= v <= hi for v in values):
+        raise InputError(f"{message}: each must lie between {lo:g} and {hi:g} um")
     return values
 
 
@@ -436,10 +442,14 @@ def _combine_channels(data: np.ndarray) -> np.ndarray:
         sample = np.asarray(data[::step, k, ::step, ::step], dtype=np.float64).ravel()
         sample = sample[np.isfinite(sample)]
         if sample.size == 0:
-            ranges.append((0.0, 0.0))
+            ranges.append(None)
             continue
         lo, hi = np.percentile(sample, _RANGE_PERCENTILES)
         ranges.append((float(lo), float(hi)))
+
+    if all(r is None for r in ranges):
+        raise InputError("every voxel is NaN or infinite: there is no surface to find")
+    ranges = [(0.0, 0.0) if r is None else r for r in ranges]
 
     from mpm3d._kernels import combine_channels
 
@@ -499,6 +509,8 @@ def _check_complete(tif, series, path: str, messages: list[str]) -> None:
     """Raise SourceError when the file is cut short or its pages are damaged."""
     size = tif.filehandle.size
     n_pages = len(tif.pages)  # indexes every page: a broken chain is logged here
+    if n_pages == 0 or not series.shape:
+        raise SourceError(f"{path} is a TIFF file that holds no images")
     md = tif.imagej_metadata if tif.is_imagej else None
     announced = md.get("images") if isinstance(md, Mapping) else None
     planes = math.prod(n for a, n in zip(series.axes, series.shape, strict=True) if a not in "YXS")

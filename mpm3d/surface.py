@@ -214,6 +214,11 @@ def isosurface(
         bin = int(min(4, max(1, round(dz / max(dx, dy)))))
     if bin < 1:
         raise InputError(f"bin must be >= 1, got {bin}")
+    if ny // bin < 2 or nx // bin < 2:
+        raise InputError(
+            f"bin {bin} (--iso-bin) leaves {ny // bin} x {nx // bin} columns of the "
+            f"{ny} x {nx} px stack; use at most {min(ny, nx) // 2}"
+        )
     if not 0 <= decimate < 1:
         raise InputError(f"decimate must be in [0, 1), got {decimate}")
     integer = np.issubdtype(volume.dtype, np.integer)

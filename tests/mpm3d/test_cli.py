@@ -353,7 +353,7 @@ def test_progress_then_one_error_line_without_quiet(small, tmp_path, capsys):
     assert cli("analyze", small["ome"], "--out", tmp_path / "out", "--threshold", "65535") == 2
     captured = capsys.readouterr()
     *progress, last = captured.err.splitlines()
-    assert last.startswith("mpm3d analyze: error: no surface found")
+    assert last.startswith(f"mpm3d analyze: error: {small['ome']}: no surface found")
     assert progress and all(line.startswith("[") for line in progress)
     assert "Traceback" not in captured.err
 

@@ -1,0 +1,536 @@
+"""``python -m mpm3d`` on broken, hostile and conflicting input: every command ends with one
+line naming the file or option and the problem (exit 2), leaves its inputs and anything of the
+user's byte-identical, and writes nothing; Ctrl-C during a real run ends with exit 130 and no
+output (see :mod:`tests.badinput`).
+
+Stacks that are unusual but valid (big-endian, every pixel type, NaN voxels) are accepted:
+they are tested in ``test_stack_types.py``, not here."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tifffile
+
+from mpm3d.cli import main
+from tests.badinput import FAMILIES, assert_refused, interrupt
+from tissue_core.outputs import MARKER
+
+COMMANDS = ("analyze", "compare")
+CASES: list = []
+
+
+def run(argv: list[str]) -> int:
+    """``main``, with argparse's own refusals (SystemExit) as an exit status too."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def case(name: str, *commands: str):
+    """Register ``COMMAND-FAMILY-CASE`` for each of ``commands`` (default: both).
+
+    The decorated function of ``(stack, tmp)`` returns the options to change and the
+    fragments the error line must hold (the file or option, and the problem).
+    """
+    assert any(name.startswith(f"{family}-") for family in FAMILIES), name
+
+    def register(build: Callable[[Path, Path], tuple[dict, list[str]]]):
+        for command in commands or COMMANDS:
+            CASES.append(pytest.param(command, build, id=f"{command}-{name}"))
+        return build
+
+    return register
+
+
+def base(command: str, stack: Path, tmp: Path) -> dict:
+    """The options of a command line that would run; positionals under ``_N`` keys."""
+    if command == "analyze":
+        return {"_1": stack, "--out": tmp / "out", "--no-figures": True, "-q": True}
+    return {"_1": stack, "_2": stack, "--out": tmp / "out", "--no-figures": True, "-q": True}
+
+
+def command_line(command: str, options: dict) -> list[str]:
+    argv = [command]
+    for key, value in options.items():
+        if value is None or value is False:
+            continue
+        if key.startswith("_"):
+            argv.append(str(value))
+        elif value is True:
+            argv.append(key)
+        else:
+            argv += [key, str(value)]
+    return argv
+
+
+# --------------------------------------------------------------------------- broken files
+
+
+def write(tmp: Path, name: str, content: str | bytes) -> Path:
+    path = tmp / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content, encoding="utf-8")
+    return path
+
+
+def cut(source: Path, tmp: Path, fraction: float, name: str = "cut.tif") -> Path:
+    """The first ``fraction`` of ``source``'s bytes (a copy cut short by a full disk)."""
+    data = source.read_bytes()
+    return write(tmp, name, data[: int(len(data) * fraction)])
+
+
+def imagej(tmp: Path, name: str, data: np.ndarray, axes: str = "ZCYX", **kwargs) -> Path:
+    path = tmp / name
+    metadata = {"axes": axes, "spacing": 4.0, "unit": "um"}
+    tifffile.imwrite(path, data, imagej=True, resolution=(0.2, 0.2), metadata=metadata, **kwargs)
+    return path
+
+
+def ome(tmp: Path, name: str, data: np.ndarray) -> Path:
+    path = tmp / name
+    metadata = {"axes": "ZCYX", "PhysicalSizeZ": 4.0, "PhysicalSizeY": 5.0, "PhysicalSizeX": 5.0}
+    tifffile.imwrite(path, data, ome=True, photometric="minisblack", metadata=metadata)
+    return path
+
+
+def stack_data(stack: Path) -> np.ndarray:
+    return tifffile.imread(stack)
+
+
+def user_folder(tmp: Path, name: str = "out") -> Path:
+    folder = tmp / name
+    folder.mkdir()
+    write(folder, "thesis.tex", "the work of years")
+    return folder
+
+
+def earlier_result(tmp: Path, *, user_file: bool) -> Path:
+    folder = tmp / "out"
+    folder.mkdir()
+    write(folder, "metrics.json", "{}\n")
+    write(folder, MARKER, json.dumps({"kind": "tissue-strain result", "files": ["metrics.json"]}))
+    if user_file:
+        write(folder, "my_notes.txt", "added by the user afterwards")
+    return folder
+
+
+# ---- missing
+
+
+@case("missing-stack-file")
+def _(s, t):
+    return {"_1": t / "gone.tif"}, ["gone.tif", "not found"]
+
+
+@case("missing-stack-folder")
+def _(s, t):
+    return {"_1": t / "no" / "such" / "stack.tif"}, ["stack.tif", "not found"]
+
+
+@case("missing-after-stack", "compare")
+def _(s, t):
+    return {"_2": t / "gone.tif"}, ["after stack", "gone.tif", "not found"]
+
+
+# ---- empty
+
+
+@case("empty-zero-byte-file")
+def _(s, t):
+    return {"_1": write(t, "empty.tif", b"")}, ["empty.tif", "empty (0 bytes)"]
+
+
+@case("empty-zero-byte-after-stack", "compare")
+def _(s, t):
+    return {"_2": write(t, "empty.tif", b"")}, ["after stack", "empty.tif", "empty (0 bytes)"]
+
+
+@case("empty-all-zero-stack")
+def _(s, t):
+    path = imagej(t, "zeros.tif", np.zeros((8, 2, 16, 16), np.uint16))
+    return {"_1": path}, ["zeros.tif", "uniform", "no surface"]
+
+
+@case("empty-tiff-without-pages")
+def _(s, t):
+    header = b"II*\x00" + (8).to_bytes(4, "little") + b"\x00\x00" + b"\x00" * 4  # no IFD entries
+    return {"_1": write(t, "nopages.tif", header)}, ["nopages.tif", "holds no images"]
+
+
+# ---- truncated
+
+
+@case("truncated-half-file")
+def _(s, t):
+    return {"_1": cut(s, t, 0.5)}, ["cut.tif", "truncated", "ImageJ metadata announces"]
+
+
+@case("truncated-60-percent")
+def _(s, t):
+    return {"_1": cut(s, t, 0.6)}, ["cut.tif", "truncated"]
+
+
+@case("truncated-header")
+def _(s, t):
+    return {"_1": cut(s, t, 0.0001)}, ["cut.tif", "truncated"]
+
+
+@case("truncated-ome")
+def _(s, t):
+    full = ome(t, "full.ome.tif", stack_data(s))
+    return {"_1": cut(full, t, 0.5, "cut.ome.tif")}, ["cut.ome.tif", "truncated"]
+
+
+@case("truncated-compressed")
+def _(s, t):
+    full = imagej(t, "full.tif", stack_data(s), compression="zlib")
+    return {"_1": cut(full, t, 0.6)}, ["cut.tif", "truncated"]
+
+
+@case("truncated-plain-pages")
+def _(s, t):
+    full = t / "pages.tif"
+    tifffile.imwrite(full, stack_data(s)[:, 1], photometric="minisblack", metadata=None)
+    return {"_1": cut(full, t, 0.5), "--spacing": "4,5,5"}, ["cut.tif", "truncated"]
+
+
+@case("truncated-after-stack", "compare")
+def _(s, t):
+    return {"_2": cut(s, t, 0.5)}, ["after stack", "cut.tif", "truncated"]
+
+
+# ---- wrong type
+
+
+@case("wrong-type-text-as-tif")
+def _(s, t):
+    return {"_1": write(t, "notes.tif", "not an image\n")}, ["notes.tif", "not a TIFF"]
+
+
+@case("wrong-type-png-as-tif")
+def _(s, t):
+    png = b"\x89PNG\r\n\x1a\n" + b"\x00" * 64
+    return {"_1": write(t, "image.tif", png)}, ["image.tif", "not a TIFF"]
+
+
+@case("wrong-type-folder-as-stack")
+def _(s, t):
+    (t / "stack.tif").mkdir()
+    return {"_1": t / "stack.tif"}, ["stack.tif", "is a folder"]
+
+
+@case("wrong-type-one-page")
+def _(s, t):
+    path = t / "slice.tif"
+    tifffile.imwrite(path, stack_data(s)[10, 1])
+    return {"_1": path}, ["slice.tif", "2D image", "not a z-stack"]
+
+
+@case("wrong-type-rgb")
+def _(s, t):
+    path = t / "rgb.tif"
+    tifffile.imwrite(path, np.zeros((4, 16, 16, 3), np.uint8), photometric="rgb")
+    return {"_1": path}, ["rgb.tif", "RGB"]
+
+
+@case("wrong-type-time-series")
+def _(s, t):
+    path = imagej(t, "movie.tif", np.zeros((3, 5, 16, 16), np.uint16), axes="TZYX")
+    return {"_1": path}, ["movie.tif", "time axis"]
+
+
+@case("wrong-type-text-as-after-stack", "compare")
+def _(s, t):
+    return {"_2": write(t, "notes.tif", "not an image\n")}, ["after stack", "notes.tif"]
+
+
+# ---- stack content
+
+
+@case("stack-complex")
+def _(s, t):
+    path = t / "fft.tif"
+    tifffile.imwrite(path, np.ones((4, 16, 16), np.complex64), photometric="minisblack")
+    return {"_1": path}, ["fft.tif", "complex"]
+
+
+@case("stack-all-nan")
+def _(s, t):
+    path = imagej(t, "nan.tif", np.full((8, 2, 16, 16), np.nan, np.float32))
+    return {"_1": path}, ["nan.tif", "NaN", "no surface"]
+
+
+@case("stack-two-slices")
+def _(s, t):
+    path = imagej(t, "thin.tif", stack_data(s)[20:22])
+    return {"_1": path}, ["thin.tif", "at least 3 slices"]
+
+
+@case("stack-nan-after-stack", "compare")
+def _(s, t):
+    path = imagej(t, "nan.tif", np.full((8, 2, 16, 16), np.nan, np.float32))
+    return {"_2": path}, ["after stack", "nan.tif", "NaN"]
+
+
+# ---- options
+
+
+OPTIONS = {
+    # name: (option, value, fragments)
+    "threshold-nan": ("--threshold", "nan", ["--threshold", "finite"]),
+    "threshold-inf": ("--threshold", "inf", ["--threshold", "finite"]),
+    "threshold-text": ("--threshold", "high", ["--threshold", "'high'"]),
+    "threshold-negative": ("--threshold", "-5", ["--threshold", "every voxel"]),
+    "threshold-above-every-voxel": ("--threshold", "1e9", ["--threshold", "no surface found"]),
+    "smooth-negative": ("--smooth", "-1", ["--smooth", ">= 0"]),
+    "smooth-nan": ("--smooth", "nan", ["--smooth", "finite"]),
+    "smooth-wider-than-the-field": ("--smooth", "1e9", ["--smooth", "wider than the field"]),
+    "iso-bin-zero": ("--iso-bin", "0", ["--iso-bin", ">= 1"]),
+    "iso-bin-negative": ("--iso-bin", "-2", ["--iso-bin", ">= 1"]),
+    "iso-bin-text": ("--iso-bin", "two", ["--iso-bin", "'two'"]),
+    "iso-bin-larger-than-the-stack": ("--iso-bin", "50", ["--iso-bin", "at most 48"]),
+    "decimate-one": ("--decimate", "1", ["--decimate", "[0, 1)"]),
+    "decimate-negative": ("--decimate", "-0.1", ["--decimate", "[0, 1)"]),
+    "decimate-nan": ("--decimate", "nan", ["--decimate", "finite"]),
+    "spacing-zero": ("--spacing", "0,1,1", ["--spacing", "'0,1,1'"]),
+    "spacing-negative": ("--spacing=-1,1,1", True, ["--spacing", "'-1,1,1'"]),
+    "spacing-negative-looks-like-an-option": ("--spacing", "-1,1,1", ["--spacing", "argument"]),
+    "spacing-nan": ("--spacing", "nan,1,1", ["--spacing", "'nan,1,1'"]),
+    "spacing-two-values": ("--spacing", "4,5", ["--spacing", "'4,5'"]),
+    "spacing-text": ("--spacing", "a,b,c", ["--spacing", "'a,b,c'"]),
+    "spacing-tiny": ("--spacing", "1e-300,1e-300,1e-300", ["--spacing", "between 0.001"]),
+    "spacing-in-metres": ("--spacing", "4e-6,5e-6,5e-6", ["--spacing", "between 0.001"]),
+    "channel-out-of-range": ("--channel", "7", ["channel 7 out of range", "2 channels"]),
+    "channel-unknown-name": ("--channel", "dapi", ["'dapi' not found", "collagen"]),
+    "channel-negative": ("--channel", "-1", ["'-1' not found"]),
+    "min-fold-height-negative": ("--min-fold-height", "-1", ["--min-fold-height", ">= 0"]),
+    "min-fold-height-inf": ("--min-fold-height", "inf", ["--min-fold-height", "finite"]),
+}
+for _name, (_option, _value, _fragments) in OPTIONS.items():
+
+    @case(f"option-{_name}")
+    def _(s, t, option=_option, value=_value, fragments=_fragments):
+        return {option: value}, fragments
+
+
+@case("option-icp-unknown", "compare")
+def _(s, t):
+    return {"--icp": "maybe"}, ["--icp", "'maybe'"]
+
+
+# ---- conflicting options
+
+
+@case("conflict-no-surface-with-iso-bin")
+def _(s, t):
+    return {"--no-surface": True, "--iso-bin": "2"}, ["--iso-bin", "--no-surface"]
+
+
+@case("conflict-no-surface-with-decimate")
+def _(s, t):
+    return {"--no-surface": True, "--decimate": "0.5"}, ["--decimate", "--no-surface"]
+
+
+@case("conflict-icp-on-without-surface", "compare")
+def _(s, t):
+    return {"--no-surface": True, "--icp": "on"}, ["ICP", "--no-surface"]
+
+
+# ---- output
+
+
+@case("output-out-is-the-stack")
+def _(s, t):
+    return {"--out": s, "--overwrite": True}, ["--out", s.name, "would replace the input"]
+
+
+@case("output-out-is-the-after-stack", "compare")
+def _(s, t):
+    after = write(t, "after.tif", s.read_bytes())
+    changes = {"_2": after, "--out": after, "--overwrite": True}
+    return changes, ["--out", "after.tif", "would replace the input"]
+
+
+@case("output-out-holds-the-stack")
+def _(s, t):
+    return {"--out": s.parent, "--overwrite": True}, ["--out", "would replace the input"]
+
+
+@case("output-existing-user-folder")
+def _(s, t):
+    return {"--out": user_folder(t)}, ["--out", "not a result of this toolkit"]
+
+
+@case("output-existing-user-folder-overwrite")
+def _(s, t):
+    changes = {"--out": user_folder(t), "--overwrite": True}
+    return changes, ["--out", "not a result of this toolkit"]
+
+
+@case("output-earlier-result-without-overwrite")
+def _(s, t):
+    return {"--out": earlier_result(t, user_file=False)}, ["--out", "--overwrite"]
+
+
+@case("output-earlier-result-holding-a-user-file")
+def _(s, t):
+    changes = {"--out": earlier_result(t, user_file=True), "--overwrite": True}
+    return changes, ["--out", "my_notes.txt"]
+
+
+@case("output-existing-file")
+def _(s, t):
+    return {"--out": write(t, "out", "my notes")}, ["--out", "is a file"]
+
+
+@case("output-existing-file-overwrite")
+def _(s, t):
+    return {"--out": write(t, "out", "my notes"), "--overwrite": True}, ["--out", "is a file"]
+
+
+@case("output-missing-parent-folder")
+def _(s, t):
+    return {"--out": t / "no" / "such" / "out"}, ["--out", "does not exist"]
+
+
+@case("output-symbolic-link")
+def _(s, t):
+    target = user_folder(t, "real")
+    (t / "out").symlink_to(target)
+    return {"--out": t / "out"}, ["--out", "symbolic link"]
+
+
+@case("output-read-only-folder")
+def _(s, t):
+    if os.geteuid() == 0:
+        pytest.skip("root writes into read-only folders")
+    folder = t / "locked"
+    folder.mkdir()
+    folder.chmod(0o555)
+    return {"--out": folder / "out"}, ["locked", "Permission denied"]
+
+
+def _files(options: dict, out: Path) -> list[Path]:
+    """The inputs of a command line: every existing path but the output."""
+    paths = [Path(v) for k, v in options.items() if k.startswith("_")]
+    return [p for p in paths if p.exists() and p != out]
+
+
+@pytest.mark.parametrize(("command", "build"), CASES)
+def test_bad_input(command, build, mpm_small, tmp_path, capsys):
+    stack = tmp_path / "data" / "stack.tif"  # a copy: the case may name its folder
+    stack.parent.mkdir()
+    stack.write_bytes(mpm_small[0].read_bytes())
+    changes, fragments = build(stack, tmp_path)
+    options = base(command, stack, tmp_path)
+    options.update(changes)
+    argv = command_line(command, options)
+    out = Path(options["--out"])
+    try:
+        assert_refused(
+            run,
+            argv,
+            capsys,
+            prog="mpm3d",
+            fragments=fragments,
+            inputs=_files(options, out),
+            out=out,
+        )
+    finally:
+        for folder in tmp_path.rglob("*"):  # let pytest remove what a case locked
+            if folder.is_dir() and not folder.is_symlink():
+                folder.chmod(0o755)
+
+
+def test_every_command_has_cases_of_every_family_that_applies():
+    ids = [p.id for p in CASES]
+    for command in COMMANDS:
+        for family in FAMILIES:
+            if family == "csv":  # mpm3d reads no tables
+                continue
+            if family == "interrupt":
+                continue  # test_interrupt below
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
+
+
+# --------------------------------------------------------------------------- Ctrl-C
+
+
+#: ``python -c``: run mpm3d with a compiled kernel called over and over for 0.2 s (each call
+#: takes milliseconds) and Ctrl-C sent 1 ms after the first call starts; it prints how long the
+#: calls went on, to show that the signal came while compiled code ran
+IN_KERNEL = """
+import os, signal, sys, threading, time
+import mpm3d._kernels as kernels
+name = sys.argv[1]
+real = getattr(kernels, name)
+def started(*args):
+    threading.Timer(0.001, os.kill, (os.getpid(), signal.SIGINT)).start()
+    start = time.perf_counter()
+    try:
+        while True:
+            result = real(*args)
+            if time.perf_counter() - start > 0.2:
+                return result
+    finally:
+        print(f"[kernel {name} ran {time.perf_counter() - start:.4f} s]", file=sys.stderr)
+setattr(kernels, name, started)
+sys.argv = ["mpm3d", *sys.argv[2:]]
+import runpy
+runpy.run_module("mpm3d", run_name="__main__", alter_sys=True)  # as python -m mpm3d
+"""
+
+INTERRUPTS = [
+    # Ctrl-C at a moment of a real run: importing, reading, measuring, meshing, drawing
+    *(
+        pytest.param("analyze", after, None, (), id=f"analyze-interrupt-{after:g}s")
+        for after in (0.3, 1.0, 2.0, 3.5)
+    ),
+    *(
+        pytest.param("compare", after, None, (), id=f"compare-interrupt-{after:g}s")
+        for after in (1.0, 3.0)
+    ),
+    # Ctrl-C while a numba kernel runs, its threads busy
+    pytest.param(
+        "analyze", 120, "combine_channels", (), id="analyze-interrupt-in-combine-channels-kernel"
+    ),
+    pytest.param(
+        "analyze", 120, "first_crossing", (), id="analyze-interrupt-in-first-crossing-kernel"
+    ),
+    pytest.param(
+        "analyze", 120, "bin_lateral", ("--iso-bin", "2"), id="analyze-interrupt-in-bin-kernel"
+    ),
+]
+
+
+@pytest.mark.parametrize(("command", "after", "kernel", "extra"), INTERRUPTS)
+def test_interrupt(command, after, kernel, extra, mpm_pair, tmp_path):
+    before, later = mpm_pair["before"][0], mpm_pair["after"][0]
+    out = tmp_path / "out"
+    if kernel is not None:  # the largest test stack: the kernels run longest
+        inputs = [later]
+        argv = ["-c", IN_KERNEL, kernel, "analyze", later, "--out", out, "--no-figures", *extra]
+    elif command == "analyze":
+        inputs = [before]
+        argv = ["-m", "mpm3d", "analyze", before, "--out", out]
+    else:
+        inputs = [before, later]
+        argv = ["-m", "mpm3d", "compare", before, later, "--out", out, "--no-surface"]
+        argv += ["--icp", "off"]
+    status, err = interrupt(argv, after=after, out=out, inputs=inputs)
+    if kernel is not None:
+        assert status == 130 and not out.exists(), err
+        ran = float(err.split(f"[kernel {kernel} ran ")[1].split(" s]")[0])
+        assert ran < 0.2, err  # Ctrl-C ended the kernel calls
+    elif status == 0:
+        assert (out / ("metrics.json" if command == "analyze" else "compare.json")).is_file()
