@@ -399,3 +399,16 @@ def test_finite_numbers_only(small, tmp_path, capsys):
     assert cli("analyze", small["ome"], "--out", out, "--smooth", "nan") == 2
     assert_one_error_line(capsys.readouterr(), "--smooth", "finite")
     assert not out.exists()
+
+
+def test_output_beside_the_stack_is_allowed(small, tmp_path, capsys):
+    """The stack's folder is not an input folder: results may go next to the stack."""
+    folder = tmp_path / "data"
+    folder.mkdir()
+    stack = folder / "stack.ome.tif"
+    stack.write_bytes(small["ome"].read_bytes())
+    out = folder / "stack_results"
+    assert cli("analyze", stack, "--out", out, *FAST) == 0
+    assert capsys.readouterr().err == ""
+    assert (out / "metrics.json").is_file()
+    assert stack.read_bytes() == small["ome"].read_bytes()
