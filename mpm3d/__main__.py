@@ -1,3 +1,3 @@
-from tissue_core.cli import run_module
+from tissue_core.main import run
 
-run_module("mpm3d.cli")
+run("mpm3d")

@@ -189,3 +189,10 @@ def main(argv: list[str] | None = None) -> int:
     from tissue_core.cli import run_command
 
     return run_command("mpm3d", _build_parser(), argv)
+
+
+def entry() -> None:
+    """The console script ``mpm3d``: like ``python -m mpm3d``."""
+    from tissue_core.cli import run_module
+
+    run_module(__name__)
