@@ -417,14 +417,18 @@ def test_pixel_data_past_the_end_is_named_truncated(tmp_path, cut):
         read_stack(path, spacing=(4, 1, 1))
 
 
-def test_lzw_without_imagecodecs_names_the_package(tmp_path):
-    try:
-        import imagecodecs  # noqa: F401
-    except ImportError:
-        pass
-    else:
-        pytest.skip("imagecodecs is installed: LZW files are read")
-    path = _tags_first_tiff(tmp_path / "s.tif", _zcyx(z=3, c=1, y=8, x=8)[:, 0], compression=5)
+def test_lzw_stacks_are_read_and_a_missing_codec_is_named(tmp_path, monkeypatch):
+    """imagecodecs is a dependency: compressed stacks read; a broken install names it."""
+
+    data = _zcyx(z=3, c=1, y=8, x=8)[:, 0]
+    path = tmp_path / "s.tif"
+    tifffile.imwrite(path, data, compression="lzw", photometric="minisblack")
+    np.testing.assert_array_equal(read_stack(path, spacing=(4, 1, 1)).data[:, 0], data)
+
+    def no_codec(self, *args, **kwargs):
+        raise ValueError("<COMPRESSION.LZW: 5> requires the 'imagecodecs' package")
+
+    monkeypatch.setattr(tifffile.TiffPageSeries, "asarray", no_codec)
     with pytest.raises(SourceError) as info:
         read_stack(path, spacing=(4, 1, 1))
     assert str(info.value) == (
