@@ -22,6 +22,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -50,6 +51,20 @@ def parse_case_id(case: str) -> tuple[str, str, str]:
         raise ValueError(f"bad-input case {case!r} names no family of {FAMILIES}")
     at, family = min(found)
     return case[:at], family, case[at + len(family) + 2 :]
+
+
+def unwritable_folder(tmp_path: Path) -> Path:
+    """A folder nothing can be written into: a read-only one, or /sys where root runs the tests
+    (root ignores permission bits)."""
+    folder = Path(tmp_path) / "locked"
+    folder.mkdir(exist_ok=True)
+    folder.chmod(0o555)
+    try:
+        os.rmdir(tempfile.mkdtemp(dir=folder))
+    except OSError:
+        return folder
+    folder.chmod(0o755)
+    return Path("/sys")
 
 
 def message_lines(err: str) -> list[str]:

@@ -204,7 +204,18 @@ def check_writable(
     parent = target.parent
     if not parent.is_dir():
         raise InputError(f"the folder {parent} for {option} {path.name} does not exist")
+    _probe(parent, path, option)
     return path
+
+
+def _probe(parent: Path, path: Path, option: str) -> None:
+    """Fail now, not after the work, if nothing can be written beside ``path``."""
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+    except OSError as exc:
+        raise InputError(
+            f"{option} {path} cannot be written: {exc.strerror or exc} in {parent}"
+        ) from None
 
 
 def _check_file(path: Path, overwrite: bool, is_result, option: str) -> None:

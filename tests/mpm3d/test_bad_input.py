@@ -9,7 +9,6 @@ they are tested in ``test_stack_types.py``, not here."""
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import pytest
 import tifffile
 
 from mpm3d.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt
+from tests.badinput import FAMILIES, assert_refused, interrupt, unwritable_folder
 from tissue_core.outputs import MARKER
 
 COMMANDS = ("analyze", "compare")
@@ -412,12 +411,8 @@ def _(s, t):
 
 @case("output-read-only-folder")
 def _(s, t):
-    if os.geteuid() == 0:
-        pytest.skip("root writes into read-only folders")
-    folder = t / "locked"
-    folder.mkdir()
-    folder.chmod(0o555)
-    return {"--out": folder / "out"}, ["locked", "Permission denied"]
+    folder = unwritable_folder(t)
+    return {"--out": folder / "out"}, [str(folder), "cannot be written"]
 
 
 def _files(options: dict, out: Path) -> list[Path]:

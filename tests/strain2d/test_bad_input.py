@@ -5,7 +5,6 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
-import os
 import shutil
 from pathlib import Path
 from types import SimpleNamespace
@@ -15,7 +14,14 @@ import pytest
 import tifffile
 
 from strain2d.cli import main
-from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id, snapshot
+from tests.badinput import (
+    assert_refused,
+    interrupt,
+    message_lines,
+    parse_case_id,
+    snapshot,
+    unwritable_folder,
+)
 
 PROG = "strain2d"
 
@@ -306,9 +312,10 @@ def _output_cases():
         ("benchmark-output-users-folder", lambda c, o: ["benchmark", "--quick", "--out", c.mine,
          "--overwrite"], ["thesis"]),
     ]
-    if os.geteuid() != 0:  # root writes anywhere: the case means nothing there
-        cases.append(("analyze-output-read-only-folder", lambda c, o: _analyze(
-            c, "--out", c.dir / "read_only" / "run"), ["read_only"]))
+    cases.append(("analyze-output-read-only-folder", lambda c, o: _analyze(
+        c, "--out", unwritable_folder(c.dir) / "run"), ["cannot be written"]))
+    cases.append(("track-output-read-only-folder", lambda c, o: _track(
+        c, "--out", unwritable_folder(c.dir) / "t.csv"), ["cannot be written"]))
     return cases
 
 
@@ -318,7 +325,6 @@ ALL = CASES + _output_cases()
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
 def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
-    (inputs.dir / "read_only").mkdir(mode=0o555, exist_ok=True)
     out = tmp_path / "out"
     argv = [str(a) for a in build(inputs, out)]
     if "-q" not in argv:
