@@ -245,7 +245,14 @@ class FrameSource:
 
             with tifffile.TiffFile(self._paths[0]) as tif:
                 for i in wanted:
-                    yield to_gray(tif.pages[i].asarray())
+                    try:
+                        page = tif.pages[i].asarray()
+                    except Exception as exc:  # tifffile raises many types on damaged files
+                        raise SourceError(
+                            f"{self._paths[0]}: frame {i} cannot be read (the file is truncated "
+                            f"or damaged: {exc})"
+                        ) from None
+                    yield to_gray(page)
         else:
             for i in wanted:
                 yield to_gray(self._read_image(self._paths[i]), order="bgr")

@@ -200,3 +200,26 @@ def test_a_cut_zip_is_one_line(tmp_path):
         else:  # pragma: no cover - a cut zip is never readable
             raise AssertionError("a cut zip was read")
     assert not isinstance(zipfile.BadZipFile(), ERRORS)  # so the reader must translate it
+
+
+@SETTINGS
+@given(
+    data=st.binary(max_size=600),
+    suffix=st.sampled_from([".tif", ".avi", ".mp4", ".png", ".jpg"]),
+    keep=st.integers(0, 4000),
+)
+def test_frame_sources(tmp_path, small_case, data, suffix, keep):
+    """Arbitrary bytes, or a real video/TIFF cut anywhere, under a frame source's name."""
+    from strain2d.frames import open_frames
+
+    folder, _ = small_case
+    real = {".tif": "eq.tif", ".avi": "eq.avi"}.get(suffix)
+    content = (folder / real).read_bytes()[:keep] if real and keep % 2 else data
+    path = write(tmp_path, "frames" + suffix, content)
+    try:
+        source = open_frames(path)
+        frames = list(source)
+    except ERRORS:
+        return
+    assert len(frames) == len(source) >= 2
+    assert all(f.shape == source.shape for f in frames)
