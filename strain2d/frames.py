@@ -262,9 +262,7 @@ class FrameSource:
         shape = getattr(self, "shape", None)
         for k, frame in enumerate(self._iter_raw()):
             if shape is not None and frame.shape != shape:
-                where = (
-                    self._paths[self._indices[k]] if self.kind == "images" else self._paths[0]
-                )
+                where = self._paths[self._indices[k]] if self.kind == "images" else self._paths[0]
                 raise SourceError(
                     f"{where}: frame {k} has size {frame.shape[1]}x{frame.shape[0]}, "
                     f"the reference frame {shape[1]}x{shape[0]}"

@@ -128,6 +128,7 @@ def _tracks_file(name):
 
 
 # Each case: id, argv builder (inputs, output path) -> argv, fragments the line must hold.
+# fmt: off
 CASES = [
     # ---- missing
     ("analyze-missing-video", lambda c, o: ["analyze", c.dir / "nope.avi", "--out", o],
@@ -280,6 +281,7 @@ CASES = [
      "--manifest", c.dir / "manifest_norun.csv", "--out", o], ["--manifest"]),
     ("study-conflict-nothing-to-combine", lambda c, o: ["study", "--out", o], ["run folders"]),
 ]
+# fmt: on
 
 
 def _output_cases():

@@ -65,6 +65,7 @@ def _compute(c, *extra, points=None):
     return ["compute", points or c.points, *extra]
 
 
+# fmt: off
 CASES = [
     ("compute-missing-points", lambda c, o: _compute(c, "--out", o, points=c.dir / "no.csv"),
      ["no.csv", "not found"]),
@@ -130,6 +131,7 @@ CASES = [
     ("compute-output-working-directory", lambda c, o: _compute(c, "--out", ".", "--overwrite"),
      ["working directory"]),
 ]
+# fmt: on
 
 
 @pytest.mark.parametrize(("case", "build", "fragments"), CASES, ids=[c[0] for c in CASES])
