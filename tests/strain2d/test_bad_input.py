@@ -284,6 +284,7 @@ CASES = [
 # fmt: on
 
 
+# fmt: off
 def _output_cases():
     """Outputs that may not be written: the contract holds for every command."""
     cases = []
@@ -320,6 +321,7 @@ def _output_cases():
         c, "--out", unwritable_folder(c.dir) / "t.csv"), ["cannot be written"]))
     return cases
 
+# fmt: on
 
 ALL = CASES + _output_cases()
 
