@@ -223,14 +223,6 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("-v", "--verbose", action="store_true", help="log details")
 
 
-def _calibration_file():
-    """Recognises a calibration JSON this toolkit wrote (so --overwrite may replace it)."""
-    from stereo.calibration import CALIBRATION_KEYS
-    from tissue_core.outputs import json_from_toolkit
-
-    return json_from_toolkit(*CALIBRATION_KEYS)
-
-
 def _folders(*patterns: str) -> list[str]:
     """The patterns that name folders: inputs an output may not go into."""
     return [p for p in patterns if Path(p).is_dir()]
@@ -247,7 +239,7 @@ def _cmd_calibrate(args) -> int:
     if len(left) != len(right):
         raise InputError(f"unequal image counts: {len(left)} left and {len(right)} right")
     inputs = [*left, *right, *_folders(args.left, args.right)]
-    writing = {"overwrite": args.overwrite, "inputs": inputs, "is_result": _calibration_file()}
+    writing = {"overwrite": args.overwrite, "inputs": inputs}
     check_writable(args.out, kind="file", **writing)
     say = _say(args)
     names = [f"{Path(a).name} / {Path(b).name}" for a, b in zip(left, right, strict=True)]
@@ -278,7 +270,7 @@ def _cmd_import(args) -> int:
     from tissue_core.outputs import atomic_file, check_writable
 
     _check_unit(args.unit)
-    writing = {"overwrite": args.overwrite, "inputs": args.files, "is_result": _calibration_file()}
+    writing = {"overwrite": args.overwrite, "inputs": args.files}
     check_writable(args.out, kind="file", **writing)
     calib = load_calibration(*args.files)
     calib.unit = args.unit
@@ -298,15 +290,11 @@ def _load_calib(paths):
 def _cmd_match(args) -> int:
     from stereo.match import match_views
     from tissue_core.images import read_gray
-    from tissue_core.outputs import atomic_file, check_writable, csv_header_is
+    from tissue_core.outputs import atomic_file, check_writable
 
     _check_match_options(args)
     inputs = [args.left_image, args.right_image, args.points, *(args.calib or [])]
-    writing = {
-        "overwrite": args.overwrite,
-        "inputs": inputs,
-        "is_result": csv_header_is(*MATCH_COLUMNS),
-    }
+    writing = {"overwrite": args.overwrite, "inputs": inputs}
     check_writable(args.out, kind="file", **writing)
     calib = _load_calib(args.calib)
     left, right = read_gray(args.left_image), read_gray(args.right_image)

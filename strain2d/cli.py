@@ -333,14 +333,10 @@ def _track_source(args, say, check=None):
 
 
 def _cmd_track(args) -> int:
-    from strain2d.tracks import TRACK_COLUMNS, write_tracks_csv
-    from tissue_core.outputs import atomic_file, check_writable, csv_header_is
+    from strain2d.tracks import write_tracks_csv
+    from tissue_core.outputs import atomic_file, check_writable
 
-    kwargs = {
-        "overwrite": args.overwrite,
-        "inputs": _inputs(args),
-        "is_result": csv_header_is(*TRACK_COLUMNS),
-    }
+    kwargs = {"overwrite": args.overwrite, "inputs": _inputs(args)}
     check_writable(args.out, kind="file", **kwargs)
     say = _progress(args)
     _, _, tracks = _track_source(args, say)

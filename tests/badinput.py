@@ -19,6 +19,7 @@ so that it can.
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -67,9 +68,12 @@ def unwritable_folder(tmp_path: Path) -> Path:
     return Path("/sys")
 
 
+_PROGRESS = re.compile(r"^\[ *\d+\.\d s\] ")
+
+
 def message_lines(err: str) -> list[str]:
     """The lines of stderr that are not timestamped progress (``[  1.2 s] ...``)."""
-    return [line for line in err.splitlines() if line.strip() and not line.startswith("[")]
+    return [line for line in err.splitlines() if line.strip() and not _PROGRESS.match(line)]
 
 
 def snapshot(*paths: str | os.PathLike) -> dict[str, bytes | None]:
@@ -138,15 +142,23 @@ def interrupt(
     after: float,
     out: str | os.PathLike,
     inputs: Sequence[str | os.PathLike] = (),
+    when: str | None = None,
+    may_finish: bool = False,
     cwd: str | os.PathLike | None = None,
     timeout: float = 240,
 ) -> tuple[int, str]:
-    """Start ``python ARGV...``, send SIGINT ``after`` seconds later, check the contract.
+    """Start ``python ARGV...`` and send it SIGINT; check the contract; return (status, stderr).
 
-    Returns ``(status, stderr)``: 130 with one line ``...: interrupted; no
-    output written`` and no output, or 0 when it finished first (then the
-    output exists).  Inputs are byte-identical either way.
+    The signal goes ``after`` seconds after the process starts, or, with
+    ``when``, ``after`` seconds after a line of stderr holding ``when``
+    appeared (a progress step), so that it lands in a known stage whatever
+    the machine's speed.  The process must then exit 130 with one line
+    ``...: interrupted; no output written`` and leave no output, or, if the
+    result was already in place, say so.  Exit 0 (it finished first) fails
+    unless ``may_finish``.  Inputs are byte-identical either way.
     """
+    import threading
+
     before = snapshot(*inputs)
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     proc = subprocess.Popen(
@@ -157,26 +169,37 @@ def interrupt(
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + after
-    while proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.01)
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    start = time.monotonic()
+    anchor = None if when is not None else start
+    while proc.poll() is None and time.monotonic() - start < timeout:
+        if anchor is None and any(when in line for line in list(lines)):
+            anchor = time.monotonic()
+        if anchor is not None and time.monotonic() >= anchor + after:
+            proc.send_signal(signal.SIGINT)
+            break
+        time.sleep(0.005)
     try:
-        _, err = proc.communicate(timeout=timeout)
+        proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
         proc.kill()
         raise
+    reader.join(timeout=10)
+    proc.stderr.close()
+    err = "".join(lines)
     out = Path(out)
     assert "Traceback" not in err, err
     assert proc.returncode in (0, 130), f"exit {proc.returncode}: {err}"
     if proc.returncode == 130:
-        lines = [line for line in err.splitlines() if line.strip()]
+        messages = message_lines(err)
         if out.exists():  # Ctrl-C came after the result was complete, and says so
-            assert lines[-1].endswith(f": interrupted after the results were written to {out}"), err
+            assert messages[-1].endswith(f": interrupted after the results were written to {out}")
         else:
-            assert lines[-1].endswith(": interrupted; no output written"), err
+            assert messages[-1].endswith(": interrupted; no output written"), err
     else:
+        assert may_finish, f"the command finished before Ctrl-C reached it:\n{err}"
         assert out.exists()
     assert scratch_left(out.resolve().parent) == []
     assert snapshot(*inputs) == before

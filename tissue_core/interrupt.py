@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import signal
 import sys
 import threading
@@ -45,6 +46,7 @@ class _State:
     interrupted = False  # the command is ending because of Ctrl-C
     depth = 0  # nesting of deferred_interrupt blocks
     redelivering = False
+    generation = 0  # changes whenever handling starts or ends: stale redeliveries stand down
 
 
 _state = _State()
@@ -53,22 +55,31 @@ _state = _State()
 def _importing(frame) -> bool:
     """Whether ``frame`` runs inside an import (importlib's frames are on its stack)."""
     while frame is not None:
-        if frame.f_code.co_filename.startswith("<frozen importlib"):
+        name = frame.f_code.co_filename
+        if name.startswith("<frozen importlib") or name.endswith(
+            (os.path.join("importlib", "_bootstrap.py"), "_bootstrap_external.py")
+        ):  # frozen, or not (python -X frozen_modules=off)
             return True
         frame = frame.f_back
     return False
 
 
-def _redeliver() -> None:
+def _redeliver(generation: int) -> None:
     """Send SIGINT again once the main thread has left the import it was in."""
     main = threading.main_thread()
     try:
-        while main.is_alive():
+        while main.is_alive() and generation == _state.generation:
             time.sleep(0.02)
             frame = sys._current_frames().get(main.ident)
             if frame is None or not _importing(frame):
                 break
-        if _state.pending and _state.depth == 0 and main.is_alive():
+        current = (
+            generation == _state.generation
+            and signal.getsignal(signal.SIGINT) is _handler
+            and _state.pending
+            and _state.depth == 0
+        )
+        if current and main.is_alive():
             # to the main thread itself, so that a sleep or a blocking call there wakes up
             signal.pthread_kill(main.ident, signal.SIGINT)
     finally:
@@ -83,7 +94,7 @@ def _handler(signum, frame) -> None:
         _state.pending = True
         if not _state.redelivering:
             _state.redelivering = True
-            threading.Thread(target=_redeliver, daemon=True).start()
+            threading.Thread(target=_redeliver, args=(_state.generation,), daemon=True).start()
         return
     _state.pending = False
     raise KeyboardInterrupt
@@ -117,11 +128,13 @@ def handling_interrupts() -> Iterator[None]:
         return
     previous_hook = sys.unraisablehook
     _state.pending = _state.interrupted = False
+    _state.generation += 1
     signal.signal(signal.SIGINT, _handler)
     sys.unraisablehook = _unraisable(previous_hook)
     try:
         yield
     finally:
+        _state.generation += 1
         signal.signal(signal.SIGINT, signal.default_int_handler)
         sys.unraisablehook = previous_hook
         _state.pending = _state.interrupted = False
@@ -150,15 +163,28 @@ def deferred_interrupt() -> Iterator[None]:
         yield
         return
     if installed:
+        _state.pending = False
         signal.signal(signal.SIGINT, _handler)
     _state.depth += 1
     try:
         yield
-    finally:
-        _state.depth -= 1
-        if installed:
-            signal.signal(signal.SIGINT, current)
-    raise_if_interrupted()
+    except BaseException as exc:
+        if _leave(installed) and not isinstance(exc, KeyboardInterrupt):
+            raise KeyboardInterrupt from exc  # Ctrl-C was pressed: it wins over the error
+        raise
+    if _leave(installed):
+        raise KeyboardInterrupt
+
+
+def _leave(installed: bool) -> bool:
+    """End a deferred block; whether a Ctrl-C held in it is now due."""
+    _state.depth -= 1
+    if installed:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if _state.depth == 0 and _state.pending:
+        _state.pending = False
+        return True
+    return False
 
 
 def is_interrupt(exc: BaseException) -> bool:

@@ -2,18 +2,22 @@
 
 Every result is written into a hidden temporary sibling of its target and
 renamed into place when complete, so an error or Ctrl-C leaves no
-half-written result.  A result folder carries a marker,
-``.tissue-strain-result.json``, that lists what the toolkit wrote into it.
-An existing folder is replaced (with ``overwrite=True``) only when it is such
-a result and holds nothing the toolkit did not write: a folder without the
-marker, or with a file of the user's in it, is refused with one line, and
-nothing is removed.  Result folders nested in a result (``strain2d analyze
---out`` inside a ``sample_data_synth study`` folder) count as the toolkit's.
-An empty folder may be used without ``overwrite``.
+half-written result.
 
-An existing output *file* is replaced only with ``overwrite=True`` and when
-``is_result`` recognises it as one the toolkit writes (its CSV header, its
-JSON keys).  No output may replace an input, hold one, lie inside an input
+A result folder carries a marker, ``.tissue-strain-result.json``, that lists
+every file the toolkit wrote into it with its size, time and SHA-256.  An
+existing folder is replaced (``overwrite=True``) only when it has that marker
+and holds exactly what the toolkit wrote: a folder without the marker, one
+with a file of the user's in it, or one where a file was edited since, is
+refused with one line and nothing is removed.  Result folders nested in a
+result (``strain2d analyze --out`` inside a ``sample_data_synth study``
+folder) count as the toolkit's when they are intact themselves.  An empty
+folder may be used without ``overwrite``.
+
+An output *file* (``strain2d track --out TRACKS.csv``) is recorded in a ledger
+beside it, ``.tissue-strain-files.json``; an existing file is replaced only
+with ``overwrite=True`` and when the ledger says the toolkit wrote exactly
+that content.  No output may replace an input, hold one, lie inside an input
 folder, or be the working directory or one of its parents.
 """
 
@@ -21,33 +25,39 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import hashlib
 import json
+import logging
 import os
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Literal
 
 from tissue_core.errors import InputError
-from tissue_core.interrupt import raise_if_interrupted
+from tissue_core.interrupt import deferred_interrupt, raise_if_interrupted
 
 __all__ = [
+    "LEDGER",
     "MARKER",
     "atomic_dir",
     "atomic_file",
     "check_writable",
-    "csv_header_is",
-    "first_unknown_entry",
-    "json_from_toolkit",
+    "foreign_content",
     "read_marker",
     "recorded_command",
 ]
 
+log = logging.getLogger(__name__)
+
 #: name of the file that marks a folder as a result of the toolkit
 MARKER = ".tissue-strain-result.json"
 _MARKER_KIND = "tissue-strain result"
+#: name of the file that records the output files the toolkit wrote into a folder
+LEDGER = ".tissue-strain-files.json"
+_LEDGER_KIND = "tissue-strain files"
 #: files that file browsers drop into any folder they show
 _BROWSER_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 
@@ -67,87 +77,126 @@ def _umask() -> int:
     return mask
 
 
-def read_marker(folder: str | os.PathLike) -> dict | None:
-    """The marker of a result folder, or None when ``folder`` is not one."""
-    path = Path(folder) / MARKER
+# --------------------------------------------------------------------------- records
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def _record(path: Path) -> dict:
+    stat = path.stat()
+    return {"size": stat.st_size, "mtime_ns": stat.st_mtime_ns, "sha256": _sha256(path)}
+
+
+def _unchanged(path: Path, record) -> bool:
+    """Whether ``path`` still holds what ``record`` describes (the hash only when needed)."""
+    if not isinstance(record, dict) or path.is_symlink() or not path.is_file():
+        return False
+    stat = path.stat()
+    if stat.st_size != record.get("size"):
+        return False
+    if stat.st_mtime_ns == record.get("mtime_ns"):
+        return True
+    return _sha256(path) == record.get("sha256")  # copied, or touched: compare the content
+
+
+def _read_json(path: Path, kind: str) -> dict | None:
     if path.is_symlink() or not path.is_file():
         return None
     try:
-        marker = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
-    if not isinstance(marker, dict) or marker.get("kind") != _MARKER_KIND:
+    if not isinstance(data, dict) or data.get("kind") != kind:
         return None
-    files = marker.get("files")
-    if not isinstance(files, list) or not all(isinstance(f, str) for f in files):
+    files = data.get("files")
+    if not isinstance(files, dict) or not all(
+        isinstance(k, str) and isinstance(v, dict) for k, v in files.items()
+    ):
         return None
+    return data
+
+
+def read_marker(folder: str | os.PathLike) -> dict | None:
+    """The marker of a result folder, or None when ``folder`` is not one."""
+    marker = _read_json(Path(folder) / MARKER, _MARKER_KIND)
+    if marker is not None:
+        folders = marker.get("folders", [])
+        if not isinstance(folders, list) or not all(isinstance(f, str) for f in folders):
+            return None
     return marker
 
 
-def first_unknown_entry(folder: str | os.PathLike) -> str | None:
-    """The first entry of a result folder that no toolkit result wrote, or None.
+def foreign_content(folder: str | os.PathLike) -> str | None:
+    """What in a result folder the toolkit did not write, in words; None when there is nothing.
 
-    ``folder`` must hold a marker (:func:`read_marker`); entries listed in it,
-    files that file browsers add, and nested result folders that are clean
-    themselves are the toolkit's.  Returns the entry's path relative to
-    ``folder`` (``"."`` when ``folder`` has no valid marker).
+    Entries listed in the marker with unchanged content, files that file
+    browsers add, and nested result folders that pass this check themselves
+    are the toolkit's.  A subfolder that cannot be listed is not.
     """
     root = Path(folder)
     marker = read_marker(root)
     if marker is None:
-        return "."
-    listed = set(marker["files"])
-    for dirpath, dirnames, filenames in os.walk(root):
-        rel = Path(dirpath).relative_to(root)
-        for name in list(dirnames):
-            entry = (rel / name).as_posix()
-            dirnames.remove(name)
-            full = Path(dirpath) / name
-            if entry in listed and not full.is_symlink():
-                dirnames.append(name)  # descend: its content must be listed too
-            elif read_marker(full) is not None and not full.is_symlink():
-                inner = first_unknown_entry(full)
-                if inner is not None:
-                    return (rel / name / inner).as_posix()
-            else:
-                return entry
-        for name in filenames:
-            entry = (rel / name).as_posix()
-            if entry == MARKER or entry in listed or name in _BROWSER_FILES:
-                continue
-            return entry
+        return f"no {MARKER}"
+    files, folders = marker["files"], set(marker.get("folders", []))
+
+    def cannot_list(error: OSError) -> None:
+        raise error
+
+    try:
+        for dirpath, dirnames, filenames in os.walk(root, onerror=cannot_list):
+            rel = Path(dirpath).relative_to(root)
+            for name in list(dirnames):
+                entry = (rel / name).as_posix()
+                full = Path(dirpath) / name
+                dirnames.remove(name)
+                if full.is_symlink():
+                    return f"{entry}, a link the earlier result did not make"
+                if entry in folders:
+                    dirnames.append(name)  # descend: its content must be listed too
+                elif read_marker(full) is not None:
+                    inner = foreign_content(full)
+                    if inner is not None:
+                        return f"{entry}/{inner}"
+                else:
+                    return f"{entry}, which the earlier result did not write"
+            for name in filenames:
+                entry = (rel / name).as_posix()
+                if entry == MARKER or name in _BROWSER_FILES:
+                    continue
+                if entry not in files:
+                    return f"{entry}, which the earlier result did not write"
+                if not _unchanged(Path(dirpath) / name, files[entry]):
+                    return f"{entry}, which was changed after the toolkit wrote it"
+    except OSError as exc:
+        return f"{exc.filename or 'a subfolder'}, which cannot be read ({exc.strerror or exc})"
     return None
 
 
-def csv_header_is(*columns: str) -> Callable[[Path], bool]:
-    """A recogniser for :func:`atomic_file`: the file's first line starts with these columns."""
-    expected = ",".join(columns)
-
-    def recognise(path: Path) -> bool:
-        try:
-            with open(path, encoding="utf-8-sig") as f:
-                first = f.readline(4096).strip()
-        except (OSError, UnicodeDecodeError):
-            return False
-        return first.replace(" ", "").lower().startswith(expected.lower())
-
-    recognise.__doc__ = f"a CSV file whose header starts with {expected}"
-    return recognise
+def _file_written_here(path: Path) -> bool:
+    ledger = _read_json(path.parent / LEDGER, _LEDGER_KIND)
+    return ledger is not None and _unchanged(path, ledger["files"].get(path.name))
 
 
-def json_from_toolkit(*keys: str) -> Callable[[Path], bool]:
-    """A recogniser for :func:`atomic_file`: a JSON object holding all of ``keys``."""
+# --------------------------------------------------------------------------- checks
 
-    def recognise(path: Path) -> bool:
-        try:
-            with open(path, encoding="utf-8") as f:
-                data = json.loads(f.read(64 << 20))
-        except (OSError, ValueError):
-            return False
-        return isinstance(data, dict) and all(k in data for k in keys)
 
-    recognise.__doc__ = f"a JSON file with the keys {', '.join(keys)}"
-    return recognise
+def _same(a: Path, b: Path) -> bool:
+    """Whether two paths are one file or folder (also on case-insensitive file systems)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``folder`` is ``path`` or one of its (existing) ancestors."""
+    return any(_same(p, folder) for p in (path, *path.parents) if p.exists())
 
 
 def check_writable(
@@ -156,7 +205,6 @@ def check_writable(
     overwrite: bool,
     kind: Literal["file", "dir"] = "dir",
     inputs: Sequence[str | os.PathLike] = (),
-    is_result: Callable[[Path], bool] | None = None,
     option: str = "--out",
 ) -> Path:
     """Fail early, with one line, if ``path`` may not be written.
@@ -166,13 +214,10 @@ def check_writable(
     path : path-like
         The output folder (``kind="dir"``) or file (``kind="file"``).
     overwrite : bool
-        Whether an existing result may be replaced.
+        Whether an earlier result of the toolkit may be replaced.
     inputs : sequence of path-like
         Every file and folder the command reads: the output may not replace
         one, hold one, or lie inside an input folder.
-    is_result : callable, optional
-        For files: tells whether an existing file is one the toolkit writes
-        (see :func:`csv_header_is`); without it no existing file is replaced.
     option : str
         The option that names ``path``, for the messages.
 
@@ -185,20 +230,20 @@ def check_writable(
     if path.is_symlink():
         raise InputError(f"{option} {path} is a symbolic link; give the real {kind} instead")
     target = path.resolve()
-    cwd = Path.cwd().resolve()
-    if target == cwd or target in cwd.parents:
+    if _inside(Path.cwd().resolve(), target):
         raise InputError(
             f"{option} {path} is the working directory or holds it; choose a new folder"
         )
-    for source in inputs:
-        s = Path(source).resolve()
-        if s == target or target in s.parents:
+    if path.name in ("", ".", ".."):
+        raise InputError(f"{option} {path} does not name a {kind}; give a new name")
+    for source in map(Path, inputs):
+        if source.exists() and _inside(source.resolve(), target):
             raise InputError(f"{option} {path} would replace the input {source}")
-        if s in target.parents and s.is_dir():
+        if source.is_dir() and _inside(target, source.resolve()):
             raise InputError(f"{option} {path} lies inside the input folder {source}")
     if path.exists():
         if kind == "file":
-            _check_file(path, overwrite, is_result, option)
+            _check_file(path, overwrite, option)
         else:
             _check_dir(path, overwrite, option)
     parent = target.parent
@@ -218,16 +263,17 @@ def _probe(parent: Path, path: Path, option: str) -> None:
         ) from None
 
 
-def _check_file(path: Path, overwrite: bool, is_result, option: str) -> None:
+def _check_file(path: Path, overwrite: bool, option: str) -> None:
     if path.is_dir():
         raise InputError(f"{option} {path} is a folder; give a file name for the output")
-    if not overwrite:
-        raise InputError(f"{option} {path} exists; pass --overwrite to replace it")
-    if is_result is None or not is_result(path):
-        what = f" ({is_result.__doc__})" if is_result is not None and is_result.__doc__ else ""
+    if not _file_written_here(path):
         raise InputError(
-            f"{option} {path} exists and is not a file this toolkit writes{what}; "
-            "it was left as it is: choose another name"
+            f"{option} {path} exists and is not a file this toolkit wrote (or it was changed "
+            f"since; see {LEDGER}); it was left as it is: choose another name"
+        )
+    if not overwrite:
+        raise InputError(
+            f"{option} {path} exists (an earlier result); pass --overwrite to replace it"
         )
 
 
@@ -245,36 +291,21 @@ def _check_dir(path: Path, overwrite: bool, option: str) -> None:
         raise InputError(
             f"{option} {path} exists (an earlier result); pass --overwrite to replace it"
         )
-    unknown = first_unknown_entry(path)
-    if unknown is not None:
+    foreign = foreign_content(path)
+    if foreign is not None:
         raise InputError(
-            f"{option} {path} holds {unknown}, which the earlier result did not write; "
-            "nothing was replaced: move it out or choose a new folder"
+            f"{option} {path} holds {foreign}; nothing was replaced: move it out or "
+            "choose a new folder"
         )
 
 
-@contextlib.contextmanager
-def _no_interrupt() -> Iterator[None]:
-    """Hold back Ctrl-C (SIGINT) for the duration of the block, where the OS allows."""
-    import signal
-    import threading
-
-    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not (
-        threading.main_thread()
-    ):
-        yield
-        return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+# --------------------------------------------------------------------------- writing
 
 
 def _hide_scratch(exc: BaseException, scratch: Path, final: Path) -> None:
     """Name the final output, not the temporary folder, in an error message."""
     old, new = str(scratch), str(final)
-    if isinstance(exc, OSError) and (exc.filename or exc.filename2):
+    if isinstance(exc, OSError):
         for attr in ("filename", "filename2"):
             value = getattr(exc, attr)
             if isinstance(value, str) and old in value:
@@ -283,22 +314,57 @@ def _hide_scratch(exc: BaseException, scratch: Path, final: Path) -> None:
         exc.args = (exc.args[0].replace(old, new), *exc.args[1:])
 
 
-def _write_marker(folder: Path) -> None:
+def _provenance() -> dict:
     from tissue_core import __version__
 
-    entries = sorted(
-        p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.name != MARKER
-    )
-    marker = {
-        "kind": _MARKER_KIND,
-        "note": "written by the tissue-strain toolkit; --overwrite may replace this folder "
-        "as long as it holds only the files listed here",
+    return {
         "software": {"name": "tissue-strain", "version": __version__},
         "command": recorded_command.get(),
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
-        "files": entries,
+    }
+
+
+def _write_marker(folder: Path) -> None:
+    files, folders = {}, []
+    for p in sorted(folder.rglob("*")):
+        rel = p.relative_to(folder).as_posix()
+        if rel == MARKER:
+            continue
+        if p.is_dir() and not p.is_symlink():
+            folders.append(rel)
+        else:
+            files[rel] = _record(p)
+    marker = {
+        "kind": _MARKER_KIND,
+        "note": "written by the tissue-strain toolkit; --overwrite may replace this folder "
+        "as long as it holds exactly the files listed here",
+        **_provenance(),
+        "folders": folders,
+        "files": files,
     }
     (folder / MARKER).write_text(json.dumps(marker, indent=1) + "\n", encoding="utf-8")
+
+
+def _record_in_ledger(path: Path) -> None:
+    """Add ``path`` to its folder's ledger (written atomically; a failure only loses the record)."""
+    ledger_path = path.parent / LEDGER
+    ledger = _read_json(ledger_path, _LEDGER_KIND) or {
+        "kind": _LEDGER_KIND,
+        "note": "files the tissue-strain toolkit wrote here; --overwrite replaces only these, "
+        "and only while their content is unchanged",
+        "files": {},
+    }
+    ledger["files"][path.name] = {**_record(path), **_provenance()}
+    try:
+        fd, name = tempfile.mkstemp(prefix=f"{LEDGER}.tmp-", dir=path.parent)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(ledger, f, indent=1)
+            f.write("\n")
+        os.replace(name, ledger_path)
+    except OSError as exc:
+        log.warning("%s: could not record %s in %s (%s)", path.parent, path.name, LEDGER, exc)
+        with contextlib.suppress(OSError, UnboundLocalError):
+            os.unlink(name)
 
 
 @contextlib.contextmanager
@@ -311,38 +377,50 @@ def atomic_dir(
 ) -> Iterator[Path]:
     """Yield a temporary folder that becomes the result folder ``path`` when the block succeeds.
 
-    The folder gets the marker of a result (:data:`MARKER`) listing every
+    The folder gets the marker of a result (:data:`MARKER`) recording every
     file written into it.  See :func:`check_writable` for what may be replaced.
     """
     path = check_writable(path, overwrite=overwrite, kind="dir", inputs=inputs, option=option)
     parent = path.resolve().parent
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+    old = None
     try:
         try:
             yield tmp
+            _write_marker(tmp)
+            os.chmod(tmp, 0o777 & ~_umask())
         except BaseException as exc:
             _hide_scratch(exc, tmp, path)
             raise
-        _write_marker(tmp)
-        os.chmod(tmp, 0o777 & ~_umask())
         # the folder may have changed while the command ran: check it again
         check_writable(path, overwrite=overwrite, kind="dir", inputs=inputs, option=option)
-        if path.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=parent))
-            raise_if_interrupted()
-            with _no_interrupt():  # never leave the old result moved and the new one not
+        raise_if_interrupted()
+        with deferred_interrupt():  # Ctrl-C waits until the result is in place, whole
+            if path.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=parent))
                 os.replace(path, old / path.name)
+                try:
+                    os.replace(tmp, path)
+                except BaseException:
+                    os.replace(old / path.name, path)  # put the earlier result back
+                    old.rmdir()
+                    raise
+            else:
                 os.replace(tmp, path)
-                written.append(str(path))
-                shutil.rmtree(old, ignore_errors=True)
-        else:
-            raise_if_interrupted()
-            with _no_interrupt():
-                os.replace(tmp, path)
-                written.append(str(path))
+            written.append(str(path))
+            if old is not None:
+                _remove(old, path)
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _remove(old: Path, path: Path) -> None:
+    """Remove the earlier result once the new one is in place; say so if it cannot be."""
+    errors = []
+    shutil.rmtree(old, onerror=lambda *error: errors.append(error))
+    if errors or old.exists():
+        log.warning("the earlier result of %s could not be removed: it is in %s", path, old)
 
 
 @contextlib.contextmanager
@@ -351,14 +429,14 @@ def atomic_file(
     *,
     overwrite: bool = False,
     inputs: Sequence[str | os.PathLike] = (),
-    is_result: Callable[[Path], bool] | None = None,
     option: str = "--out",
 ) -> Iterator[Path]:
     """Yield a temporary file name that becomes ``path`` when the block succeeds.
 
-    See :func:`check_writable` for what may be replaced.
+    The file is recorded in its folder's ledger (:data:`LEDGER`).  See
+    :func:`check_writable` for what may be replaced.
     """
-    kwargs = {"overwrite": overwrite, "inputs": inputs, "is_result": is_result, "option": option}
+    kwargs = {"overwrite": overwrite, "inputs": inputs, "option": option}
     path = check_writable(path, kind="file", **kwargs)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", dir=path.resolve().parent)
     os.close(fd)
@@ -366,15 +444,16 @@ def atomic_file(
     try:
         try:
             yield tmp
+            os.chmod(tmp, 0o666 & ~_umask())
         except BaseException as exc:
             _hide_scratch(exc, tmp, path)
             raise
-        os.chmod(tmp, 0o666 & ~_umask())
         check_writable(path, kind="file", **kwargs)
         raise_if_interrupted()
-        with _no_interrupt():
+        with deferred_interrupt():
             os.replace(tmp, path)
             written.append(str(path))
+            _record_in_ledger(path)
     finally:
         if tmp.exists():
             tmp.unlink()

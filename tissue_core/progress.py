@@ -128,7 +128,8 @@ class Task:
             self._bar.update(self.done - self._bar.n)
             return
         now = time.perf_counter()
-        if now - self._last_line >= p.interval:
+        first = self._last_line == self._start
+        if first or now - self._last_line >= p.interval:  # the start, then every interval
             self._last_line = now
             print(
                 f"[{p.elapsed():6.1f} s] {self.description}: {self._count()}",

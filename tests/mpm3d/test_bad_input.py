@@ -485,31 +485,52 @@ import runpy
 runpy.run_module("mpm3d", run_name="__main__", alter_sys=True)  # as python -m mpm3d
 """
 
+#: Ctrl-C at a stage of a real run: ``after`` seconds after the step ``when`` was printed
+#: (or after the start: the imports), so that it lands there on any machine
+STAGES = [
+    ("analyze", None, 0.3, "imports"),
+    ("analyze", "choosing the channel", 0.1, "reading"),
+    ("analyze", "finding the surface", 0.05, "height-map"),
+    ("analyze", "building the isosurface", 0.05, "mesh"),
+    ("analyze", "writing results", 0.3, "writing"),
+    ("compare", "finding the surface", 0.05, "height-map"),
+    ("compare", "writing results", 0.2, "writing"),
+]
 INTERRUPTS = [
-    # Ctrl-C at a moment of a real run: importing, reading, measuring, meshing, drawing
     *(
-        pytest.param("analyze", after, None, (), id=f"analyze-interrupt-{after:g}s")
-        for after in (0.3, 1.0, 2.0, 3.5)
-    ),
-    *(
-        pytest.param("compare", after, None, (), id=f"compare-interrupt-{after:g}s")
-        for after in (1.0, 3.0)
+        pytest.param(command, after, None, (), when, id=f"{command}-interrupt-{stage}")
+        for command, when, after, stage in STAGES
     ),
     # Ctrl-C while a numba kernel runs, its threads busy
     pytest.param(
-        "analyze", 120, "combine_channels", (), id="analyze-interrupt-in-combine-channels-kernel"
+        "analyze",
+        120,
+        "combine_channels",
+        (),
+        None,
+        id="analyze-interrupt-in-combine-channels-kernel",
     ),
     pytest.param(
-        "analyze", 120, "first_crossing", (), id="analyze-interrupt-in-first-crossing-kernel"
+        "analyze",
+        120,
+        "first_crossing",
+        (),
+        None,
+        id="analyze-interrupt-in-first-crossing-kernel",
     ),
     pytest.param(
-        "analyze", 120, "bin_lateral", ("--iso-bin", "2"), id="analyze-interrupt-in-bin-kernel"
+        "analyze",
+        120,
+        "bin_lateral",
+        ("--iso-bin", "2"),
+        None,
+        id="analyze-interrupt-in-bin-kernel",
     ),
 ]
 
 
-@pytest.mark.parametrize(("command", "after", "kernel", "extra"), INTERRUPTS)
-def test_interrupt(command, after, kernel, extra, mpm_pair, tmp_path):
+@pytest.mark.parametrize(("command", "after", "kernel", "extra", "when"), INTERRUPTS)
+def test_interrupt(command, after, kernel, extra, when, mpm_pair, tmp_path):
     before, later = mpm_pair["before"][0], mpm_pair["after"][0]
     out = tmp_path / "out"
     if kernel is not None:  # the largest test stack: the kernels run longest
@@ -522,7 +543,7 @@ def test_interrupt(command, after, kernel, extra, mpm_pair, tmp_path):
         inputs = [before, later]
         argv = ["-m", "mpm3d", "compare", before, later, "--out", out, "--no-surface"]
         argv += ["--icp", "off"]
-    status, err = interrupt(argv, after=after, out=out, inputs=inputs)
+    status, err = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
     if kernel is not None:
         assert status == 130 and not out.exists(), err
         ran = float(err.split(f"[kernel {kernel} ran ")[1].split(" s]")[0])

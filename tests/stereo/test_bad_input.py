@@ -896,15 +896,25 @@ def test_every_command_has_cases_of_every_family_that_applies():
 # --------------------------------------------------------------------------- Ctrl-C
 
 
+#: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start)
+STAGES = [
+    (None, 0.3, "imports"),
+    ("matching", 0.05, "matching"),
+    ("tracking the left view", 0.05, "tracking"),
+    ("computing strain", 0.02, "strain"),
+]
+
+
 @pytest.mark.parametrize(
-    "after", [0.5, 2.0, 4.0, 7.0], ids=lambda a: f"reconstruct-interrupt-{a:g}s"
+    ("when", "after"),
+    [s[:2] for s in STAGES],
+    ids=[f"reconstruct-interrupt-{s[2]}" for s in STAGES],
 )
-def test_interrupt(after, small_stereo, tmp_path):
+def test_interrupt(when, after, small_stereo, tmp_path):
     s = small_stereo
     out = tmp_path / "rec"
     inputs = [s.calib, s.left, s.right, s.points]
     argv = ["-m", "stereo", "reconstruct", "--calib", s.calib, "--left", s.left,
             "--right", s.right, "--points", s.points, "--strain", "--out", out]  # fmt: skip
-    status, _ = interrupt(argv, after=after, out=out, inputs=inputs)
-    if status == 0:
-        assert (out / "summary.json").is_file() and (out / "strain").is_dir()
+    status, _ = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
+    assert status == 130

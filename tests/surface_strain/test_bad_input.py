@@ -168,13 +168,17 @@ def test_points_lost_on_the_reference_frame_are_named(inputs, tmp_path, capsys):
     ]
 
 
-@pytest.mark.parametrize("after", [0.3, 1.0, 2.5], ids=lambda s: f"compute-interrupt-{s}s")
-def test_interrupt(tmp_path, after):
+@pytest.mark.parametrize(
+    ("when", "after"),
+    [(None, 0.3), ("points over 40 frames", 0.02), ("points over 40 frames", 0.5)],
+    ids=["compute-interrupt-imports", "compute-interrupt-strain", "compute-interrupt-writing"],
+)
+def test_interrupt(tmp_path, when, after):
     points, *_ = _tilted_sheet_tracks(n=40, frames=40)
     src = tmp_path / "p.csv"
     _write(src, points)
     out = tmp_path / "run"
     status, err = interrupt(["-m", "surface_strain", "compute", src, "--out", out], after=after,
-                            out=out, inputs=[src])  # fmt: skip
-    if status == 130:  # before the command is parsed the line names the program only
-        assert message_lines(err)[-1].startswith("surface_strain")
+                            when=when, out=out, inputs=[src])  # fmt: skip
+    assert status == 130  # before the command is parsed the line names the program only
+    assert message_lines(err)[-1].startswith("surface_strain")

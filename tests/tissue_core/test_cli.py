@@ -237,3 +237,20 @@ def test_finalizers_of_what_ctrl_c_left_half_built_stay_quiet(capsys):
         HalfBuilt()
 
     assert run(interrupted, capsys) == (130, "tool go: interrupted; no output written\n")
+
+
+def test_a_ctrl_c_held_in_a_failing_block_wins_and_is_not_left_behind():
+    import time
+
+    from tissue_core.interrupt import raise_if_interrupted
+
+    with pytest.raises(KeyboardInterrupt) as info:
+        with deferred_interrupt():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)  # the handler runs, and holds it
+            raise ValueError("the block's own error")
+    assert isinstance(info.value.__cause__, ValueError)
+    with deferred_interrupt():  # a later, unrelated block: nothing pending
+        pass
+    raise_if_interrupted()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

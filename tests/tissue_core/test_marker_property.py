@@ -1,13 +1,19 @@
-"""The marker reader on arbitrary files: a folder counts as a result only with a valid marker."""
+"""The marker on arbitrary content: a folder is replaceable only with a marker that records it.
+
+Whatever a marker holds (JSON of any shape, records of any kind, names such as
+``..`` or absolute paths, binary noise), :func:`foreign_content` finds the
+user's file in the folder unless the marker records exactly that file.
+"""
 
 from __future__ import annotations
 
+import hashlib
 import json
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tissue_core.outputs import MARKER, first_unknown_entry, read_marker
+from tissue_core.outputs import MARKER, foreign_content, read_marker
 
 values = st.recursive(
     st.none() | st.booleans() | st.floats() | st.integers() | st.text(max_size=6),
@@ -16,17 +22,23 @@ values = st.recursive(
     ),
     max_leaves=10,
 )
+TRUE_RECORD = {"size": 1, "sha256": hashlib.sha256(b"x").hexdigest(), "mtime_ns": 0}
+names = st.sampled_from(["a.csv", "b.csv", "..", "../a.csv", "/a.csv", "./a.csv", "A.CSV", ""])
+records = st.one_of(st.just(TRUE_RECORD), values, st.just({"size": 1, "sha256": "0" * 64}))
 
 
 @settings(
-    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+    max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
 @given(
     content=st.one_of(
         values.map(json.dumps),
         st.builds(
-            lambda files: json.dumps({"kind": "tissue-strain result", "files": files}),
-            st.one_of(values, st.lists(st.text(max_size=6), max_size=3)),
+            lambda files, folders: json.dumps(
+                {"kind": "tissue-strain result", "files": files, "folders": folders}
+            ),
+            st.one_of(values, st.dictionaries(names, records, max_size=3)),
+            st.one_of(values, st.lists(names, max_size=3)),
         ),
         st.binary(max_size=80).map(lambda b: b.decode("latin-1")),
     )
@@ -37,9 +49,11 @@ def test_any_marker_content(tmp_path, content):
     (folder / MARKER).write_text(content, encoding="utf-8")
     (folder / "a.csv").write_text("x")
     marker = read_marker(folder)
+    foreign = foreign_content(folder)
     if marker is None:
-        assert first_unknown_entry(folder) == "."
+        assert foreign == f"no {MARKER}"
     else:
-        assert isinstance(marker["files"], list)
-        unknown = first_unknown_entry(folder)
-        assert (unknown is None) == ("a.csv" in marker["files"])
+        recorded = marker["files"].get("a.csv")
+        assert (foreign is None) == (recorded == TRUE_RECORD or (
+            isinstance(recorded, dict) and recorded.get("size") == 1
+            and recorded.get("sha256") == TRUE_RECORD["sha256"]))  # fmt: skip

@@ -1,5 +1,6 @@
 """Outputs never replace what the toolkit did not write."""
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -8,13 +9,12 @@ import pytest
 
 from tissue_core.errors import InputError
 from tissue_core.outputs import (
+    LEDGER,
     MARKER,
     atomic_dir,
     atomic_file,
     check_writable,
-    csv_header_is,
-    first_unknown_entry,
-    json_from_toolkit,
+    foreign_content,
     read_marker,
     recorded_command,
 )
@@ -43,10 +43,13 @@ def test_a_result_carries_a_marker_listing_its_files(tmp_path):
     finally:
         recorded_command.reset(token)
     marker = read_marker(out)
-    assert marker["files"] == ["a.csv", "figures", "figures/b.png"]
+    assert sorted(marker["files"]) == ["a.csv", "figures/b.png"]
+    assert marker["folders"] == ["figures"]
+    assert marker["files"]["a.csv"]["size"] == 5
+    assert marker["files"]["a.csv"]["sha256"] == hashlib.sha256(b"a.csv").hexdigest()
     assert marker["command"] == ["strain2d", "analyze", "v.avi"]
     assert marker["software"]["name"] == "tissue-strain" and marker["software"]["version"]
-    assert first_unknown_entry(out) is None
+    assert foreign_content(out) is None
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no scratch left
 
 
@@ -86,9 +89,9 @@ def test_nested_results_are_the_toolkits(tmp_path):
     data = tmp_path / "study_data"
     write_result(data, files=["S01.avi", "runs/.keep"])
     write_result(data / "runs" / "S01")  # strain2d analyze --out inside the study folder
-    assert first_unknown_entry(data) is None
+    assert foreign_content(data) is None
     (data / "runs" / "S01" / "mine.txt").write_text("mine")
-    assert first_unknown_entry(data) == "runs/S01/mine.txt"
+    assert foreign_content(data) == "runs/S01/mine.txt, which the earlier result did not write"
     with pytest.raises(InputError, match=r"runs/S01/mine.txt"):
         write_result(data, overwrite=True)
     (data / "runs" / "S01" / "mine.txt").unlink()
@@ -100,13 +103,89 @@ def test_a_damaged_or_foreign_marker_does_not_count(tmp_path):
     out = tmp_path / "run"
     out.mkdir()
     (out / "x.csv").write_text("x")
-    for text in ("{", "[]", json.dumps({"kind": "other", "files": ["x.csv"]}),
-                 json.dumps({"kind": "tissue-strain result", "files": "x.csv"})):  # fmt: skip
+    for text in ("{", "[]", json.dumps({"kind": "other", "files": {"x.csv": {}}}),
+                 json.dumps({"kind": "tissue-strain result", "files": ["x.csv"]})):  # fmt: skip
         (out / MARKER).write_text(text)
         assert read_marker(out) is None
         with pytest.raises(InputError, match="not a result"):
             write_result(out, overwrite=True)
     assert (out / "x.csv").read_text() == "x"
+
+
+def test_a_copied_or_crafted_marker_does_not_let_anything_go(tmp_path):
+    """A marker that lists what is not there, or paths outside, changes nothing."""
+    out = tmp_path / "run"
+    write_result(out)
+    marker = json.loads((out / MARKER).read_text())
+    marker["files"].update({"../outside.txt": {}, "/etc/passwd": {}})
+    marker["folders"] += ["..", "/"]
+    (out / MARKER).write_text(json.dumps(marker))
+    (tmp_path / "outside.txt").write_text("mine")
+    (out / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match=r"notes.txt, which the earlier result did not write"):
+        write_result(out, overwrite=True)
+    (out / "notes.txt").unlink()
+    write_result(out, files=["c.txt"], overwrite=True)
+    assert (tmp_path / "outside.txt").read_text() == "mine"
+
+
+def test_a_file_edited_after_the_toolkit_wrote_it_stops_the_overwrite(tmp_path):
+    out = tmp_path / "run"
+    write_result(out)
+    report = out / "a.csv"
+    report.write_text("a.csv, with the user's notes")  # edited in place
+    with pytest.raises(InputError, match=r"a.csv, which was changed after the toolkit wrote it"):
+        write_result(out, overwrite=True)
+    report.write_text("a.csv")  # the same content again (a copy, a touch): it is the result
+    write_result(out, files=["c.txt"], overwrite=True)
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "c.txt"]
+
+
+def test_a_result_that_holds_a_nested_result_can_be_replaced(tmp_path):
+    out = tmp_path / "study"
+    with atomic_dir(out) as tmp:
+        (tmp / "runs").mkdir()
+        with atomic_dir(tmp / "runs" / "S01") as inner:
+            (inner / "a.csv").write_text("a")
+    assert foreign_content(out) is None
+    write_result(out, overwrite=True)
+
+
+def test_an_unreadable_subfolder_stops_the_overwrite(tmp_path, monkeypatch):
+    out = tmp_path / "run"
+    write_result(out)
+    real_walk = os.walk
+
+    def walk(top, onerror=None, **kwargs):  # as if figures/ could not be listed
+        for entry in real_walk(top, **kwargs):
+            if entry[0].endswith("figures"):
+                onerror(PermissionError(13, "Permission denied", entry[0]))
+            yield entry
+
+    monkeypatch.setattr(os, "walk", walk)
+    with pytest.raises(InputError, match="figures, which cannot be read"):
+        write_result(out, overwrite=True)
+    monkeypatch.undo()
+    assert (out / "figures" / "b.png").read_text() == "figures/b.png"
+
+
+def test_a_failed_rename_puts_the_earlier_result_back(tmp_path, monkeypatch):
+    out = tmp_path / "run"
+    write_result(out)
+    before = tree(out)
+    real_replace = os.replace
+
+    def replace(src, dst):
+        if ".tmp-" in str(src):  # the new result's rename fails (Ctrl-C, a full disk ...)
+            raise KeyboardInterrupt
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        write_result(out, files=["c.txt"], overwrite=True)
+    monkeypatch.undo()
+    assert tree(out) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
 
 
 def test_empty_folder_is_used_and_symlinks_are_refused(tmp_path):
@@ -157,26 +236,27 @@ def test_an_error_inside_leaves_nothing_and_names_the_output(tmp_path):
 
 
 def test_a_file_is_replaced_only_when_the_toolkit_wrote_it(tmp_path):
-    is_tracks = csv_header_is("frame", "point", "x", "y")
     mine = tmp_path / "tracks.csv"
-    mine.write_text("my thesis\n")
-    for overwrite, message in ((False, "pass --overwrite"), (True, "not a file this toolkit")):
-        with pytest.raises(InputError, match=message):
-            with atomic_file(mine, overwrite=overwrite, is_result=is_tracks) as tmp:
+    mine.write_text("frame,point,x,y,visible,quality\n0,0,1,2,1,1\n")  # the user's own tracks
+    for overwrite in (False, True):
+        with pytest.raises(InputError, match="not a file this toolkit wrote"):
+            with atomic_file(mine, overwrite=overwrite) as tmp:
                 tmp.write_text("frame,point,x,y\n")
-    assert mine.read_text() == "my thesis\n"
-    mine.write_text("\ufeffFrame, point,x,y,visible\n0,0,1,2,1\n")  # BOM, spaces, case
-    with atomic_file(mine, overwrite=True, is_result=is_tracks) as tmp:
-        tmp.write_text("frame,point,x,y\n")
-    assert mine.read_text() == "frame,point,x,y\n"
-    with pytest.raises(InputError, match="not a file this toolkit"):
-        check_writable(mine, overwrite=True, kind="file")  # no recogniser: never replaced
-    calib = tmp_path / "calib.json"
-    calib.write_text(json.dumps({"left": 1}))
-    assert not json_from_toolkit("left", "right")(calib)
-    calib.write_text(json.dumps({"left": 1, "right": 2}))
-    assert json_from_toolkit("left", "right")(calib)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["calib.json", "tracks.csv"]
+    assert mine.read_text().startswith("frame,point,x,y,visible,quality\n0,0,1,2")
+    ours = tmp_path / "t.csv"
+    with atomic_file(ours) as tmp:
+        tmp.write_text("first\n")
+    ledger = json.loads((tmp_path / LEDGER).read_text())
+    assert ledger["files"]["t.csv"]["sha256"] == hashlib.sha256(b"first\n").hexdigest()
+    with pytest.raises(InputError, match=r"exists \(an earlier result\); pass --overwrite"):
+        check_writable(ours, overwrite=False, kind="file")
+    with atomic_file(ours, overwrite=True) as tmp:
+        tmp.write_text("second\n")
+    assert ours.read_text() == "second\n"
+    ours.write_text("second, edited\n")  # the user edits it: it is theirs now
+    with pytest.raises(InputError, match="not a file this toolkit wrote"):
+        check_writable(ours, overwrite=True, kind="file")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [LEDGER, "t.csv", "tracks.csv"]
 
 
 def test_finished_outputs_get_the_umask_permissions(tmp_path):
