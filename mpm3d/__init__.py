@@ -10,14 +10,9 @@ STACK.tif --out DIR`` and ``python -m mpm3d compare BEFORE.tif AFTER.tif
 """
 
 from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
+from tissue_core.lazy import lazy_exports
 
-
-def __getattr__(name: str):
-    if name == "__version__":  # read from the package metadata only when asked
-        from tissue_core.version import __version__
-
-        return __version__
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, {"tissue_core.version": ["__version__"]})[:2]
 
 
 __all__ = ["InputError", "MissingSpacingWarning", "SourceError", "__version__"]

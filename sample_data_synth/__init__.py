@@ -6,7 +6,7 @@ z-stacks of a folded lumen whose surface is known exactly
 (:mod:`sample_data_synth.stacks`), and stereo pairs (calibration boards and
 deforming membranes seen through OpenCV's camera model,
 :mod:`sample_data_synth.stereo`), each with a ground-truth file beside it.
-Depends on no other package of the toolkit.
+Depends on no other package of the toolkit but its ground floor, :mod:`tissue_core`.
 """
 
 from tissue_core.lazy import lazy_exports

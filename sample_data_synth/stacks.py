@@ -41,9 +41,7 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -56,6 +54,7 @@ from sample_data_synth._common import non_negative as _non_negative
 from sample_data_synth._common import positive as _positive
 from sample_data_synth._common import spawn as _spawn
 from sample_data_synth._common import version as _version
+from tissue_core.outputs import replaced_on_success
 
 __all__ = [
     "STACK_CASES",
@@ -793,26 +792,6 @@ def make_stack_case(
 # --------------------------------------------------------------------------- files
 
 
-@contextmanager
-def _atomic(path: Path) -> Iterator[Path]:
-    """A temporary path beside ``path`` that replaces it only on success."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
-    try:
-        yield tmp
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def write_stack(
     path: str | os.PathLike, case: SyntheticStack, *, format: StackFormat = "imagej"
 ) -> None:
@@ -838,7 +817,7 @@ def write_stack(
     path = Path(path)
     dz, dy, dx = case.spacing
     names = list(case.channel_names)
-    with _atomic(path) as tmp:
+    with replaced_on_success(path) as tmp:
         if format == "imagej":
             tifffile.imwrite(
                 tmp,
@@ -901,9 +880,9 @@ def save_stack_truth(prefix: str | os.PathLike, case: SyntheticStack) -> None:
         "software": {"sample_data_synth": _version()},
     }
     json_path = prefix.with_name(prefix.name + "_truth.json")
-    with _atomic(json_path) as tmp:
+    with replaced_on_success(json_path) as tmp:
         tmp.write_text(json.dumps(truth, indent=2))
-    with _atomic(prefix.with_name(prefix.name + "_truth.npz")) as tmp:
+    with replaced_on_success(prefix.with_name(prefix.name + "_truth.npz")) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(
                 f,

@@ -9,12 +9,9 @@ tracks them through both videos and triangulates them
 ``match``, ``reconstruct``.
 """
 
+from tissue_core.lazy import lazy_exports
+
 __all__ = ["__version__"]
 
 
-def __getattr__(name: str):
-    if name == "__version__":  # read from the package metadata only when asked
-        from tissue_core.version import __version__
-
-        return __version__
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, {"tissue_core.version": ["__version__"]})[:2]

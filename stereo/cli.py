@@ -393,9 +393,9 @@ def _source_name(source) -> str:
 def _cmd_reconstruct(args) -> int:
     from stereo.calibration import strict_json
     from stereo.reconstruct import reconstruct
-    from strain2d import __version__
     from strain2d.frames import open_frames
     from tissue_core.outputs import atomic_dir, check_writable
+    from tissue_core.version import __version__
 
     _check_reconstruct_options(args)
     inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])

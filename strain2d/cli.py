@@ -525,6 +525,7 @@ def _cmd_study(args) -> int:
     from strain2d.report import parse_formats, write_study
     from strain2d.study import read_manifest
 
+    say = _progress(args)
     formats = parse_formats(args.figure_format)
     if not 0 < args.alpha < 1:
         raise InputError(f"--alpha must lie between 0 and 1, got {args.alpha}")
@@ -549,7 +550,7 @@ def _cmd_study(args) -> int:
     if not args.quiet:
         for line in summary["plain_summary"]:
             print(line)
-    _progress(args)(f"results in {args.out}")
+    say(f"results in {args.out}")
     return 0
 
 

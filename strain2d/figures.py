@@ -58,6 +58,7 @@ from surface_strain import (
     nodal_principal_directions,
     nodal_scalars,
 )
+from tissue_core.outputs import replaced_on_success
 
 __all__ = [
     "format_p",
@@ -181,21 +182,12 @@ def save_figure(
     written = []
     for fmt in dict.fromkeys(wanted):
         out = stem.with_name(f"{stem.name}.{fmt}")
-        tmp = out.with_name(f".{out.name}.partial")
         metadata = {"svg": {"Date": None}, "pdf": {"CreationDate": None}}.get(fmt)
-        try:
-            # a fixed salt makes SVG element ids, hence the file, reproducible
-            with rc_context({"svg.hashsalt": "strain2d"}):
-                fig.savefig(
-                    tmp,
-                    format=fmt,
-                    dpi=dpi,
-                    bbox_inches="tight" if tight else None,
-                    metadata=metadata,
-                )
-            os.replace(tmp, out)
-        finally:
-            tmp.unlink(missing_ok=True)
+        # a fixed salt makes SVG element ids, hence the file, reproducible
+        with replaced_on_success(out) as tmp, rc_context({"svg.hashsalt": "strain2d"}):
+            fig.savefig(
+                tmp, format=fmt, dpi=dpi, bbox_inches="tight" if tight else None, metadata=metadata
+            )
         written.append(out)
     return written
 

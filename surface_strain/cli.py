@@ -246,13 +246,19 @@ def write_strain_folder(
     return field
 
 
+def _inputs(args) -> list[Path]:
+    """Every file compute reads: the points, --triangles, and stereo's summary beside them."""
+    files = [Path(args.points), Path(args.points).parent / "summary.json"]
+    return files + ([Path(args.triangles)] if args.triangles else [])
+
+
 def _cmd_compute(args) -> int:
     from surface_strain.field import nodal_scalars
     from surface_strain.io import read_points3d
     from tissue_core.outputs import atomic_dir, check_writable
     from tissue_core.progress import Progress
 
-    check_writable(args.out, overwrite=args.overwrite, inputs=[args.points])
+    check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
         raise UsageError(f"--fps must be a positive number, got {args.fps}")
     parse_directions(args.directions)  # fail before the work
@@ -262,7 +268,7 @@ def _cmd_compute(args) -> int:
     summary_in = _stereo_summary(Path(args.points))
     unit = args.unit or summary_in.get("unit") or "mm"
     triangles, how = mesh_for(points, visible, args, summary_in)
-    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.points]) as tmp:
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         field = write_strain_folder(
             tmp,
             points,

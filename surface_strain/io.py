@@ -70,7 +70,7 @@ def read_points3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
                     frame, point = int(row[col["frame"]]), int(row[col["point"]])
                     xyz = [_float(row[col[k]]) for k in ("x", "y", "z")]
                     vis = bool(int(float(row[vis_col]))) if vis_col is not None else True
-                except (ValueError, IndexError):
+                except (ValueError, IndexError, OverflowError):
                     raise PointsError(f"{path}, line {line}: not a number: {row}") from None
                 if frame < 0 or point < 0:
                     raise PointsError(f"{path}, line {line}: negative frame or point index")

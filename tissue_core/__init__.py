@@ -1,30 +1,30 @@
 """The ground floor every package of the toolkit stands on.
 
-Small, dependency-free pieces that ``strain2d``, ``surface_strain``,
-``stereo``, ``mpm3d`` and ``sample_data_synth`` share, so that each exists
-once:
+Small pieces that ``strain2d``, ``surface_strain``, ``stereo``, ``mpm3d`` and
+``sample_data_synth`` share, so that each exists once:
 
 * :mod:`tissue_core.errors` - the exceptions for errors a user can cause;
 * :mod:`tissue_core.outputs` - output folders and files written atomically,
-  with the marker that says a folder is a result of this toolkit (and so may
-  be replaced with ``--overwrite``);
-* :mod:`tissue_core.interrupt` - Ctrl-C held back while compiled code runs;
+  with the marker (folders) and the ledger (files) that record what the
+  toolkit wrote, so that ``--overwrite`` replaces nothing else;
+* :mod:`tissue_core.interrupt` - Ctrl-C held back where Python cannot raise it
+  cleanly (compiled kernels, imports, finalizers);
 * :mod:`tissue_core.progress` - timestamped progress on stderr;
 * :mod:`tissue_core.cli` - the command runner: one error line and exit
-  status 2, exit 130 on Ctrl-C, warnings as one line each.
+  status 2, exit 130 on Ctrl-C, warnings as one line each;
+  :mod:`tissue_core.main` - ``python -m PACKAGE``;
+* :mod:`tissue_core.images` - image files read whole or refused (NumPy, OpenCV);
+* :mod:`tissue_core.lazy` - package names loaded on first use;
+  :mod:`tissue_core.version` - the toolkit's version.
 
-It imports none of the toolkit's packages.
+It imports none of the toolkit's packages; only :mod:`tissue_core.images`
+needs more than the standard library.
 """
 
 from tissue_core.errors import InputError, SourceError
+from tissue_core.lazy import lazy_exports
 
-
-def __getattr__(name: str):
-    if name == "__version__":  # read from the package metadata only when asked
-        from tissue_core.version import __version__
-
-        return __version__
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_exports(__name__, {"tissue_core.version": ["__version__"]})[:2]
 
 
 __all__ = ["InputError", "SourceError", "__version__"]

@@ -135,8 +135,12 @@ def run_module(cli_module: str) -> None:
         # When Ctrl-C lands in code run by exec() (SciPy's imports do that), CPython
         # marks the interrupt as unhandled and, at exit, kills itself with SIGINT even
         # though it was handled: leave at once with the status the contract promises.
-        sys.stdout.flush()
-        sys.stderr.flush()
+        # (atexit handlers do not run then; the results were cleaned up before)
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed pipe, a closed stream
+                pass
         os._exit(130)
     sys.exit(status)
 

@@ -48,6 +48,7 @@ __all__ = [
     "foreign_content",
     "read_marker",
     "recorded_command",
+    "replaced_on_success",
 ]
 
 log = logging.getLogger(__name__)
@@ -365,6 +366,26 @@ def _record_in_ledger(path: Path) -> None:
         log.warning("%s: could not record %s in %s (%s)", path.parent, path.name, LEDGER, exc)
         with contextlib.suppress(OSError, UnboundLocalError):
             os.unlink(name)
+
+
+@contextlib.contextmanager
+def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
+    """A temporary file beside ``path`` (same suffix) that becomes ``path`` if the block succeeds.
+
+    No policy: for library writers that were given ``path`` (a file inside a
+    result being written, or a file the caller named); the command lines'
+    outputs use :func:`atomic_file`, which also checks what may be replaced.
+    """
+    path = Path(path)
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 @contextlib.contextmanager

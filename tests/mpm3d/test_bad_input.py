@@ -8,7 +8,6 @@ they are tested in ``test_stack_types.py``, not here."""
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable
 from pathlib import Path
 
@@ -18,7 +17,7 @@ import tifffile
 
 from mpm3d.cli import main
 from tests.badinput import FAMILIES, assert_refused, interrupt, unwritable_folder
-from tissue_core.outputs import MARKER
+from tissue_core.outputs import atomic_dir
 
 COMMANDS = ("analyze", "compare")
 CASES: list = []
@@ -115,9 +114,8 @@ def user_folder(tmp: Path, name: str = "out") -> Path:
 
 def earlier_result(tmp: Path, *, user_file: bool) -> Path:
     folder = tmp / "out"
-    folder.mkdir()
-    write(folder, "metrics.json", "{}\n")
-    write(folder, MARKER, json.dumps({"kind": "tissue-strain result", "files": ["metrics.json"]}))
+    with atomic_dir(folder) as result:
+        write(result, "metrics.json", "{}\n")
     if user_file:
         write(folder, "my_notes.txt", "added by the user afterwards")
     return folder

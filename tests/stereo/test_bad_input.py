@@ -17,7 +17,7 @@ import pytest
 from stereo.cli import main
 from tests.badinput import FAMILIES, assert_refused, interrupt
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
-from tissue_core.outputs import MARKER
+from tissue_core.outputs import atomic_dir
 
 W, H = SMALL_SIZE
 
@@ -162,9 +162,8 @@ def user_folder(tmp: Path, name: str) -> Path:
 
 def earlier_result_with_a_user_file(tmp: Path, name: str) -> Path:
     folder = tmp / name
-    folder.mkdir()
-    write(folder, "points3d.csv", "frame,point,X,Y,Z,reproj_error,visible\n")
-    write(folder, MARKER, json.dumps({"kind": "tissue-strain result", "files": ["points3d.csv"]}))
+    with atomic_dir(folder) as result:
+        write(result, "points3d.csv", "frame,point,X,Y,Z,reproj_error,visible\n")
     write(folder, "my_notes.txt", "added by the user afterwards")
     return folder
 
@@ -193,12 +192,12 @@ for command, name in OUTPUT_NAMES.items():
 
     @case(f"{command}-output-existing-user-file")
     def _(s, t, name=name):
-        return {"--out": user_file(t, name)}, [name, "exists", "--overwrite"]
+        return {"--out": user_file(t, name)}, [name, "not a file this toolkit wrote"]
 
     @case(f"{command}-output-existing-user-file-overwrite")
     def _(s, t, name=name):
         changes = {"--out": user_file(t, name), "--overwrite": True}
-        return changes, [name, "not a file this toolkit writes"]
+        return changes, [name, "not a file this toolkit wrote"]
 
     @case(f"{command}-output-existing-folder")
     def _(s, t, name=name):

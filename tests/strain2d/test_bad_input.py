@@ -306,7 +306,7 @@ def _output_cases():
         ("analyze-output-inside-input-folder", lambda c, o: ["-q", "analyze", c.dir / "frames",
          "--out", c.dir / "frames" / "run"], ["inside the input folder"]),
         ("track-output-users-file", lambda c, o: _track(c, "--out", c.mine / "chapter1.tex",
-         "--overwrite"), ["chapter1.tex", "not a file this toolkit writes"]),
+         "--overwrite"), ["chapter1.tex", "not a file this toolkit wrote"]),
         ("track-output-is-a-folder", lambda c, o: _track(c, "--out", c.dir / "no_images",
          "--overwrite"), ["is a folder"]),
         ("study-output-users-folder", lambda c, o: ["study", c.dir / "not_a_run", "--out",

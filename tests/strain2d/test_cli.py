@@ -98,9 +98,11 @@ def test_existing_output_needs_overwrite(small_case, tmp_path, capsys):
     assert main([*run, "--out", str(out)]) == 0
     assert main([*run, "--out", str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err
-    first = (out / "summary.json").stat().st_mtime_ns
-    assert main([*run, "--out", str(out), "--overwrite"]) == 0
-    assert (out / "summary.json").stat().st_mtime_ns > first
+    first = json.loads((out / "summary.json").read_text())
+    again = [*run[:3], "--grid", "4x4", "--animation", "none", "--out", str(out), "--overwrite"]
+    assert main(again) == 0
+    second = json.loads((out / "summary.json").read_text())
+    assert (first["points"]["n"], second["points"]["n"]) == (9, 16)
 
 
 def test_interrupted_run_leaves_nothing_behind(small_case, tmp_path, monkeypatch, capsys):
