@@ -19,7 +19,9 @@ from strain2d.errors import SourceError
 
 __all__ = ["IMAGE_SUFFIXES", "VIDEO_SUFFIXES", "EndFrames", "FrameSource", "open_frames", "to_gray"]
 
-VIDEO_SUFFIXES = frozenset({".mp4", ".avi", ".mov", ".mkv", ".m4v", ".wmv", ".mpg", ".mpeg"})
+VIDEO_SUFFIXES = frozenset(
+    {".mp4", ".avi", ".mov", ".mkv", ".m4v", ".wmv", ".mpg", ".mpeg", ".webm", ".ogv", ".3gp"}
+)
 TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".jp2", ".webp"})
 

@@ -9,9 +9,9 @@ the same behaviour:
   with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2;
 * Ctrl-C ends with one line ``PROG COMMAND: interrupted; no output written``
   and exit status 130, also when it arrives inside compiled code;
-* the toolkit's warnings (``UserWarning``) are one line each,
-  ``PROG COMMAND: warning: ...``; other libraries' numerical warnings go to
-  the log (``-v``);
+* warnings (``UserWarning``: the toolkit's, and those its libraries raise)
+  are one line each, ``PROG COMMAND: warning: ...``; numerical warnings
+  (``RuntimeWarning`` and the like) go to the log at DEBUG level;
 * the command line is recorded in the marker of every result folder.
 """
 

@@ -133,3 +133,35 @@ def test_end_frames_keeps_first_and_last_without_a_second_pass(tmp_path, smooth_
     np.testing.assert_array_equal(last, smooth_frames[-1])
     untouched = EndFrames(open_frames(path))  # a tracker that never iterates (imported)
     np.testing.assert_array_equal(untouched.ends()[1], smooth_frames[-1])
+
+
+@pytest.mark.parametrize(
+    ("name", "codec", "params"),
+    [
+        ("h264.mp4", "libx264", ["-bf", "3"]),  # B-frames: decoded out of order
+        ("mpeg4.avi", "mpeg4", []),
+        ("mjpeg.avi", "mjpeg", []),
+        ("vp9.webm", "libvpx-vp9", ["-crf", "30", "-b:v", "0"]),
+        ("h264.mov", "libx264", []),
+    ],
+)
+def test_videos_of_other_encoders_are_read_whole(tmp_path, name, codec, params):
+    """Videos another tool wrote (FFmpeg's encoders, lossy): every frame, in order."""
+    import imageio_ffmpeg
+
+    rng = np.random.default_rng(0)
+    base = rng.uniform(0, 255, (64, 64))
+    frames = [np.clip(base + 12 * k, 0, 255).astype(np.uint8) for k in range(9)]
+    writer = imageio_ffmpeg.write_frames(
+        str(tmp_path / name), (64, 64), pix_fmt_in="gray", codec=codec, fps=10,
+        output_params=params, macro_block_size=1, ffmpeg_log_level="error",
+    )  # fmt: skip
+    writer.send(None)
+    for frame in frames:
+        writer.send(np.ascontiguousarray(frame))
+    writer.close()
+    source = open_frames(tmp_path / name)
+    read = source.read_all()
+    assert len(source) == read.shape[0] == 9
+    means = read.reshape(9, -1).mean(axis=1)
+    assert np.all(np.diff(means) > 5)  # the frames come back in their order
