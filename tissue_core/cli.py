@@ -11,7 +11,7 @@ the same behaviour:
   and exit status 130, also when it arrives inside compiled code;
 * warnings (``UserWarning``: the toolkit's, and those its libraries raise)
   are one line each, ``PROG COMMAND: warning: ...``; numerical warnings
-  (``RuntimeWarning`` and the like) go to the log at DEBUG level;
+  (``RuntimeWarning`` and the like) go to the log, shown with ``-v``;
 * the command line is recorded in the marker of every result folder.
 """
 
@@ -51,7 +51,7 @@ def _show_warning(prefix: str):
             close_open_lines()
             print(f"{prefix}: warning: {one_line(message)}", file=sys.stderr, flush=True)
         else:
-            log.debug("%s (%s:%s)", message, filename, lineno)
+            log.info("%s (%s:%s)", message, filename, lineno)
 
     return show
 
