@@ -76,6 +76,17 @@ def message_lines(err: str) -> list[str]:
     return [line for line in err.splitlines() if line.strip() and not _PROGRESS.match(line)]
 
 
+def write(folder: Path, name: str, content: str | bytes) -> Path:
+    """Write ``content`` (text as UTF-8, or bytes) to ``folder/name``, making its folder."""
+    path = Path(folder) / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if isinstance(content, bytes):
+        path.write_bytes(content)
+    else:
+        path.write_text(content, encoding="utf-8", errors="surrogatepass")
+    return path
+
+
 def snapshot(*paths: str | os.PathLike) -> dict[str, bytes | None]:
     """Bytes of every file under ``paths`` (None for folders), to compare before and after."""
     out: dict[str, bytes | None] = {}

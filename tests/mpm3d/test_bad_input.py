@@ -16,7 +16,7 @@ import pytest
 import tifffile
 
 from mpm3d.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, unwritable_folder
+from tests.badinput import FAMILIES, assert_refused, interrupt, unwritable_folder, write
 from tissue_core.outputs import atomic_dir
 
 COMMANDS = ("analyze", "compare")
@@ -69,16 +69,6 @@ def command_line(command: str, options: dict) -> list[str]:
 
 
 # --------------------------------------------------------------------------- broken files
-
-
-def write(tmp: Path, name: str, content: str | bytes) -> Path:
-    path = tmp / name
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if isinstance(content, bytes):
-        path.write_bytes(content)
-    else:
-        path.write_text(content, encoding="utf-8")
-    return path
 
 
 def cut(source: Path, tmp: Path, fraction: float, name: str = "cut.tif") -> Path:

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from stereo.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt
+from tests.badinput import FAMILIES, assert_refused, interrupt, write
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
 from tissue_core.outputs import atomic_dir
 
@@ -31,16 +31,6 @@ def run(argv: list[str]) -> int:
 
 
 # --------------------------------------------------------------------------- broken files
-
-
-def write(tmp: Path, name: str, content: str | bytes) -> Path:
-    path = tmp / name
-    path.parent.mkdir(parents=True, exist_ok=True)
-    if isinstance(content, bytes):
-        path.write_bytes(content)
-    else:
-        path.write_text(content, encoding="utf-8")
-    return path
 
 
 def cut(source: Path, tmp: Path, name: str | None = None) -> Path:

@@ -11,7 +11,6 @@ from __future__ import annotations
 import io
 import json
 import zipfile
-from pathlib import Path
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
@@ -22,6 +21,7 @@ from strain2d.grid import read_points_csv
 from strain2d.run import load_run
 from strain2d.study import read_manifest
 from strain2d.tracks import read_tracks
+from tests.badinput import write
 
 SETTINGS = settings(
     max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
@@ -47,15 +47,6 @@ def table(columns):
     ).map(
         lambda t: ("\ufeff" if t[2] else "") + t[3].join(",".join(r) for r in [t[0], *t[1]]) + t[3]
     )
-
-
-def write(tmp_path: Path, name: str, content: str | bytes) -> Path:
-    path = tmp_path / name
-    if isinstance(content, bytes):
-        path.write_bytes(content)
-    else:
-        path.write_text(content, encoding="utf-8", errors="surrogatepass")
-    return path
 
 
 @SETTINGS
