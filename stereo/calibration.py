@@ -513,6 +513,10 @@ def _opencv_file(path: Path) -> dict:
             if value is not None:
                 out[key.lower()] = (key, value)
         return out
+    except UnicodeDecodeError:
+        raise InputError(
+            f"{path}: not a readable calibration file (names that are not UTF-8 text)"
+        ) from None
     except (cv2.error, SystemError) as exc:
         if is_interrupt(exc):
             raise KeyboardInterrupt from None

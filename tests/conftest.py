@@ -2,3 +2,13 @@ import os
 
 # Never open windows or pick an interactive backend in tests.
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+# Property tests draw the same examples on every machine, so `make test` gives the same answer
+# in CI as on the developer's machine. To search for new failures, run
+#   pytest --hypothesis-profile=explore tests/
+# (random examples, five times as many) and add what it finds as an @example.
+from hypothesis import settings
+
+settings.register_profile("repeatable", derandomize=True, print_blob=True)
+settings.register_profile("explore", derandomize=False, max_examples=500, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))

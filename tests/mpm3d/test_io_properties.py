@@ -7,15 +7,14 @@ import math
 import numpy as np
 import pytest
 import tifffile
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from mpm3d.errors import InputError, SourceError
 from mpm3d.io import Stack, parse_spacing, read_stack
+from tests.properties import property_settings
 
-SETTINGS = settings(
-    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
+SETTINGS = property_settings(40)
 
 # --------------------------------------------------------------------------- parse_spacing
 

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import json
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from sample_data_synth import load_ground_truth, make_case
+from tests.properties import property_settings
 from tissue_core.errors import InputError, SourceError
 
 values = st.recursive(
@@ -20,9 +21,7 @@ values = st.recursive(
 TRUTH = make_case("rotation", size=64, n_frames=2).truth.to_dict()
 
 
-@settings(
-    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
+@property_settings(60)
 @given(
     key=st.sampled_from(sorted(TRUTH)),
     value=values,

@@ -13,7 +13,7 @@ import json
 import zipfile
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from strain2d.errors import InputError, SourceError
@@ -22,10 +22,9 @@ from strain2d.run import load_run
 from strain2d.study import read_manifest
 from strain2d.tracks import read_tracks
 from tests.badinput import write
+from tests.properties import property_settings
 
-SETTINGS = settings(
-    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
+SETTINGS = property_settings(40)
 ERRORS = (InputError, SourceError)
 
 cell = st.one_of(

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from surface_strain.io import PointsError, read_points3d, read_triangles
+from tests.properties import property_settings
 
-SETTINGS = settings(
-    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
+SETTINGS = property_settings(40)
 cell = st.one_of(
     st.integers(-2, 6).map(str),
     st.floats(allow_nan=True, allow_infinity=True).map(repr),

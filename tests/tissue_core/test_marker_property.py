@@ -10,9 +10,10 @@ from __future__ import annotations
 import hashlib
 import json
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from tests.properties import property_settings
 from tissue_core.outputs import MARKER, foreign_content, read_marker
 
 values = st.recursive(
@@ -27,9 +28,7 @@ names = st.sampled_from(["a.csv", "b.csv", "..", "../a.csv", "/a.csv", "./a.csv"
 records = st.one_of(st.just(TRUE_RECORD), values, st.just({"size": 1, "sha256": "0" * 64}))
 
 
-@settings(
-    max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
-)
+@property_settings(80)
 @given(
     content=st.one_of(
         values.map(json.dumps),
