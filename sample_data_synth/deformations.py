@@ -41,14 +41,17 @@ class Homogeneous:
 
     Parameters
     ----------
-    kind : {"stretch", "rotation", "shear"}
+    kind : {"stretch", "rotation", "shear", "turn"}
         ``stretch``: ``A(t) = diag(1 + t (lx - 1), 1 + t (ly - 1))``;
+        ``turn``: ``A(t) = (1 + t (stretch - 1)) R(t angle_deg)``, a uniform
+        contraction or dilation while turning;
         ``rotation``: rotation by ``t * angle_deg`` (counter-clockwise on screen
         means towards -y, see note); ``shear``: ``A(t) = [[1, t g], [0, 1]]``.
     center : (cx, cy)
         Fixed point in pixels.
     params : dict
-        ``lx, ly`` for stretch, ``angle_deg`` for rotation, ``gamma`` for shear.
+        ``lx, ly`` for stretch, ``angle_deg`` for rotation, ``gamma`` for shear,
+        ``stretch, angle_deg`` for turn.
 
     Notes
     -----
@@ -57,8 +60,8 @@ class Homogeneous:
     """
 
     def __init__(self, kind: str, center: tuple[float, float], **params: float) -> None:
-        if kind not in ("stretch", "rotation", "shear"):
-            raise ValueError(f"kind must be stretch, rotation or shear, got {kind!r}")
+        if kind not in ("stretch", "rotation", "shear", "turn"):
+            raise ValueError(f"kind must be stretch, rotation, shear or turn, got {kind!r}")
         self.kind = kind
         self.center = np.asarray(center, dtype=float)
         self.params = {k: float(v) for k, v in params.items()}
@@ -68,9 +71,10 @@ class Homogeneous:
         p = self.params
         if self.kind == "stretch":
             return np.diag([1 + t * (p["lx"] - 1), 1 + t * (p["ly"] - 1)])
-        if self.kind == "rotation":
+        if self.kind in ("rotation", "turn"):
             a = np.radians(t * p["angle_deg"])
-            return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+            s = 1 + t * (p["stretch"] - 1) if self.kind == "turn" else 1.0
+            return s * np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
         return np.array([[1.0, t * p["gamma"]], [0.0, 1.0]])
 
     def forward(self, X: np.ndarray, t: float) -> np.ndarray:
