@@ -27,6 +27,8 @@ _TRACKER_FLAGS = {
     "subset": "subset",
     "zncc_min": "zncc_min",
     "shape_function": "shape_function",
+    "lattice_spacing": "spacing",
+    "curvature": "curvature",
     "cotracker_repo": "repo",
     "cotracker_checkpoint": "checkpoint",
     "cotracker_download": "download",
@@ -62,13 +64,25 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--tracker",
         default="dic",
-        help="tracker name: dic, klt, cotracker3, imported (default dic)",
+        help="tracker name: dic, gdic, klt, cotracker3, imported (default dic)",
     )
-    p.add_argument("--subset", type=int, help="dic: subset side in pixels (default 31)")
+    p.add_argument("--subset", type=int, help="dic, gdic: subset side in pixels (default 31)")
     p.add_argument(
         "--shape-function",
-        choices=["affine", "quadratic"],
-        help="dic: subset warp, first or second order (default affine)",
+        choices=["auto", "affine", "quadratic"],
+        help="dic, gdic: subset warp, first or second order, or chosen per point and frame "
+        "(gdic only: auto, its default; dic: affine)",
+    )
+    p.add_argument(
+        "--lattice-spacing",
+        type=int,
+        help="gdic: node spacing of the global field in pixels (default 16)",
+    )
+    p.add_argument(
+        "--curvature",
+        type=float,
+        help="gdic: prior scale of the field's second derivatives in 1/px; smaller is "
+        "smoother (default 0.002)",
     )
     p.add_argument(
         "--zncc-min", type=float, help="dic: correlation below which a point is lost (default 0.75)"
@@ -421,7 +435,7 @@ def _cmd_analyze(args) -> int:
         )
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         write_tracks_csv(tmp / "tracks.csv", tracks)
-        write_strain_nodes_csv(tmp / "strain_nodes.csv", field)
+        write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty)
         write_strain_elements_csv(tmp / "strain_elements.csv", field)
         write_pvd(tmp, field, name="strain", times=times)
         figs = tmp / "figures"

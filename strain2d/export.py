@@ -2,7 +2,10 @@
 
 ``strain_nodes.csv`` columns::
 
-    frame,point,x,y,u,v,visible,Exx,Eyy,Exy,E1,E2,max_shear,theta1_deg,J
+    frame,point,x,y,u,v,visible,Exx,Eyy,Exy,E1,E2,max_shear,theta1_deg,J[,uncertainty_px]
+
+``uncertainty_px`` (trackers that measure it) is the standard deviation of
+each coordinate of the tracked position, in pixels.
 
 ``strain_elements.csv`` columns::
 
@@ -39,8 +42,11 @@ NODE_COLUMNS = ("frame", "point", "x", "y", "u", "v", "visible", *_SCALARS)
 ELEMENT_COLUMNS = ("frame", "triangle", "p0", "p1", "p2", "valid", *_SCALARS)
 
 
-def write_strain_nodes_csv(path: str | os.PathLike, field: StrainField) -> None:
-    """Write per-node strain for every frame (see the module docstring)."""
+def write_strain_nodes_csv(
+    path: str | os.PathLike, field: StrainField, uncertainty: np.ndarray | None = None
+) -> None:
+    """Write per-node strain for every frame (see the module docstring); ``uncertainty``
+    ``(T, N)`` in px adds the ``uncertainty_px`` column."""
     T, N = field.n_frames, field.n_points
     frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
     pos = field.points
@@ -59,8 +65,13 @@ def write_strain_nodes_csv(path: str | os.PathLike, field: StrainField) -> None:
         ]
     )
     fmt = ["%d", "%d", "%.6f", "%.6f", "%.6f", "%.6f", "%d"] + ["%.8g"] * len(_SCALARS)
+    header = list(NODE_COLUMNS)
+    if uncertainty is not None:
+        table = np.column_stack([table, np.asarray(uncertainty, float).reshape(T * N)])
+        fmt.append("%.4g")
+        header.append("uncertainty_px")
     with open(path, "w") as f:
-        f.write(",".join(NODE_COLUMNS) + "\n")
+        f.write(",".join(header) + "\n")
         np.savetxt(f, table, fmt=fmt, delimiter=",")
 
 

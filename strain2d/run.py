@@ -118,7 +118,8 @@ def _read_nodes(file: Path) -> np.ndarray:
     if header is None:
         raise InputError(f"{file} is empty")
     header = [h.strip() for h in header]
-    if tuple(header) != NODE_COLUMNS:
+    optional = ("uncertainty_px",)  # written by trackers that measure it
+    if tuple(header) not in (NODE_COLUMNS, NODE_COLUMNS + optional):
         missing = [c for c in NODE_COLUMNS if c not in header]
         what = f"lacks the columns {', '.join(missing)}" if missing else "has other columns"
         raise InputError(f"{file} {what} (expected {','.join(NODE_COLUMNS)})")
@@ -128,8 +129,8 @@ def _read_nodes(file: Path) -> np.ndarray:
         table = np.loadtxt(rows.splitlines(), delimiter=",", ndmin=2)
     except ValueError as exc:
         raise InputError(f"{file} has a malformed row: {exc}") from None
-    if table.shape[1] != len(NODE_COLUMNS):
-        raise InputError(f"{file}: rows must have {len(NODE_COLUMNS)} values")
+    if table.shape[1] != len(header):
+        raise InputError(f"{file}: rows must have {len(header)} values")
     return table
 
 

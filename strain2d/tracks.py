@@ -2,8 +2,10 @@
 
 CSV layout (one row per frame and point)::
 
-    frame,point,x,y,visible,quality
+    frame,point,x,y,visible,quality[,uncertainty_px]
 
+``uncertainty_px`` (trackers that measure it, e.g. ``gdic``) is the standard
+deviation of each coordinate of the position in pixels (empty where unknown).
 NumPy layouts: ``.npy`` holding positions ``(T, N, 2)``; ``.npz`` with
 ``positions`` (or ``tracks``) ``(T, N, 2)`` and optional ``visible`` ``(T, N)``
 and ``quality`` ``(T, N)``.
@@ -41,12 +43,16 @@ class Tracks:
         Tracker confidence, higher is better (each tracker documents its scale).
     meta : dict
         Tracker name and options, for provenance.
+    uncertainty : (T, N) float or None
+        Standard deviation of each coordinate of the position (px), NaN where
+        unknown; None when the tracker does not measure it.
     """
 
     positions: np.ndarray
     visible: np.ndarray
     quality: np.ndarray
     meta: dict = field(default_factory=dict)
+    uncertainty: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         pos = np.asarray(self.positions, dtype=float)
@@ -57,6 +63,11 @@ class Tracks:
         for name, arr in (("visible", vis), ("quality", qual)):
             if arr.shape != pos.shape[:2]:
                 raise InputError(f"track {name} must have shape {pos.shape[:2]}, got {arr.shape}")
+        if self.uncertainty is not None:
+            unc = np.asarray(self.uncertainty, dtype=float)
+            if unc.shape != pos.shape[:2]:
+                raise InputError(f"track uncertainty must have shape {pos.shape[:2]}, got {unc.shape}")
+            object.__setattr__(self, "uncertainty", unc)
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "visible", vis)
         object.__setattr__(self, "quality", qual)
@@ -83,26 +94,27 @@ class Tracks:
 
 
 def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
-    """Write tracks as CSV with columns ``frame,point,x,y,visible,quality``."""
+    """Write tracks as CSV with columns ``frame,point,x,y,visible,quality`` (and
+    ``uncertainty_px`` when the tracks carry one)."""
     T, N = tracks.positions.shape[:2]
     frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
-    table = np.column_stack(
-        [
-            frame.ravel(),
-            point.ravel(),
-            tracks.positions.reshape(-1, 2),
-            tracks.visible.ravel(),
-            tracks.quality.ravel(),
-        ]
-    )
+    columns = [
+        frame.ravel(),
+        point.ravel(),
+        tracks.positions.reshape(-1, 2),
+        tracks.visible.ravel(),
+        tracks.quality.ravel(),
+    ]
+    fmt = ["%d", "%d", "%.6f", "%.6f", "%d", "%.6g"]
+    header = list(TRACK_COLUMNS)
+    if tracks.uncertainty is not None:
+        columns.append(tracks.uncertainty.ravel())
+        fmt.append("%.4g")
+        header.append("uncertainty_px")
     np.savetxt(
-        path,
-        table,
-        fmt=["%d", "%d", "%.6f", "%.6f", "%d", "%.6g"],
-        delimiter=",",
-        header=",".join(TRACK_COLUMNS),
+        path, np.column_stack(columns), fmt=fmt, delimiter=",", header=",".join(header),
         comments="",
-    )
+    )  # fmt: skip
 
 
 def _read_csv(path: Path) -> Tracks:
@@ -135,6 +147,9 @@ def _read_csv_rows(path: Path) -> list[tuple]:
                 float(r["y"]),
                 bool(int(float(r["visible"]))) if r.get("visible") not in (None, "") else True,
                 float(r["quality"]) if r.get("quality") not in (None, "") else 1.0,
+                float(r["uncertainty_px"])
+                if r.get("uncertainty_px") not in (None, "", "nan")
+                else np.nan,
             )
             for r in reader
         ]
@@ -154,7 +169,13 @@ def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
     pos[frames, points] = a[:, 2:4]
     vis[frames, points] = a[:, 4].astype(bool)
     qual[frames, points] = a[:, 5]
-    return Tracks(pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)})
+    unc = None
+    if np.isfinite(a[:, 6]).any():
+        unc = np.full((T, N), np.nan)
+        unc[frames, points] = a[:, 6]
+    return Tracks(
+        pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)}, unc
+    )
 
 
 def _read_numpy(path: Path, suffix: str):

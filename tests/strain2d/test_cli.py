@@ -261,9 +261,14 @@ def test_benchmark_quick(tmp_path):
     )
     results = json.loads((out / "benchmark.json").read_text())
     rows = {(r["case"], r["tracker"]): r for r in results["results"]}
-    trackers = ("dic", "dic (quadratic)", "klt", "exact positions")
+    trackers = ("dic", "dic (quadratic)", "gdic", "klt", "exact positions")
     assert set(rows) == {(c, t) for c in ("rotation", "tissue") for t in trackers}
-    limits = {"dic": (0.05, 0.001), "dic (quadratic)": (0.1, 0.002), "klt": (0.5, 0.005)}
+    limits = {
+        "dic": (0.05, 0.001),
+        "dic (quadratic)": (0.1, 0.002),
+        "gdic": (0.05, 0.001),
+        "klt": (0.5, 0.005),
+    }
     for (_, tracker), row in rows.items():
         if tracker == "exact positions":  # homogeneous fields: no discretization error
             assert row["Exx"]["rmse"] < 1e-9
@@ -271,7 +276,7 @@ def test_benchmark_quick(tmp_path):
         assert row["track_px"]["rmse"] < limits[tracker][0]
         assert row["Exx"]["rmse"] < limits[tracker][1]
     figures = sorted(p.name for p in (out / "figures").glob("*.png"))
-    assert "rotation_dic_quadratic.png" in figures and len(figures) == 6
+    assert "rotation_dic_quadratic.png" in figures and len(figures) == 8
     table = (out / "benchmark.md").read_text()
     assert "| rotation | klt |" in table and "| rotation | dic |" in table
     assert "paper (CoTracker3)" in table

@@ -1,0 +1,575 @@
+"""Global digital image correlation on a regularized bilinear finite-element lattice.
+
+The displacement of the whole region of interest is one field: bilinear on a
+square lattice of nodes ``h`` pixels apart, with a brightness gain ``a`` and
+offset ``b`` per node (the reference ``f`` is matched by
+``(1 + a) g(x + u) + b``, so light that changes across the image and over
+time does not bias the motion). The field minimizes, over every pixel of the
+region at once,
+
+    sum_p w_c(p) r_p^2  +  lambda_u |D u|^2  +  lambda_a |D a|^2  +  lambda_b |D b|^2,
+
+with ``D`` the second differences along x, y and xy on the lattice (a
+thin-plate penalty: its null space is the affine fields, so homogeneous
+deformations are not biased) and ``w_c`` a robust weight per lattice cell
+(cells whose residual is far above the others', under an occluder or a
+specular spot, stop counting). Where the texture is weak, the data term
+vanishes and the penalty fills the field in from the neighbours.
+
+The weights follow from the noise (a Bayesian reading): ``lambda = 2 sigma^2
+/ tau^2``, with ``sigma`` the image noise measured on the reference frame
+(Immerkaer's estimator) and ``tau = curvature h^2`` the expected second
+difference of the motion between nodes, ``curvature`` in 1/px. So
+regularization grows with the noise and matters only where the texture is
+too weak for the data to decide; the posterior covariance
+``2 sigma^2 (H + lambda D'D)^-1`` gives each point's uncertainty.
+
+Gauss-Newton with the Hessian of the reference gradients (the "modified"
+Gauss-Newton of global DIC), corrected per cell for the current deformation
+gradient and gain: ``grad g(x + u) = F^-T grad f / (1 + a)``. The Hessian of
+each cell is computed once per reference as a 16 x 16 block, so a frame costs
+one cubic B-spline sampling of the region per iteration and a sparse solve.
+Coarse-to-fine: the same lattice on blurred, subsampled images first, which
+widens the basin of convergence.
+
+References
+----------
+.. [1] Besnard, G., Hild, F., & Roux, S. (2006). "Finite-element"
+   displacement fields analysis from digital images. Experimental Mechanics
+   46, 789-803. https://doi.org/10.1007/s11340-006-9824-8
+.. [2] Tomicevic, Z., Hild, F., & Roux, S. (2013). Mechanics-aided digital
+   image correlation. J. Strain Analysis 48, 330-343.
+   https://doi.org/10.1177/0309324713482457
+.. [3] Immerkaer, J. (1996). Fast noise variance estimation. Computer Vision
+   and Image Understanding 64, 300-302. https://doi.org/10.1006/cviu.1996.0060
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, ndimage, sparse
+
+__all__ = ["Lattice", "LatticeSolver", "noise_sigma"]
+
+
+def noise_sigma(image: np.ndarray) -> float:
+    """Standard deviation of additive noise in a gray image (Immerkaer 1996)."""
+    image = np.asarray(image, dtype=np.float64)
+    if min(image.shape) < 3:
+        return 1.0
+    kernel = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=float)
+    response = ndimage.convolve(image, kernel, mode="nearest")[1:-1, 1:-1]
+    h, w = image.shape
+    return float(np.sqrt(np.pi / 2) * np.abs(response).sum() / (6.0 * (w - 2) * (h - 2)))
+
+
+def bright_blobs(image: np.ndarray, noise: float) -> np.ndarray:
+    """Candidate specular highlights: smooth bright blobs (bool mask).
+
+    Cores: pixels more than ``max(30, 8 noise)`` gray levels above the Gaussian
+    mean of their 20 px surroundings, in patches that survive an opening by a
+    5 x 5 square (thin bright texture such as hairs does not), cover at least
+    30 px and are smooth inside (fine detail at most 2.5 times the noise).
+    Each core is grown over its halo, the connected pixels more than
+    ``2.5 noise`` above the surroundings (up to 40 px), and by 3 px. Blobs
+    over more than 5 % of the image are the background or the texture (the
+    gaps of a speckle pattern), not highlights, and none is returned. Bright
+    tissue can look like this too: :func:`static_highlights` keeps only the
+    blobs that stay put while the tissue moves.
+    """
+    image = np.asarray(image, dtype=np.float64)
+    excess = image - ndimage.gaussian_filter(image, 20.0, mode="mirror")
+    core = excess > max(30.0, 8.0 * noise)
+    if not core.any():
+        return core
+    core = ndimage.binary_opening(core, np.ones((5, 5), bool))
+    labels, count = ndimage.label(core)
+    if count == 0:
+        return core
+    sizes = np.bincount(labels.ravel())
+    detail = image - ndimage.gaussian_filter(image, 1.5, mode="mirror")
+    roughness = np.zeros(count + 1)
+    roughness[1:] = ndimage.standard_deviation(detail, labels, np.arange(1, count + 1))
+    keep = (sizes >= 30) & (roughness < 2.5 * noise)
+    keep[0] = False
+    core = keep[labels]
+    if not core.any():
+        return core
+    halo = ndimage.binary_dilation(core, iterations=40, mask=excess > 2.5 * noise)
+    blobs = ndimage.binary_dilation(halo | core, iterations=3)
+    # highlights are a few spots; bright blobs all over are background or texture
+    return blobs if blobs.mean() < 0.05 else np.zeros_like(blobs)
+
+
+def static_highlights(reference_blobs: np.ndarray, frame_blobs: np.ndarray, motion) -> tuple:
+    """The blobs that stayed where they were in the image while the tissue moved.
+
+    A blob of the reference is a highlight when the frame has a blob at the
+    same image position that covers 60 % of it and overlaps it better (by 0.1
+    of its area) than the blob would if it had moved with the tissue (``motion(points) -> (N, 2)``
+    displacements); where the tissue moved less than 2 px, nothing is decided.
+    Returns the reference's and the frame's highlight masks.
+    """
+    empty = np.zeros(reference_blobs.shape, bool)
+    if not reference_blobs.any() or not frame_blobs.any():
+        return empty, empty
+    H, W = reference_blobs.shape
+    labels, count = ndimage.label(reference_blobs)
+    ref_mask, frame_mask = empty.copy(), empty.copy()
+    frame_labels, _ = ndimage.label(frame_blobs)
+    for k, box in enumerate(ndimage.find_objects(labels), start=1):
+        yy, xx = np.nonzero(labels[box] == k)
+        yy, xx = yy + box[0].start, xx + box[1].start
+        u = motion(np.array([[xx.mean(), yy.mean()]]))[0]
+        if not np.all(np.isfinite(u)) or np.hypot(*u) < 2.0:
+            continue
+        same = frame_blobs[yy, xx].mean()
+        mx = np.clip(np.rint(xx + u[0]).astype(int), 0, W - 1)
+        my = np.clip(np.rint(yy + u[1]).astype(int), 0, H - 1)
+        moved = frame_blobs[my, mx].mean()
+        if same > 0.6 and same > moved + 0.1:
+            ref_mask[yy, xx] = True
+            hit = np.unique(frame_labels[yy, xx])
+            frame_mask |= np.isin(frame_labels, hit[hit > 0])
+    return ref_mask, frame_mask
+
+
+@dataclass(frozen=True)
+class Lattice:
+    """Square lattice of ``(nx + 1) x (ny + 1)`` nodes, ``h`` px apart, from ``(x0, y0)``."""
+
+    x0: int
+    y0: int
+    h: int
+    nx: int
+    ny: int
+
+    @classmethod
+    def around(cls, points: np.ndarray, shape: tuple[int, int], h: int) -> Lattice:
+        """The lattice covering ``points`` with a margin of one cell, inside the frame."""
+        H, W = shape
+        lo = np.floor(points.min(axis=0)) - h
+        hi = np.ceil(points.max(axis=0)) + h
+        x0, y0 = int(max(lo[0], 2)), int(max(lo[1], 2))
+        nx = max(1, int(np.ceil((min(hi[0], W - 3) - x0) / h)))
+        ny = max(1, int(np.ceil((min(hi[1], H - 3) - y0) / h)))
+        nx = max(1, min(nx, (W - 3 - x0) // h))
+        ny = max(1, min(ny, (H - 3 - y0) // h))
+        return cls(x0, y0, h, nx, ny)
+
+    @property
+    def n_nodes(self) -> int:
+        return (self.nx + 1) * (self.ny + 1)
+
+    @property
+    def n_cells(self) -> int:
+        return self.nx * self.ny
+
+    def nodes(self) -> np.ndarray:
+        """Node positions ``(n_nodes, 2)`` (row-major: x fastest)."""
+        gx, gy = np.meshgrid(
+            self.x0 + self.h * np.arange(self.nx + 1), self.y0 + self.h * np.arange(self.ny + 1)
+        )
+        return np.column_stack([gx.ravel(), gy.ravel()]).astype(float)
+
+    def cell_nodes(self) -> np.ndarray:
+        """Corner nodes ``(n_cells, 4)`` of each cell: (0,0), (1,0), (0,1), (1,1)."""
+        j, i = np.divmod(np.arange(self.n_cells), self.nx)
+        n0 = j * (self.nx + 1) + i
+        return np.stack([n0, n0 + 1, n0 + self.nx + 1, n0 + self.nx + 2], axis=1)
+
+    def cell_origins(self) -> np.ndarray:
+        j, i = np.divmod(np.arange(self.n_cells), self.nx)
+        return np.column_stack([self.x0 + self.h * i, self.y0 + self.h * j]).astype(float)
+
+    def interpolation(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Bilinear weights at ``points``: node indices ``(N, 4)``, weights ``(N, 4)``,
+        and the weights' x and y derivatives ``(N, 4, 2)`` (1/px)."""
+        s = (points - [self.x0, self.y0]) / self.h
+        i = np.clip(np.floor(s[:, 0]).astype(int), 0, self.nx - 1)
+        j = np.clip(np.floor(s[:, 1]).astype(int), 0, self.ny - 1)
+        xi, eta = s[:, 0] - i, s[:, 1] - j
+        n0 = j * (self.nx + 1) + i
+        idx = np.stack([n0, n0 + 1, n0 + self.nx + 1, n0 + self.nx + 2], axis=1)
+        w = np.stack([(1 - xi) * (1 - eta), xi * (1 - eta), (1 - xi) * eta, xi * eta], axis=1)
+        dx = np.stack([-(1 - eta), 1 - eta, -eta, eta], axis=1) / self.h
+        dy = np.stack([-(1 - xi), -xi, 1 - xi, xi], axis=1) / self.h
+        return idx, w, np.stack([dx, dy], axis=-1)
+
+    def bending(self) -> sparse.csr_matrix:
+        """``D'D`` of the second differences (xx, yy and twice xy) on the nodes."""
+        nx, ny = self.nx + 1, self.ny + 1
+        index = np.arange(nx * ny).reshape(ny, nx)
+        rows, cols, vals = [], [], []
+        r = 0
+
+        def add(entries):
+            nonlocal r
+            for idx, v in entries:
+                rows.append(np.full(idx.size, r) + np.arange(idx.size))
+                cols.append(idx.ravel())
+                vals.append(np.full(idx.size, v))
+            r += entries[0][0].size
+
+        if nx >= 3:
+            add([(index[:, :-2], 1.0), (index[:, 1:-1], -2.0), (index[:, 2:], 1.0)])
+        if ny >= 3:
+            add([(index[:-2, :], 1.0), (index[1:-1, :], -2.0), (index[2:, :], 1.0)])
+        s = np.sqrt(2.0)
+        add([(index[:-1, :-1], s), (index[:-1, 1:], -s), (index[1:, :-1], -s), (index[1:, 1:], s)])
+        D = sparse.csr_matrix(
+            (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+            shape=(r, nx * ny),
+        )
+        return (D.T @ D).tocsr()
+
+
+def _shape_functions(h: int, stride: int) -> np.ndarray:
+    o = np.arange(0, h, stride, dtype=float) / h
+    eta, xi = np.meshgrid(o, o, indexing="ij")
+    xi, eta = xi.ravel(), eta.ravel()
+    return np.stack([(1 - xi) * (1 - eta), xi * (1 - eta), (1 - xi) * eta, xi * eta], axis=1)
+
+
+class _Level:
+    """One resolution: the reference blurred by ``blur`` px and sampled every ``stride`` px."""
+
+    def __init__(self, lattice: Lattice, reference: np.ndarray, blur: float, stride: int):
+        self.lattice, self.blur, self.stride = lattice, blur, stride
+        h, nx, ny = lattice.h, lattice.nx, lattice.ny
+        f = ndimage.gaussian_filter(reference, blur, mode="mirror") if blur > 0 else reference
+        gy, gx = np.gradient(f)
+        region = (slice(lattice.y0, lattice.y0 + ny * h, stride),
+                  slice(lattice.x0, lattice.x0 + nx * h, stride))  # fmt: skip
+        m = h // stride
+
+        def blocks(a: np.ndarray) -> np.ndarray:
+            return a[region].reshape(ny, m, nx, m).transpose(0, 2, 1, 3).reshape(ny * nx, m * m)
+
+        self.f = blocks(f)
+        self.blocks = blocks
+        self.q = np.stack([blocks(gx), blocks(gy), self.f, np.ones_like(self.f)], axis=-1)
+        self.N = _shape_functions(h, stride)  # (m*m, 4)
+        o = np.arange(0, h, stride, dtype=float)
+        oy, ox = np.meshgrid(o, o, indexing="ij")
+        self.offsets = np.stack([ox.ravel(), oy.ravel()], axis=-1)  # (m*m, 2)
+        # per cell, sum over its pixels of (N (x) q)(N (x) q)^T as (cell, node, comp, node, comp)
+        H0 = np.empty((lattice.n_cells, 4, 4, 4, 4))
+        for start in range(0, lattice.n_cells, 256):
+            q = self.q[start : start + 256]
+            A = (self.N[None, :, :, None] * q[:, :, None, :]).reshape(len(q), -1, 16)
+            H0[start : start + 256] = (np.swapaxes(A, 1, 2) @ A).reshape(-1, 4, 4, 4, 4)
+        self.H0 = H0
+        self.pixels = float(m * m)
+        # texture of each cell: mean squared gradient (gray levels^2 / px^2)
+        self.texture = np.mean(self.q[..., 0] ** 2 + self.q[..., 1] ** 2, axis=1)
+        self.variance = self.f.var(axis=1)
+
+    def prepare(self, frame: np.ndarray, mask: np.ndarray | None = None):
+        """Spline coefficients of the blurred frame, and of its highlight mask (or None)."""
+        g = ndimage.gaussian_filter(frame, self.blur, mode="mirror") if self.blur > 0 else frame
+        from strain2d.trackers.dic import _coefficients
+
+        if mask is None or not mask.any():
+            return _coefficients(g), None
+        grown = ndimage.binary_dilation(mask, iterations=int(np.ceil(2 * self.blur))) if self.blur else mask
+        return _coefficients(g), grown
+
+
+class LatticeSolver:
+    """Regularized global DIC on one reference frame (see the module docstring).
+
+    Parameters
+    ----------
+    reference : (H, W) float
+    points : (N, 2)
+        The points whose motion is wanted (the lattice covers them).
+    spacing : int
+        Lattice spacing ``h`` in pixels (a multiple of 4).
+    curvature : float
+        Expected curvature of the displacement field (1/px): the prior scale of
+        its second derivatives. Smaller is smoother.
+    noise : float or None
+        Image noise (gray levels); measured on the reference when None.
+    """
+
+    def __init__(
+        self,
+        reference: np.ndarray,
+        points: np.ndarray,
+        *,
+        spacing: int = 16,
+        curvature: float = 2e-3,
+        noise: float | None = None,
+        levels: tuple[tuple[float, int], ...] = ((3.0, 4), (1.2, 2), (0.0, 1)),
+        max_iterations: int = 25,
+        tolerance: float = 1e-2,
+    ) -> None:
+        reference = np.asarray(reference, dtype=np.float64)
+        self.shape = reference.shape
+        self.lattice = Lattice.around(np.asarray(points, float), self.shape, spacing)
+        self.cells = self.lattice.cell_nodes()
+        self.origins = self.lattice.cell_origins()
+        self.noise = max(noise_sigma(reference) if noise is None else float(noise), 0.5)
+        self.reference_blobs = bright_blobs(reference, self.noise)
+        self.levels = [_Level(self.lattice, reference, b, s) for b, s in levels]
+        self.reference_highlights = self.frame_highlights = None
+        self._reference_mask = None
+        self._static = np.zeros(self.shape, bool)
+        self.max_iterations, self.tolerance = max_iterations, tolerance
+        n = self.lattice.n_nodes
+        tau = curvature * spacing**2  # prior scale of a second difference of u between nodes
+        sigma2 = 2 * self.noise**2  # variance of f - g
+        B = self.lattice.bending()
+        # gain and offset vary slowly: light, not texture
+        weights = np.array([sigma2 / tau**2, sigma2 / tau**2, sigma2 / 1e-3**2, sigma2 / 0.3**2])
+        ridge = np.array([sigma2 / 100.0**2, sigma2 / 100.0**2, sigma2 / 0.5**2, sigma2 / 50.0**2])
+        self.prior = (sparse.kron(B, sparse.diags(weights)) + sparse.diags(np.tile(ridge, n))).tocsr()
+        self.ridge = ridge
+        self.sigma2 = sigma2
+        # node-major unknowns: 4 per node (u, v, a, b); COO pattern of the cell blocks
+        dof = (self.cells[:, :, None] * 4 + np.arange(4)).reshape(-1, 16)
+        self._rows = np.repeat(dof, 16, axis=1).ravel()
+        self._cols = np.tile(dof, (1, 16)).ravel()
+        self._dof = dof
+        # upper band storage (LAPACK): band[bw + i - j, j] = A[i, j] for i <= j
+        prior = self.prior.tocoo()
+        self._bw = bw = int(max(np.max(self._cols - self._rows), np.max(prior.col - prior.row)))
+        self._upper = (self._rows <= self._cols).reshape(-1, 256)[0]
+        rows, cols = self._rows.reshape(-1, 256)[:, self._upper], self._cols.reshape(-1, 256)[:, self._upper]
+        self._band_index = ((bw + rows - cols) * (4 * n) + cols).ravel()
+        keep = prior.row <= prior.col
+        self._prior_band = np.bincount(
+            (bw + prior.row[keep] - prior.col[keep]) * (4 * n) + prior.col[keep],
+            weights=prior.data[keep], minlength=(bw + 1) * 4 * n,
+        ).reshape(bw + 1, 4 * n)  # fmt: skip
+        self.state = np.zeros((n, 4))  # u, v, a, b per node
+        self.weights = np.ones(self.lattice.n_cells)
+        self.residual = np.zeros(self.lattice.n_cells)  # mean squared residual per cell
+        self.outside = np.zeros(self.lattice.n_cells, bool)
+        self._factors: dict = {}
+        self._anchor = self.state.copy()
+
+    # ------------------------------------------------------------------ one frame
+
+    def _transforms(self, state: np.ndarray) -> np.ndarray:
+        """Per cell, ``T`` (4 x 4) mapping (f_x, f_y, f, 1) to the current Jacobian."""
+        h = self.lattice.h
+        U = state[self.cells]  # (cells, 4 corners, 4)
+        dudx = 0.5 * ((U[:, 1, :2] - U[:, 0, :2]) + (U[:, 3, :2] - U[:, 2, :2])) / h
+        dudy = 0.5 * ((U[:, 2, :2] - U[:, 0, :2]) + (U[:, 3, :2] - U[:, 1, :2])) / h
+        F = np.eye(2) + np.stack([dudx, dudy], axis=-1)  # F[i, j] = d x_i / d X_j
+        det = F[:, 0, 0] * F[:, 1, 1] - F[:, 0, 1] * F[:, 1, 0]
+        bad = ~(det > 0.05)
+        F[bad] = np.eye(2)
+        Finv_T = np.linalg.inv(F).transpose(0, 2, 1)
+        a = U[:, :, 2].mean(axis=1)
+        b = U[:, :, 3].mean(axis=1)
+        gain = 1.0 / np.maximum(1.0 + a, 0.05)
+        T = np.zeros((len(U), 4, 4))
+        T[:, :2, :2] = Finv_T
+        T[:, 2, 2] = gain
+        T[:, 2, 3] = -b * gain
+        T[:, 3, 3] = 1.0
+        return T
+
+    def _residual(self, level: _Level, coefficients: np.ndarray, state: np.ndarray):
+        from strain2d.trackers.dic import _sample
+
+        C = state[self.cells]  # (cells, 4, 4)
+        pix = np.einsum("mi,cik->cmk", level.N, C)  # (cells, m, 4)
+        x = self.origins[:, None, 0] + level.offsets[None, :, 0] + pix[..., 0]
+        y = self.origins[:, None, 1] + level.offsets[None, :, 1] + pix[..., 1]
+        H, W = self.shape
+        out = (x < 1) | (x > W - 2) | (y < 1) | (y > H - 2)
+        coefficients, mask = coefficients
+        g = _sample(coefficients, x.ravel(), y.ravel()).reshape(x.shape)
+        r = level.f - (1 + pix[..., 2]) * g - pix[..., 3]
+        r[out] = 0.0
+        hidden = np.zeros(r.shape, bool)
+        if self._reference_mask is not None:  # a highlight on the reference
+            grown = self._reference_mask
+            if level.blur:
+                grown = ndimage.binary_dilation(grown, iterations=int(np.ceil(2 * level.blur)))
+            hidden |= level.blocks(grown)
+        if mask is not None:  # a highlight in this frame where the pixel now is
+            xi = np.clip(np.rint(x), 0, W - 1).astype(int)
+            yi = np.clip(np.rint(y), 0, H - 1).astype(int)
+            hidden |= mask[yi, xi]
+        r[hidden] = 0.0
+        masked = hidden.mean(axis=1) if hidden.any() else None
+        return r, out.mean(axis=1) > 0.25, masked
+
+    def _factorize(self, k: int, level: _Level, T: np.ndarray, w: np.ndarray):
+        """Banded Cholesky of ``H + prior`` at level k (the lattice's node order keeps the
+        band narrow: 8 lattice columns and some)."""
+        Hc = np.einsum("ckK,ciKjL,clL->cikjl", T, level.H0, T, optimize=True)
+        # one pixel of every stride^2 is used: scaled to the full-resolution information
+        Hc *= w[:, None, None, None, None] * float(level.stride**2)
+        band = self._prior_band + np.bincount(
+            self._band_index, weights=Hc.reshape(len(Hc), -1)[:, self._upper].ravel(),
+            minlength=self._prior_band.size,
+        ).reshape(self._prior_band.shape)  # fmt: skip
+        try:
+            factor = linalg.cholesky_banded(band, lower=False, check_finite=False)
+        except linalg.LinAlgError:
+            factor = None
+        self._factors[k] = (factor, T.copy(), w.copy())
+        return factor
+
+    def _solve(self, k: int, rhs: np.ndarray) -> np.ndarray:
+        factor = self._factors[k][0]
+        if factor is None:
+            return np.full(rhs.shape, np.nan)
+        return linalg.cho_solve_banded((factor, False), rhs, check_finite=False)
+
+    def _stale(self, k: int, T: np.ndarray, w: np.ndarray) -> bool:
+        """Whether level k's Hessian was factorized for a deformation or weights unlike now."""
+        if self._factors.get(k) is None:
+            return True
+        _, T0, w0 = self._factors[k]
+        # the deformation and gain part (the offset column follows noise in flat cells)
+        change = np.abs(T[:, :3, :3] - T0[:, :3, :3]).max(axis=(1, 2))
+        return change.max() > 0.08 or np.mean(np.abs(w - w0) > 0.5) > 0.02
+
+    def _solve_level(self, k: int, coefficients: np.ndarray, state: np.ndarray,
+                     tolerance: float) -> tuple[np.ndarray, bool]:  # fmt: skip
+        """Gauss-Newton at level k; the Hessian is refactorized only when stale."""
+        level = self.levels[k]
+        n = self.lattice.n_nodes
+        converged = False
+        ridge = np.tile(self.ridge, n) * self._anchor.ravel()
+        for _ in range(self.max_iterations):
+            r, outside, masked = self._residual(level, coefficients, state)
+            ms = np.mean(r**2, axis=1)
+            w = self._robust_weights(ms, level, outside)
+            if masked is not None and np.mean(masked > 0.3) < 0.25:
+                w[masked > 0.3] = 0.0  # cells mostly under a highlight do not count
+            T = self._transforms(state)
+            if self._stale(k, T, w):
+                self._factorize(k, level, T, w)
+            g0 = np.einsum("mi,cm,cmk->cik", level.N, r * w[:, None], level.q, optimize=True)
+            g0 = np.einsum("ckK,ciK->cik", T, g0) * float(level.stride**2)
+            rhs = np.bincount(self._dof.ravel(), weights=g0.ravel(), minlength=4 * n)
+            rhs -= self.prior @ state.ravel() - ridge
+            step = self._solve(k, rhs).reshape(n, 4)
+            if not np.isfinite(step).all():
+                return state, False
+            state = state + step
+            if np.abs(step[:, :2]).max() < tolerance:
+                converged = True
+                break
+        self.weights, self.outside, self.residual = w, outside, ms
+        self._last_level = k
+        return state, converged
+
+    def _robust_weights(self, ms: np.ndarray, level: _Level, outside: np.ndarray) -> np.ndarray:
+        """Cells whose residual is far above what noise and texture explain stop counting."""
+        expected = self.sigma2 + 0.02 * level.texture  # noise, plus sub-pixel model error
+        z = ms / expected
+        typical = np.median(z[~outside]) if (~outside).any() else 1.0
+        z = z / max(typical, 1.0)
+        w = np.clip((16.0 - z) / 12.0, 0.0, 1.0)  # 1 below 4x, 0 above 16x
+        w[outside] = 0.0
+        return w
+
+    def coarse(self, frame: np.ndarray, guess: np.ndarray) -> tuple[np.ndarray, float]:
+        """Fit the coarsest level from ``guess``: the node states and the median cell
+        residual (a cost to compare initial guesses by)."""
+        self._anchor = np.array(guess, dtype=float)
+        level = self.levels[0]
+        frame = np.asarray(frame, np.float64)
+        self.reference_highlights, self.frame_highlights = static_highlights(
+            self.reference_blobs, bright_blobs(frame, self.noise), self._motion
+        )
+        # once found to stay put, a highlight stays one (its blob may blur or fade later)
+        self._static |= self.reference_highlights
+        self.reference_highlights = self._static.copy()
+        self._reference_mask = self.reference_highlights if self.reference_highlights.any() else None
+        if self._reference_mask is None:
+            self.frame_highlights = None
+        state, _ = self._solve_level(0, level.prepare(frame, self.frame_highlights),
+                                     self._anchor.copy(), 0.05)  # fmt: skip
+        inside = ~self.outside
+        cost = float(np.median(self.residual[inside])) if inside.any() else np.inf
+        return state, cost
+
+    def refine(self, frame: np.ndarray, state: np.ndarray) -> bool:
+        """Fit the finer levels from the coarse ``state``; True if the finest converged."""
+        frame = np.asarray(frame, dtype=np.float64)
+        converged = False
+        for k in range(1, len(self.levels)):
+            last = k == len(self.levels) - 1
+            coefficients = self.levels[k].prepare(frame, self.frame_highlights)
+            state, converged = self._solve_level(
+                k, coefficients, state, self.tolerance if last else 0.05
+            )
+        self.state = state
+        return converged
+
+    def solve(self, frame: np.ndarray, guess: np.ndarray) -> bool:
+        """Fit the field to ``frame`` from node states ``guess`` (n_nodes, 4), all levels."""
+        state, _ = self.coarse(frame, guess)
+        return self.refine(frame, state)
+
+    # ------------------------------------------------------------------ results at points
+
+    def displacement(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Displacement ``(N, 2)`` and its gradient ``(N, 2, 2)`` at reference ``points``."""
+        idx, w, dw = self.lattice.interpolation(points)
+        U = self.state[idx, :2]  # (N, 4, 2)
+        u = np.einsum("ni,nik->nk", w, U)
+        grad = np.einsum("nik,nil->nkl", U, dw)  # d u_k / d X_l
+        return u, grad
+
+    def cell_of(self, points: np.ndarray) -> np.ndarray:
+        s = (points - [self.lattice.x0, self.lattice.y0]) / self.lattice.h
+        i = np.clip(np.floor(s[:, 0]).astype(int), 0, self.lattice.nx - 1)
+        j = np.clip(np.floor(s[:, 1]).astype(int), 0, self.lattice.ny - 1)
+        return j * self.lattice.nx + i
+
+    def seen(self, points: np.ndarray) -> np.ndarray:
+        """Whether the cell under each point counted in the fit (not occluded, in the frame)."""
+        c = self.cell_of(points)
+        return (self.weights[c] > 0.5) & ~self.outside[c]
+
+    def _motion(self, points: np.ndarray) -> np.ndarray:
+        """Displacement at reference points of the best affine fit to this frame's starting
+        guess: how the tissue around moves, even where a highlight holds the field."""
+        nodes = self.lattice.nodes()
+        A = np.column_stack([nodes, np.ones(len(nodes))])
+        M, *_ = np.linalg.lstsq(A, self._anchor[:, :2], rcond=None)
+        return np.column_stack([points, np.ones(len(points))]) @ M
+
+    def cell_zncc(self, points: np.ndarray) -> np.ndarray:
+        """ZNCC-like agreement ``1 - residual / (2 var f)`` of the cell under each point."""
+        c = self.cell_of(points)
+        return 1.0 - self.residual[c] / np.maximum(2 * self.levels[-1].variance[c], 1e-9)
+
+    def uncertainty(self, points: np.ndarray) -> np.ndarray:
+        """Standard deviation (px, per coordinate) of the displacement at ``points``.
+
+        The posterior covariance ``s^2 (H + lambda D'D)^-1`` of the last fit,
+        with ``s^2`` the residual variance of the cell under each point (at
+        least the noise's), interpolated to the point.
+        """
+        if self._factors.get(len(self.levels) - 1) is None or len(points) == 0:
+            return np.full(len(points), np.nan)
+        idx, w, _ = self.lattice.interpolation(points)
+        n = 4 * self.lattice.n_nodes
+        out = np.empty(len(points))
+        s2 = np.maximum(self.residual[self.cell_of(points)], self.sigma2)
+        for start in range(0, len(points), 128):
+            sl = slice(start, start + 128)
+            k = len(idx[sl])
+            E = np.zeros((n, 2 * k))
+            cols = np.arange(k)
+            for c in range(4):
+                E[idx[sl, c] * 4, cols] += w[sl, c]
+                E[idx[sl, c] * 4 + 1, k + cols] += w[sl, c]
+            Z = self._solve(len(self.levels) - 1, E)
+            var = np.einsum("nk,nk->k", E, Z)
+            out[sl] = np.sqrt(0.5 * (var[:k] + var[k:]) * s2[sl])
+        return out

@@ -1,0 +1,340 @@
+"""``gdic``: global correlation over the whole surface, refined by local subsets.
+
+Built for natural tissue texture (smooth mucosa, sparse vessels, fibres,
+uneven and fading light) where a subset around each point alone may hold too
+little texture to be matched. Every frame, in order:
+
+1. **Initial guess.** The previous frame's field plus its velocity. On the
+   first frame, and whenever that guess leaves a large residual at the
+   coarsest level, a global one too: SIFT features of the reference matched
+   to the frame (Lowe's ratio test) and a RANSAC affine transform (OpenCV);
+   the guess with the lower residual wins. So a 20-degree turn or a jump
+   between frames does not lose the grid.
+2. **Global correlation** (:mod:`strain2d.trackers._lattice`): one
+   displacement field over the region, bilinear on a lattice of nodes
+   ``spacing`` px apart, with a brightness gain and offset per node, fitted
+   to every pixel coarse-to-fine; a thin-plate penalty weighted by the
+   measured image noise fills in where texture is weak; occluded cells stop
+   counting.
+3. **Local refinement.** From the global field, each point's subset is
+   matched by IC-GN (:mod:`strain2d.trackers.dic`'s kernel) with an affine and
+   with a quadratic warp; the Bayesian information criterion
+   ``n ln(SSD / n) + k ln n`` picks the warp per point and frame. A local
+   match is kept when it converged, correlates at least ``zncc_min``, and
+   agrees with the global field within its uncertainty (at most
+   ``max(1 px, 5 sigma)``); otherwise the global field's value is used.
+4. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
+   or when its local match failed *and* the lattice cell under it stopped
+   counting (an occluder, a blank patch): the field there is the penalty's
+   interpolation, not a measurement, and is not reported as one.
+
+Each point and frame gets an uncertainty (px, standard deviation per
+coordinate): for a local match ``sqrt(s^2 (J'J)^-1)`` of IC-GN with ``s^2``
+the residual variance of its subset; for the global field the posterior
+standard deviation of the lattice fit. ``quality`` is the ZNCC of the local
+match (of the lattice cell's fit where only the global value is used).
+
+Tracking is always against the reference frame, so errors do not accumulate.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+
+import numpy as np
+
+from strain2d.errors import InputError
+from strain2d.trackers import register_tracker
+from strain2d.trackers._lattice import LatticeSolver
+from strain2d.trackers.dic import _coefficients, _Correlator, _inside
+from strain2d.tracks import Tracks
+
+#: budget for cached reference subsets (bytes); beyond it they are rebuilt each frame
+_CACHE_BYTES = 256 * 2**20
+
+
+def _feature_guess(reference: np.ndarray, frame: np.ndarray, nodes: np.ndarray, box):
+    """Node displacements ``(n, 2)`` of an affine fit to SIFT matches, or None."""
+    import cv2
+
+    def gray8(a):
+        a = np.asarray(a, dtype=np.float64)
+        lo, hi = np.percentile(a, [0.5, 99.5])
+        return np.clip((a - lo) / max(hi - lo, 1e-9) * 255, 0, 255).astype(np.uint8)
+
+    sift = cv2.SIFT_create(nfeatures=4000)
+    mask = np.zeros(reference.shape, np.uint8)
+    x0, y0, x1, y1 = (int(v) for v in box)
+    mask[max(y0, 0) : y1, max(x0, 0) : x1] = 255
+    k1, d1 = sift.detectAndCompute(gray8(reference), mask)
+    k2, d2 = sift.detectAndCompute(gray8(frame), None)
+    if d1 is None or d2 is None or len(k1) < 8 or len(k2) < 8:
+        return None
+    matches = cv2.BFMatcher(cv2.NORM_L2).knnMatch(d1, d2, k=2)
+    good = [m for m, n in (p for p in matches if len(p) == 2) if m.distance < 0.75 * n.distance]
+    if len(good) < 8:
+        return None
+    src = np.float32([k1[m.queryIdx].pt for m in good])
+    dst = np.float32([k2[m.trainIdx].pt for m in good])
+    A, inliers = cv2.estimateAffine2D(src, dst, ransacReprojThreshold=3.0, maxIters=4000)
+    if A is None or inliers is None or inliers.sum() < 8:
+        return None
+    return nodes @ A[:, :2].T + A[:, 2] - nodes
+
+
+def _extrapolate(nodes: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """Node states one frame ahead: the last step's best-fit affine motion applied again
+    (exact for steady rotation and stretch), plus the rest of the step's motion."""
+    x0, x1 = nodes + before[:, :2], nodes + now[:, :2]
+    A = np.column_stack([x0, np.ones(len(x0))])
+    M, *_ = np.linalg.lstsq(A, x1, rcond=None)  # x1 ~ [x0 1] @ M
+    rest = x1 - A @ M
+    guess = now.copy()
+    guess[:, :2] = np.column_stack([x1, np.ones(len(x1))]) @ M + rest - nodes
+    return guess
+
+
+def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int) -> np.ndarray:
+    """Whether the square subsets at ``centers`` hold any pixel of ``mask``."""
+    if mask is None or not mask.any():
+        return np.zeros(len(centers), bool)
+    table = np.pad(mask.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    H, W = mask.shape
+    c = np.rint(np.nan_to_num(centers)).astype(int)
+    x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
+    y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
+    return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
+
+
+def _bic_choice(z1, z2, norm2, n, ok1, ok2):
+    """Per point, True where the quadratic warp (12 parameters) beats the affine one (6)."""
+    ssd1 = np.maximum(2 * (1 - z1) * norm2, 1e-12)
+    ssd2 = np.maximum(2 * (1 - z2) * norm2, 1e-12)
+    bic1 = n * np.log(ssd1 / n) + 6 * np.log(n)
+    bic2 = n * np.log(ssd2 / n) + 12 * np.log(n)
+    return ok2 & (~ok1 | (bic2 < bic1))
+
+
+def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray:
+    """IC-GN standard deviation (px per coordinate) of (u, v) at ``rows``.
+
+    ``s^2 (J'J)^-1`` with ``s^2`` the subset's residual variance. On weak
+    texture the reference's gradients are partly noise (a central difference
+    of noise of variance ``noise^2`` has variance ``noise^2 / 2``), which
+    inflates ``J'J``: that part is taken out, so the uncertainty grows as the
+    texture fades into the noise instead of staying optimistic. Returns the
+    standard deviation and the factor (>= 1) by which the correction raised
+    the variance, which the global field's uncertainty at the point shares.
+    """
+    G = ref.G[rows]  # H^-1 J^T, so G G^T = H^-1
+    n = G.shape[2]
+    noise_energy = n * noise**2 / 2
+    variances, plain = [], []
+    for k in (0, 1):
+        hinv = np.einsum("nk,nk->n", G[:, k], G[:, k])
+        signal = 1.0 / np.maximum(hinv, 1e-30) - noise_energy
+        variances.append(np.where(signal > 0.1 / hinv, 1.0 / np.maximum(signal, 1e-30), 10 * hinv))
+        plain.append(hinv)
+    norm2 = ref.norm[rows, 0] ** 2
+    s2 = np.maximum(2 * (1 - zncc), 0) * norm2 / max(n - corr.n_params, 1)
+    variance = 0.5 * (variances[0] + variances[1])
+    return np.sqrt(variance * s2), variance / np.maximum(0.5 * (plain[0] + plain[1]), 1e-30)
+
+
+@register_tracker(
+    "gdic",
+    description="global DIC over the surface (regularized finite-element lattice, brightness "
+    "per node, feature-based initial guess), refined by local subsets with the warp "
+    "chosen per point; reports an uncertainty per point",
+)
+def track_gdic(
+    frames: Iterable[np.ndarray],
+    points: np.ndarray,
+    *,
+    subset: int = 31,
+    spacing: int = 16,
+    curvature: float = 2e-3,
+    shape_function: str = "auto",
+    zncc_min: float = 0.75,
+    max_iterations: int = 30,
+    tolerance: float = 1e-3,
+    progress: Callable[[int, int | None], None] | None = None,
+) -> Tracks:
+    """Track points by global and local correlation (see the module docstring).
+
+    Parameters
+    ----------
+    frames : iterable of (H, W) float
+        Frame 0 is the reference.
+    points : (N, 2) float
+        Reference positions (x, y) in pixels.
+    subset : int, keyword-only
+        Side of the local subsets in pixels (odd, >= 15).
+    spacing : int, keyword-only
+        Lattice spacing of the global field in pixels (a multiple of 4, >= 8).
+    curvature : float, keyword-only
+        Prior scale of the field's second derivatives (1/px); the
+        regularization weight is ``2 noise^2 / (curvature spacing^2)^2`` with
+        the noise measured on the reference frame. Smaller is smoother.
+    shape_function : {"auto", "affine", "quadratic"}, keyword-only
+        The local subset warp; ``auto`` chooses per point and frame (BIC).
+    zncc_min : float, keyword-only
+        Correlation below which a local match is not used.
+    max_iterations, tolerance : keyword-only
+        Of the local IC-GN.
+    progress : callable(done, total), keyword-only
+
+    Returns
+    -------
+    Tracks
+        With ``uncertainty`` (px); ``meta["local_fraction"]`` is the fraction
+        of point-frames whose position is a local subset match.
+    """
+    if shape_function not in ("auto", "affine", "quadratic"):
+        raise InputError(
+            f"--shape-function must be auto, affine or quadratic, got {shape_function!r}"
+        )
+    if subset < 15 or subset % 2 == 0:
+        raise InputError(f"--subset must be an odd number >= 15 for gdic, got {subset}")
+    if spacing < 8 or spacing % 4:
+        raise InputError(f"--spacing must be a multiple of 4 and >= 8 px, got {spacing}")
+    if not (np.isfinite(curvature) and curvature > 0):
+        raise InputError(f"--curvature must be a positive number, got {curvature}")
+    if not -1 < zncc_min < 1:
+        raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    n = len(points)
+    total = len(frames) if hasattr(frames, "__len__") else None
+    it = iter(frames)
+    try:
+        reference = np.asarray(next(it), dtype=np.float64)
+    except StopIteration:
+        raise InputError("no frames to track") from None
+    shape = reference.shape
+    if subset >= min(shape) or 2 * spacing >= min(shape):
+        raise InputError(
+            f"--subset {subset} and 2 x --spacing {spacing} must be smaller than the "
+            f"{shape[1]}x{shape[0]} frames"
+        )
+    H, W = shape
+    in_frame0 = (points[:, 0] >= 0) & (points[:, 0] <= W - 1) & (points[:, 1] >= 0)
+    in_frame0 &= points[:, 1] <= H - 1
+    solver = LatticeSolver(reference, points[in_frame0] if in_frame0.any() else points,
+                           spacing=spacing, curvature=curvature)  # fmt: skip
+    nodes = solver.lattice.nodes()
+    box = (nodes[:, 0].min(), nodes[:, 1].min(), nodes[:, 0].max(), nodes[:, 1].max())
+
+    orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
+    correlators = {o: _Correlator(subset, max_iterations, tolerance, zncc_min, order=o)
+                   for o in orders}  # fmt: skip
+    ref_coeff = _coefficients(reference)
+    per_point = sum(8 * subset * subset * (c.n_params + 1) for c in correlators.values())
+    cache = per_point * n <= _CACHE_BYTES
+    cached = {o: c.reference(ref_coeff, points, 0) for o, c in correlators.items()} if cache else {}
+    if not cache:
+        ref_coeff = ref_coeff.astype(np.float32)  # kept to rebuild subsets, in half the memory
+
+    positions = [points.copy()]
+    visible = [in_frame0.copy()]
+    quality = [np.where(in_frame0, 1.0, 0.0)]
+    sigma = [np.where(in_frame0, 0.0, np.nan)]
+    local_count = 0
+    state = np.zeros((solver.lattice.n_nodes, 4))
+    previous_state = state.copy()
+    typical_cost = None
+    if progress:
+        progress(1, total)
+    for t, frame in enumerate(it, start=1):
+        frame = np.asarray(frame, dtype=np.float64)
+        if frame.shape != shape:
+            raise InputError(f"frame {t} is {frame.shape[1]}x{frame.shape[0]}, not {W}x{H}")
+        # 1. initial guess
+        guess = _extrapolate(nodes, previous_state, state)
+        coarse, cost = solver.coarse(frame, guess)
+        if typical_cost is None or cost > 4 * typical_cost:
+            moved = _feature_guess(reference, frame, nodes, box)
+            if moved is not None:
+                alternative = state.copy()
+                alternative[:, :2] = moved
+                other_state, other = solver.coarse(frame, alternative)
+                if other < cost:
+                    coarse, cost = other_state, other
+                else:
+                    coarse, cost = solver.coarse(frame, guess)  # its weights and residuals
+        # 2. global correlation
+        solver.refine(frame, coarse)
+        typical_cost = cost if typical_cost is None else min(max(cost, 1e-9), 4 * typical_cost)
+        previous_state, state = state, solver.state.copy()
+        u, grad = solver.displacement(points)
+        sigma_g = solver.uncertainty(points)
+
+        # 3. local refinement from the global field
+        coeff = _coefficients(frame)
+        rows = np.arange(n)
+        results = {}
+        for o, corr in correlators.items():
+            ref = cached[o] if cache else corr.reference(ref_coeff, points, 0)
+            p0 = np.zeros((n, corr.n_params))
+            p0[:, :2] = u
+            p0[:, 2:6] = grad.reshape(n, 4)  # du/dx, du/dy, dv/dx, dv/dy
+            p, z, conv = corr.match(coeff, ref, rows, p0)
+            ok = conv & (z >= zncc_min) & _inside(corr, points, p, shape)
+            gap = np.linalg.norm(p[:, :2] - u, axis=1)
+            ok &= gap <= np.maximum(1.0, 5 * np.nan_to_num(sigma_g, nan=1.0))
+            s_loc, inflation = _local_sigma(corr, ref, rows, z, solver.noise)
+            results[o] = (p, z, ok, s_loc, ref.norm[:, 0] ** 2)
+            if o == orders[0]:
+                sigma_g = sigma_g * np.sqrt(inflation)
+        if len(orders) == 2:
+            (p1, z1, ok1, s1, nn), (p2, z2, ok2, s2, _) = results[1], results[2]
+            quad = _bic_choice(z1, z2, nn, subset * subset, ok1, ok2)
+            p_loc = np.where(quad[:, None], p2[:, :6], p1)
+            z_loc = np.where(quad, z2, z1)
+            s_loc = np.where(quad, s2, s1)
+            ok_loc = ok1 | ok2
+        else:
+            p_loc, z_loc, ok_loc, s_loc, _ = results[orders[0]]
+            p_loc = p_loc[:, :6]
+        # a subset under a highlight would follow the light, not the tissue
+        half = subset // 2
+        lit = _touches(solver.reference_highlights, points, half)
+        lit |= _touches(solver.frame_highlights, points + u, half)
+        ok_loc &= ~lit
+        local_count += int(ok_loc.sum())
+
+        disp = np.where(ok_loc[:, None], p_loc[:, :2], u)
+        pos = points + disp
+        inside = (pos[:, 0] >= 0) & (pos[:, 0] <= W - 1) & (pos[:, 1] >= 0) & (pos[:, 1] <= H - 1)
+        vis = inside & in_frame0 & (ok_loc | solver.seen(points))
+        cell_quality = np.clip(solver.cell_zncc(points), 0.0, 1.0)
+        positions.append(pos)
+        visible.append(vis)
+        quality.append(np.where(vis, np.where(ok_loc, np.clip(z_loc, 0, 1), cell_quality), 0.0))
+        sigma.append(np.where(vis, np.where(ok_loc, s_loc, sigma_g), np.nan))
+        if progress:
+            progress(len(positions), total)
+    if len(positions) < 2:
+        raise InputError("tracking needs at least 2 frames")
+    options = {
+        "subset": subset,
+        "spacing": spacing,
+        "curvature": curvature,
+        "shape_function": shape_function,
+        "zncc_min": zncc_min,
+        "max_iterations": max_iterations,
+        "tolerance": tolerance,
+        "noise_gray_levels": solver.noise,
+        "interpolation": "cubic B-spline",
+    }
+    T = len(positions)
+    return Tracks(
+        np.stack(positions),
+        np.stack(visible),
+        np.stack(quality),
+        {
+            "tracker": "gdic",
+            "options": options,
+            "local_fraction": local_count / max(n * (T - 1), 1),
+        },
+        np.stack(sigma),
+    )
