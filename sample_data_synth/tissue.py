@@ -152,9 +152,7 @@ class Light:
         yy, xx = np.mgrid[0:h, 0:w].astype(float)
         size = max(h, w)
         gain = (1 - self.fade * t) * (
-            1
-            + self.gradient[0] * (xx - w / 2) / size
-            + self.gradient[1] * (yy - h / 2) / size
+            1 + self.gradient[0] * (xx - w / 2) / size + self.gradient[1] * (yy - h / 2) / size
         )
         out = gain * image
         for x, y, r, amplitude in self.spots:
@@ -222,9 +220,11 @@ TISSUE_CASES: dict[str, _TissueSpec] = {
         lambda size: Light(
             fade=0.3,
             gradient=(0.2, 0.1),
-            spots=((0.38 * size, 0.42 * size, 0.02 * size, 60.0),
-                   (0.64 * size, 0.6 * size, 0.015 * size, 50.0)),
-        ),  # fmt: skip
+            spots=(
+                (0.38 * size, 0.42 * size, 0.02 * size, 60.0),
+                (0.64 * size, 0.6 * size, 0.015 * size, 50.0),
+            ),
+        ),
         kind="smooth",
     ),
     "fibres-shear": _TissueSpec(
@@ -306,4 +306,6 @@ def make_tissue_case(
         "shot_gain": shot_gain,
         "interpolation": "cubic B-spline",
     }
-    return SyntheticVideo(frames, GroundTruth(name, deformation, n_frames, (size, size), roi, params))
+    return SyntheticVideo(
+        frames, GroundTruth(name, deformation, n_frames, (size, size), roi, params)
+    )

@@ -66,7 +66,9 @@ class Tracks:
         if self.uncertainty is not None:
             unc = np.asarray(self.uncertainty, dtype=float)
             if unc.shape != pos.shape[:2]:
-                raise InputError(f"track uncertainty must have shape {pos.shape[:2]}, got {unc.shape}")
+                raise InputError(
+                    f"track uncertainty must have shape {pos.shape[:2]}, got {unc.shape}"
+                )
             object.__setattr__(self, "uncertainty", unc)
         object.__setattr__(self, "positions", pos)
         object.__setattr__(self, "visible", vis)
@@ -112,9 +114,13 @@ def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
         fmt.append("%.4g")
         header.append("uncertainty_px")
     np.savetxt(
-        path, np.column_stack(columns), fmt=fmt, delimiter=",", header=",".join(header),
+        path,
+        np.column_stack(columns),
+        fmt=fmt,
+        delimiter=",",
+        header=",".join(header),
         comments="",
-    )  # fmt: skip
+    )
 
 
 def _read_csv(path: Path) -> Tracks:
@@ -173,9 +179,7 @@ def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
     if np.isfinite(a[:, 6]).any():
         unc = np.full((T, N), np.nan)
         unc[frames, points] = a[:, 6]
-    return Tracks(
-        pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)}, unc
-    )
+    return Tracks(pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)}, unc)
 
 
 def _read_numpy(path: Path, suffix: str):
@@ -217,8 +221,15 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
             pos, vis, qual = _read_numpy(path, suffix)
         except InputError:
             raise
-        except (ValueError, TypeError, OSError, EOFError, KeyError, zipfile.BadZipFile,
-                zlib.error) as exc:  # fmt: skip
+        except (
+            ValueError,
+            TypeError,
+            OSError,
+            EOFError,
+            KeyError,
+            zipfile.BadZipFile,
+            zlib.error,
+        ) as exc:
             raise InputError(f"cannot read {path} as NumPy tracks: {exc}") from None
         if pos.ndim != 3 or pos.shape[2] != 2:
             raise InputError(f"{path}: positions must have shape (T, N, 2), got {pos.shape}")

@@ -116,7 +116,7 @@ def static_highlights(reference_blobs: np.ndarray, frame_blobs: np.ndarray, moti
     if not reference_blobs.any() or not frame_blobs.any():
         return empty, empty
     H, W = reference_blobs.shape
-    labels, count = ndimage.label(reference_blobs)
+    labels, _ = ndimage.label(reference_blobs)
     ref_mask, frame_mask = empty.copy(), empty.copy()
     frame_labels, _ = ndimage.label(frame_blobs)
     for k, box in enumerate(ndimage.find_objects(labels), start=1):
@@ -241,8 +241,10 @@ class _Level:
         h, nx, ny = lattice.h, lattice.nx, lattice.ny
         f = ndimage.gaussian_filter(reference, blur, mode="mirror") if blur > 0 else reference
         gy, gx = np.gradient(f)
-        region = (slice(lattice.y0, lattice.y0 + ny * h, stride),
-                  slice(lattice.x0, lattice.x0 + nx * h, stride))  # fmt: skip
+        region = (
+            slice(lattice.y0, lattice.y0 + ny * h, stride),
+            slice(lattice.x0, lattice.x0 + nx * h, stride),
+        )
         m = h // stride
 
         def blocks(a: np.ndarray) -> np.ndarray:
@@ -274,7 +276,11 @@ class _Level:
 
         if mask is None or not mask.any():
             return _coefficients(g), None
-        grown = ndimage.binary_dilation(mask, iterations=int(np.ceil(2 * self.blur))) if self.blur else mask
+        grown = (
+            ndimage.binary_dilation(mask, iterations=int(np.ceil(2 * self.blur)))
+            if self.blur
+            else mask
+        )
         return _coefficients(g), grown
 
 
@@ -326,7 +332,9 @@ class LatticeSolver:
         # gain and offset vary slowly: light, not texture
         weights = np.array([sigma2 / tau**2, sigma2 / tau**2, sigma2 / 1e-3**2, sigma2 / 0.3**2])
         ridge = np.array([sigma2 / 100.0**2, sigma2 / 100.0**2, sigma2 / 0.5**2, sigma2 / 50.0**2])
-        self.prior = (sparse.kron(B, sparse.diags(weights)) + sparse.diags(np.tile(ridge, n))).tocsr()
+        self.prior = (
+            sparse.kron(B, sparse.diags(weights)) + sparse.diags(np.tile(ridge, n))
+        ).tocsr()
         self.ridge = ridge
         self.sigma2 = sigma2
         # node-major unknowns: 4 per node (u, v, a, b); COO pattern of the cell blocks
@@ -338,13 +346,17 @@ class LatticeSolver:
         prior = self.prior.tocoo()
         self._bw = bw = int(max(np.max(self._cols - self._rows), np.max(prior.col - prior.row)))
         self._upper = (self._rows <= self._cols).reshape(-1, 256)[0]
-        rows, cols = self._rows.reshape(-1, 256)[:, self._upper], self._cols.reshape(-1, 256)[:, self._upper]
+        rows, cols = (
+            self._rows.reshape(-1, 256)[:, self._upper],
+            self._cols.reshape(-1, 256)[:, self._upper],
+        )
         self._band_index = ((bw + rows - cols) * (4 * n) + cols).ravel()
         keep = prior.row <= prior.col
         self._prior_band = np.bincount(
             (bw + prior.row[keep] - prior.col[keep]) * (4 * n) + prior.col[keep],
-            weights=prior.data[keep], minlength=(bw + 1) * 4 * n,
-        ).reshape(bw + 1, 4 * n)  # fmt: skip
+            weights=prior.data[keep],
+            minlength=(bw + 1) * 4 * n,
+        ).reshape(bw + 1, 4 * n)
         self.state = np.zeros((n, 4))  # u, v, a, b per node
         self.weights = np.ones(self.lattice.n_cells)
         self.residual = np.zeros(self.lattice.n_cells)  # mean squared residual per cell
@@ -409,9 +421,10 @@ class LatticeSolver:
         # one pixel of every stride^2 is used: scaled to the full-resolution information
         Hc *= w[:, None, None, None, None] * float(level.stride**2)
         band = self._prior_band + np.bincount(
-            self._band_index, weights=Hc.reshape(len(Hc), -1)[:, self._upper].ravel(),
+            self._band_index,
+            weights=Hc.reshape(len(Hc), -1)[:, self._upper].ravel(),
             minlength=self._prior_band.size,
-        ).reshape(self._prior_band.shape)  # fmt: skip
+        ).reshape(self._prior_band.shape)
         try:
             factor = linalg.cholesky_banded(band, lower=False, check_finite=False)
         except linalg.LinAlgError:
@@ -434,8 +447,9 @@ class LatticeSolver:
         change = np.abs(T[:, :3, :3] - T0[:, :3, :3]).max(axis=(1, 2))
         return change.max() > 0.08 or np.mean(np.abs(w - w0) > 0.5) > 0.02
 
-    def _solve_level(self, k: int, coefficients: np.ndarray, state: np.ndarray,
-                     tolerance: float) -> tuple[np.ndarray, bool]:  # fmt: skip
+    def _solve_level(
+        self, k: int, coefficients: np.ndarray, state: np.ndarray, tolerance: float
+    ) -> tuple[np.ndarray, bool]:
         """Gauss-Newton at level k; the Hessian is refactorized only when stale."""
         level = self.levels[k]
         n = self.lattice.n_nodes
@@ -487,11 +501,14 @@ class LatticeSolver:
         # once found to stay put, a highlight stays one (its blob may blur or fade later)
         self._static |= self.reference_highlights
         self.reference_highlights = self._static.copy()
-        self._reference_mask = self.reference_highlights if self.reference_highlights.any() else None
+        self._reference_mask = (
+            self.reference_highlights if self.reference_highlights.any() else None
+        )
         if self._reference_mask is None:
             self.frame_highlights = None
-        state, _ = self._solve_level(0, level.prepare(frame, self.frame_highlights),
-                                     self._anchor.copy(), 0.05)  # fmt: skip
+        state, _ = self._solve_level(
+            0, level.prepare(frame, self.frame_highlights), self._anchor.copy(), 0.05
+        )
         inside = ~self.outside
         cost = float(np.median(self.residual[inside])) if inside.any() else np.inf
         return state, cost

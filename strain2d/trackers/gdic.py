@@ -219,14 +219,19 @@ def track_gdic(
     H, W = shape
     in_frame0 = (points[:, 0] >= 0) & (points[:, 0] <= W - 1) & (points[:, 1] >= 0)
     in_frame0 &= points[:, 1] <= H - 1
-    solver = LatticeSolver(reference, points[in_frame0] if in_frame0.any() else points,
-                           spacing=spacing, curvature=curvature)  # fmt: skip
+    solver = LatticeSolver(
+        reference,
+        points[in_frame0] if in_frame0.any() else points,
+        spacing=spacing,
+        curvature=curvature,
+    )
     nodes = solver.lattice.nodes()
     box = (nodes[:, 0].min(), nodes[:, 1].min(), nodes[:, 0].max(), nodes[:, 1].max())
 
     orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
-    correlators = {o: _Correlator(subset, max_iterations, tolerance, zncc_min, order=o)
-                   for o in orders}  # fmt: skip
+    correlators = {
+        o: _Correlator(subset, max_iterations, tolerance, zncc_min, order=o) for o in orders
+    }
     ref_coeff = _coefficients(reference)
     per_point = sum(8 * subset * subset * (c.n_params + 1) for c in correlators.values())
     cache = per_point * n <= _CACHE_BYTES
