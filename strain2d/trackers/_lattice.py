@@ -309,7 +309,7 @@ class LatticeSolver:
         spacing: int = 16,
         curvature: float = 2e-3,
         noise: float | None = None,
-        levels: tuple[tuple[float, int], ...] = ((3.0, 4), (1.2, 2), (0.0, 1)),
+        levels: tuple[tuple[float, int], ...] = ((3.0, 4), (1.0, 2)),
         max_iterations: int = 25,
         tolerance: float = 1e-2,
     ) -> None:
@@ -445,7 +445,8 @@ class LatticeSolver:
         _, T0, w0 = self._factors[k]
         # the deformation and gain part (the offset column follows noise in flat cells)
         change = np.abs(T[:, :3, :3] - T0[:, :3, :3]).max(axis=(1, 2))
-        return change.max() > 0.08 or np.mean(np.abs(w - w0) > 0.5) > 0.02
+        # most cells, not the worst: margin cells of a blurred level are noisy
+        return np.percentile(change, 90) > 0.1 or np.mean(np.abs(w - w0) > 0.5) > 0.02
 
     def _solve_level(
         self, k: int, coefficients: np.ndarray, state: np.ndarray, tolerance: float
@@ -471,8 +472,14 @@ class LatticeSolver:
             step = self._solve(k, rhs).reshape(n, 4)
             if not np.isfinite(step).all():
                 return state, False
+            # a trust region: no node moves further in one step than the level's blur
+            # lets the linearization hold (weakly held margin nodes would swing)
+            move = np.hypot(step[:, 0], step[:, 1])
+            limit = 2.0 + 2.0 * level.blur
+            step *= np.minimum(1.0, limit / np.maximum(move, 1e-12))[:, None]
             state = state + step
-            if np.abs(step[:, :2]).max() < tolerance:
+            move = np.minimum(move, limit)
+            if np.percentile(move, 99) < tolerance and move.max() < 10 * tolerance:
                 converged = True
                 break
         self.weights, self.outside, self.residual = w, outside, ms
@@ -495,9 +502,12 @@ class LatticeSolver:
         self._anchor = np.array(guess, dtype=float)
         level = self.levels[0]
         frame = np.asarray(frame, np.float64)
-        self.reference_highlights, self.frame_highlights = static_highlights(
-            self.reference_blobs, bright_blobs(frame, self.noise), self._motion
-        )
+        if self.reference_blobs.any():
+            self.reference_highlights, self.frame_highlights = static_highlights(
+                self.reference_blobs, bright_blobs(frame, self.noise), self._motion
+            )
+        else:  # nothing on the reference could be a highlight
+            self.reference_highlights = self.frame_highlights = np.zeros(self.shape, bool)
         # once found to stay put, a highlight stays one (its blob may blur or fade later)
         self._static |= self.reference_highlights
         self.reference_highlights = self._static.copy()

@@ -106,10 +106,31 @@ def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int) -> np.ndar
     return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
 
 
-def _bic_choice(z1, z2, norm2, n, ok1, ok2):
-    """Per point, True where the quadratic warp (12 parameters) beats the affine one (6)."""
-    ssd1 = np.maximum(2 * (1 - z1) * norm2, 1e-12)
-    ssd2 = np.maximum(2 * (1 - z2) * norm2, 1e-12)
+def _chunks(n: int, size: int) -> list[np.ndarray]:
+    return [np.arange(a, min(a + size, n)) for a in range(0, n, max(size, 1))]
+
+
+def _concatenate(parts):
+    """Reference subsets of chunks as one, the big arrays in float32."""
+    from strain2d.trackers.dic import _Subsets
+
+    def join(name):
+        a = np.concatenate([getattr(p, name) for p in parts])
+        return a.astype(np.float32) if name in ("f", "G") else a
+
+    return _Subsets(*(join(k) for k in ("centers", "frame", "f", "norm", "G", "template")))
+
+
+def _take(ref, rows: np.ndarray):
+    from strain2d.trackers.dic import _Subsets
+
+    return _Subsets(*(getattr(ref, k)[rows] for k in ("centers", "frame", "f", "norm", "G",
+                                                        "template")))
+
+
+def _bic_choice(ssd1, ssd2, n, ok1, ok2):
+    """Per point, True where the quadratic warp (12 parameters) beats the affine one (6)
+    by the Bayesian information criterion ``n ln(SSD / n) + k ln n``."""
     bic1 = n * np.log(ssd1 / n) + 6 * np.log(n)
     bic2 = n * np.log(ssd2 / n) + 12 * np.log(n)
     return ok2 & (~ok1 | (bic2 < bic1))
@@ -230,14 +251,37 @@ def track_gdic(
 
     orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
     correlators = {
-        o: _Correlator(subset, max_iterations, tolerance, zncc_min, order=o) for o in orders
+        o: _Correlator(subset, max_iterations, tolerance, zncc_min, order=o) for o in (1, 2)
     }
     ref_coeff = _coefficients(reference)
-    per_point = sum(8 * subset * subset * (c.n_params + 1) for c in correlators.values())
-    cache = per_point * n <= _CACHE_BYTES
-    cached = {o: c.reference(ref_coeff, points, 0) for o, c in correlators.items()} if cache else {}
-    if not cache:
-        ref_coeff = ref_coeff.astype(np.float32)  # kept to rebuild subsets, in half the memory
+    # reference subsets are kept in float32 while both warps' fit the budget; otherwise
+    # (dense grids) they are rebuilt every frame in chunks, so memory stays bounded
+    per_point = 4 * subset * subset * sum(correlators[o].n_params + 1 for o in orders)
+    cache_all = per_point * n <= _CACHE_BYTES
+    chunk = n if cache_all else max(64, _CACHE_BYTES // (8 * per_point))
+    cached = {}
+
+    def _reference(order: int, rows: np.ndarray):
+        corr = correlators[order]
+        if not cache_all:
+            return corr.reference(ref_coeff, points[rows], 0)
+        if order not in cached:
+            parts = [corr.reference(ref_coeff, points[r], 0) for r in _chunks(n, 1024)]
+            cached[order] = _concatenate(parts)
+        ref = cached[order]
+        return ref if len(rows) == n else _take(ref, rows)
+
+    def _local(corr, ref, rows, u, grad):
+        p0 = np.zeros((len(rows), corr.n_params))
+        p0[:, :2] = u[rows]
+        p0[:, 2:6] = grad[rows].reshape(len(rows), 4)  # du/dx, du/dy, dv/dx, dv/dy
+        p, z, conv = corr.match(coeff, ref, np.arange(len(rows)), p0)
+        ok = conv & (z >= zncc_min) & _inside(corr, points[rows], p, shape)
+        sd, infl = _local_sigma(corr, ref, np.arange(len(rows)), z, solver.noise)
+        ssd = np.maximum(2 * (1 - z), 1e-12) * ref.norm[:, 0] ** 2
+        return p, z, ok, sd, infl, ssd
+
+    quadratic_count = 0
 
     positions = [points.copy()]
     visible = [in_frame0.copy()]
@@ -255,7 +299,7 @@ def track_gdic(
             raise InputError(f"frame {t} is {frame.shape[1]}x{frame.shape[0]}, not {W}x{H}")
         # 1. initial guess
         guess = _extrapolate(nodes, previous_state, state)
-        coarse, cost = solver.coarse(frame, guess)
+        coarse, cost = solver.coarse(frame, guess) if t > 1 else (None, np.inf)
         if typical_cost is None or cost > 4 * typical_cost:
             moved = _feature_guess(reference, frame, nodes, box)
             if moved is not None:
@@ -266,40 +310,48 @@ def track_gdic(
                     coarse, cost = other_state, other
                 else:
                     coarse, cost = solver.coarse(frame, guess)  # its weights and residuals
+            elif coarse is None:  # first frame, no features: start from rest
+                coarse, cost = solver.coarse(frame, guess)
         # 2. global correlation
         solver.refine(frame, coarse)
         typical_cost = cost if typical_cost is None else min(max(cost, 1e-9), 4 * typical_cost)
         previous_state, state = state, solver.state.copy()
         u, grad = solver.displacement(points)
-        sigma_g = solver.uncertainty(points)
 
-        # 3. local refinement from the global field
+        # 3. local refinement from the global field: affine everywhere, quadratic where
+        #    the affine warp leaves more residual than the noise explains
         coeff = _coefficients(frame)
-        rows = np.arange(n)
-        results = {}
-        for o, corr in correlators.items():
-            ref = cached[o] if cache else corr.reference(ref_coeff, points, 0)
-            p0 = np.zeros((n, corr.n_params))
-            p0[:, :2] = u
-            p0[:, 2:6] = grad.reshape(n, 4)  # du/dx, du/dy, dv/dx, dv/dy
-            p, z, conv = corr.match(coeff, ref, rows, p0)
-            ok = conv & (z >= zncc_min) & _inside(corr, points, p, shape)
-            gap = np.linalg.norm(p[:, :2] - u, axis=1)
-            ok &= gap <= np.maximum(1.0, 5 * np.nan_to_num(sigma_g, nan=1.0))
-            s_loc, inflation = _local_sigma(corr, ref, rows, z, solver.noise)
-            results[o] = (p, z, ok, s_loc, ref.norm[:, 0] ** 2)
-            if o == orders[0]:
-                sigma_g = sigma_g * np.sqrt(inflation)
-        if len(orders) == 2:
-            (p1, z1, ok1, s1, nn), (p2, z2, ok2, s2, _) = results[1], results[2]
-            quad = _bic_choice(z1, z2, nn, subset * subset, ok1, ok2)
-            p_loc = np.where(quad[:, None], p2[:, :6], p1)
-            z_loc = np.where(quad, z2, z1)
-            s_loc = np.where(quad, s2, s1)
-            ok_loc = ok1 | ok2
-        else:
-            p_loc, z_loc, ok_loc, s_loc, _ = results[orders[0]]
-            p_loc = p_loc[:, :6]
+        p_loc = np.zeros((n, 6))
+        z_loc = np.full(n, -1.0)
+        s_loc = np.full(n, np.nan)
+        ok_loc = np.zeros(n, bool)
+        inflation = np.ones(n)
+        ssd1 = np.full(n, np.inf)
+        first = orders[0]
+        for rows in _chunks(n, chunk):
+            refs = {first: _reference(first, rows)}
+            p, z, ok, sd, infl, ssd = _local(correlators[first], refs[first], rows, u, grad)
+            p_loc[rows], z_loc[rows], ok_loc[rows], s_loc[rows] = p[:, :6], z, ok, sd
+            inflation[rows], ssd1[rows] = infl, ssd
+            if len(orders) == 2:
+                # the BIC can prefer 12 parameters only where the 6 leave model error
+                n_px = subset * subset
+                excess = ssd / max(n_px - 6, 1) > 1.05 * solver.sigma2
+                try_rows = rows[excess | ~ok]
+                if try_rows.size:
+                    ref2 = _reference(2, try_rows)
+                    p2, z2, ok2, sd2, _, ssd2 = _local(correlators[2], ref2, try_rows, u, grad)
+                    quad = _bic_choice(ssd1[try_rows], ssd2, n_px, ok_loc[try_rows], ok2)
+                    take = try_rows[quad]
+                    p_loc[take], z_loc[take], s_loc[take] = p2[quad, :6], z2[quad], sd2[quad]
+                    ok_loc[take] = True
+                    quadratic_count += int(quad.sum())
+        # a local match far from the global field must agree with it within its uncertainty
+        gap = np.linalg.norm(p_loc[:, :2] - u, axis=1)
+        far = np.flatnonzero(ok_loc & (gap > 1.0))
+        if far.size:
+            sigma_far = solver.uncertainty(points[far]) * np.sqrt(inflation[far])
+            ok_loc[far[gap[far] > 5 * np.nan_to_num(sigma_far, nan=0.2)]] = False
         # a subset under a highlight would follow the light, not the tissue
         half = subset // 2
         lit = _touches(solver.reference_highlights, points, half)
@@ -315,6 +367,10 @@ def track_gdic(
         positions.append(pos)
         visible.append(vis)
         quality.append(np.where(vis, np.where(ok_loc, np.clip(z_loc, 0, 1), cell_quality), 0.0))
+        sigma_g = np.full(n, np.nan)
+        need = np.flatnonzero(vis & ~ok_loc)
+        if need.size:
+            sigma_g[need] = solver.uncertainty(points[need]) * np.sqrt(inflation[need])
         sigma.append(np.where(vis, np.where(ok_loc, s_loc, sigma_g), np.nan))
         if progress:
             progress(len(positions), total)
@@ -340,6 +396,7 @@ def track_gdic(
             "tracker": "gdic",
             "options": options,
             "local_fraction": local_count / max(n * (T - 1), 1),
+            "quadratic_fraction": quadratic_count / max(n * (T - 1), 1),
         },
         np.stack(sigma),
     )
