@@ -124,8 +124,9 @@ def _concatenate(parts):
 def _take(ref, rows: np.ndarray):
     from strain2d.trackers.dic import _Subsets
 
-    return _Subsets(*(getattr(ref, k)[rows] for k in ("centers", "frame", "f", "norm", "G",
-                                                        "template")))
+    return _Subsets(
+        *(getattr(ref, k)[rows] for k in ("centers", "frame", "f", "norm", "G", "template"))
+    )
 
 
 def _bic_choice(ssd1, ssd2, n, ok1, ok2):
