@@ -1,6 +1,8 @@
 """Command line: ``python -m sample_data_synth {video,stack,stereo,study,list}``.
 
-``video`` writes, for each case, ``CASE.avi`` (lossless FFV1) and/or
+``video`` writes, for each case (the paper's, or the speckle-free tissue
+suite of :mod:`sample_data_synth.tissue` with ``--case tissue-suite`` or one of
+its names), ``CASE.avi`` (lossless FFV1) and/or
 ``CASE.tif`` / ``CASE.mp4``, ``CASE_truth.json`` (the analytic deformation,
 from which any point's position, F and E at any frame follow; see
 :func:`sample_data_synth.load_ground_truth`) and ``CASE_truth.npz`` (the case's
@@ -47,6 +49,7 @@ from sample_data_synth.stereo import (
     save_calibration_views,
     save_stereo_scene,
 )
+from sample_data_synth.tissue import TISSUE_CASES, make_tissue_case
 from tissue_core.cli import ArgumentParser as _Parser
 from tissue_core.outputs import atomic_dir
 from tissue_core.progress import Progress
@@ -61,10 +64,16 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--case",
         default="equibiaxial",
-        help=f"one of {', '.join(CASES)}, or 'all' (default equibiaxial)",
+        help=f"one of {', '.join(CASES)}, or 'all'; or a tissue-suite case "
+        f"({', '.join(TISSUE_CASES)}), or 'tissue-suite' for all of them (default equibiaxial)",
     )
     p.add_argument("--size", type=int, default=800, help="frame width and height in px (800)")
-    p.add_argument("--frames", type=int, default=31, help="number of frames (31)")
+    p.add_argument(
+        "--frames",
+        type=int,
+        default=None,
+        help="number of frames (31; tissue suite: 21, rotation-20: 5)",
+    )
     p.add_argument("--formats", default="avi,tif", help="comma-separated: avi, tif, mp4 (avi,tif)")
     p.add_argument("--read-noise", type=float, default=1.0, help="read noise in gray levels (1.0)")
     p.add_argument(
@@ -151,14 +160,17 @@ def _seed(text: str) -> int:
 
 
 def _cmd_video(args) -> int:
-    cases = list(CASES) if args.case == "all" else [args.case]
-    if any(c not in CASES for c in cases):
-        raise ValueError(f"unknown case {args.case!r}; choose from {', '.join(CASES)} or all")
+    cases = {"all": list(CASES), "tissue-suite": list(TISSUE_CASES)}.get(args.case, [args.case])
+    if any(c not in CASES and c not in TISSUE_CASES for c in cases):
+        raise ValueError(
+            f"unknown case {args.case!r}; choose from {', '.join(CASES)}, all, "
+            f"{', '.join(TISSUE_CASES)} or tissue-suite"
+        )
     formats = [f.strip().lower() for f in args.formats.split(",") if f.strip()]
     bad = [f for f in formats if f not in ("avi", "tif", "mp4")]
     if bad or not formats:
         raise ValueError(f"--formats must list avi, tif or mp4, got {args.formats!r}")
-    if args.frames < 2 or args.size < 64:
+    if (args.frames is not None and args.frames < 2) or args.size < 64:
         raise ValueError("--frames must be >= 2 and --size >= 64")
     for name in ("read_noise", "shot_gain"):
         value = getattr(args, name)
@@ -168,20 +180,26 @@ def _cmd_video(args) -> int:
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         for case in cases:
             with say.task(f"rendering {case}") as progress:
-                video = make_case(
+                render = make_tissue_case if case in TISSUE_CASES else make_case
+                frames = (
+                    {}
+                    if args.frames is None and case in TISSUE_CASES
+                    else {"n_frames": 31 if args.frames is None else args.frames}
+                )
+                video = render(
                     case,
                     size=args.size,
-                    n_frames=args.frames,
                     read_noise=args.read_noise,
                     shot_gain=args.shot_gain,
                     rng=args.seed,
                     progress=progress,
+                    **frames,
                 )
             for fmt in formats:
                 write_video(video.frames, tmp / f"{case}.{fmt}")
             truth = video.truth
             truth.save(tmp / f"{case}_truth.json")
-            grid = truth.grid((7, 7))
+            grid = truth.grid(tuple(truth.params.get("grid", (7, 7))))
             np.savez_compressed(
                 tmp / f"{case}_truth.npz",
                 grid=grid,
@@ -333,6 +351,8 @@ def _cmd_list(args) -> int:
         print(f"{name:12s} {spec.description}")
     for name, spec in STACK_CASES.items():
         print(f"{name:12s} {spec.description}")
+    for name, spec in TISSUE_CASES.items():
+        print(f"{name:12s} {spec.description} (tissue suite, {spec.kind})")
     for name, description in STEREO_CASES.items():
         print(f"{name:12s} {description} (stereo)")
     return 0

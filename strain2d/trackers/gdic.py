@@ -144,7 +144,10 @@ def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray
     texture the reference's gradients are partly noise (a central difference
     of noise of variance ``noise^2`` has variance ``noise^2 / 2``), which
     inflates ``J'J``: that part is taken out, so the uncertainty grows as the
-    texture fades into the noise instead of staying optimistic. Returns the
+    texture fades into the noise instead of staying optimistic. Residual
+    beyond the noise (``s^2 - 2 noise^2``, both frames' noise) is a misfit of
+    the warp, and its size in pixels (residual over the mean squared
+    gradient) is added as a bias term. Returns the
     standard deviation and the factor (>= 1) by which the correction raised
     the variance, which the global field's uncertainty at the point shares.
     """
@@ -160,7 +163,11 @@ def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray
     norm2 = ref.norm[rows, 0] ** 2
     s2 = np.maximum(2 * (1 - zncc), 0) * norm2 / max(n - corr.n_params, 1)
     variance = 0.5 * (variances[0] + variances[1])
-    return np.sqrt(variance * s2), variance / np.maximum(0.5 * (plain[0] + plain[1]), 1e-30)
+    hinv = 0.5 * (plain[0] + plain[1])
+    # residual beyond the noise is misfit of the warp (model error, interpolation bias):
+    # a residual r over gradients g is a misregistration of about r / g, added as a bias
+    misfit = np.maximum(s2 - 2 * noise**2, 0.0) * n * hinv
+    return np.sqrt(variance * s2 + misfit), variance / np.maximum(hinv, 1e-30)
 
 
 @register_tracker(

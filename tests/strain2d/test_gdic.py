@@ -1,0 +1,204 @@
+"""gdic: global correlation over the surface, refined by local subsets.
+
+Every test has a known answer: analytic speckle cases, the speckle-free tissue
+suite (exact inverse-mapped photographs), a rigid turn of 20 degrees per
+frame (zero strain, positions on a rigid motion), occluders that must be
+flagged, never invented.
+"""
+
+import numpy as np
+import pytest
+
+from sample_data_synth import make_case
+from sample_data_synth.tissue import make_tissue_case
+from strain2d import track
+from strain2d.errors import InputError
+from strain2d.pipeline import strain_from_tracks
+from strain2d.trackers._lattice import Lattice, bright_blobs, noise_sigma, static_highlights
+from strain2d.tracks import read_tracks, write_tracks_csv
+from tests.tolerances import DIC_QUICK_STRAIN_RMSE, DIC_QUICK_TRACK_RMSE_PX
+
+
+def _final_rmse(tracks, truth, points):
+    err = tracks.positions[-1] - truth.positions(points, truth.n_frames - 1)
+    return float(np.sqrt(np.mean(np.sum(err**2, axis=1))))
+
+
+@pytest.mark.parametrize("case", ["equibiaxial", "shear", "gaussian"])
+def test_gdic_keeps_dic_accuracy_on_speckle(case):
+    video = make_case(case, size=400, n_frames=11, rng=7)
+    points = video.truth.grid((7, 7))
+    tracks = track(video.frames, points, tracker="gdic")
+    assert tracks.visible.all()
+    assert _final_rmse(tracks, video.truth, points) < DIC_QUICK_TRACK_RMSE_PX
+    if case != "gaussian":  # homogeneous: the strain itself is exact
+        field = strain_from_tracks(tracks, grid_shape=(7, 7))
+        error = field.nodal_E[-1] - video.truth.strain(points, 10)
+        assert np.sqrt(np.mean(error**2, axis=0)).max() < DIC_QUICK_STRAIN_RMSE
+
+
+def test_gdic_keeps_every_point_on_a_blurry_close_up():
+    """The smooth kind: vessels on a smooth background, a local contraction, fading light."""
+    video = make_tissue_case("closeup-gaussian", size=400, n_frames=6, rng=3)
+    points = video.truth.grid(tuple(video.truth.params["grid"]))
+    tracks = track(video.frames, points, tracker="gdic")
+    assert tracks.visible.all()
+    assert _final_rmse(tracks, video.truth, points) < 1.0
+    assert tracks.uncertainty.shape == tracks.quality.shape
+    assert np.isfinite(tracks.uncertainty).all() and (tracks.uncertainty[1:] > 0).all()
+
+
+def test_gdic_follows_a_turn_of_20_degrees_per_frame():
+    video = make_tissue_case("rotation-20", size=400, rng=3)
+    points = video.truth.grid(tuple(video.truth.params["grid"]))
+    tracks = track(video.frames, points, tracker="gdic")
+    assert tracks.visible.all()
+    for k in range(1, video.truth.n_frames):
+        # residual of the best rigid fit (Kabsch): the tracked grid moved rigidly
+        a, b = points - points.mean(0), tracks.positions[k] - tracks.positions[k].mean(0)
+        u, _, vt = np.linalg.svd(a.T @ b)
+        R = (u @ vt).T
+        residual = np.sqrt(np.mean(np.sum((b - a @ R.T) ** 2, axis=1)))
+        assert residual < 0.05
+        angle = np.degrees(np.arctan2(R[1, 0], R[0, 0]))
+        assert abs(angle - 20.0 * k) < 0.05
+    assert _final_rmse(tracks, video.truth, points) < 0.1
+
+
+def test_gdic_flags_occluded_and_blank_points_and_recovers_after_occlusion():
+    video = make_case("shear", size=300, n_frames=10, rng=9)
+    frames = video.frames.astype(float).copy()
+    points = video.truth.grid((3, 3))
+    true = video.truth.positions(points)
+    x, y = np.rint(true[3:, 0]).astype(int).T
+    for k, (xi, yi) in enumerate(zip(x, y, strict=True), start=3):
+        frames[k, yi - 25 : yi + 26, xi - 25 : xi + 26] = 128.0
+    for k in (4, 5):
+        xi, yi = np.rint(true[k, 4]).astype(int)
+        frames[k, yi - 20 : yi + 21, xi - 20 : xi + 21] = 255.0
+    tracks = track(frames, points, tracker="gdic")
+    assert not tracks.visible[3:, 0].any()
+    assert (tracks.quality[3:, 0] == 0).all() and np.isnan(tracks.uncertainty[3:, 0]).all()
+    assert not tracks.visible[4:6, 4].any()
+    assert tracks.visible[6:, 4].all()
+    assert np.linalg.norm(tracks.positions[-1, 4] - true[-1, 4]) < DIC_QUICK_TRACK_RMSE_PX
+    others = np.setdiff1d(np.arange(9), [0, 4])
+    assert tracks.visible[:, others].all()
+
+
+def test_gdic_is_not_biased_by_a_light_gradient_and_a_fade():
+    video = make_case("rotation", size=300, n_frames=6, rng=8)
+    points = video.truth.grid((5, 5))
+    x = np.linspace(-0.5, 0.5, 300)[None, None, :]
+    gain = np.linspace(1.0, 0.6, 6)[:, None, None] * (1 + 0.4 * x)
+    lit = np.clip(video.frames * gain + np.linspace(0, 30, 6)[:, None, None], 0, 255)
+    tracks = track(lit, points, tracker="gdic")
+    assert tracks.visible.all()
+    assert _final_rmse(tracks, video.truth, points) < DIC_QUICK_TRACK_RMSE_PX
+
+
+def test_gdic_uncertainty_grows_with_the_error():
+    """The reported sigma follows the error on known truth: point-frames with the largest
+    sigma have larger errors, and most errors lie within 2 sigma per coordinate.
+
+    This guards the current calibration (0.76-0.99 per case, 0.85 over these three);
+    it is not yet the 95 % a Gaussian error would give: the interpolation bias of
+    speckle and the warp misfit on curved fields are underestimated.
+    """
+    errors, sigmas = [], []
+    for video in (
+        make_case("gaussian", size=400, n_frames=6, rng=5),
+        make_tissue_case("retina-contraction", size=400, n_frames=6, rng=5),
+        make_tissue_case("closeup-gaussian", size=400, n_frames=6, rng=5),
+    ):
+        points = video.truth.grid(tuple(video.truth.params.get("grid", (7, 7))))
+        tracks = track(video.frames, points, tracker="gdic")
+        error = np.abs(tracks.positions - video.truth.positions(points))[1:]
+        seen = tracks.visible[1:]
+        errors.append(error[seen].max(axis=1))
+        sigmas.append(tracks.uncertainty[1:][seen])
+    error, sigma = np.concatenate(errors), np.concatenate(sigmas)
+    low, high = sigma <= np.quantile(sigma, 0.25), sigma >= np.quantile(sigma, 0.75)
+    assert np.median(error[high]) > 3 * np.median(error[low])
+    assert np.mean(error <= 2 * sigma) > 0.75
+
+
+def test_gdic_tracks_round_trip_with_their_uncertainty(tmp_path):
+    video = make_case("equibiaxial", size=200, n_frames=4, rng=1)
+    points = video.truth.grid((4, 4))
+    tracks = track(video.frames, points, tracker="gdic", options={"subset": 21})
+    write_tracks_csv(tmp_path / "t.csv", tracks)
+    header = (tmp_path / "t.csv").read_text().splitlines()[0]
+    assert header.endswith(",uncertainty_px")
+    back = read_tracks(tmp_path / "t.csv")
+    np.testing.assert_allclose(back.uncertainty, tracks.uncertainty, rtol=1e-3)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"subset": 20}, "--subset"),
+        ({"subset": 9}, "--subset"),
+        ({"spacing": 10}, "--spacing"),
+        ({"curvature": 0.0}, "--curvature"),
+        ({"curvature": float("nan")}, "--curvature"),
+        ({"shape_function": "cubic"}, "--shape-function"),
+        ({"zncc_min": 1.5}, "--zncc-min"),
+    ],
+)
+def test_gdic_bad_options(options, message):
+    video = make_case("rotation", size=120, n_frames=2, rng=1)
+    with pytest.raises(InputError, match=message):
+        track(video.frames, np.array([[50.0, 50], [70, 70], [60, 50]]), tracker="gdic",
+              options=options)  # fmt: skip
+
+
+def test_noise_estimate_recovers_known_noise():
+    rng = np.random.default_rng(0)
+    smooth = np.add.outer(np.linspace(0, 80, 300), np.linspace(0, 60, 300))
+    for sigma in (1.0, 3.0, 8.0):
+        assert noise_sigma(smooth + rng.normal(0, sigma, smooth.shape)) == pytest.approx(
+            sigma, rel=0.05
+        )
+
+
+def test_bending_prior_leaves_affine_fields_free():
+    lattice = Lattice(0, 0, 16, 6, 5)
+    B = lattice.bending()
+    nodes = lattice.nodes()
+    affine = 0.3 + 0.01 * nodes[:, 0] - 0.02 * nodes[:, 1]
+    assert np.abs(B @ affine).max() < 1e-9
+    curved = 1e-3 * nodes[:, 0] ** 2
+    assert curved @ (B @ curved) > 1e-3
+
+
+def test_static_highlights_are_found_and_moving_bright_texture_is_not():
+    from scipy import ndimage
+
+    rng = np.random.default_rng(1)
+    yy, xx = np.mgrid[0:300, 0:300].astype(float)
+    texture = 120 + 20 * ndimage.gaussian_filter(rng.standard_normal((340, 340)), 3)
+    # a highlight washes the texture out towards white
+    veil = np.exp(-((xx - 150) ** 2 + (yy - 140) ** 2) / (2 * 10.0**2))
+
+    def lit(tissue, cover):
+        return tissue * (1 - cover) + 250 * cover + rng.normal(0, 1.5, cover.shape)
+
+    reference = lit(texture[20:320, 20:320], veil)
+    moved = lit(texture[14:314, 20:320], veil)  # the tissue moved 6 px down, the light did not
+    noise = noise_sigma(reference)
+    ref_blobs = bright_blobs(reference, noise)
+    assert ref_blobs[140, 150] and ref_blobs.mean() < 0.05
+
+    def motion(p):
+        return np.tile([0.0, 6.0], (len(p), 1))
+
+    ref_mask, frame_mask = static_highlights(ref_blobs, bright_blobs(moved, noise), motion)
+    assert ref_mask[140, 150] and frame_mask[140, 150]
+    # a bright blob that moves with the tissue is texture
+    carried = lit(texture[14:314, 20:320], np.roll(veil, 6, axis=0))
+    ref_mask, _ = static_highlights(ref_blobs, bright_blobs(carried, noise), motion)
+    assert not ref_mask.any()
+    # a speckle pattern's bright gaps are no highlights
+    speckle = make_case("equibiaxial", size=300, n_frames=2, rng=2).frames[0].astype(float)
+    assert not bright_blobs(speckle, noise_sigma(speckle)).any()
