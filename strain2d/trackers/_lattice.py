@@ -309,7 +309,7 @@ class LatticeSolver:
         spacing: int = 16,
         curvature: float = 2e-3,
         noise: float | None = None,
-        levels: tuple[tuple[float, int], ...] = ((3.0, 4), (1.0, 2)),
+        levels: tuple[tuple[float, int], ...] = ((3.0, 4), (1.2, 2), (0.0, 1)),
         max_iterations: int = 25,
         tolerance: float = 1e-2,
     ) -> None:
@@ -523,12 +523,14 @@ class LatticeSolver:
         cost = float(np.median(self.residual[inside])) if inside.any() else np.inf
         return state, cost
 
-    def refine(self, frame: np.ndarray, state: np.ndarray) -> bool:
-        """Fit the finer levels from the coarse ``state``; True if the finest converged."""
+    def refine(self, frame: np.ndarray, state: np.ndarray, *, finest: bool = True) -> bool:
+        """Fit the finer levels from the coarse ``state`` (all but the finest one unless
+        ``finest``); True if the last level fitted converged."""
         frame = np.asarray(frame, dtype=np.float64)
         converged = False
-        for k in range(1, len(self.levels)):
-            last = k == len(self.levels) - 1
+        stop = len(self.levels) if finest else max(len(self.levels) - 1, 2)
+        for k in range(1, stop):
+            last = k == stop - 1
             coefficients = self.levels[k].prepare(frame, self.frame_highlights)
             state, converged = self._solve_level(
                 k, coefficients, state, self.tolerance if last else 0.05
@@ -582,7 +584,8 @@ class LatticeSolver:
         with ``s^2`` the residual variance of the cell under each point (at
         least the noise's), interpolated to the point.
         """
-        if self._factors.get(len(self.levels) - 1) is None or len(points) == 0:
+        level = getattr(self, "_last_level", len(self.levels) - 1)
+        if self._factors.get(level) is None or len(points) == 0:
             return np.full(len(points), np.nan)
         idx, w, _ = self.lattice.interpolation(points)
         n = 4 * self.lattice.n_nodes
@@ -596,7 +599,7 @@ class LatticeSolver:
             for c in range(4):
                 E[idx[sl, c] * 4, cols] += w[sl, c]
                 E[idx[sl, c] * 4 + 1, k + cols] += w[sl, c]
-            Z = self._solve(len(self.levels) - 1, E)
+            Z = self._solve(level, E)
             var = np.einsum("nk,nk->k", E, Z)
             out[sl] = np.sqrt(0.5 * (var[:k] + var[k:]) * s2[sl])
         return out

@@ -290,6 +290,7 @@ def track_gdic(
         return p, z, ok, sd, infl, ssd
 
     quadratic_count = 0
+    local_last = 0.0  # fraction of points matched locally in the last frame
 
     positions = [points.copy()]
     visible = [in_frame0.copy()]
@@ -321,7 +322,9 @@ def track_gdic(
             elif coarse is None:  # first frame, no features: start from rest
                 coarse, cost = solver.coarse(frame, guess)
         # 2. global correlation
-        solver.refine(frame, coarse)
+        # the full-resolution level only where local subsets could not carry the grid
+        # (weak texture) in the last frame: elsewhere they give full resolution anyway
+        solver.refine(frame, coarse, finest=local_last < 0.9)
         typical_cost = cost if typical_cost is None else min(max(cost, 1e-9), 4 * typical_cost)
         previous_state, state = state, solver.state.copy()
         u, grad = solver.displacement(points)
@@ -366,6 +369,7 @@ def track_gdic(
         lit |= _touches(solver.frame_highlights, points + u, half)
         ok_loc &= ~lit
         local_count += int(ok_loc.sum())
+        local_last = float(ok_loc.mean()) if n else 1.0
 
         disp = np.where(ok_loc[:, None], p_loc[:, :2], u)
         pos = points + disp
