@@ -269,6 +269,26 @@ def _progress(args):
     return Progress(quiet=args.quiet)
 
 
+def _uncertainty_summary(tracks) -> dict | None:
+    """Median and 95th percentile of the tracker's uncertainty (px), or None."""
+    import numpy as np
+
+    if tracks.uncertainty is None:
+        return None
+    seen = tracks.uncertainty[1:][tracks.visible[1:]]
+    seen = seen[np.isfinite(seen)]
+    last = tracks.uncertainty[-1][tracks.visible[-1]]
+    last = last[np.isfinite(last)]
+    if seen.size == 0:
+        return None
+    return {
+        "meaning": "standard deviation of each coordinate of a tracked position",
+        "median": float(np.median(seen)),
+        "p95": float(np.percentile(seen, 95)),
+        "last_frame_median": float(np.median(last)) if last.size else None,
+    }
+
+
 def _tracker_options(args) -> dict:
     from strain2d.trackers import get_tracker
 
@@ -491,6 +511,7 @@ def _cmd_analyze(args) -> int:
             },
             "time_axis": {"fps": args.fps, "unit": "s" if args.fps else "frame"},
             "lost_points_last_frame": int((~tracks.visible[-1]).sum()),
+            "tracking_uncertainty_px": _uncertainty_summary(tracks),
             "final_frame": {"index": last, "nodal_strain": _final_stats(field)},
             "contraction_endpoint": extra["contraction_endpoint"],
             "statistics": extra["statistics"],

@@ -351,6 +351,15 @@ def _p(p) -> str:
     return "< 0.001" if p < 0.001 else f"{p:.3f}"
 
 
+def _uncertainty_text(u) -> str:
+    if not isinstance(u, dict) or u.get("median") is None:
+        return "not measured by this tracker"
+    text = f"median {u['median']:.3g}, 95th percentile {u['p95']:.3g} over all frames"
+    if u.get("last_frame_median") is not None:
+        text += f"; median {u['last_frame_median']:.3g} on the last frame"
+    return text
+
+
 def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
     """Write ``report.html`` for a run folder from its ``summary.json`` content.
 
@@ -379,6 +388,9 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
             "points": points.get("grid") or points.get("points_file") or points.get("points"),
             "triangles": summary.get("mesh", {}).get("n_triangles"),
             "points lost by the last frame": summary.get("lost_points_last_frame"),
+            "tracking uncertainty (px, 1 sigma per coordinate)": _uncertainty_text(
+                summary.get("tracking_uncertainty_px")
+            ),
             "time axis": summary.get("time_axis", {}).get("unit"),
             "command": " ".join(summary.get("command", [])),
         }

@@ -226,7 +226,7 @@ def track_gdic(
     if subset < 15 or subset % 2 == 0:
         raise InputError(f"--subset must be an odd number >= 15 for gdic, got {subset}")
     if spacing < 8 or spacing % 4:
-        raise InputError(f"--spacing must be a multiple of 4 and >= 8 px, got {spacing}")
+        raise InputError(f"--lattice-spacing must be a multiple of 4 and >= 8 px, got {spacing}")
     if not (np.isfinite(curvature) and curvature > 0):
         raise InputError(f"--curvature must be a positive number, got {curvature}")
     if not -1 < zncc_min < 1:
@@ -242,7 +242,7 @@ def track_gdic(
     shape = reference.shape
     if subset >= min(shape) or 2 * spacing >= min(shape):
         raise InputError(
-            f"--subset {subset} and 2 x --spacing {spacing} must be smaller than the "
+            f"--subset {subset} and 2 x --lattice-spacing {spacing} must be smaller than the "
             f"{shape[1]}x{shape[0]} frames"
         )
     H, W = shape

@@ -139,7 +139,7 @@ def test_gdic_tracks_round_trip_with_their_uncertainty(tmp_path):
     [
         ({"subset": 20}, "--subset"),
         ({"subset": 9}, "--subset"),
-        ({"spacing": 10}, "--spacing"),
+        ({"spacing": 10}, "--lattice-spacing"),
         ({"curvature": 0.0}, "--curvature"),
         ({"curvature": float("nan")}, "--curvature"),
         ({"shape_function": "cubic"}, "--shape-function"),
