@@ -205,6 +205,7 @@ def interrupt(
     assert proc.returncode in (0, 130), f"exit {proc.returncode}: {err}"
     if proc.returncode == 130:
         messages = message_lines(err)
+        assert messages, f"exit 130 without a message line:\n{err}"
         if out.exists():  # Ctrl-C came after the result was complete, and says so
             assert messages[-1].endswith(f": interrupted after the results were written to {out}")
         else:
