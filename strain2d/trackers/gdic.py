@@ -22,7 +22,7 @@ little texture to be matched. Every frame, in order:
    ``n ln(SSD / n) + k ln n`` picks the warp per point and frame. A local
    match is kept when it converged, correlates at least ``zncc_min``, and
    agrees with the global field within its uncertainty (at most
-   ``max(1 px, 5 sigma)``); otherwise the global field's value is used.
+   ``max(2 px, 5 sigma)``); otherwise the global field's value is used.
 4. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
    or when its local match failed *and* the lattice cell under it stopped
    counting (an occluder, a blank patch): the field there is the penalty's
@@ -48,6 +48,9 @@ from strain2d.trackers import register_tracker
 from strain2d.trackers._lattice import LatticeSolver
 from strain2d.trackers.dic import _coefficients, _Correlator, _inside
 from strain2d.tracks import Tracks
+
+#: local uncertainty (px) above which the global field's estimate is blended in
+_FUSE_ABOVE = 0.03
 
 #: budget for cached reference subsets (bytes); beyond it they are rebuilt each frame
 _CACHE_BYTES = 256 * 2**20
@@ -359,7 +362,7 @@ def track_gdic(
                     quadratic_count += int(quad.sum())
         # a local match far from the global field must agree with it within its uncertainty
         gap = np.linalg.norm(p_loc[:, :2] - u, axis=1)
-        far = np.flatnonzero(ok_loc & (gap > 1.0))
+        far = np.flatnonzero(ok_loc & (gap > 2.0))
         if far.size:
             sigma_far = solver.uncertainty(points[far]) * np.sqrt(inflation[far])
             ok_loc[far[gap[far] > 5 * np.nan_to_num(sigma_far, nan=0.2)]] = False
@@ -372,6 +375,16 @@ def track_gdic(
         local_last = float(ok_loc.mean()) if n else 1.0
 
         disp = np.where(ok_loc[:, None], p_loc[:, :2], u)
+        # where the subset's texture is weak, the field (which also draws on the
+        # neighbours through the prior) adds information: inverse-variance weighting
+        weak = np.flatnonzero(ok_loc & (s_loc > _FUSE_ABOVE) & solver.seen(points))
+        if weak.size:
+            s_g = solver.uncertainty(points[weak]) * np.sqrt(inflation[weak])
+            good = np.isfinite(s_g) & (s_g > 0)
+            weak, s_g = weak[good], s_g[good]
+            w_l, w_g = 1 / s_loc[weak] ** 2, 1 / s_g**2
+            disp[weak] = (w_l[:, None] * disp[weak] + w_g[:, None] * u[weak]) / (w_l + w_g)[:, None]
+            s_loc[weak] = np.sqrt(1 / (w_l + w_g))
         pos = points + disp
         inside = (pos[:, 0] >= 0) & (pos[:, 0] <= W - 1) & (pos[:, 1] >= 0) & (pos[:, 1] <= H - 1)
         vis = inside & in_frame0 & (ok_loc | solver.seen(points))
