@@ -384,7 +384,9 @@ def track_gdic(
             weak, s_g = weak[good], s_g[good]
             w_l, w_g = 1 / s_loc[weak] ** 2, 1 / s_g**2
             disp[weak] = (w_l[:, None] * disp[weak] + w_g[:, None] * u[weak]) / (w_l + w_g)[:, None]
-            s_loc[weak] = np.sqrt(1 / (w_l + w_g))
+            # both estimates draw on the same pixels, so the blend is not trusted beyond
+            # the better of the two
+            s_loc[weak] = np.minimum(s_loc[weak], s_g)
         pos = points + disp
         inside = (pos[:, 0] >= 0) & (pos[:, 0] <= W - 1) & (pos[:, 1] >= 0) & (pos[:, 1] <= H - 1)
         vis = inside & in_frame0 & (ok_loc | solver.seen(points))
