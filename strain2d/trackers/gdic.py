@@ -50,7 +50,7 @@ from strain2d.trackers.dic import _coefficients, _Correlator, _inside
 from strain2d.tracks import Tracks
 
 #: local uncertainty (px) above which the global field's estimate is blended in
-_FUSE_ABOVE = 0.03
+_FUSE_ABOVE = 0.1
 
 #: budget for cached reference subsets (bytes); beyond it they are rebuilt each frame
 _CACHE_BYTES = 256 * 2**20
