@@ -49,7 +49,8 @@ from strain2d.trackers._lattice import LatticeSolver
 from strain2d.trackers.dic import _coefficients, _Correlator, _inside
 from strain2d.tracks import Tracks
 
-#: local uncertainty (px) above which the global field's estimate is blended in
+#: noise part of the local uncertainty (px) above which the field's estimate is blended in
+#: (weak texture; a large misfit alone says the warp is imperfect, not that the field is better)
 _FUSE_ABOVE = 0.1
 
 #: budget for cached reference subsets (bytes); beyond it they are rebuilt each frame
@@ -152,7 +153,8 @@ def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray
     the warp, and its size in pixels (residual over the mean squared
     gradient) is added as a bias term. Returns the
     standard deviation and the factor (>= 1) by which the correction raised
-    the variance, which the global field's uncertainty at the point shares.
+    the variance, which the global field's uncertainty at the point shares,
+    and the noise part alone (how weak the subset's texture is).
     """
     G = ref.G[rows]  # H^-1 J^T, so G G^T = H^-1
     n = G.shape[2]
@@ -170,7 +172,11 @@ def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray
     # residual beyond the noise is misfit of the warp (model error, interpolation bias):
     # a residual r over gradients g is a misregistration of about r / g, added as a bias
     misfit = np.maximum(s2 - 2 * noise**2, 0.0) * n * hinv
-    return np.sqrt(variance * s2 + misfit), variance / np.maximum(hinv, 1e-30)
+    return (
+        np.sqrt(variance * s2 + misfit),
+        variance / np.maximum(hinv, 1e-30),
+        np.sqrt(variance * s2),
+    )
 
 
 @register_tracker(
@@ -286,13 +292,24 @@ def track_gdic(
         p0 = np.zeros((len(rows), corr.n_params))
         p0[:, :2] = u[rows]
         p0[:, 2:6] = grad[rows].reshape(len(rows), 4)  # du/dx, du/dy, dv/dx, dv/dy
+        # a point matched locally last frame continues from its own warp, moved as the
+        # field moved since (the field alone can be a less precise start on fine texture)
+        before = rows[carried[rows]]
+        if before.size:
+            k = np.flatnonzero(carried[rows])
+            p0[k, :6] = last_p[before] + np.column_stack(
+                [u[before] - last_u[before], (grad[before] - last_grad[before]).reshape(-1, 4)]
+            )
         p, z, conv = corr.match(coeff, ref, np.arange(len(rows)), p0)
         ok = conv & (z >= zncc_min) & _inside(corr, points[rows], p, shape)
-        sd, infl = _local_sigma(corr, ref, np.arange(len(rows)), z, solver.noise)
+        sd, infl, noisy = _local_sigma(corr, ref, np.arange(len(rows)), z, solver.noise)
         ssd = np.maximum(2 * (1 - z), 1e-12) * ref.norm[:, 0] ** 2
-        return p, z, ok, sd, infl, ssd
+        return p, z, ok, sd, infl, ssd, noisy
 
     quadratic_count = 0
+    carried = np.zeros(n, bool)  # matched locally (affine) on the last frame
+    last_p = np.zeros((n, 6))
+    last_u, last_grad = np.zeros((n, 2)), np.zeros((n, 2, 2))
     local_last = 0.0  # fraction of points matched locally in the last frame
 
     positions = [points.copy()]
@@ -340,12 +357,14 @@ def track_gdic(
         s_loc = np.full(n, np.nan)
         ok_loc = np.zeros(n, bool)
         inflation = np.ones(n)
+        s_noise = np.full(n, np.nan)  # the noise part of the local uncertainty
         ssd1 = np.full(n, np.inf)
         first = orders[0]
         for rows in _chunks(n, chunk):
             refs = {first: _reference(first, rows)}
-            p, z, ok, sd, infl, ssd = _local(correlators[first], refs[first], rows, u, grad)
+            p, z, ok, sd, infl, ssd, noisy = _local(correlators[first], refs[first], rows, u, grad)
             p_loc[rows], z_loc[rows], ok_loc[rows], s_loc[rows] = p[:, :6], z, ok, sd
+            s_noise[rows] = noisy
             inflation[rows], ssd1[rows] = infl, ssd
             if len(orders) == 2:
                 # the BIC can prefer 12 parameters only where the 6 leave model error
@@ -354,7 +373,7 @@ def track_gdic(
                 try_rows = rows[excess | ~ok]
                 if try_rows.size:
                     ref2 = _reference(2, try_rows)
-                    p2, z2, ok2, sd2, _, ssd2 = _local(correlators[2], ref2, try_rows, u, grad)
+                    p2, z2, ok2, sd2, _, ssd2, _ = _local(correlators[2], ref2, try_rows, u, grad)
                     quad = _bic_choice(ssd1[try_rows], ssd2, n_px, ok_loc[try_rows], ok2)
                     take = try_rows[quad]
                     p_loc[take], z_loc[take], s_loc[take] = p2[quad, :6], z2[quad], sd2[quad]
@@ -366,6 +385,9 @@ def track_gdic(
         if far.size:
             sigma_far = solver.uncertainty(points[far]) * np.sqrt(inflation[far])
             ok_loc[far[gap[far] > 5 * np.nan_to_num(sigma_far, nan=0.2)]] = False
+        carried = ok_loc.copy()
+        last_p = np.where(ok_loc[:, None], p_loc, last_p)
+        last_u, last_grad = u.copy(), grad.copy()
         # a subset under a highlight would follow the light, not the tissue
         half = subset // 2
         lit = _touches(solver.reference_highlights, points, half)
@@ -377,7 +399,7 @@ def track_gdic(
         disp = np.where(ok_loc[:, None], p_loc[:, :2], u)
         # where the subset's texture is weak, the field (which also draws on the
         # neighbours through the prior) adds information: inverse-variance weighting
-        weak = np.flatnonzero(ok_loc & (s_loc > _FUSE_ABOVE) & solver.seen(points))
+        weak = np.flatnonzero(ok_loc & (s_noise > _FUSE_ABOVE) & solver.seen(points))
         if weak.size:
             s_g = solver.uncertainty(points[weak]) * np.sqrt(inflation[weak])
             good = np.isfinite(s_g) & (s_g > 0)
