@@ -51,6 +51,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, ndimage, sparse
 
+from strain2d.trackers.dic import _coefficients, _sample
+
 __all__ = ["Lattice", "LatticeSolver", "noise_sigma"]
 
 
@@ -184,12 +186,22 @@ class Lattice:
         j, i = np.divmod(np.arange(self.n_cells), self.nx)
         return np.column_stack([self.x0 + self.h * i, self.y0 + self.h * j]).astype(float)
 
+    def _cell_ij(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Column and row of the cell holding lattice coordinates ``s`` (clipped to it)."""
+        i = np.clip(np.floor(s[:, 0]).astype(int), 0, self.nx - 1)
+        j = np.clip(np.floor(s[:, 1]).astype(int), 0, self.ny - 1)
+        return i, j
+
+    def cell_of(self, points: np.ndarray) -> np.ndarray:
+        """Index of the cell holding each point (the nearest one outside the lattice)."""
+        i, j = self._cell_ij((points - [self.x0, self.y0]) / self.h)
+        return j * self.nx + i
+
     def interpolation(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bilinear weights at ``points``: node indices ``(N, 4)``, weights ``(N, 4)``,
         and the weights' x and y derivatives ``(N, 4, 2)`` (1/px)."""
         s = (points - [self.x0, self.y0]) / self.h
-        i = np.clip(np.floor(s[:, 0]).astype(int), 0, self.nx - 1)
-        j = np.clip(np.floor(s[:, 1]).astype(int), 0, self.ny - 1)
+        i, j = self._cell_ij(s)
         xi, eta = s[:, 0] - i, s[:, 1] - j
         n0 = j * (self.nx + 1) + i
         idx = np.stack([n0, n0 + 1, n0 + self.nx + 1, n0 + self.nx + 2], axis=1)
@@ -224,6 +236,11 @@ class Lattice:
             shape=(r, nx * ny),
         )
         return (D.T @ D).tocsr()
+
+
+def _grown(mask: np.ndarray, blur: float) -> np.ndarray:
+    """A mask grown by the reach of a Gaussian blur (two standard deviations)."""
+    return ndimage.binary_dilation(mask, iterations=int(np.ceil(2 * blur))) if blur else mask
 
 
 def _shape_functions(h: int, stride: int) -> np.ndarray:
@@ -264,7 +281,6 @@ class _Level:
             A = (self.N[None, :, :, None] * q[:, :, None, :]).reshape(len(q), -1, 16)
             H0[start : start + 256] = (np.swapaxes(A, 1, 2) @ A).reshape(-1, 4, 4, 4, 4)
         self.H0 = H0
-        self.pixels = float(m * m)
         # texture of each cell: mean squared gradient (gray levels^2 / px^2)
         self.texture = np.mean(self.q[..., 0] ** 2 + self.q[..., 1] ** 2, axis=1)
         self.variance = self.f.var(axis=1)
@@ -272,16 +288,9 @@ class _Level:
     def prepare(self, frame: np.ndarray, mask: np.ndarray | None = None):
         """Spline coefficients of the blurred frame, and of its highlight mask (or None)."""
         g = ndimage.gaussian_filter(frame, self.blur, mode="mirror") if self.blur > 0 else frame
-        from strain2d.trackers.dic import _coefficients
-
         if mask is None or not mask.any():
             return _coefficients(g), None
-        grown = (
-            ndimage.binary_dilation(mask, iterations=int(np.ceil(2 * self.blur)))
-            if self.blur
-            else mask
-        )
-        return _coefficients(g), grown
+        return _coefficients(g), _grown(mask, self.blur)
 
 
 class LatticeSolver:
@@ -322,7 +331,7 @@ class LatticeSolver:
         self.reference_blobs = bright_blobs(reference, self.noise)
         self.levels = [_Level(self.lattice, reference, b, s) for b, s in levels]
         self.reference_highlights = self.frame_highlights = None
-        self._reference_mask = None
+        self._hidden_reference = None  # per level, the reference's highlight pixels (blocks)
         self._static = np.zeros(self.shape, bool)
         self.max_iterations, self.tolerance = max_iterations, tolerance
         n = self.lattice.n_nodes
@@ -344,7 +353,7 @@ class LatticeSolver:
         self._dof = dof
         # upper band storage (LAPACK): band[bw + i - j, j] = A[i, j] for i <= j
         prior = self.prior.tocoo()
-        self._bw = bw = int(max(np.max(self._cols - self._rows), np.max(prior.col - prior.row)))
+        bw = int(max(np.max(self._cols - self._rows), np.max(prior.col - prior.row)))
         self._upper = (self._rows <= self._cols).reshape(-1, 256)[0]
         rows, cols = (
             self._rows.reshape(-1, 256)[:, self._upper],
@@ -387,9 +396,8 @@ class LatticeSolver:
         T[:, 3, 3] = 1.0
         return T
 
-    def _residual(self, level: _Level, coefficients: np.ndarray, state: np.ndarray):
-        from strain2d.trackers.dic import _sample
-
+    def _residual(self, k: int, coefficients, state: np.ndarray):
+        level = self.levels[k]
         C = state[self.cells]  # (cells, 4, 4)
         pix = np.einsum("mi,cik->cmk", level.N, C)  # (cells, m, 4)
         x = self.origins[:, None, 0] + level.offsets[None, :, 0] + pix[..., 0]
@@ -401,11 +409,8 @@ class LatticeSolver:
         r = level.f - (1 + pix[..., 2]) * g - pix[..., 3]
         r[out] = 0.0
         hidden = np.zeros(r.shape, bool)
-        if self._reference_mask is not None:  # a highlight on the reference
-            grown = self._reference_mask
-            if level.blur:
-                grown = ndimage.binary_dilation(grown, iterations=int(np.ceil(2 * level.blur)))
-            hidden |= level.blocks(grown)
+        if self._hidden_reference is not None:  # a highlight on the reference
+            hidden |= self._hidden_reference[k]
         if mask is not None:  # a highlight in this frame where the pixel now is
             xi = np.clip(np.rint(x), 0, W - 1).astype(int)
             yi = np.clip(np.rint(y), 0, H - 1).astype(int)
@@ -457,7 +462,7 @@ class LatticeSolver:
         converged = False
         ridge = np.tile(self.ridge, n) * self._anchor.ravel()
         for _ in range(self.max_iterations):
-            r, outside, masked = self._residual(level, coefficients, state)
+            r, outside, masked = self._residual(k, coefficients, state)
             ms = np.mean(r**2, axis=1)
             w = self._robust_weights(ms, level, outside)
             if masked is not None and np.mean(masked > 0.3) < 0.25:
@@ -511,11 +516,12 @@ class LatticeSolver:
         # once found to stay put, a highlight stays one (its blob may blur or fade later)
         self._static |= self.reference_highlights
         self.reference_highlights = self._static.copy()
-        self._reference_mask = (
-            self.reference_highlights if self.reference_highlights.any() else None
-        )
-        if self._reference_mask is None:
-            self.frame_highlights = None
+        if self.reference_highlights.any():
+            self._hidden_reference = [
+                lv.blocks(_grown(self.reference_highlights, lv.blur)) for lv in self.levels
+            ]
+        else:
+            self._hidden_reference = self.frame_highlights = None
         state, _ = self._solve_level(
             0, level.prepare(frame, self.frame_highlights), self._anchor.copy(), 0.05
         )
@@ -538,11 +544,6 @@ class LatticeSolver:
         self.state = state
         return converged
 
-    def solve(self, frame: np.ndarray, guess: np.ndarray) -> bool:
-        """Fit the field to ``frame`` from node states ``guess`` (n_nodes, 4), all levels."""
-        state, _ = self.coarse(frame, guess)
-        return self.refine(frame, state)
-
     # ------------------------------------------------------------------ results at points
 
     def displacement(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -554,10 +555,7 @@ class LatticeSolver:
         return u, grad
 
     def cell_of(self, points: np.ndarray) -> np.ndarray:
-        s = (points - [self.lattice.x0, self.lattice.y0]) / self.lattice.h
-        i = np.clip(np.floor(s[:, 0]).astype(int), 0, self.lattice.nx - 1)
-        j = np.clip(np.floor(s[:, 1]).astype(int), 0, self.lattice.ny - 1)
-        return j * self.lattice.nx + i
+        return self.lattice.cell_of(points)
 
     def seen(self, points: np.ndarray) -> np.ndarray:
         """Whether the cell under each point counted in the fit (not occluded, in the frame)."""

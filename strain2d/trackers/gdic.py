@@ -46,7 +46,7 @@ import numpy as np
 from strain2d.errors import InputError
 from strain2d.trackers import register_tracker
 from strain2d.trackers._lattice import LatticeSolver
-from strain2d.trackers.dic import _coefficients, _Correlator, _inside
+from strain2d.trackers.dic import _coefficients, _Correlator, _inside, _Subsets
 from strain2d.tracks import Tracks
 
 #: noise part of the local uncertainty (px) above which the field's estimate is blended in
@@ -57,33 +57,46 @@ _FUSE_ABOVE = 0.1
 _CACHE_BYTES = 256 * 2**20
 
 
-def _feature_guess(reference: np.ndarray, frame: np.ndarray, nodes: np.ndarray, box):
-    """Node displacements ``(n, 2)`` of an affine fit to SIFT matches, or None."""
-    import cv2
+def _gray8(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, dtype=np.float64)
+    lo, hi = np.percentile(a, [0.5, 99.5])
+    return np.clip((a - lo) / max(hi - lo, 1e-9) * 255, 0, 255).astype(np.uint8)
 
-    def gray8(a):
-        a = np.asarray(a, dtype=np.float64)
-        lo, hi = np.percentile(a, [0.5, 99.5])
-        return np.clip((a - lo) / max(hi - lo, 1e-9) * 255, 0, 255).astype(np.uint8)
 
-    sift = cv2.SIFT_create(nfeatures=4000)
-    mask = np.zeros(reference.shape, np.uint8)
-    x0, y0, x1, y1 = (int(v) for v in box)
-    mask[max(y0, 0) : y1, max(x0, 0) : x1] = 255
-    k1, d1 = sift.detectAndCompute(gray8(reference), mask)
-    k2, d2 = sift.detectAndCompute(gray8(frame), None)
-    if d1 is None or d2 is None or len(k1) < 8 or len(k2) < 8:
-        return None
-    matches = cv2.BFMatcher(cv2.NORM_L2).knnMatch(d1, d2, k=2)
-    good = [m for m, n in (p for p in matches if len(p) == 2) if m.distance < 0.75 * n.distance]
-    if len(good) < 8:
-        return None
-    src = np.float32([k1[m.queryIdx].pt for m in good])
-    dst = np.float32([k2[m.trainIdx].pt for m in good])
-    A, inliers = cv2.estimateAffine2D(src, dst, ransacReprojThreshold=3.0, maxIters=4000)
-    if A is None or inliers is None or inliers.sum() < 8:
-        return None
-    return nodes @ A[:, :2].T + A[:, 2] - nodes
+class _FeatureGuess:
+    """Node displacements of an affine fit (RANSAC) to SIFT matches between the reference
+    and a frame; the reference's features are found once, inside the lattice's box."""
+
+    def __init__(self, reference: np.ndarray, nodes: np.ndarray) -> None:
+        import cv2
+
+        self.nodes = nodes
+        self.sift = cv2.SIFT_create(nfeatures=4000)
+        mask = np.zeros(reference.shape, np.uint8)
+        (x0, y0), (x1, y1) = nodes.min(axis=0).astype(int), nodes.max(axis=0).astype(int)
+        mask[max(y0, 0) : y1, max(x0, 0) : x1] = 255
+        self._reference = None
+        self._image, self._mask = reference, mask
+
+    def __call__(self, frame: np.ndarray) -> np.ndarray | None:
+        import cv2
+
+        if self._reference is None:  # on first use: most videos never need it again
+            self._reference = self.sift.detectAndCompute(_gray8(self._image), self._mask)
+        k1, d1 = self._reference
+        k2, d2 = self.sift.detectAndCompute(_gray8(frame), None)
+        if d1 is None or d2 is None or len(k1) < 8 or len(k2) < 8:
+            return None
+        pairs = cv2.BFMatcher(cv2.NORM_L2).knnMatch(d1, d2, k=2)
+        good = [m for m, n in (p for p in pairs if len(p) == 2) if m.distance < 0.75 * n.distance]
+        if len(good) < 8:
+            return None
+        src = np.float32([k1[m.queryIdx].pt for m in good])
+        dst = np.float32([k2[m.trainIdx].pt for m in good])
+        A, inliers = cv2.estimateAffine2D(src, dst, ransacReprojThreshold=3.0, maxIters=4000)
+        if A is None or inliers is None or inliers.sum() < 8:
+            return None
+        return self.nodes @ A[:, :2].T + A[:, 2] - self.nodes
 
 
 def _extrapolate(nodes: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.ndarray:
@@ -116,7 +129,6 @@ def _chunks(n: int, size: int) -> list[np.ndarray]:
 
 def _concatenate(parts):
     """Reference subsets of chunks as one, the big arrays in float32."""
-    from strain2d.trackers.dic import _Subsets
 
     def join(name):
         a = np.concatenate([getattr(p, name) for p in parts])
@@ -126,8 +138,6 @@ def _concatenate(parts):
 
 
 def _take(ref, rows: np.ndarray):
-    from strain2d.trackers.dic import _Subsets
-
     return _Subsets(
         *(getattr(ref, k)[rows] for k in ("centers", "frame", "f", "norm", "G", "template"))
     )
@@ -141,7 +151,9 @@ def _bic_choice(ssd1, ssd2, n, ok1, ok2):
     return ok2 & (~ok1 | (bic2 < bic1))
 
 
-def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray:
+def _local_sigma(
+    corr: _Correlator, ref, rows, zncc, noise: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """IC-GN standard deviation (px per coordinate) of (u, v) at ``rows``.
 
     ``s^2 (J'J)^-1`` with ``s^2`` the subset's residual variance. On weak
@@ -151,10 +163,10 @@ def _local_sigma(corr: _Correlator, ref, rows, zncc, noise: float) -> np.ndarray
     texture fades into the noise instead of staying optimistic. Residual
     beyond the noise (``s^2 - 2 noise^2``, both frames' noise) is a misfit of
     the warp, and its size in pixels (residual over the mean squared
-    gradient) is added as a bias term. Returns the
-    standard deviation and the factor (>= 1) by which the correction raised
-    the variance, which the global field's uncertainty at the point shares,
-    and the noise part alone (how weak the subset's texture is).
+    gradient) is added as a bias term. Returns the standard deviation, the
+    factor (>= 1) by which the noise correction raised the variance (the
+    global field's uncertainty at the point shares it), and the noise part
+    of the standard deviation alone (how weak the subset's texture is).
     """
     G = ref.G[rows]  # H^-1 J^T, so G G^T = H^-1
     n = G.shape[2]
@@ -264,7 +276,7 @@ def track_gdic(
         curvature=curvature,
     )
     nodes = solver.lattice.nodes()
-    box = (nodes[:, 0].min(), nodes[:, 1].min(), nodes[:, 0].max(), nodes[:, 1].max())
+    feature_guess = _FeatureGuess(reference, nodes)
 
     orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
     correlators = {
@@ -306,6 +318,7 @@ def track_gdic(
         ssd = np.maximum(2 * (1 - z), 1e-12) * ref.norm[:, 0] ** 2
         return p, z, ok, sd, infl, ssd, noisy
 
+    n_px = subset * subset
     quadratic_count = 0
     carried = np.zeros(n, bool)  # matched locally (affine) on the last frame
     last_p = np.zeros((n, 6))
@@ -330,7 +343,7 @@ def track_gdic(
         guess = _extrapolate(nodes, previous_state, state)
         coarse, cost = solver.coarse(frame, guess) if t > 1 else (None, np.inf)
         if typical_cost is None or cost > 4 * typical_cost:
-            moved = _feature_guess(reference, frame, nodes, box)
+            moved = feature_guess(frame)
             if moved is not None:
                 alternative = state.copy()
                 alternative[:, :2] = moved
@@ -358,23 +371,20 @@ def track_gdic(
         ok_loc = np.zeros(n, bool)
         inflation = np.ones(n)
         s_noise = np.full(n, np.nan)  # the noise part of the local uncertainty
-        ssd1 = np.full(n, np.inf)
-        first = orders[0]
         for rows in _chunks(n, chunk):
-            refs = {first: _reference(first, rows)}
-            p, z, ok, sd, infl, ssd, noisy = _local(correlators[first], refs[first], rows, u, grad)
+            first = _reference(orders[0], rows)
+            p, z, ok, sd, infl, ssd, noisy = _local(correlators[orders[0]], first, rows, u, grad)
             p_loc[rows], z_loc[rows], ok_loc[rows], s_loc[rows] = p[:, :6], z, ok, sd
-            s_noise[rows] = noisy
-            inflation[rows], ssd1[rows] = infl, ssd
+            s_noise[rows], inflation[rows] = noisy, infl
             if len(orders) == 2:
                 # the BIC can prefer 12 parameters only where the 6 leave model error
-                n_px = subset * subset
                 excess = ssd / max(n_px - 6, 1) > 1.05 * solver.sigma2
                 try_rows = rows[excess | ~ok]
                 if try_rows.size:
                     ref2 = _reference(2, try_rows)
                     p2, z2, ok2, sd2, _, ssd2, _ = _local(correlators[2], ref2, try_rows, u, grad)
-                    quad = _bic_choice(ssd1[try_rows], ssd2, n_px, ok_loc[try_rows], ok2)
+                    in_rows = np.searchsorted(rows, try_rows)
+                    quad = _bic_choice(ssd[in_rows], ssd2, n_px, ok_loc[try_rows], ok2)
                     take = try_rows[quad]
                     p_loc[take], z_loc[take], s_loc[take] = p2[quad, :6], z2[quad], sd2[quad]
                     ok_loc[take] = True
