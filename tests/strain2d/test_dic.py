@@ -39,7 +39,9 @@ def test_dic_ignores_brightness_and_contrast_changes():
     np.testing.assert_allclose(changed.positions, plain.positions, atol=0.01)
 
 
-def test_dic_flags_occluded_and_blank_points_and_recovers_after_occlusion():
+@pytest.mark.parametrize("tracker", ["dic", "gdic"])
+def test_flags_occluded_and_blank_points_and_recovers_after_occlusion(tracker):
+    """Both correlation trackers: what cannot be seen is flagged, never invented."""
     video = make_case("shear", size=300, n_frames=10, rng=9)
     frames = video.frames.astype(float).copy()
     points = video.truth.grid((3, 3))  # spaced so each patch hides one subset only
@@ -52,9 +54,11 @@ def test_dic_flags_occluded_and_blank_points_and_recovers_after_occlusion():
     for k in (4, 5):
         xi, yi = np.rint(true[k, 4]).astype(int)
         frames[k, yi - 20 : yi + 21, xi - 20 : xi + 21] = 255.0
-    tracks = track(frames, points, tracker="dic")
+    tracks = track(frames, points, tracker=tracker)
     assert not tracks.visible[3:, 0].any()
     assert (tracks.quality[3:, 0] == 0).all()
+    if tracks.uncertainty is not None:  # no uncertainty for a position it did not measure
+        assert np.isnan(tracks.uncertainty[3:, 0]).all()
     assert not tracks.visible[4:6, 4].any()
     assert tracks.visible[6:, 4].all()  # found again once the occluder has gone
     err = np.linalg.norm(tracks.positions[-1, 4] - true[-1, 4])

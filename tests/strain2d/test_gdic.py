@@ -3,7 +3,7 @@
 Every test has a known answer: analytic speckle cases, the speckle-free tissue
 suite (exact inverse-mapped photographs), a rigid turn of 20 degrees per
 frame (zero strain, positions on a rigid motion), occluders that must be
-flagged, never invented.
+flagged, never invented (with dic's, in test_dic.py).
 """
 
 import numpy as np
@@ -65,27 +65,6 @@ def test_gdic_follows_a_turn_of_20_degrees_per_frame():
     assert _final_rmse(tracks, video.truth, points) < 0.1
 
 
-def test_gdic_flags_occluded_and_blank_points_and_recovers_after_occlusion():
-    video = make_case("shear", size=300, n_frames=10, rng=9)
-    frames = video.frames.astype(float).copy()
-    points = video.truth.grid((3, 3))
-    true = video.truth.positions(points)
-    x, y = np.rint(true[3:, 0]).astype(int).T
-    for k, (xi, yi) in enumerate(zip(x, y, strict=True), start=3):
-        frames[k, yi - 25 : yi + 26, xi - 25 : xi + 26] = 128.0
-    for k in (4, 5):
-        xi, yi = np.rint(true[k, 4]).astype(int)
-        frames[k, yi - 20 : yi + 21, xi - 20 : xi + 21] = 255.0
-    tracks = track(frames, points, tracker="gdic")
-    assert not tracks.visible[3:, 0].any()
-    assert (tracks.quality[3:, 0] == 0).all() and np.isnan(tracks.uncertainty[3:, 0]).all()
-    assert not tracks.visible[4:6, 4].any()
-    assert tracks.visible[6:, 4].all()
-    assert np.linalg.norm(tracks.positions[-1, 4] - true[-1, 4]) < DIC_QUICK_TRACK_RMSE_PX
-    others = np.setdiff1d(np.arange(9), [0, 4])
-    assert tracks.visible[:, others].all()
-
-
 def test_gdic_is_not_biased_by_a_light_gradient_and_a_fade():
     video = make_case("rotation", size=300, n_frames=6, rng=8)
     points = video.truth.grid((5, 5))
@@ -101,9 +80,9 @@ def test_gdic_uncertainty_grows_with_the_error():
     """The reported sigma follows the error on known truth: point-frames with the largest
     sigma have larger errors, and most errors lie within 2 sigma per coordinate.
 
-    This guards the current calibration (0.76-0.99 per case, 0.85 over these three);
-    it is not yet the 95 % a Gaussian error would give: the interpolation bias of
-    speckle and the warp misfit on curved fields are underestimated.
+    This guards the current calibration (bench/bench_tissue.py reports 86-98 % per
+    case); it is not yet the 95 % a Gaussian error would give: the interpolation bias
+    of speckle and the warp misfit on curved fields are underestimated.
     """
     errors, sigmas = [], []
     for video in (
@@ -115,12 +94,12 @@ def test_gdic_uncertainty_grows_with_the_error():
         tracks = track(video.frames, points, tracker="gdic")
         error = np.abs(tracks.positions - video.truth.positions(points))[1:]
         seen = tracks.visible[1:]
-        errors.append(error[seen].max(axis=1))
+        errors.append(error[seen])  # per coordinate, as the uncertainty is
         sigmas.append(tracks.uncertainty[1:][seen])
     error, sigma = np.concatenate(errors), np.concatenate(sigmas)
     low, high = sigma <= np.quantile(sigma, 0.25), sigma >= np.quantile(sigma, 0.75)
     assert np.median(error[high]) > 3 * np.median(error[low])
-    assert np.mean(error <= 2 * sigma) > 0.75
+    assert np.mean(error <= 2 * sigma[:, None]) > 0.8
 
 
 def test_gdic_tracks_round_trip_with_their_uncertainty(tmp_path):
