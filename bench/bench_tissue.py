@@ -24,13 +24,14 @@ from sample_data_synth.tissue import TISSUE_CASES, make_tissue_case
 from strain2d import track
 from strain2d.pipeline import strain_from_tracks
 from strain2d.tracks import Tracks
+from tissue_core.errors import InputError
 
 
 def _strain_rmse(tracks: Tracks, truth, points, grid) -> float:
     last = truth.n_frames - 1
     try:
         field = strain_from_tracks(tracks, grid_shape=grid)
-    except Exception:  # too few points left to mesh
+    except InputError:  # too few points left to mesh
         return float("nan")
     error = field.nodal_E[last] - truth.strain(points, last)
     parts = np.stack([error[:, 0, 0], error[:, 1, 1], error[:, 0, 1]])

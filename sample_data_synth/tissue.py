@@ -103,8 +103,8 @@ def _fibres(rng: np.random.Generator, size: int) -> np.ndarray:
     xs, ys = rng.uniform(0, size, n), rng.uniform(0, size, n)
     length = rng.uniform(6, 18, n)
     shade = rng.choice([-1.0, 1.0], n) * rng.uniform(0.3, 1.0, n)
+    a = theta[ys.astype(int), xs.astype(int)]
     for step in np.linspace(-0.5, 0.5, 12):
-        a = theta[ys.astype(int), xs.astype(int)]
         px = (xs + step * length * np.cos(a)).astype(int) % size
         py = (ys + step * length * np.sin(a)).astype(int) % size
         np.add.at(image, (py, px), shade)
