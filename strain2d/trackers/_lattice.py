@@ -3,8 +3,10 @@
 The displacement of the whole region of interest is one field: bilinear on a
 square lattice of nodes ``h`` pixels apart, with a brightness gain ``a`` and
 offset ``b`` per node (the reference ``f`` is matched by
-``(1 + a) g(x + u) + b``, so light that changes across the image and over
-time does not bias the motion). The field minimizes, over every pixel of the
+``(1 + a) (g(x + u) - m) + m + b``, with ``m`` the reference's mean over the
+region, so light that changes across the image and over time does not bias
+the motion; the gain scales contrast about the mean, so on smooth tissue it
+does not trade against the offset). The field minimizes, over every pixel of the
 region at once,
 
     sum_p w_c(p) r_p^2  +  lambda_u |D u|^2  +  lambda_a |D a|^2  +  lambda_b |D b|^2,
@@ -30,7 +32,9 @@ gradient and gain: ``grad g(x + u) = F^-T grad f / (1 + a)``. The Hessian of
 each cell is computed once per reference as a 16 x 16 block, so a frame costs
 one cubic B-spline sampling of the region per iteration and a sparse solve.
 Coarse-to-fine: the same lattice on blurred, subsampled images first, which
-widens the basin of convergence.
+widens the basin of convergence. A finer level is held near the coarser
+level's answer by a weak prior (``LEASH``): where texture is strong the data
+outweigh it, where it is weak the field does not wander off.
 
 References
 ----------
@@ -136,6 +140,12 @@ def static_highlights(reference_blobs: np.ndarray, frame_blobs: np.ndarray, moti
             hit = np.unique(frame_labels[yy, xx])
             frame_mask |= np.isin(frame_labels, hit[hit > 0])
     return ref_mask, frame_mask
+
+
+#: at the finer levels, how far (px) the field may stray from the coarser level's answer
+#: where the data do not hold it (weak texture: a smooth ramp shifted looks like one
+#: brightened, and the field would wander); gain and offset likewise, by 0.1 and 10 levels
+LEASH = (2.0, 0.1, 10.0)
 
 
 @dataclass(frozen=True)
@@ -253,8 +263,10 @@ def _shape_functions(h: int, stride: int) -> np.ndarray:
 class _Level:
     """One resolution: the reference blurred by ``blur`` px and sampled every ``stride`` px."""
 
-    def __init__(self, lattice: Lattice, reference: np.ndarray, blur: float, stride: int):
-        self.lattice, self.blur, self.stride = lattice, blur, stride
+    def __init__(
+        self, lattice: Lattice, reference: np.ndarray, blur: float, stride: int, mean: float
+    ):
+        self.lattice, self.blur, self.stride, self.mean = lattice, blur, stride, mean
         h, nx, ny = lattice.h, lattice.nx, lattice.ny
         f = ndimage.gaussian_filter(reference, blur, mode="mirror") if blur > 0 else reference
         gy, gx = np.gradient(f)
@@ -269,7 +281,9 @@ class _Level:
 
         self.f = blocks(f)
         self.blocks = blocks
-        self.q = np.stack([blocks(gx), blocks(gy), self.f, np.ones_like(self.f)], axis=-1)
+        # the gain multiplies the image about its mean, so that gain and offset do not
+        # trade against each other on smooth tissue
+        self.q = np.stack([blocks(gx), blocks(gy), self.f - mean, np.ones_like(self.f)], axis=-1)
         self.N = _shape_functions(h, stride)  # (m*m, 4)
         o = np.arange(0, h, stride, dtype=float)
         oy, ox = np.meshgrid(o, o, indexing="ij")
@@ -329,7 +343,11 @@ class LatticeSolver:
         self.origins = self.lattice.cell_origins()
         self.noise = max(noise_sigma(reference) if noise is None else float(noise), 0.5)
         self.reference_blobs = bright_blobs(reference, self.noise)
-        self.levels = [_Level(self.lattice, reference, b, s) for b, s in levels]
+        lat = self.lattice
+        self.mean = float(
+            reference[lat.y0 : lat.y0 + lat.ny * lat.h, lat.x0 : lat.x0 + lat.nx * lat.h].mean()
+        )
+        self.levels = [_Level(lat, reference, b, s, self.mean) for b, s in levels]
         self.reference_highlights = self.frame_highlights = None
         self._hidden_reference = None  # per level, the reference's highlight pixels (blocks)
         self._static = np.zeros(self.shape, bool)
@@ -406,7 +424,7 @@ class LatticeSolver:
         out = (x < 1) | (x > W - 2) | (y < 1) | (y > H - 2)
         coefficients, mask = coefficients
         g = _sample(coefficients, x.ravel(), y.ravel()).reshape(x.shape)
-        r = level.f - (1 + pix[..., 2]) * g - pix[..., 3]
+        r = level.f - (1 + pix[..., 2]) * (g - self.mean) - self.mean - pix[..., 3]
         r[out] = 0.0
         hidden = np.zeros(r.shape, bool)
         if self._hidden_reference is not None:  # a highlight on the reference
@@ -430,12 +448,21 @@ class LatticeSolver:
             weights=Hc.reshape(len(Hc), -1)[:, self._upper].ravel(),
             minlength=self._prior_band.size,
         ).reshape(self._prior_band.shape)
+        band[-1] += self._leash(k)
         try:
             factor = linalg.cholesky_banded(band, lower=False, check_finite=False)
         except linalg.LinAlgError:
             factor = None
         self._factors[k] = (factor, T.copy(), w.copy())
         return factor
+
+    def _leash(self, k: int) -> np.ndarray:
+        """Per unknown, the weight that holds level ``k``'s displacement near where the
+        coarser level left it (none at the coarsest level, which starts from a guess)."""
+        if k == 0:
+            return np.zeros(4 * self.lattice.n_nodes)
+        scale = np.array([LEASH[0], LEASH[0], LEASH[1], LEASH[2]])
+        return np.tile(self.sigma2 / scale**2, self.lattice.n_nodes)
 
     def _solve(self, k: int, rhs: np.ndarray) -> np.ndarray:
         factor = self._factors[k][0]
@@ -461,6 +488,7 @@ class LatticeSolver:
         n = self.lattice.n_nodes
         converged = False
         ridge = np.tile(self.ridge, n) * self._anchor.ravel()
+        leash, start = self._leash(k), state.ravel().copy()
         for _ in range(self.max_iterations):
             r, outside, masked = self._residual(k, coefficients, state)
             ms = np.mean(r**2, axis=1)
@@ -473,7 +501,7 @@ class LatticeSolver:
             g0 = np.einsum("mi,cm,cmk->cik", level.N, r * w[:, None], level.q, optimize=True)
             g0 = np.einsum("ckK,ciK->cik", T, g0) * float(level.stride**2)
             rhs = np.bincount(self._dof.ravel(), weights=g0.ravel(), minlength=4 * n)
-            rhs -= self.prior @ state.ravel() - ridge
+            rhs -= self.prior @ state.ravel() - ridge + leash * (state.ravel() - start)
             step = self._solve(k, rhs).reshape(n, 4)
             if not np.isfinite(step).all():
                 return state, False

@@ -42,6 +42,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 
 import numpy as np
+from scipy import ndimage
 
 from strain2d.errors import InputError
 from strain2d.trackers import register_tracker
@@ -55,6 +56,20 @@ _FUSE_ABOVE = 0.1
 
 #: budget for cached reference subsets (bytes); beyond it they are rebuilt each frame
 _CACHE_BYTES = 256 * 2**20
+
+#: subset sides that ``subset="auto"`` chooses from, smallest first
+_SUBSETS = (31, 41, 51, 61, 81)
+
+#: noise-limited standard deviation (px, along the subset's weakest direction) that
+#: ``subset="auto"`` asks of a subset before it stops growing
+_SIGMA_TARGET = 0.04
+
+#: bias (px) that an affine subset warp may take from the field's curvature before the
+#: subset is kept smaller: ``curvature half^2 / 6`` (a quadratic field over a square)
+_BIAS_TARGET = 0.05
+
+#: lattice spacings over which the field's curvature is measured for ``_BIAS_TARGET``
+_CURVATURE_SPAN = 4
 
 
 def _gray8(a: np.ndarray) -> np.ndarray:
@@ -111,7 +126,78 @@ def _extrapolate(nodes: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.n
     return guess
 
 
-def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int) -> np.ndarray:
+def subset_sizes(
+    reference: np.ndarray,
+    points: np.ndarray,
+    noise: float,
+    sizes: tuple[int, ...] = _SUBSETS,
+    target: float = _SIGMA_TARGET,
+) -> np.ndarray:
+    """Per point, the smallest subset side whose texture pins the match to ``target`` px.
+
+    The sum of squared intensity gradients (SSSIG) over a subset against the
+    noise sets how precisely IC-GN can match it: the standard deviation of
+    the displacement along a direction is ``sqrt(2 noise^2 / S)`` with ``S``
+    the gradient energy along it (both frames' noise). The weakest direction
+    is used (the smaller eigenvalue of the subset's gradient structure
+    tensor), so a subset crossed by one vessel or fibre (the aperture
+    problem) grows too. The gradients' own noise (a central difference of
+    noise has variance ``noise^2 / 2``) is subtracted first. A point keeps
+    the largest side that fits in the frame when none reaches ``target``.
+    """
+    image = np.asarray(reference, dtype=np.float64)
+    H, W = image.shape
+    gy, gx = np.gradient(image)
+    tables = [np.pad(a.cumsum(0).cumsum(1), ((1, 0), (1, 0))) for a in (gx * gx, gy * gy, gx * gy)]
+    c = np.rint(np.nan_to_num(points)).astype(int)
+    room = np.minimum.reduce([c[:, 0], W - 1 - c[:, 0], c[:, 1], H - 1 - c[:, 1]]) - 2
+    chosen = np.full(len(points), sizes[0])
+    settled = np.zeros(len(points), bool)
+    for size in sizes:
+        half = size // 2
+        fits = half <= room
+        x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
+        y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
+        sxx, syy, sxy = (t[y1, x1] - t[y0, x1] - t[y1, x0] + t[y0, x0] for t in tables)
+        own = size * size * noise**2 / 2
+        sxx, syy = sxx - own, syy - own
+        weakest = 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
+        sigma = np.sqrt(2 * noise**2 / np.maximum(weakest, 1e-12))
+        grow = ~settled & fits
+        chosen[grow] = size
+        settled |= grow & (sigma <= target)
+    return chosen
+
+
+def _curvature_cap(solver: LatticeSolver, points: np.ndarray) -> np.ndarray:
+    """Per point, the largest subset side (of ``_SUBSETS``) over which the global field's
+    curvature would bias an affine warp by at most ``_BIAS_TARGET`` px.
+
+    A subset that grows for texture must not grow across a heterogeneous
+    field. The curvature is the largest second difference of the field over
+    ``_CURVATURE_SPAN`` lattice spacings (shorter spans measure the nodes'
+    noise more than the field), the largest within reach of the biggest
+    subset around the point.
+    """
+    lat = solver.lattice
+    k = _CURVATURE_SPAN
+    U = solver.state[:, :2].reshape(lat.ny + 1, lat.nx + 1, 2)
+    # linear extrapolation past the edges: a homogeneous field has no curvature there
+    P = np.pad(U, ((k, k), (k, k), (0, 0)), mode="reflect", reflect_type="odd")
+    c = P[k:-k, k:-k]
+    uxx = P[k:-k, 2 * k :] - 2 * c + P[k:-k, : -2 * k]
+    uyy = P[2 * k :, k:-k] - 2 * c + P[: -2 * k, k:-k]
+    kappa = np.max(np.abs(np.stack([uxx, uyy])), axis=(0, 3)) / (k * lat.h) ** 2
+    reach = 2 * int(np.ceil(_SUBSETS[-1] / 2 / lat.h)) + 1
+    kappa = ndimage.maximum_filter(kappa, size=reach, mode="nearest").ravel()
+    around = kappa[lat.cell_nodes()[lat.cell_of(points)]].max(axis=1)
+    cap = np.full(len(points), _SUBSETS[0])
+    for size in _SUBSETS[1:]:
+        cap[around * (size // 2) ** 2 / 6 <= _BIAS_TARGET] = size
+    return cap
+
+
+def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarray) -> np.ndarray:
     """Whether the square subsets at ``centers`` hold any pixel of ``mask``."""
     if mask is None or not mask.any():
         return np.zeros(len(centers), bool)
@@ -201,7 +287,7 @@ def track_gdic(
     frames: Iterable[np.ndarray],
     points: np.ndarray,
     *,
-    subset: int = 31,
+    subset: int | str = "auto",
     spacing: int = 16,
     curvature: float = 2e-3,
     shape_function: str = "auto",
@@ -218,8 +304,11 @@ def track_gdic(
         Frame 0 is the reference.
     points : (N, 2) float
         Reference positions (x, y) in pixels.
-    subset : int, keyword-only
-        Side of the local subsets in pixels (odd, >= 15).
+    subset : int or "auto", keyword-only
+        Side of the local subsets in pixels (odd, >= 15), or ``"auto"``: per
+        point the smallest of 31, 41, 51, 61 and 81 px whose texture holds
+        the match to about 0.04 px against the measured noise (see
+        :func:`subset_sizes`), so weak texture gets larger subsets.
     spacing : int, keyword-only
         Lattice spacing of the global field in pixels (a multiple of 4, >= 8).
     curvature : float, keyword-only
@@ -244,8 +333,10 @@ def track_gdic(
         raise InputError(
             f"--shape-function must be auto, affine or quadratic, got {shape_function!r}"
         )
-    if subset < 15 or subset % 2 == 0:
-        raise InputError(f"--subset must be an odd number >= 15 for gdic, got {subset}")
+    if subset != "auto" and (
+        isinstance(subset, str) or int(subset) != subset or subset < 15 or subset % 2 == 0
+    ):
+        raise InputError(f"--subset must be auto or an odd number >= 15 for gdic, got {subset}")
     if spacing < 8 or spacing % 4:
         raise InputError(f"--lattice-spacing must be a multiple of 4 and >= 8 px, got {spacing}")
     if not (np.isfinite(curvature) and curvature > 0):
@@ -261,9 +352,10 @@ def track_gdic(
     except StopIteration:
         raise InputError("no frames to track") from None
     shape = reference.shape
-    if subset >= min(shape) or 2 * spacing >= min(shape):
+    smallest = _SUBSETS[0] if subset == "auto" else subset
+    if smallest >= min(shape) or 2 * spacing >= min(shape):
         raise InputError(
-            f"--subset {subset} and 2 x --lattice-spacing {spacing} must be smaller than the "
+            f"--subset {smallest} and 2 x --lattice-spacing {spacing} must be smaller than the "
             f"{shape[1]}x{shape[0]} frames"
         )
     H, W = shape
@@ -279,26 +371,43 @@ def track_gdic(
     feature_guess = _FeatureGuess(reference, nodes)
 
     orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
+    # each point's subset: as large as its texture needs (fixed), but no larger than the
+    # field's curvature allows (every frame)
+    if subset == "auto":
+        wanted = subset_sizes(reference, points, solver.noise)
+    else:
+        wanted = np.full(n, int(subset))
+    # the points that may use each size (the curvature only ever makes a subset smaller)
+    candidates = _SUBSETS if subset == "auto" else (int(subset),)
+    groups = {size: np.flatnonzero(wanted >= size) for size in candidates if (wanted >= size).any()}
     correlators = {
-        o: _Correlator(subset, max_iterations, tolerance, zncc_min, order=o) for o in (1, 2)
+        (size, o): _Correlator(size, max_iterations, tolerance, zncc_min, order=o)
+        for size in groups
+        for o in (1, 2)
     }
     ref_coeff = _coefficients(reference)
+
     # reference subsets are kept in float32 while both warps' fit the budget; otherwise
     # (dense grids) they are rebuilt every frame in chunks, so memory stays bounded
-    per_point = 4 * subset * subset * sum(correlators[o].n_params + 1 for o in orders)
-    cache_all = per_point * n <= _CACHE_BYTES
-    chunk = n if cache_all else max(64, _CACHE_BYTES // (8 * per_point))
+    def per_point(size: int) -> int:
+        return 4 * size * size * sum(correlators[size, o].n_params + 1 for o in orders)
+
+    cache_all = sum(per_point(size) * len(m) for size, m in groups.items()) <= _CACHE_BYTES
     cached = {}
 
-    def _reference(order: int, rows: np.ndarray):
-        corr = correlators[order]
+    def _reference(size: int, order: int, rows: np.ndarray):
+        corr = correlators[size, order]
         if not cache_all:
             return corr.reference(ref_coeff, points[rows], 0)
-        if order not in cached:
-            parts = [corr.reference(ref_coeff, points[r], 0) for r in _chunks(n, 1024)]
-            cached[order] = _concatenate(parts)
-        ref = cached[order]
-        return ref if len(rows) == n else _take(ref, rows)
+        members = groups[size]
+        if (size, order) not in cached:
+            parts = [
+                corr.reference(ref_coeff, points[members[r]], 0)
+                for r in _chunks(len(members), 1024)
+            ]
+            cached[size, order] = _concatenate(parts)
+        ref = cached[size, order]
+        return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
 
     def _local(corr, ref, rows, u, grad):
         p0 = np.zeros((len(rows), corr.n_params))
@@ -318,7 +427,6 @@ def track_gdic(
         ssd = np.maximum(2 * (1 - z), 1e-12) * ref.norm[:, 0] ** 2
         return p, z, ok, sd, infl, ssd, noisy
 
-    n_px = subset * subset
     quadratic_count = 0
     carried = np.zeros(n, bool)  # matched locally (affine) on the last frame
     last_p = np.zeros((n, 6))
@@ -371,18 +479,27 @@ def track_gdic(
         ok_loc = np.zeros(n, bool)
         inflation = np.ones(n)
         s_noise = np.full(n, np.nan)  # the noise part of the local uncertainty
-        for rows in _chunks(n, chunk):
-            first = _reference(orders[0], rows)
-            p, z, ok, sd, infl, ssd, noisy = _local(correlators[orders[0]], first, rows, u, grad)
-            p_loc[rows], z_loc[rows], ok_loc[rows], s_loc[rows] = p[:, :6], z, ok, sd
-            s_noise[rows], inflation[rows] = noisy, infl
-            if len(orders) == 2:
+        sizes = np.minimum(wanted, _curvature_cap(solver, points)) if subset == "auto" else wanted
+        for size in groups:
+            members = np.flatnonzero(sizes == size)
+            n_px = size * size
+            chunk = len(members) if cache_all else max(64, _CACHE_BYTES // (8 * per_point(size)))
+            for part in _chunks(len(members), chunk):
+                rows = members[part]
+                first = _reference(size, orders[0], rows)
+                corr = correlators[size, orders[0]]
+                p, z, ok, sd, infl, ssd, noisy = _local(corr, first, rows, u, grad)
+                p_loc[rows], z_loc[rows], ok_loc[rows], s_loc[rows] = p[:, :6], z, ok, sd
+                s_noise[rows], inflation[rows] = noisy, infl
+                if len(orders) < 2:
+                    continue
                 # the BIC can prefer 12 parameters only where the 6 leave model error
                 excess = ssd / max(n_px - 6, 1) > 1.05 * solver.sigma2
                 try_rows = rows[excess | ~ok]
                 if try_rows.size:
-                    ref2 = _reference(2, try_rows)
-                    p2, z2, ok2, sd2, _, ssd2, _ = _local(correlators[2], ref2, try_rows, u, grad)
+                    ref2 = _reference(size, 2, try_rows)
+                    corr2 = correlators[size, 2]
+                    p2, z2, ok2, sd2, _, ssd2, _ = _local(corr2, ref2, try_rows, u, grad)
                     in_rows = np.searchsorted(rows, try_rows)
                     quad = _bic_choice(ssd[in_rows], ssd2, n_px, ok_loc[try_rows], ok2)
                     take = try_rows[quad]
@@ -399,7 +516,7 @@ def track_gdic(
         last_p = np.where(ok_loc[:, None], p_loc, last_p)
         last_u, last_grad = u.copy(), grad.copy()
         # a subset under a highlight would follow the light, not the tissue
-        half = subset // 2
+        half = sizes // 2
         lit = _touches(solver.reference_highlights, points, half)
         lit |= _touches(solver.frame_highlights, points + u, half)
         ok_loc &= ~lit
@@ -456,6 +573,7 @@ def track_gdic(
             "options": options,
             "local_fraction": local_count / max(n * (T - 1), 1),
             "quadratic_fraction": quadratic_count / max(n * (T - 1), 1),
+            "subset_sizes": {str(size): int((wanted == size).sum()) for size in groups},
         },
         np.stack(sigma),
     )
