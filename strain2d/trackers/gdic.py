@@ -197,6 +197,29 @@ def _curvature_cap(solver: LatticeSolver, points: np.ndarray) -> np.ndarray:
     return cap
 
 
+def _affine_bias(solver: LatticeSolver, points: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """Per point, the bias (px, root mean square of the two components) of an affine
+    subset warp of half-side ``half`` over the global field's curvature.
+
+    For a displacement with second derivatives, an affine warp fitted over a
+    square of half-side ``L`` takes up the mean of the second-order term,
+    ``laplacian(u) L^2 / 6`` per component (the mixed derivative averages
+    out). The Laplacian is the field's, over two lattice spacings, the
+    largest at the nodes of the point's cell.
+    """
+    lat = solver.lattice
+    k = 2
+    U = solver.state[:, :2].reshape(lat.ny + 1, lat.nx + 1, 2)
+    P = np.pad(U, ((k, k), (k, k), (0, 0)), mode="reflect", reflect_type="odd")
+    c = P[k:-k, k:-k]
+    lap = (P[k:-k, 2 * k :] + P[k:-k, : -2 * k] + P[2 * k :, k:-k] + P[: -2 * k, k:-k] - 4 * c) / (
+        k * lat.h
+    ) ** 2
+    lap = np.sqrt(np.mean(lap**2, axis=2)).ravel()
+    around = lap[lat.cell_nodes()[lat.cell_of(points)]].max(axis=1)
+    return around * half.astype(float) ** 2 / 6
+
+
 def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarray) -> np.ndarray:
     """Whether the square subsets at ``centers`` hold any pixel of ``mask``."""
     if mask is None or not mask.any():
@@ -476,6 +499,7 @@ def track_gdic(
         p_loc = np.zeros((n, 6))
         z_loc = np.full(n, -1.0)
         s_loc = np.full(n, np.nan)
+        quadratic = np.zeros(n, bool)
         ok_loc = np.zeros(n, bool)
         inflation = np.ones(n)
         s_noise = np.full(n, np.nan)  # the noise part of the local uncertainty
@@ -506,6 +530,7 @@ def track_gdic(
                     p_loc[take], z_loc[take], s_loc[take] = p2[quad, :6], z2[quad], sd2[quad]
                     ok_loc[take] = True
                     quadratic_count += int(quad.sum())
+                    quadratic[take] = True
         # a local match far from the global field must agree with it within its uncertainty
         gap = np.linalg.norm(p_loc[:, :2] - u, axis=1)
         far = np.flatnonzero(ok_loc & (gap > 2.0))
@@ -523,6 +548,12 @@ def track_gdic(
         local_count += int(ok_loc.sum())
         local_last = float(ok_loc.mean()) if n else 1.0
 
+        # an affine warp over a curved field is biased by the mean of its second-order
+        # term over the subset: laplacian(u) half^2 / 6 per component
+        affine = ok_loc & ~quadratic
+        if affine.any():
+            bias = _affine_bias(solver, points[affine], sizes[affine] // 2)
+            s_loc[affine] = np.sqrt(s_loc[affine] ** 2 + bias**2)
         disp = np.where(ok_loc[:, None], p_loc[:, :2], u)
         # where the subset's texture is weak, the field (which also draws on the
         # neighbours through the prior) adds information: inverse-variance weighting

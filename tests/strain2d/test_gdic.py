@@ -14,7 +14,20 @@ from sample_data_synth.tissue import make_tissue_case
 from strain2d import track
 from strain2d.errors import InputError
 from strain2d.pipeline import strain_from_tracks
-from strain2d.trackers._lattice import Lattice, bright_blobs, noise_sigma, static_highlights
+from strain2d.trackers._lattice import (
+    Lattice,
+    LatticeSolver,
+    bright_blobs,
+    noise_sigma,
+    static_highlights,
+)
+from strain2d.trackers.gdic import (
+    _BIAS_TARGET,
+    _SUBSETS,
+    _affine_bias,
+    _curvature_cap,
+    subset_sizes,
+)
 from strain2d.tracks import read_tracks, write_tracks_csv
 from tests.tolerances import DIC_QUICK_STRAIN_RMSE, DIC_QUICK_TRACK_RMSE_PX
 
@@ -76,19 +89,17 @@ def test_gdic_is_not_biased_by_a_light_gradient_and_a_fade():
     assert _final_rmse(tracks, video.truth, points) < DIC_QUICK_TRACK_RMSE_PX
 
 
-def test_gdic_uncertainty_grows_with_the_error():
+def test_gdic_uncertainty_is_calibrated():
     """The reported sigma follows the error on known truth: point-frames with the largest
-    sigma have larger errors, and most errors lie within 2 sigma per coordinate.
-
-    This guards the current calibration (bench/bench_tissue.py reports 86-98 % per
-    case); it is not yet the 95 % a Gaussian error would give: the interpolation bias
-    of speckle and the warp misfit on curved fields are underestimated.
-    """
+    sigma have larger errors, and about 95 % of the errors lie within 2 sigma per
+    coordinate, as a Gaussian error's would (0.959 measured over these four cases; per
+    case 0.945-0.996), neither overconfident nor uselessly wide."""
     errors, sigmas = [], []
     for video in (
         make_case("gaussian", size=400, n_frames=6, rng=5),
         make_tissue_case("retina-contraction", size=400, n_frames=6, rng=5),
         make_tissue_case("closeup-gaussian", size=400, n_frames=6, rng=5),
+        make_tissue_case("fur-gaussian", size=400, n_frames=6, rng=5),
     ):
         points = video.truth.grid(tuple(video.truth.params.get("grid", (7, 7))))
         tracks = track(video.frames, points, tracker="gdic")
@@ -96,10 +107,62 @@ def test_gdic_uncertainty_grows_with_the_error():
         seen = tracks.visible[1:]
         errors.append(error[seen])  # per coordinate, as the uncertainty is
         sigmas.append(tracks.uncertainty[1:][seen])
+        assert np.mean(errors[-1] <= 2 * sigmas[-1][:, None]) > 0.9
     error, sigma = np.concatenate(errors), np.concatenate(sigmas)
     low, high = sigma <= np.quantile(sigma, 0.25), sigma >= np.quantile(sigma, 0.75)
     assert np.median(error[high]) > 3 * np.median(error[low])
-    assert np.mean(error <= 2 * sigma[:, None]) > 0.8
+    assert 0.93 < np.mean(error <= 2 * sigma[:, None]) < 0.99
+
+
+def test_gdic_holds_weak_texture_under_fading_light():
+    """The cat fur's darkest corner (whiskers over blurred fur, 30 % fade with a
+    gradient): the field must not drift where a shifted smooth ramp looks like a
+    brightened one (0.082 px measured; 0.25 px before the gain was taken about the
+    mean and the finer levels were leashed)."""
+    video = make_tissue_case("fur-gaussian", size=400, n_frames=6, rng=5)
+    points = video.truth.grid(tuple(video.truth.params["grid"]))
+    tracks = track(video.frames, points, tracker="gdic")
+    assert tracks.visible.all()
+    assert _final_rmse(tracks, video.truth, points) < 0.15
+
+
+def test_subset_sizes_grow_with_weak_texture_and_along_a_single_line():
+    """SSSIG against the noise: strong texture keeps the smallest subset; noise-level
+    texture and a lone straight line (the aperture problem: no gradient along it) grow."""
+    rng = np.random.default_rng(2)
+    noise = 2.0
+    image = rng.normal(0, noise, (300, 600))
+    image[:, :200] += 60 * rng.random((300, 200))  # speckle-like: strong everywhere
+    image[140:150, 250:350] += 80  # one horizontal bar
+    points = np.array([[100.0, 150], [300, 145], [500, 150]])
+    sizes = subset_sizes(image, points, noise)
+    assert sizes[0] == 31
+    assert sizes[1] > 31  # only y is pinned by the bar
+    assert sizes[2] == 81  # nothing but noise: the largest that fits
+    # near the edge a subset never grows past the frame
+    assert subset_sizes(image, np.array([[30.0, 150]]), noise)[0] <= 2 * 28 + 1
+
+
+def test_curvature_cap_and_affine_bias_follow_the_field():
+    """On a lattice state with a known quadratic field u = c x^2 / 2 (laplacian c), the
+    affine warp's bias is c L^2 / 6 (here per component, root mean square), and the
+    subset cap is the largest side whose bias stays within the target."""
+    reference = np.random.default_rng(1).random((400, 400)) * 100
+    solver = LatticeSolver(reference, np.array([[100.0, 100], [300, 300]]), spacing=16)
+    nodes = solver.lattice.nodes()
+    c = 4e-4
+    solver.state[:, 0] = 0.5 * c * (nodes[:, 0] - 200) ** 2
+    points = np.array([[200.0, 200]])
+    half = np.array([15, 40])
+    bias = _affine_bias(solver, np.repeat(points, 2, axis=0), half)
+    np.testing.assert_allclose(bias, c / np.sqrt(2) * half**2 / 6, rtol=1e-6)
+    cap = _curvature_cap(solver, points)[0]
+    assert c * (cap // 2) ** 2 / 6 <= _BIAS_TARGET
+    bigger = [s for s in _SUBSETS if s > cap]
+    assert not bigger or c * (bigger[0] // 2) ** 2 / 6 > _BIAS_TARGET
+    solver.state[:, 0] = 0.01 * nodes[:, 0]  # homogeneous: no bias, no cap
+    assert _affine_bias(solver, points, half[:1])[0] == pytest.approx(0, abs=1e-12)
+    assert _curvature_cap(solver, points)[0] == _SUBSETS[-1]
 
 
 def test_gdic_tracks_round_trip_with_their_uncertainty(tmp_path):
@@ -118,6 +181,8 @@ def test_gdic_tracks_round_trip_with_their_uncertainty(tmp_path):
     [
         ({"subset": 20}, "--subset"),
         ({"subset": 9}, "--subset"),
+        ({"subset": "large"}, "--subset"),
+        ({"subset": 31.5}, "--subset"),
         ({"spacing": 10}, "--lattice-spacing"),
         ({"curvature": 0.0}, "--curvature"),
         ({"curvature": float("nan")}, "--curvature"),
