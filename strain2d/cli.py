@@ -60,13 +60,29 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--step", type=int, default=1, help="use every STEP-th frame (default 1)")
 
 
+def _subset_arg(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be auto or a whole number of pixels, got {text!r}"
+        ) from None
+
+
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--tracker",
         default="dic",
         help="tracker name: dic, gdic, klt, cotracker3, imported (default dic)",
     )
-    p.add_argument("--subset", type=int, help="dic, gdic: subset side in pixels (default 31)")
+    p.add_argument(
+        "--subset",
+        type=_subset_arg,
+        help="dic, gdic: subset side in pixels, or auto (gdic only, its default: sized per "
+        "point from the texture against the noise, 31-81 px); dic's default 31",
+    )
     p.add_argument(
         "--shape-function",
         choices=["auto", "affine", "quadratic"],

@@ -557,8 +557,10 @@ def track_dic(
     """
     if shape_function not in ("affine", "quadratic"):
         raise InputError(f"--shape-function must be affine or quadratic, got {shape_function!r}")
-    if subset < 7 or subset % 2 == 0:
-        raise InputError(f"--subset must be an odd number >= 7, got {subset}")
+    if isinstance(subset, str) or int(subset) != subset or subset < 7 or subset % 2 == 0:
+        raise InputError(
+            f"--subset must be an odd number >= 7 for dic (auto is gdic's), got {subset}"
+        )
     if not -1 < zncc_min < 1:
         raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
     if not -1 <= update_below < 1:
