@@ -23,6 +23,13 @@ __all__ = ["Progress", "close_open_lines"]
 _OPEN: list[Task] = []
 
 
+def _line(stream, text: str) -> None:
+    """Write one whole line in a single call: ``print`` writes the text and the newline
+    separately, and a Ctrl-C between the two left the interrupt message glued to it."""
+    stream.write(text + "\n")
+    stream.flush()
+
+
 def close_open_lines() -> None:
     """End every live progress bar, so that what follows starts on a clean line."""
     for task in list(_OPEN):
@@ -69,7 +76,7 @@ class Progress:
         if self.quiet:
             return
         close_open_lines()
-        print(f"[{self.elapsed():6.1f} s] {message}", file=self.stream, flush=True)
+        _line(self.stream, f"[{self.elapsed():6.1f} s] {message}")
 
     __call__ = say
 
@@ -131,11 +138,7 @@ class Task:
         first = self._last_line == self._start
         if first or now - self._last_line >= p.interval:  # the start, then every interval
             self._last_line = now
-            print(
-                f"[{p.elapsed():6.1f} s] {self.description}: {self._count()}",
-                file=p.stream,
-                flush=True,
-            )
+            _line(p.stream, f"[{p.elapsed():6.1f} s] {self.description}: {self._count()}")
 
     def close(self, *, report: bool = True) -> None:
         """Remove the bar; with ``report``, print how much was done and how long it took."""
