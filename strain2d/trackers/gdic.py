@@ -16,9 +16,11 @@ little texture to be matched. Every frame, in order:
    to every pixel coarse-to-fine; a thin-plate penalty weighted by the
    measured image noise fills in where texture is weak; occluded cells stop
    counting.
-3. **Local refinement.** From the global field, each point's subset is
-   matched by IC-GN (:mod:`strain2d.trackers.dic`'s kernel) with an affine and
-   with a quadratic warp; the Bayesian information criterion
+3. **Local refinement.** From the global field, each point's subset (sized
+   per point from its texture against the noise, and no larger than the
+   field's curvature allows: :func:`subset_sizes`) is matched by IC-GN
+   (:mod:`strain2d.trackers.dic`'s kernel) with an affine and with a
+   quadratic warp; the Bayesian information criterion
    ``n ln(SSD / n) + k ln n`` picks the warp per point and frame. A local
    match is kept when it converged, correlates at least ``zncc_min``, and
    agrees with the global field within its uncertainty (at most
@@ -30,7 +32,8 @@ little texture to be matched. Every frame, in order:
 
 Each point and frame gets an uncertainty (px, standard deviation per
 coordinate): for a local match ``sqrt(s^2 (J'J)^-1)`` of IC-GN with ``s^2``
-the residual variance of its subset; for the global field the posterior
+the residual variance of its subset, plus an affine warp's bias from the
+field's curvature; for the global field the posterior
 standard deviation of the lattice fit. ``quality`` is the ZNCC of the local
 match (of the lattice cell's fit where only the global value is used).
 
@@ -169,6 +172,21 @@ def subset_sizes(
     return chosen
 
 
+def _second_derivatives(solver: LatticeSolver, span: int) -> tuple[np.ndarray, np.ndarray]:
+    """``d2u/dx2`` and ``d2u/dy2`` (1/px) at the lattice nodes, ``(ny + 1, nx + 1, 2)``
+    each, from second differences over ``span`` spacings (longer spans read less of the
+    nodes' noise). Past the edges the field is extrapolated linearly, so a homogeneous
+    field has no curvature there."""
+    lat, k = solver.lattice, span
+    U = solver.state[:, :2].reshape(lat.ny + 1, lat.nx + 1, 2)
+    P = np.pad(U, ((k, k), (k, k), (0, 0)), mode="reflect", reflect_type="odd")
+    c = P[k:-k, k:-k]
+    scale = (k * lat.h) ** 2
+    uxx = (P[k:-k, 2 * k :] - 2 * c + P[k:-k, : -2 * k]) / scale
+    uyy = (P[2 * k :, k:-k] - 2 * c + P[: -2 * k, k:-k]) / scale
+    return uxx, uyy
+
+
 def _curvature_cap(solver: LatticeSolver, points: np.ndarray) -> np.ndarray:
     """Per point, the largest subset side (of ``_SUBSETS``) over which the global field's
     curvature would bias an affine warp by at most ``_BIAS_TARGET`` px.
@@ -180,14 +198,8 @@ def _curvature_cap(solver: LatticeSolver, points: np.ndarray) -> np.ndarray:
     subset around the point.
     """
     lat = solver.lattice
-    k = _CURVATURE_SPAN
-    U = solver.state[:, :2].reshape(lat.ny + 1, lat.nx + 1, 2)
-    # linear extrapolation past the edges: a homogeneous field has no curvature there
-    P = np.pad(U, ((k, k), (k, k), (0, 0)), mode="reflect", reflect_type="odd")
-    c = P[k:-k, k:-k]
-    uxx = P[k:-k, 2 * k :] - 2 * c + P[k:-k, : -2 * k]
-    uyy = P[2 * k :, k:-k] - 2 * c + P[: -2 * k, k:-k]
-    kappa = np.max(np.abs(np.stack([uxx, uyy])), axis=(0, 3)) / (k * lat.h) ** 2
+    uxx, uyy = _second_derivatives(solver, _CURVATURE_SPAN)
+    kappa = np.max(np.abs(np.stack([uxx, uyy])), axis=(0, 3))
     reach = 2 * int(np.ceil(_SUBSETS[-1] / 2 / lat.h)) + 1
     kappa = ndimage.maximum_filter(kappa, size=reach, mode="nearest").ravel()
     around = kappa[lat.cell_nodes()[lat.cell_of(points)]].max(axis=1)
@@ -208,14 +220,8 @@ def _affine_bias(solver: LatticeSolver, points: np.ndarray, half: np.ndarray) ->
     largest at the nodes of the point's cell.
     """
     lat = solver.lattice
-    k = 2
-    U = solver.state[:, :2].reshape(lat.ny + 1, lat.nx + 1, 2)
-    P = np.pad(U, ((k, k), (k, k), (0, 0)), mode="reflect", reflect_type="odd")
-    c = P[k:-k, k:-k]
-    lap = (P[k:-k, 2 * k :] + P[k:-k, : -2 * k] + P[2 * k :, k:-k] + P[: -2 * k, k:-k] - 4 * c) / (
-        k * lat.h
-    ) ** 2
-    lap = np.sqrt(np.mean(lap**2, axis=2)).ravel()
+    uxx, uyy = _second_derivatives(solver, 2)
+    lap = np.sqrt(np.mean((uxx + uyy) ** 2, axis=2)).ravel()
     around = lap[lat.cell_nodes()[lat.cell_of(points)]].max(axis=1)
     return around * half.astype(float) ** 2 / 6
 
