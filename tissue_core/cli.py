@@ -127,7 +127,11 @@ def run_module(cli_module: str) -> None:
     import signal
 
     try:
-        status = importlib.import_module(cli_module).main()
+        # from the first import on, not only once the command runs: a Ctrl-C that lands in
+        # one of importlib's weakref callbacks is otherwise swallowed by Python ("Exception
+        # ignored in ...") and the command runs on to the end
+        with handling_interrupts():
+            status = importlib.import_module(cli_module).main()
         signal.signal(signal.SIGINT, signal.SIG_IGN)  # done: a late Ctrl-C changes nothing
     except KeyboardInterrupt:  # while importing, building the parser, or just after main()
         status = _interrupted(cli_module.split(".")[0])
