@@ -557,12 +557,13 @@ class LatticeSolver:
         cost = float(np.median(self.residual[inside])) if inside.any() else np.inf
         return state, cost
 
-    def refine(self, frame: np.ndarray, state: np.ndarray, *, finest: bool = True) -> bool:
-        """Fit the finer levels from the coarse ``state`` (all but the finest one unless
-        ``finest``); True if the last level fitted converged."""
+    def refine(self, frame: np.ndarray, state: np.ndarray, *, levels: int | None = None) -> bool:
+        """Fit the finer levels from the coarse ``state``, up to ``levels`` levels in all
+        (all of them when None; 1 keeps the coarse fit); True if the last level fitted
+        converged (or no finer level was asked for)."""
         frame = np.asarray(frame, dtype=np.float64)
-        converged = False
-        stop = len(self.levels) if finest else max(len(self.levels) - 1, 2)
+        converged = True
+        stop = len(self.levels) if levels is None else min(max(levels, 1), len(self.levels))
         for k in range(1, stop):
             last = k == stop - 1
             coefficients = self.levels[k].prepare(frame, self.frame_highlights)

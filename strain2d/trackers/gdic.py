@@ -71,6 +71,10 @@ _SIGMA_TARGET = 0.04
 #: subset is kept smaller: ``curvature half^2 / 6`` (a quadratic field over a square)
 _BIAS_TARGET = 0.05
 
+#: fraction of points matched locally in the last frame from which the global field
+#: is fitted at the coarsest level only where the texture is strong (the subsets refine it)
+_LOCAL_HOLDS = 0.98
+
 #: lattice spacings over which the field's curvature is measured for ``_BIAS_TARGET``
 _CURVATURE_SPAN = 4
 
@@ -242,14 +246,22 @@ def _chunks(n: int, size: int) -> list[np.ndarray]:
     return [np.arange(a, min(a + size, n)) for a in range(0, n, max(size, 1))]
 
 
-def _concatenate(parts):
-    """Reference subsets of chunks as one, the big arrays in float32."""
-
-    def join(name):
-        a = np.concatenate([getattr(p, name) for p in parts])
-        return a.astype(np.float32) if name in ("f", "G") else a
-
-    return _Subsets(*(join(k) for k in ("centers", "frame", "f", "norm", "G", "template")))
+def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
+    """Reference subsets of many points, built 1024 at a time into float32 arrays (the
+    float64 ones of a whole dense grid would not fit the cache budget twice)."""
+    fields = ("centers", "frame", "f", "norm", "G", "template")
+    out = None
+    for rows in _chunks(len(centers), 1024):
+        part = corr.reference(coefficients, centers[rows], 0)
+        if out is None:
+            out = {}
+            for k in fields:
+                a = getattr(part, k)
+                dtype = np.float32 if k in ("f", "G") else a.dtype
+                out[k] = np.empty((len(centers), *a.shape[1:]), dtype)
+        for k in fields:
+            out[k][rows] = getattr(part, k)
+    return _Subsets(*(out[k] for k in fields))
 
 
 def _take(ref, rows: np.ndarray):
@@ -408,6 +420,7 @@ def track_gdic(
         wanted = np.full(n, int(subset))
     # the points that may use each size (the curvature only ever makes a subset smaller)
     candidates = _SUBSETS if subset == "auto" else (int(subset),)
+    capped = subset == "auto" and bool((wanted > _SUBSETS[0]).any())  # the cap can bind
     groups = {size: np.flatnonzero(wanted >= size) for size in candidates if (wanted >= size).any()}
     correlators = {
         (size, o): _Correlator(size, max_iterations, tolerance, zncc_min, order=o)
@@ -423,18 +436,21 @@ def track_gdic(
 
     cache_all = sum(per_point(size) * len(m) for size, m in groups.items()) <= _CACHE_BYTES
     cached = {}
+    built = dict.fromkeys(correlators, 0)  # subsets built outside the cache so far
 
     def _reference(size: int, order: int, rows: np.ndarray):
         corr = correlators[size, order]
+        members = groups[size]
+        # the quadratic warp is tried where the affine one leaves model error: on a
+        # homogeneous field a handful of points, so it is cached for the whole grid only
+        # once building it point by point would have cost as much
         if not cache_all:
             return corr.reference(ref_coeff, points[rows], 0)
-        members = groups[size]
+        if (size, order) not in cached and built[size, order] + len(rows) < len(members):
+            built[size, order] += len(rows)
+            return corr.reference(ref_coeff, points[rows], 0)
         if (size, order) not in cached:
-            parts = [
-                corr.reference(ref_coeff, points[members[r]], 0)
-                for r in _chunks(len(members), 1024)
-            ]
-            cached[size, order] = _concatenate(parts)
+            cached[size, order] = _reference_subsets(corr, ref_coeff, points[members])
         ref = cached[size, order]
         return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
 
@@ -491,10 +507,15 @@ def track_gdic(
                     coarse, cost = solver.coarse(frame, guess)  # its weights and residuals
             elif coarse is None:  # first frame, no features: start from rest
                 coarse, cost = solver.coarse(frame, guess)
-        # 2. global correlation
-        # the full-resolution level only where local subsets could not carry the grid
-        # (weak texture) in the last frame: elsewhere they give full resolution anyway
-        solver.refine(frame, coarse, finest=local_last < 0.9)
+        # 2. global correlation, as fine as the local subsets need: all levels where they
+        # could not carry the grid in the last frame (weak texture). Where they carried
+        # nearly all of it on strong texture (no subset grown, so none for the field's
+        # curvature to cap), the coarse field is start enough: they give full resolution
+        if local_last >= _LOCAL_HOLDS and not capped:
+            depth = 1
+        else:
+            depth = 2 if local_last >= 0.9 else None
+        solver.refine(frame, coarse, levels=depth)
         typical_cost = cost if typical_cost is None else min(max(cost, 1e-9), 4 * typical_cost)
         previous_state, state = state, solver.state.copy()
         u, grad = solver.displacement(points)

@@ -26,6 +26,7 @@ from strain2d.trackers.gdic import (
     _SUBSETS,
     _affine_bias,
     _curvature_cap,
+    _reference_subsets,
     subset_sizes,
 )
 from strain2d.tracks import read_tracks, write_tracks_csv
@@ -195,6 +196,41 @@ def test_gdic_bad_options(options, message):
     with pytest.raises(InputError, match=message):
         track(video.frames, np.array([[50.0, 50], [70, 70], [60, 50]]), tracker="gdic",
               options=options)  # fmt: skip
+
+
+def test_reference_subsets_built_in_chunks_equal_one_build():
+    from strain2d.trackers.dic import _coefficients, _Correlator
+
+    rng = np.random.default_rng(2)
+    image = 100 + 40 * rng.random((120, 120))
+    centers = rng.uniform(10, 110, (1500, 2))  # two chunks of 1024
+    corr = _Correlator(15, 30, 1e-3, 0.75, order=1)
+    coeff = _coefficients(image)
+    whole = corr.reference(coeff, centers, 0)
+    chunked = _reference_subsets(corr, coeff, centers)
+    assert chunked.f.dtype == chunked.G.dtype == np.float32
+    for name in ("centers", "frame", "norm", "template"):
+        np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
+    for name in ("f", "G"):
+        np.testing.assert_allclose(
+            getattr(chunked, name), getattr(whole, name), rtol=1e-6, atol=1e-9
+        )
+
+
+def test_refine_to_one_level_keeps_the_coarse_fit_and_more_levels_sharpen_it():
+    video = make_case("equibiaxial", size=240, n_frames=11, rng=4)
+    points = video.truth.grid((5, 5))
+    solver = LatticeSolver(video.frames[0], points, spacing=16)
+    frame = video.frames[1]
+    coarse, _ = solver.coarse(frame, np.zeros_like(solver.state))
+    assert solver.refine(frame, coarse, levels=1)
+    np.testing.assert_array_equal(solver.state, coarse)
+    u_coarse = solver.displacement(points)[0]
+    solver.refine(frame, coarse)  # all levels
+    u_fine = solver.displacement(points)[0]
+    exact = video.truth.positions(points, 1) - points
+    assert np.sqrt(np.mean((u_fine - exact) ** 2)) < np.sqrt(np.mean((u_coarse - exact) ** 2))
+    assert np.sqrt(np.mean((u_coarse - exact) ** 2)) < 0.1  # start enough for the subsets
 
 
 def test_noise_estimate_recovers_known_noise():
