@@ -301,8 +301,13 @@ def _local_sigma(
     variances, plain = [], []
     for k in (0, 1):
         hinv = np.einsum("nk,nk->n", G[:, k], G[:, k])
-        signal = 1.0 / np.maximum(hinv, 1e-30) - noise_energy
-        variances.append(np.where(signal > 0.1 / hinv, 1.0 / np.maximum(signal, 1e-30), 10 * hinv))
+        var = np.full(len(hinv), np.inf)  # a textureless subset (singular Hessian) says nothing
+        has = hinv > 0
+        signal = 1.0 / hinv[has] - noise_energy
+        var[has] = np.where(
+            signal * hinv[has] > 0.1, 1.0 / np.maximum(signal, 1e-30), 10 * hinv[has]
+        )
+        variances.append(var)
         plain.append(hinv)
     norm2 = ref.norm[rows, 0] ** 2
     s2 = np.maximum(2 * (1 - zncc), 0) * norm2 / max(n - corr.n_params, 1)
@@ -311,11 +316,10 @@ def _local_sigma(
     # residual beyond the noise is misfit of the warp (model error, interpolation bias):
     # a residual r over gradients g is a misregistration of about r / g, added as a bias
     misfit = np.maximum(s2 - 2 * noise**2, 0.0) * n * hinv
-    return (
-        np.sqrt(variance * s2 + misfit),
-        variance / np.maximum(hinv, 1e-30),
-        np.sqrt(variance * s2),
-    )
+    inflation = np.ones(len(hinv))
+    has = np.isfinite(variance) & (hinv > 0)
+    inflation[has] = np.maximum(variance[has] / hinv[has], 1.0)
+    return np.sqrt(variance * s2 + misfit), inflation, np.sqrt(variance * s2)
 
 
 @register_tracker(
@@ -574,6 +578,12 @@ def track_gdic(
         ok_loc &= ~lit
         local_count += int(ok_loc.sum())
         local_last = float(ok_loc.mean()) if n else 1.0
+        # where a local match failed, the field's own value is reported: after a coarse
+        # fit alone that needs the finer levels too (the coarse field is a start, not a
+        # measurement: 0.1-0.6 px off where subsets leave a stretching frame)
+        if depth == 1 and (in_frame0 & ~ok_loc).any():
+            solver.refine(frame, coarse)
+            u, grad = solver.displacement(points)
 
         # an affine warp over a curved field is biased by the mean of its second-order
         # term over the subset: laplacian(u) half^2 / 6 per component

@@ -6,6 +6,8 @@ frame (zero strain, positions on a rigid motion), occluders that must be
 flagged, never invented (with dic's, in test_dic.py).
 """
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -196,6 +198,36 @@ def test_gdic_bad_options(options, message):
     with pytest.raises(InputError, match=message):
         track(video.frames, np.array([[50.0, 50], [70, 70], [60, 50]]), tracker="gdic",
               options=options)  # fmt: skip
+
+
+def test_points_whose_subsets_leave_a_stretching_frame_keep_the_fine_field():
+    """A frame after one where every subset matched is fitted at the coarse level only;
+    where subsets then fail (they reach the frame's edge) the finer levels are fitted too."""
+    from strain2d.grid import make_grid
+
+    video = make_case("equibiaxial", size=200, n_frames=6, rng=1)
+    points = make_grid((200, 200), shape=(3, 3))
+    tracks = track(video.frames, points, tracker="gdic")
+    seen = tracks.visible[1:]
+    d = np.abs(tracks.positions - video.truth.positions(points))[1:][seen]
+    assert tracks.visible[:, 4].all() and seen[1:4].sum() >= 20
+    assert d.max() < 0.1  # 0.62 px from the coarse field alone
+    assert np.all(d <= 3 * tracks.uncertainty[1:][seen][:, None])
+
+
+def test_a_textureless_subset_has_no_finite_uncertainty_and_no_warning():
+    from strain2d.trackers.dic import _Correlator, _Subsets
+    from strain2d.trackers.gdic import _local_sigma
+
+    corr = _Correlator(15, 30, 1e-3, 0.75, order=1)
+    G = np.zeros((2, 6, 225))
+    G[1, 0, 0] = G[1, 1, 1] = 0.05  # one textured subset beside a blank one
+    ref = _Subsets(np.zeros((2, 2)), np.zeros(2), np.zeros((2, 225)), np.ones((2, 1)), G, None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sd, inflation, noisy = _local_sigma(corr, ref, np.arange(2), np.array([-1.0, 0.9]), 1.0)
+    assert np.isinf(sd[0]) and np.isinf(noisy[0]) and inflation[0] == 1.0
+    assert np.isfinite(sd[1]) and inflation[1] >= 1.0
 
 
 def test_reference_subsets_built_in_chunks_equal_one_build():
