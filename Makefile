@@ -37,7 +37,7 @@ demo: setup
 	mkdir -p $(DEMO)
 	$(BIN)/python -m sample_data_synth video --case equibiaxial --out $(DEMO)/data --overwrite
 	$(BIN)/python -m strain2d analyze $(DEMO)/data/equibiaxial.avi --grid 7x7 \
-	    --roi 202,202,597,597 --tracker dic --out $(DEMO)/equibiaxial --overwrite
+	    --roi 202,202,597,597 --out $(DEMO)/equibiaxial --overwrite
 	@echo "demo results in $(DEMO)/equibiaxial: tracks.csv, strain_nodes.csv, strain.pvd, figures/"
 	$(BIN)/python -m sample_data_synth stack --case pair --out $(DEMO)/stacks --overwrite -q
 	$(BIN)/python -m mpm3d analyze $(DEMO)/stacks/after.tif --out $(DEMO)/mpm3d_after --overwrite
@@ -58,7 +58,7 @@ demo: setup
 	roi=$$($(BIN)/python -c "import csv,sys; print(next(csv.DictReader(open(sys.argv[1])))['roi'])" \
 	    $(DEMO)/study_data/manifest.csv) && \
 	for video in $(DEMO)/study_data/S*.avi; do \
-	  $(BIN)/python -m strain2d -q analyze $$video --grid 7x7 --roi $$roi --tracker dic --fps 10 \
+	  $(BIN)/python -m strain2d -q analyze $$video --grid 7x7 --roi $$roi --fps 10 \
 	      --out $(DEMO)/study_data/runs/$$(basename $$video .avi) --overwrite || exit 1; done
 	$(BIN)/python -m strain2d study --manifest $(DEMO)/study_data/manifest.csv \
 	    --out $(DEMO)/study --overwrite

@@ -306,7 +306,7 @@ def run_sweep(
             runs = [("exact positions", exact, 0.0)]
             for name, tracker, options in _tracker_runs(trackers):
                 if kind == "subset":
-                    size_option = {"dic": "subset", "klt": "window"}.get(tracker)
+                    size_option = {"dic": "subset", "gdic": "subset", "klt": "window"}.get(tracker)
                     options = {**options, size_option: int(value)} if size_option else options
                 t0 = time.perf_counter()
                 tracks = track(video.frames, points, tracker=tracker, options=options)

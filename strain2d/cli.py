@@ -74,19 +74,20 @@ def _subset_arg(text: str) -> int | str:
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--tracker",
-        default="dic",
-        help="tracker name: dic, gdic, klt, cotracker3, imported (default dic)",
+        default="gdic",
+        help="tracker name: gdic, dic, klt, cotracker3, imported (default gdic: global and "
+        "local correlation, for weak natural texture as well as speckle)",
     )
     p.add_argument(
         "--subset",
         type=_subset_arg,
-        help="dic, gdic: subset side in pixels, or auto (gdic only, its default: sized per "
+        help="gdic, dic: subset side in pixels, or auto (gdic only, its default: sized per "
         "point from the texture against the noise, 31-81 px); dic's default 31",
     )
     p.add_argument(
         "--shape-function",
         choices=["auto", "affine", "quadratic"],
-        help="dic, gdic: subset warp, first or second order, or chosen per point and frame "
+        help="gdic, dic: subset warp, first or second order, or chosen per point and frame "
         "(gdic only: auto, its default; dic: affine)",
     )
     p.add_argument(
@@ -101,7 +102,10 @@ def _add_tracker_args(p: argparse.ArgumentParser) -> None:
         "smoother (default 0.002)",
     )
     p.add_argument(
-        "--zncc-min", type=float, help="dic: correlation below which a point is lost (default 0.75)"
+        "--zncc-min",
+        type=float,
+        help="gdic, dic: correlation below which a local match is not used (gdic: the global "
+        "field's value stands in) or the point is lost (dic); default 0.75",
     )
     p.add_argument("--window", type=int, help="klt: window side in pixels (default 31)")
     p.add_argument("--levels", type=int, help="klt: pyramid levels (default 3)")

@@ -29,7 +29,7 @@ def track(
     frames: Iterable[np.ndarray] | None,
     points: np.ndarray | None,
     *,
-    tracker: str = "dic",
+    tracker: str = "gdic",
     options: dict | None = None,
     progress: Callable[[int, int | None], None] | None = None,
 ) -> Tracks:
@@ -139,7 +139,7 @@ def analyze(
     frames: Iterable[np.ndarray] | None,
     points: np.ndarray | None,
     *,
-    tracker: str = "dic",
+    tracker: str = "gdic",
     options: dict | None = None,
     grid_shape: tuple[int, int] | None = None,
     min_triangle_quality: float = 0.1,

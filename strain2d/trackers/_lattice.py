@@ -390,6 +390,7 @@ class LatticeSolver:
         self.outside = np.zeros(self.lattice.n_cells, bool)
         self._factors: dict = {}
         self._anchor = self.state.copy()
+        self.fitted_level = len(self.levels) - 1  # of the last fit: 0 is the coarsest
 
     # ------------------------------------------------------------------ one frame
 
@@ -516,7 +517,7 @@ class LatticeSolver:
                 converged = True
                 break
         self.weights, self.outside, self.residual = w, outside, ms
-        self._last_level = k
+        self.fitted_level = k
         return state, converged
 
     def _robust_weights(self, ms: np.ndarray, level: _Level, outside: np.ndarray) -> np.ndarray:
@@ -611,7 +612,7 @@ class LatticeSolver:
         with ``s^2`` the residual variance of the cell under each point (at
         least the noise's), interpolated to the point.
         """
-        level = getattr(self, "_last_level", len(self.levels) - 1)
+        level = self.fitted_level
         if self._factors.get(level) is None or len(points) == 0:
             return np.full(len(points), np.nan)
         idx, w, _ = self.lattice.interpolation(points)

@@ -362,8 +362,8 @@ def long_video(tmp_path_factory):
 STAGES = [
     (None, 0.3, "imports"),
     ("frames of", 0.02, "reading"),
-    ("tracking 1600 points (dic)", 0.3, "tracking"),  # inside the compiled IC-GN kernel
-    ("tracking 1600 points (dic)", 1.5, "tracking-later"),
+    ("tracking 1600 points (gdic)", 0.3, "tracking"),  # the global fit, or the IC-GN kernel
+    ("tracking 1600 points (gdic)", 1.5, "tracking-later"),
     ("strain on", 0.02, "tables"),
     ("figures and animation", 0.5, "figures"),
 ]

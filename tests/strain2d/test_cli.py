@@ -9,6 +9,7 @@ import pytest
 import tifffile
 
 from strain2d.cli import main
+from strain2d.tracks import read_tracks
 
 
 def _hash(path):
@@ -561,7 +562,8 @@ def test_sweeps_write_tables_and_show_the_expected_trends(tmp_path):
 def test_dic_summary_records_reference_updates(small_case, tmp_path):
     folder, _ = small_case
     out = tmp_path / "run"
-    assert main(["-q", "analyze", str(folder / "eq.tif"), "--grid", "3x3", "--out", str(out)]) == 0
+    argv = ["-q", "analyze", str(folder / "eq.tif"), "--grid", "3x3", "--tracker", "dic"]
+    assert main([*argv, "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["tracker"]["name"] == "dic"
     assert summary["tracker"]["options"]["shape_function"] == "affine"
@@ -591,7 +593,7 @@ def test_progress_is_timestamped_lines_when_stderr_is_a_log(small_case, tmp_path
     lines = res.stderr.splitlines()
     steps = [line for line in lines if line.startswith("[")]
     assert any("6 frames of 200x200 px" in line for line in steps), lines
-    assert any("tracking 9 points (dic): 6/6 frames in" in line for line in steps), lines
+    assert any("tracking 9 points (gdic): 6/6 frames in" in line for line in steps), lines
     assert lines[-1].endswith(f"] results in {out}")
     assert all(line.startswith(("[", "strain2d analyze: warning:")) for line in lines), lines
     res = _run_logged(["track", folder / "eq.avi", "--grid", "3x3", "--out", tmp_path / "t.csv"],
@@ -619,11 +621,20 @@ def test_a_truncated_video_is_named_and_ffmpeg_keeps_quiet(small_case, tmp_path)
 
 def test_points_the_tracker_cannot_use_on_the_reference_frame_are_named(small_case, tmp_path,
                                                                         capsys):  # fmt: skip
-    folder, _ = small_case
+    folder, video = small_case
     points = tmp_path / "p.csv"
     points.write_text("x,y\n0,0\n100,100\n199,10\n50,150\n150,150\n")
     out = tmp_path / "run"
     argv = ["analyze", str(folder / "eq.avi"), "--points", str(points), "--animation", "none"]
+    # gdic measures a point at the edge from the field around it, while it is in view
+    assert main([*argv, "--out", str(tmp_path / "gdic")]) == 0
+    assert ": warning: " not in capsys.readouterr().err
+    tracks = read_tracks(tmp_path / "gdic" / "tracks.csv")
+    truth = video.truth.positions(tracks.positions[0])
+    in_view = np.all((truth >= 0) & (truth <= 199), axis=2)
+    assert in_view[0].all() and not in_view[1:, [0, 2]].any()  # the stretch takes them out
+    np.testing.assert_array_equal(tracks.visible, in_view)
+    argv += ["--tracker", "dic"]  # dic's subset must fit on the reference frame
     assert main([*argv, "--out", str(out)]) == 0
     err = capsys.readouterr().err
     warning = [line for line in err.splitlines() if ": warning: " in line]

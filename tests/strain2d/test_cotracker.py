@@ -400,7 +400,7 @@ def test_cli_paths_without_torch_repository_or_weights_end_in_one_line(
     one_line_error(
         capsys,
         ["-q", "track", str(video_file), "--device", "cpu", *out],
-        "does not apply to the dic",
+        "does not apply to the gdic",
     )
     monkeypatch.setitem(sys.modules, "torch", None)
     one_line_error(capsys, [*base, *out], "needs PyTorch")
