@@ -7,8 +7,8 @@ CSV layout (one row per frame and point)::
 ``uncertainty_px`` (trackers that measure it, e.g. ``gdic``) is the standard
 deviation of each coordinate of the position in pixels (empty where unknown).
 NumPy layouts: ``.npy`` holding positions ``(T, N, 2)``; ``.npz`` with
-``positions`` (or ``tracks``) ``(T, N, 2)`` and optional ``visible`` ``(T, N)``
-and ``quality`` ``(T, N)``.
+``positions`` (or ``tracks``) ``(T, N, 2)`` and optional ``visible`` ``(T, N)``,
+``quality`` ``(T, N)`` and ``uncertainty_px`` (or ``uncertainty``) ``(T, N)``.
 """
 
 from __future__ import annotations
@@ -185,7 +185,7 @@ def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
 def _read_numpy(path: Path, suffix: str):
     with open(path, "rb") as f:  # closed also when NumPy gives up on a damaged file
         if suffix == ".npy":
-            return _real(path, "positions", np.load(f, allow_pickle=False)), None, None
+            return _real(path, "positions", np.load(f, allow_pickle=False)), None, None, None
         return _read_npz(path, np.load(f, allow_pickle=False))
 
 
@@ -205,7 +205,9 @@ def _read_npz(path: Path, data):
         pos = _real(path, key, data[key])
         vis = _real(path, "visible", data["visible"]) if "visible" in data.files else None
         qual = _real(path, "quality", data["quality"]) if "quality" in data.files else None
-    return pos, vis, qual
+        name = next((k for k in ("uncertainty_px", "uncertainty") if k in data.files), None)
+        unc = _real(path, name, data[name]) if name else None
+    return pos, vis, qual, unc
 
 
 def read_tracks(path: str | os.PathLike) -> Tracks:
@@ -218,7 +220,7 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
         return _read_csv(path)
     if suffix in (".npy", ".npz"):
         try:
-            pos, vis, qual = _read_numpy(path, suffix)
+            pos, vis, qual, unc = _read_numpy(path, suffix)
         except InputError:
             raise
         except (
@@ -233,7 +235,7 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
             raise InputError(f"cannot read {path} as NumPy tracks: {exc}") from None
         if pos.ndim != 3 or pos.shape[2] != 2:
             raise InputError(f"{path}: positions must have shape (T, N, 2), got {pos.shape}")
-        for name, arr in (("visible", vis), ("quality", qual)):
+        for name, arr in (("visible", vis), ("quality", qual), ("uncertainty", unc)):
             if arr is not None and np.shape(arr) != pos.shape[:2]:
                 raise InputError(
                     f"{path}: {name} must have shape {pos.shape[:2]}, got {np.shape(arr)}"
@@ -241,5 +243,7 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
         finite = np.all(np.isfinite(pos), axis=-1)
         vis = finite if vis is None else np.asarray(vis, dtype=bool) & finite
         qual = np.ones(pos.shape[:2]) if qual is None else qual
-        return Tracks(pos, vis, qual, {"source": str(path)})
+        if unc is not None and np.any(unc[np.isfinite(unc)] < 0):
+            raise InputError(f"{path}: uncertainty must not be negative")
+        return Tracks(pos, vis, qual, {"source": str(path)}, unc)
     raise InputError(f"tracks file must be .csv, .npy or .npz, got {path.name}")

@@ -71,4 +71,7 @@ def track_imported(
         meta["options"]["match_tolerance"] = match_tolerance
     if progress:
         progress(tracks.n_frames, tracks.n_frames)
-    return Tracks(tracks.positions[:, keep], tracks.visible[:, keep], tracks.quality[:, keep], meta)
+    unc = None if tracks.uncertainty is None else tracks.uncertainty[:, keep]
+    return Tracks(
+        tracks.positions[:, keep], tracks.visible[:, keep], tracks.quality[:, keep], meta, unc
+    )

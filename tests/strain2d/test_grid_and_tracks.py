@@ -77,6 +77,29 @@ def test_tracks_round_trip(tmp_path, suffix):
     np.testing.assert_allclose(back.quality, tracks.quality, rtol=1e-5)
 
 
+def test_tracks_uncertainty_round_trips_through_csv_npz_and_the_imported_tracker(tmp_path):
+    from strain2d import track
+
+    tracks = _tracks()
+    sigma = np.random.default_rng(1).uniform(0.01, 0.5, (4, 5))
+    sigma[0] = 0.0
+    tracks = Tracks(tracks.positions, tracks.visible, tracks.quality, {}, sigma)
+    write_tracks_csv(tmp_path / "t.csv", tracks)
+    np.savez(tmp_path / "t.npz", positions=tracks.positions, uncertainty_px=sigma)
+    for name in ("t.csv", "t.npz"):
+        back = read_tracks(tmp_path / name)
+        np.testing.assert_allclose(back.uncertainty, sigma, rtol=5e-4)  # CSV: 4 digits
+        imported = track(None, tracks.positions[0, [3, 1, 4]], tracker="imported",
+                         options={"tracks_file": tmp_path / name})  # fmt: skip
+        np.testing.assert_allclose(imported.uncertainty, sigma[:, [3, 1, 4]], rtol=5e-4)
+    np.savez(tmp_path / "bad.npz", positions=tracks.positions, uncertainty=sigma[:2])
+    with pytest.raises(InputError, match="uncertainty must have shape"):
+        read_tracks(tmp_path / "bad.npz")
+    np.savez(tmp_path / "neg.npz", positions=tracks.positions, uncertainty=-sigma)
+    with pytest.raises(InputError, match="must not be negative"):
+        read_tracks(tmp_path / "neg.npz")
+
+
 def test_tracks_npy_and_bad_files(tmp_path):
     tracks = _tracks()
     np.save(tmp_path / "t.npy", tracks.positions)
