@@ -230,6 +230,21 @@ def _affine_bias(solver: LatticeSolver, points: np.ndarray, half: np.ndarray) ->
     return around * half.astype(float) ** 2 / 6
 
 
+def _spline_noise_gain(offset: np.ndarray) -> np.ndarray:
+    """Variance of white noise after cubic B-spline interpolation at sub-pixel ``offset``
+    (1-D, in [0, 1)), relative to the noise's own: 1 on the pixels, 0.756 halfway."""
+    n = 48
+    impulses = ndimage.spline_filter1d(np.eye(n), order=3, axis=1, mode="mirror")
+    x = n // 2 + np.asarray(offset, dtype=float).ravel()
+    i = np.floor(x).astype(int)
+    t = x - i
+    # the cubic B-spline's weights for the 4 coefficients around x
+    w = np.stack([(1 - t) ** 3, 3 * t**3 - 6 * t**2 + 4, -3 * t**3 + 3 * t**2 + 3 * t + 1, t**3])
+    w /= 6.0
+    kernel = sum(w[k][:, None] * impulses[:, i + k - 1].T for k in range(4))  # (m, n)
+    return np.sum(kernel**2, axis=1).reshape(np.shape(offset))
+
+
 def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarray) -> np.ndarray:
     """Whether the square subsets at ``centers`` hold any pixel of ``mask``."""
     if mask is None or not mask.any():
@@ -432,6 +447,14 @@ def track_gdic(
         for o in (1, 2)
     }
     ref_coeff = _coefficients(reference)
+    # per point, the residual variance that noise alone leaves in a matched subset: the
+    # B-spline interpolation of both frames smooths it, the reference's at the point's
+    # fixed sub-pixel offset, the frame's over offsets spread by the deformation
+    frac = points - np.floor(points)
+    noise_floor = solver.noise**2 * (
+        _spline_noise_gain(frac[:, 0]) * _spline_noise_gain(frac[:, 1])
+        + np.mean(_spline_noise_gain(np.linspace(0, 1, 32, endpoint=False))) ** 2
+    )
 
     # reference subsets are kept in float32 while both warps' fit the budget; otherwise
     # (dense grids) they are rebuilt every frame in chunks, so memory stays bounded
@@ -548,8 +571,9 @@ def track_gdic(
                 s_noise[rows], inflation[rows] = noisy, infl
                 if len(orders) < 2:
                     continue
-                # the BIC can prefer 12 parameters only where the 6 leave model error
-                excess = ssd / max(n_px - 6, 1) > 1.05 * solver.sigma2
+                # the BIC can prefer 12 parameters only where the 6 leave model error:
+                # residual beyond what the noise leaves after interpolation
+                excess = ssd / max(n_px - 6, 1) > 1.05 * noise_floor[rows]
                 try_rows = rows[excess | ~ok]
                 if try_rows.size:
                     ref2 = _reference(size, 2, try_rows)
