@@ -230,6 +230,20 @@ def test_a_textureless_subset_has_no_finite_uncertainty_and_no_warning():
     assert np.isfinite(sd[1]) and inflation[1] >= 1.0
 
 
+def test_spline_noise_gain_matches_interpolated_white_noise():
+    from scipy import ndimage
+
+    from strain2d.trackers.gdic import _spline_noise_gain
+
+    noise = np.random.default_rng(3).standard_normal((400, 400))
+    for offset in (0.0, 0.25, 0.5, 0.85):
+        yy, xx = np.mgrid[20:380, 20:380].astype(float)
+        moved = ndimage.map_coordinates(noise, [yy + offset, xx], order=3, mode="mirror")
+        expected = _spline_noise_gain(np.array([offset]))[0]
+        assert np.var(moved) == pytest.approx(expected, rel=0.02)
+    assert _spline_noise_gain(np.array([0.5]))[0] == pytest.approx(0.756, abs=0.002)
+
+
 def test_reference_subsets_built_in_chunks_equal_one_build():
     from strain2d.trackers.dic import _coefficients, _Correlator
 
