@@ -8,7 +8,8 @@ the same behaviour:
   full disk or a missing permission, and the command's own ``errors``) end
   with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2;
 * Ctrl-C ends with one line ``PROG COMMAND: interrupted; no output written``
-  and exit status 130, also when it arrives inside compiled code;
+  and exit status 130, also when it arrives inside compiled code or library
+  code loses its KeyboardInterrupt;
 * warnings (``UserWarning``: the toolkit's, and those its libraries raise)
   are one line each, ``PROG COMMAND: warning: ...``; numerical warnings
   (``RuntimeWarning`` and the like) go to the log, shown with ``-v``;
@@ -23,7 +24,12 @@ import sys
 import warnings
 
 from tissue_core.errors import InputError, SourceError
-from tissue_core.interrupt import handling_interrupts, is_interrupt, note_interrupted
+from tissue_core.interrupt import (
+    handling_interrupts,
+    is_interrupt,
+    note_interrupted,
+    was_interrupted,
+)
 from tissue_core.outputs import recorded_command, written
 from tissue_core.progress import close_open_lines
 
@@ -99,17 +105,25 @@ def run_command(
             warnings.simplefilter("always", UserWarning)
             warnings.showwarning = _show_warning(prefix)
             try:
-                return args.handler(args)
+                status = args.handler(args)
             except (InputError, SourceError, OSError, *errors) as exc:
+                if is_interrupt(exc) or was_interrupted():  # Ctrl-C wins over what it caused
+                    return _interrupted(prefix)
                 close_open_lines()
                 print(f"{prefix}: error: {one_line(exc)}", file=sys.stderr, flush=True)
                 return 2
             except KeyboardInterrupt:  # here, so that finalizers run under handling_interrupts
                 return _interrupted(prefix)
-            except SystemError as exc:  # compiled code interrupted mid-call
-                if is_interrupt(exc):
+            except Exception as exc:
+                # compiled code interrupted mid-call (SystemError), or library code that
+                # turned the KeyboardInterrupt into an error of its own (matplotlib's pybind11
+                # functions: TypeError, ValueError)
+                if is_interrupt(exc) or was_interrupted():
                     return _interrupted(prefix)
                 raise
+            if was_interrupted():  # a KeyboardInterrupt that library code swallowed
+                return _interrupted(prefix)
+            return status
     except KeyboardInterrupt:  # also a second Ctrl-C while the first was handled
         return _interrupted(prefix)
     finally:

@@ -1,21 +1,30 @@
 """Ctrl-C that arrives where Python cannot raise it cleanly.
 
 Python turns SIGINT into :class:`KeyboardInterrupt` at the next bytecode,
-wherever that is.  Three places go wrong:
+wherever that is.  Four places go wrong:
 
 * inside a numba kernel's call back into Python, where it ends as
   ``SystemError: ... returned a result with an exception set``;
 * inside an import, where a native extension (VTK) that is initialising can
   be left half-built and crash the process later (SIGSEGV);
 * inside a finalizer or weakref callback, where Python swallows it
-  ("Exception ignored in: ...") and the program runs on.
+  ("Exception ignored in: ...") and the program runs on;
+* inside library code that loses it: compiled code that clears the error or
+  replaces it with its own (matplotlib's pybind11 functions turn it into a
+  ``TypeError`` or ``ValueError`` when it lands in an argument's
+  ``__array__``; CPython itself at times drops it for the ``ValueError`` of
+  an ``int("normal")`` that matplotlib's font matching catches), or Python
+  code that catches every exception and goes on.
 
 While :func:`handling_interrupts` is active (the command runner turns it on),
 Ctrl-C in an import is held until the import is done, and one in a finalizer
 is recorded; :func:`deferred_interrupt` holds it for the length of a block
 (a kernel call); :func:`raise_if_interrupted` (called by progress counters and
-before a result is renamed into place) raises what was held.  Outside the
-command runner, Python's own behaviour is left as it is.
+before a result is renamed into place) raises what was held, and raises again
+a Ctrl-C whose KeyboardInterrupt did not end the command, so that one that
+was lost never lets a result be written; :func:`was_interrupted` tells the
+command runner that an error (or a normal end) came after a Ctrl-C.  Outside
+the command runner, Python's own behaviour is left as it is.
 """
 
 from __future__ import annotations
@@ -35,6 +44,7 @@ __all__ = [
     "is_interrupt",
     "note_interrupted",
     "raise_if_interrupted",
+    "was_interrupted",
 ]
 
 
@@ -43,6 +53,7 @@ log = logging.getLogger(__name__)
 
 class _State:
     pending = False  # a Ctrl-C was held back
+    raised = False  # a Ctrl-C was raised as KeyboardInterrupt (which library code may lose)
     interrupted = False  # the command is ending because of Ctrl-C
     depth = 0  # nesting of deferred_interrupt blocks
     redelivering = False
@@ -97,6 +108,7 @@ def _handler(signum, frame) -> None:
             threading.Thread(target=_redeliver, args=(_state.generation,), daemon=True).start()
         return
     _state.pending = False
+    _state.raised = True  # remembered: the KeyboardInterrupt may never arrive
     raise KeyboardInterrupt
 
 
@@ -127,7 +139,7 @@ def handling_interrupts() -> Iterator[None]:
         yield
         return
     previous_hook = sys.unraisablehook
-    _state.pending = _state.interrupted = False
+    _state.pending = _state.raised = _state.interrupted = False
     _state.generation += 1
     signal.signal(signal.SIGINT, _handler)
     sys.unraisablehook = _unraisable(previous_hook)
@@ -137,14 +149,20 @@ def handling_interrupts() -> Iterator[None]:
         _state.generation += 1
         signal.signal(signal.SIGINT, signal.default_int_handler)
         sys.unraisablehook = previous_hook
-        _state.pending = _state.interrupted = False
+        _state.pending = _state.raised = _state.interrupted = False
 
 
 def raise_if_interrupted() -> None:
-    """Raise the KeyboardInterrupt that was held back, if there is one."""
-    if _state.pending and _state.depth == 0:
+    """Raise the KeyboardInterrupt that was held back, if there is one, or again one that was
+    raised before and did not end the command (library code lost it)."""
+    if (_state.pending or _state.raised) and _state.depth == 0:
         _state.pending = False
         raise KeyboardInterrupt
+
+
+def was_interrupted() -> bool:
+    """Whether Ctrl-C reached the running command: held back, or raised (and perhaps lost)."""
+    return _state.pending or _state.raised
 
 
 @contextlib.contextmanager
@@ -178,9 +196,9 @@ def deferred_interrupt() -> Iterator[None]:
 
 def _leave(installed: bool) -> bool:
     """End a deferred block; whether a Ctrl-C held in it is now due."""
-    _state.depth -= 1
-    if installed:
+    if installed:  # first: outside the runner, our handler never raises (nothing left behind)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    _state.depth -= 1
     if _state.depth == 0 and _state.pending:
         _state.pending = False
         return True

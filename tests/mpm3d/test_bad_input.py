@@ -8,6 +8,8 @@ they are tested in ``test_stack_types.py``, not here."""
 
 from __future__ import annotations
 
+import os
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
@@ -538,3 +540,74 @@ def test_interrupt(command, after, kernel, extra, when, mpm_pair, tmp_path):
         assert ran < 0.2, err  # Ctrl-C ended the kernel calls
     elif status == 0:
         assert (out / ("metrics.json" if command == "analyze" else "compare.json")).is_file()
+
+
+class _ConvertedByMatplotlib:
+    """An array whose conversion Ctrl-C interrupts, inside matplotlib's compiled code."""
+
+    def __array__(self, *args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)  # the KeyboardInterrupt is raised here ...
+        return np.zeros((1, 2))
+
+
+def _lose_a_ctrl_c(how: str) -> None:
+    """Ctrl-C that lands where a library loses its KeyboardInterrupt."""
+    if how == "swallowed":
+        # Python code that catches everything and goes on; CPython itself dropped one this way,
+        # for the ValueError of int("normal") in matplotlib's font matching, during a real run
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+        except BaseException:
+            pass
+    else:  # ... and pybind11 turns it into a TypeError of its own
+        from matplotlib import _path
+
+        _path.affine_transform(_ConvertedByMatplotlib(), np.eye(3))
+
+
+@pytest.mark.parametrize(
+    ("how", "stage"),
+    [
+        ("swallowed", "writing"),
+        ("replaced", "writing"),
+        ("swallowed", "after-writing"),
+    ],
+)
+def test_interrupt_lost_in_a_library(how, stage, mpm_small, tmp_path, monkeypatch, capsys, request):
+    """A KeyboardInterrupt that never arrives still ends the command with 130: no output while
+    it is written, and a line that says so once it is in place (the Ctrl-C is remembered)."""
+    import mpm3d.cli
+    from mpm3d import figures
+
+    # Python's own handler, as in a terminal (a shell's background job starts with SIGINT
+    # ignored, and then the toolkit leaves it so)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    request.addfinalizer(lambda: signal.signal(signal.SIGINT, previous))
+    out = tmp_path / "out"
+    if stage == "writing":
+        real = figures.plot_spectrum  # while the figures are written, before the rename
+
+        def patched(*args, **kwargs):
+            _lose_a_ctrl_c(how)
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(figures, "plot_spectrum", patched)
+    else:
+        real = mpm3d.cli._summary  # the line printed once the result is in place
+
+        def patched(*args, **kwargs):
+            _lose_a_ctrl_c(how)
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(mpm3d.cli, "_summary", patched)
+    status = run(["analyze", str(mpm_small[0]), "--out", str(out), "-q"])
+    err = capsys.readouterr().err
+    assert status == 130, err
+    if stage == "writing":
+        assert err == "mpm3d analyze: interrupted; no output written\n"
+        assert not out.exists()
+    else:
+        assert err == f"mpm3d analyze: interrupted after the results were written to {out}\n"
+        assert (out / "metrics.json").is_file()
+    assert [p.name for p in tmp_path.iterdir() if p.name != "out"] == []  # no scratch left
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
