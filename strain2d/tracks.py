@@ -178,8 +178,15 @@ def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
     unc = None
     if np.isfinite(a[:, 6]).any():
         unc = np.full((T, N), np.nan)
-        unc[frames, points] = a[:, 6]
+        unc[frames, points] = _uncertainty(path, a[:, 6])
     return Tracks(pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)}, unc)
+
+
+def _uncertainty(path: Path, values: np.ndarray) -> np.ndarray:
+    """A file's uncertainty column, refused if negative (NaN stays: unknown)."""
+    if np.any(values[np.isfinite(values)] < 0):
+        raise InputError(f"{path}: uncertainty must not be negative")
+    return values
 
 
 def _read_numpy(path: Path, suffix: str):
@@ -243,7 +250,6 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
         finite = np.all(np.isfinite(pos), axis=-1)
         vis = finite if vis is None else np.asarray(vis, dtype=bool) & finite
         qual = np.ones(pos.shape[:2]) if qual is None else qual
-        if unc is not None and np.any(unc[np.isfinite(unc)] < 0):
-            raise InputError(f"{path}: uncertainty must not be negative")
+        unc = None if unc is None else _uncertainty(path, unc)
         return Tracks(pos, vis, qual, {"source": str(path)}, unc)
     raise InputError(f"tracks file must be .csv, .npy or .npz, got {path.name}")

@@ -96,8 +96,11 @@ def test_tracks_uncertainty_round_trips_through_csv_npz_and_the_imported_tracker
     with pytest.raises(InputError, match="uncertainty must have shape"):
         read_tracks(tmp_path / "bad.npz")
     np.savez(tmp_path / "neg.npz", positions=tracks.positions, uncertainty=-sigma)
-    with pytest.raises(InputError, match="must not be negative"):
-        read_tracks(tmp_path / "neg.npz")
+    write_tracks_csv(tmp_path / "neg.csv", Tracks(tracks.positions, tracks.visible,
+                                                  tracks.quality, {}, -sigma))  # fmt: skip
+    for name in ("neg.npz", "neg.csv"):
+        with pytest.raises(InputError, match="must not be negative"):
+            read_tracks(tmp_path / name)
 
 
 def test_tracks_npy_and_bad_files(tmp_path):
