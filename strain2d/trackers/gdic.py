@@ -499,7 +499,6 @@ def track_gdic(
         ssd = np.maximum(2 * (1 - z), 1e-12) * ref.norm[:, 0] ** 2
         return p, z, ok, sd, infl, ssd, noisy
 
-    quadratic_count = 0
     carried = np.zeros(n, bool)  # matched locally (affine) on the last frame
     last_p = np.zeros((n, 6))
     last_u, last_grad = np.zeros((n, 2)), np.zeros((n, 2, 2))
@@ -509,7 +508,7 @@ def track_gdic(
     visible = [in_frame0.copy()]
     quality = [np.where(in_frame0, 1.0, 0.0)]
     sigma = [np.where(in_frame0, 0.0, np.nan)]
-    local_count = 0
+    local_count = quadratic_count = 0
     state = np.zeros((solver.lattice.n_nodes, 4))
     previous_state = state.copy()
     typical_cost = None
@@ -585,7 +584,6 @@ def track_gdic(
                     take = try_rows[quad]
                     p_loc[take], z_loc[take], s_loc[take] = p2[quad, :6], z2[quad], sd2[quad]
                     ok_loc[take] = True
-                    quadratic_count += int(quad.sum())
                     quadratic[take] = True
         # a local match far from the global field must agree with it within its uncertainty
         gap = np.linalg.norm(p_loc[:, :2] - u, axis=1)
@@ -602,6 +600,7 @@ def track_gdic(
         lit |= _touches(solver.frame_highlights, points + u, half)
         ok_loc &= ~lit
         local_count += int(ok_loc.sum())
+        quadratic_count += int((quadratic & ok_loc).sum())
         local_last = float(ok_loc.mean()) if n else 1.0
         # where a local match failed, the field's own value is reported: after a coarse
         # fit alone that needs the finer levels too (the coarse field is a start, not a

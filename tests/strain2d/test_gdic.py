@@ -211,7 +211,7 @@ def test_points_whose_subsets_leave_a_stretching_frame_keep_the_fine_field():
     seen = tracks.visible[1:]
     d = np.abs(tracks.positions - video.truth.positions(points))[1:][seen]
     assert tracks.visible[:, 4].all() and seen[1:4].sum() >= 20
-    assert d.max() < 0.1  # 0.62 px from the coarse field alone
+    assert d.max() < 0.2  # 0.62 px from the coarse field alone (0.09 measured)
     assert np.all(d <= 3 * tracks.uncertainty[1:][seen][:, None])
 
 
