@@ -170,16 +170,6 @@ def load_specimens(entries: list[dict]) -> list[Specimen]:
     return specimens
 
 
-def _t_interval(d: np.ndarray, confidence: float) -> list[float]:
-    from scipy import stats
-
-    n = d.size
-    if n < 2:
-        return [float("nan"), float("nan")]
-    half = stats.t.ppf(0.5 + confidence / 2, n - 1) * d.std(ddof=1) / math.sqrt(n)
-    return [float(d.mean() - half), float(d.mean() + half)]
-
-
 def specimen_tests(a_means: np.ndarray, b_means: np.ndarray, *, confidence: float = 0.95) -> dict:
     """Paired tests with the specimen as the unit: one mean of ``a`` and ``b`` per specimen.
 
@@ -199,7 +189,7 @@ def specimen_tests(a_means: np.ndarray, b_means: np.ndarray, *, confidence: floa
     out = {
         "n": n,
         "mean_difference": float(d.mean()) if n else float("nan"),
-        "mean_difference_ci": _t_interval(d, confidence),
+        "mean_difference_ci": [float("nan"), float("nan")],
         "confidence": confidence,
         "t": float("nan"),
         "t_p": float("nan"),
@@ -210,8 +200,13 @@ def specimen_tests(a_means: np.ndarray, b_means: np.ndarray, *, confidence: floa
     if n >= 2 and d.std(ddof=1) > 0:
         t = stats.ttest_rel(a[ok], b[ok])
         out.update(
-            t=float(t.statistic), t_p=float(t.pvalue), cohens_dz=float(d.mean() / d.std(ddof=1))
+            t=float(t.statistic),
+            t_p=float(t.pvalue),
+            cohens_dz=float(d.mean() / d.std(ddof=1)),
+            mean_difference_ci=[float(v) for v in t.confidence_interval(confidence)],
         )
+    elif n >= 2:  # every specimen differs by the same amount: the interval is that value
+        out["mean_difference_ci"] = [float(d.mean())] * 2
     if n >= 2 and np.any(d != 0):
         out["wilcoxon_p"] = float(stats.wilcoxon(d[d != 0]).pvalue)
     return out
@@ -284,7 +279,6 @@ def mixed_model(
         return fitted, caught
 
     def terms(result, names: list[str], df: int) -> list[dict]:
-        q = stats.t.ppf(0.5 + confidence / 2, df) if df > 0 else float("nan")
         out = []
         for name, key in names:
             est = unit * float(result["fe"][key])
@@ -300,7 +294,9 @@ def mixed_model(
                     "t_p": float(2 * stats.t.sf(abs(z), df))
                     if math.isfinite(z) and df > 0
                     else float("nan"),
-                    "ci": [est - q * se, est + q * se],
+                    "ci": [float(v) for v in stats.t.interval(confidence, df, loc=est, scale=se)]
+                    if df > 0 and se > 0
+                    else [float("nan"), float("nan")],
                 }
             )
         return out
