@@ -25,6 +25,7 @@ References
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -152,6 +153,9 @@ def paired_node_tests(
         The two components at the same nodes (NaN pairs are left out).
     positions : (N, 2) or (N, 3) float, optional
         Node positions, for Moran's I of the differences.
+    n_boot : int, keyword-only
+        Resamples of the nodes for the percentile bootstrap intervals
+        (:func:`scipy.stats.bootstrap`).
 
     Returns
     -------
@@ -181,28 +185,41 @@ def paired_node_tests(
     t = stats.ttest_rel(x[ok], y[ok]) if spread else None
     nonzero = d[d != 0]
     w_p = float(stats.wilcoxon(nonzero).pvalue) if nonzero.size >= 1 else 1.0
-    gen = np.random.default_rng(rng)
-    idx = gen.integers(0, n, size=(n_boot, n))
-    boot = d[idx]
-    means = boot.mean(axis=1)
-    sds = boot.std(axis=1, ddof=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dz_boot = np.where(sds > _ROUNDOFF * scale, means / sds, np.nan)
-    dz_ci = (
-        [float(np.nanquantile(dz_boot, q)) for q in ((1 - confidence) / 2, (1 + confidence) / 2)]
-        if np.isfinite(dz_boot).any()
-        else [float("nan"), float("nan")]
-    )
-    lo, hi = (1 - confidence) / 2, 1 - (1 - confidence) / 2
+
+    def mean_and_dz(sample: np.ndarray, axis: int = -1) -> np.ndarray:
+        # d_z is undefined (NaN) for a resample without spread beyond round-off
+        mean = sample.mean(axis=axis)
+        sd = sample.std(axis=axis, ddof=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.stack([mean, np.where(sd > _ROUNDOFF * scale, mean / sd, np.nan)])
+
+    with warnings.catch_warnings():
+        # scipy warns when an interval comes out NaN: the d_z interval handled below
+        warnings.simplefilter("ignore", stats.DegenerateDataWarning)
+        boot = stats.bootstrap(
+            (d,),
+            mean_and_dz,
+            n_resamples=n_boot,
+            confidence_level=confidence,
+            method="percentile",
+            rng=np.random.default_rng(rng),
+        )
+    (mean_lo, dz_lo), (mean_hi, dz_hi) = boot.confidence_interval
+    dz_boot = boot.bootstrap_distribution[1]
+    has_dz = np.isfinite(dz_boot)
+    if has_dz.any() and not has_dz.all():
+        # a handful of nodes: some resamples repeat one value; take the interval over the rest
+        tail = (1 - confidence) / 2
+        dz_lo, dz_hi = np.nanquantile(dz_boot, [tail, 1 - tail])
     result = {
         "n": n,
         "mean_difference": float(d.mean()),
-        "mean_difference_ci": [float(np.quantile(means, lo)), float(np.quantile(means, hi))],
+        "mean_difference_ci": [float(mean_lo), float(mean_hi)],
         "t": float(t.statistic) if sd > 0 else float("nan"),
         "t_p": float(t.pvalue) if sd > 0 else float("nan"),
         "wilcoxon_p": w_p,
         "cohens_dz": float(d.mean() / sd) if sd > 0 else float("nan"),
-        "cohens_dz_ci": dz_ci,
+        "cohens_dz_ci": [float(dz_lo), float(dz_hi)],
         "confidence": confidence,
         "note": (
             "node-level tests: the nodes of one specimen are treated as independent samples, "
