@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 
 from mpm3d.errors import InputError
-from tissue_core.cli import ArgumentParser as _Parser
+from tissue_core.cli import CommandLine
 
 __all__ = ["main"]
 
@@ -78,20 +78,16 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-surface", action="store_true", help="skip the isosurface mesh")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-    p.add_argument("-v", "--verbose", action="store_true", help="log details")
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="mpm3d", description="Multiphoton z-stacks to the lumen surface and its folds."
+def _build_parser() -> CommandLine:
+    cli = CommandLine("mpm3d", "Multiphoton z-stacks to the lumen surface and its folds.")
+    p = cli.command(
+        "analyze", _cmd_analyze, help="measure the lumen surface and folds of one stack"
     )
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    p = sub.add_parser("analyze", help="measure the lumen surface and folds of one stack")
     p.add_argument("stack", help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF")
     _common(p)
-    p.set_defaults(handler=_cmd_analyze)
-    p = sub.add_parser("compare", help="compare two stacks (before / after)")
+    p = cli.command("compare", _cmd_compare, help="compare two stacks (before / after)")
     p.add_argument("before", help="the first stack (e.g. before contraction)")
     p.add_argument("after", help="the second stack")
     p.add_argument(
@@ -101,8 +97,7 @@ def _build_parser() -> argparse.ArgumentParser:
         help="refine the alignment by ICP with open3d (auto: when installed)",
     )
     _common(p)
-    p.set_defaults(handler=_cmd_compare)
-    return parser
+    return cli
 
 
 def _options(args) -> dict:

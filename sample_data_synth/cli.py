@@ -50,17 +50,14 @@ from sample_data_synth.stereo import (
     save_stereo_scene,
 )
 from sample_data_synth.tissue import TISSUE_CASES, make_tissue_case
-from tissue_core.cli import ArgumentParser as _Parser
+from tissue_core.cli import CommandLine
 from tissue_core.outputs import atomic_dir
 from tissue_core.progress import Progress
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="sample_data_synth", description="Synthetic videos and z-stacks with ground truth."
-    )
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    p = sub.add_parser("video", help="render benchmark videos with ground truth")
+def _build_parser() -> CommandLine:
+    cli = CommandLine("sample_data_synth", "Synthetic videos and z-stacks with ground truth.")
+    p = cli.command("video", _cmd_video, help="render benchmark videos with ground truth")
     p.add_argument(
         "--case",
         default="equibiaxial",
@@ -82,9 +79,9 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    p.set_defaults(handler=_cmd_video)
-    p = sub.add_parser("stack", help="render MPM z-stacks of a folded lumen with ground truth")
+    p = cli.command(
+        "stack", _cmd_stack, help="render MPM z-stacks of a folded lumen with ground truth"
+    )
     p.add_argument(
         "--case",
         default="pair",
@@ -102,10 +99,10 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    p.set_defaults(handler=_cmd_stack)
-    p = sub.add_parser(
-        "stereo", help="render stereo calibration views and deforming surfaces with ground truth"
+    p = cli.command(
+        "stereo",
+        _cmd_stereo,
+        help="render stereo calibration views and deforming surfaces with ground truth",
     )
     p.add_argument(
         "--case",
@@ -125,10 +122,8 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    p.set_defaults(handler=_cmd_stereo)
-    p = sub.add_parser(
-        "study", help="render a multi-specimen contraction study with known anisotropy"
+    p = cli.command(
+        "study", _cmd_study, help="render a multi-specimen contraction study with known anisotropy"
     )
     p.add_argument("--size", type=int, default=352, help="frame width and height in px (352)")
     p.add_argument("--frames", type=int, default=25, help="frames per video (25)")
@@ -143,10 +138,8 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    p.set_defaults(handler=_cmd_study)
-    sub.add_parser("list", help="list the cases").set_defaults(handler=_cmd_list)
-    return parser
+    cli.command("list", _cmd_list, help="list the cases")
+    return cli
 
 
 def _seed(text: str) -> int:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tissue_core.cli import ArgumentParser
+from tissue_core.cli import CommandLine
 from tissue_core.errors import InputError, SourceError
 
 __all__ = ["main"]
@@ -127,11 +127,10 @@ def _say(args):
     return Progress(quiet=args.quiet)
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = ArgumentParser(prog="stereo", description="Stereo calibration and 3D point tracks.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=ArgumentParser)
+def _build_parser() -> CommandLine:
+    cli = CommandLine("stereo", "Stereo calibration and 3D point tracks.")
 
-    p = sub.add_parser("calibrate", help="calibrate a camera pair from target images")
+    p = cli.command("calibrate", _cmd_calibrate, help="calibrate a camera pair from target images")
     p.add_argument("--left", required=True, help="left images: a glob pattern or a folder")
     p.add_argument("--right", required=True, help="right images: a glob pattern or a folder")
     p.add_argument(
@@ -146,18 +145,18 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, help="calibration JSON to write")
     _common(p)
-    p.set_defaults(handler=_cmd_calibrate)
 
-    p = sub.add_parser("import-calib", help="convert OpenCV YAML/XML calibration files to JSON")
+    p = cli.command(
+        "import-calib", _cmd_import, help="convert OpenCV YAML/XML calibration files to JSON"
+    )
     p.add_argument(
         "files", nargs="+", help="OpenCV FileStorage files (e.g. intrinsics, extrinsics)"
     )
     p.add_argument("--unit", default="mm", help="unit of T (default mm)")
     p.add_argument("--out", required=True, help="calibration JSON to write")
     _common(p)
-    p.set_defaults(handler=_cmd_import)
 
-    p = sub.add_parser("match", help="find points of the left image in the right image")
+    p = cli.command("match", _cmd_match, help="find points of the left image in the right image")
     p.add_argument("left_image")
     p.add_argument("right_image")
     p.add_argument("--points", required=True, help="CSV with columns x,y (left image, px)")
@@ -165,9 +164,10 @@ def _build_parser() -> argparse.ArgumentParser:
     _match_args(p)
     p.add_argument("--out", required=True, help="CSV to write")
     _common(p)
-    p.set_defaults(handler=_cmd_match)
 
-    p = sub.add_parser("reconstruct", help="track a grid in both videos and triangulate it")
+    p = cli.command(
+        "reconstruct", _cmd_reconstruct, help="track a grid in both videos and triangulate it"
+    )
     p.add_argument("--calib", nargs="+", required=True, help="calibration (JSON or OpenCV YAML)")
     p.add_argument("--left", nargs="+", required=True, help="left video, TIFF, folder or images")
     p.add_argument("--right", nargs="+", required=True, help="right video, TIFF, folder or images")
@@ -200,8 +200,7 @@ def _build_parser() -> argparse.ArgumentParser:
     _match_args(p)
     p.add_argument("--out", required=True, help="output folder")
     _common(p)
-    p.set_defaults(handler=_cmd_reconstruct)
-    return parser
+    return cli
 
 
 def _match_args(p: argparse.ArgumentParser) -> None:
@@ -219,8 +218,6 @@ def _match_args(p: argparse.ArgumentParser) -> None:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-    p.add_argument("-v", "--verbose", action="store_true", help="log details")
 
 
 def _folders(*patterns: str) -> list[str]:

@@ -42,11 +42,6 @@ _TRACKER_FLAGS = {
 }
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit 2
-        self.exit(2, f"{self.prog}: error: {message}\n")
-
-
 def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "source",
@@ -159,25 +154,22 @@ def _add_points_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(
-        prog="strain2d",
-        description="Track virtual grid points in a video and compute the strain field.",
-    )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress output")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log details")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+def _build_parser():
+    from tissue_core.cli import CommandLine
 
-    p = sub.add_parser("track", help="track points and write TRACKS.csv")
+    cli = CommandLine(
+        "strain2d", "Track virtual grid points in a video and compute the strain field."
+    )
+    p = cli.command("track", _cmd_track, help="track points and write TRACKS.csv")
     _add_source_args(p)
     _add_points_args(p)
     _add_tracker_args(p)
     p.add_argument("--out", required=True, help="output CSV: frame,point,x,y,visible,quality")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    p.set_defaults(handler=_cmd_track)
 
-    p = sub.add_parser("analyze", help="track a grid and write strain tables, figures, VTK")
+    p = cli.command(
+        "analyze", _cmd_analyze, help="track a grid and write strain tables, figures, VTK"
+    )
     _add_source_args(p)
     _add_points_args(p)
     _add_tracker_args(p)
@@ -231,10 +223,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.set_defaults(handler=_cmd_analyze)
 
-    p = sub.add_parser(
+    p = cli.command(
         "study",
+        _cmd_study,
         help="combine analyze runs (specimens) into study figures, tests and a report",
         description="Combine analyze output folders: Fig. 14/15-style panels for all "
         "specimens, specimen-level paired tests, a mixed-effects model with the specimen as "
@@ -259,9 +251,10 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.set_defaults(handler=_cmd_study)
 
-    p = sub.add_parser("benchmark", help="reproduce the paper's Table 1 on synthetic videos")
+    p = cli.command(
+        "benchmark", _cmd_benchmark, help="reproduce the paper's Table 1 on synthetic videos"
+    )
     p.add_argument("--quick", action="store_true", help="400x400 px, 11 frames (for tests)")
     p.add_argument(
         "--cases",
@@ -279,8 +272,7 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", required=True, help="output folder (benchmark.json, benchmark.md)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.set_defaults(handler=_cmd_benchmark)
-    return parser
+    return cli
 
 
 def _progress(args):

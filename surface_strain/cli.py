@@ -10,7 +10,6 @@ with one line on stderr and exit status 2.
 
 from __future__ import annotations
 
-import argparse
 import json
 import warnings
 from datetime import UTC, datetime
@@ -23,11 +22,6 @@ __all__ = ["main"]
 
 class UsageError(ValueError):
     """A bad option or input, reported as one line."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:
-        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
 def _vector(text: str, what: str) -> np.ndarray:
@@ -64,10 +58,13 @@ def parse_directions(text: str) -> dict:
     return {"directions": "cylindrical" if kind == "cylinder" else "spherical", "axis": (a, b)}
 
 
-def _build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="surface_strain", description="Membrane strain on tracked surfaces.")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    p = sub.add_parser("compute", help="strain per triangle and node from 3D point tracks")
+def _build_parser():
+    from tissue_core.cli import CommandLine
+
+    cli = CommandLine("surface_strain", "Membrane strain on tracked surfaces.")
+    p = cli.command(
+        "compute", _cmd_compute, help="strain per triangle and node from 3D point tracks"
+    )
     p.add_argument(
         "points", help="CSV with frame,point,X,Y,Z[,visible] (e.g. stereo's points3d.csv)"
     )
@@ -90,10 +87,7 @@ def _build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress messages")
-    p.add_argument("-v", "--verbose", action="store_true", help="log details")
-    p.set_defaults(handler=_cmd_compute)
-    return parser
+    return cli
 
 
 def _stereo_summary(points_path: Path) -> dict:

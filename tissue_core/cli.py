@@ -14,6 +14,10 @@ the same behaviour:
   are one line each, ``PROG COMMAND: warning: ...``; numerical warnings
   (``RuntimeWarning`` and the like) go to the log, shown with ``-v``;
 * the command line is recorded in the marker of every result folder.
+
+:class:`CommandLine` builds every package's parser the same way: the global
+options ``--version``, ``-q/--quiet`` and ``-v/--verbose`` are accepted
+before or after the command's name, and ``-q`` with ``-v`` is refused.
 """
 
 from __future__ import annotations
@@ -33,7 +37,7 @@ from tissue_core.interrupt import (
 from tissue_core.outputs import recorded_command, written
 from tissue_core.progress import close_open_lines
 
-__all__ = ["ArgumentParser", "one_line", "run_command", "run_module"]
+__all__ = ["ArgumentParser", "CommandLine", "one_line", "run_command", "run_module"]
 
 log = logging.getLogger(__name__)
 
@@ -43,6 +47,65 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message: str) -> None:
         self.exit(2, f"{self.prog}: error: {one_line(message)}\n")
+
+
+class CommandLine:
+    """A package's command line: its parser, subcommands and global options.
+
+    Parameters
+    ----------
+    prog : str
+        The program's name (``"strain2d"``), as ``python -m PROG`` and the
+        console script are called.
+    description : str
+        One sentence for ``--help``.
+
+    Examples
+    --------
+    >>> cli = CommandLine("demo", "A demonstration.")
+    >>> p = cli.command("run", lambda args: 0, help="run it")
+    >>> _ = p.add_argument("--out")
+    >>> args = cli.parse_args(["run", "-q", "--out", "x"])
+    >>> (args.command, args.quiet, args.verbose, args.out)
+    ('run', True, False, 'x')
+    """
+
+    def __init__(self, prog: str, description: str) -> None:
+        self.prog = prog
+        self.parser = ArgumentParser(prog=prog, description=description)
+        self._add_global_options(self.parser, default=False)
+        self._sub = self.parser.add_subparsers(
+            dest="command", required=True, parser_class=ArgumentParser
+        )
+
+    def command(self, name: str, handler, **kwargs) -> argparse.ArgumentParser:
+        """Add the subcommand ``name`` run by ``handler(args) -> int``; returns its parser.
+
+        ``kwargs`` go to ``add_parser`` (``help``, ``description``).
+        """
+        p = self._sub.add_parser(name, **kwargs)
+        # SUPPRESS: a global option not repeated after the command keeps the value given
+        # before it
+        self._add_global_options(p, default=argparse.SUPPRESS)
+        p.set_defaults(handler=handler)
+        return p
+
+    def parse_args(self, argv: list[str] | None = None) -> argparse.Namespace:
+        """Parse ``argv``; conflicting global options end as a usage error."""
+        args = self.parser.parse_args(argv)
+        if args.quiet and args.verbose:
+            self.parser.error("-q/--quiet and -v/--verbose cannot be used together")
+        return args
+
+    def _add_global_options(self, p: argparse.ArgumentParser, *, default) -> None:
+        from tissue_core.version import __version__
+
+        g = p.add_argument_group("global options (before or after the command)")
+        g.add_argument("--version", action="version", version=f"{self.prog} {__version__}")
+        g.add_argument(
+            "-q", "--quiet", action="store_true", default=default, help="no progress output"
+        )
+        g.add_argument("-v", "--verbose", action="store_true", default=default, help="log details")
 
 
 def one_line(message: object) -> str:
@@ -64,7 +127,7 @@ def _show_warning(prefix: str):
 
 def run_command(
     prog: str,
-    parser: argparse.ArgumentParser,
+    parser: argparse.ArgumentParser | CommandLine,
     argv: list[str] | None = None,
     *,
     errors: tuple[type[BaseException], ...] = (),
@@ -75,7 +138,7 @@ def run_command(
     ----------
     prog : str
         The program's name, e.g. ``"strain2d"``.
-    parser : argparse.ArgumentParser
+    parser : CommandLine or argparse.ArgumentParser
         Its subcommands set ``command`` and ``handler`` (a function of the
         parsed arguments returning the exit status); ``verbose`` turns on
         INFO logging.
