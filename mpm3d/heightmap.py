@@ -143,7 +143,15 @@ def otsu_threshold(values: np.ndarray, *, bins: int = 1024) -> float:
     """Otsu's threshold: the level that maximizes the between-class variance.
 
     N. Otsu, IEEE Trans. Syst. Man Cybern. 9 (1979) 62-66,
-    doi:10.1109/TSMC.1979.4310076; computed on a ``bins``-bin histogram.
+    doi:10.1109/TSMC.1979.4310076; :func:`skimage.filters.threshold_otsu` on a
+    ``bins``-bin histogram of ``values`` over their range.
+
+    Returns
+    -------
+    float
+        The boundary between the classes: the upper edge of the darker
+        class's last bin, so that values below it are the darker class
+        (skimage reports that bin's centre, half a bin lower).
 
     Examples
     --------
@@ -151,19 +159,16 @@ def otsu_threshold(values: np.ndarray, *, bins: int = 1024) -> float:
     >>> bool(10 < otsu_threshold(v) < 200)
     True
     """
+    from skimage.filters import threshold_otsu
+
     v = np.asarray(values, np.float64).ravel()
     lo, hi = float(v.min()), float(v.max())
     if lo == hi:
         return lo
     counts, edges = np.histogram(v, bins=bins, range=(lo, hi))
-    centres = 0.5 * (edges[:-1] + edges[1:])
-    w0 = np.cumsum(counts)[:-1].astype(np.float64)
-    w1 = v.size - w0
-    s0 = np.cumsum(counts * centres)[:-1]
-    m0 = s0 / np.maximum(w0, 1)
-    m1 = (float((counts * centres).sum()) - s0) / np.maximum(w1, 1)
-    between = w0 * w1 * (m0 - m1) ** 2
-    return float(edges[1:-1][int(np.argmax(between))])
+    # each bin valued at its upper edge: the class means shift by half a bin
+    # together, the split is the same, and the level returned is the boundary
+    return float(threshold_otsu(hist=(counts, edges[1:])))
 
 
 def height_map(
