@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import json
 import logging
 import os
 from collections.abc import Callable, Iterator, Sequence
@@ -32,6 +31,7 @@ from mpm3d.errors import InputError
 from mpm3d.heightmap import HeightMap, height_map
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
+from tissue_core.jsonio import write_json
 
 __all__ = ["Analysis", "analyze_stack", "write_analysis"]
 
@@ -207,19 +207,6 @@ def _write_table(path: Path, table: dict) -> None:
             w.writerow([f"{v:.6g}" if isinstance(v, float | np.floating) else v for v in row])
 
 
-def _clean(value):
-    """JSON-safe: NaN and infinity become null, numpy scalars plain numbers."""
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
-
-
 def _save_vtp(mesh, path: Path) -> None:
     """XML PolyData, binary, LZ4-compressed (fast to write, read by ParaView 5.6+)."""
     from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
@@ -239,9 +226,7 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
 
     folder = Path(folder)
     hm = analysis.heightmap
-    with open(folder / "metrics.json", "w", encoding="utf-8") as f:
-        json.dump(_clean(analysis.metrics), f, indent=2)
-        f.write("\n")
+    write_json(folder / "metrics.json", analysis.metrics)
     _write_table(folder / "folds.csv", analysis.folds.folds)
     _write_table(folder / "crests.csv", analysis.folds.crests)
     _, dy, dx = hm.spacing

@@ -15,7 +15,6 @@ extra); every metric's change is reported.  It writes::
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import math
 import os
@@ -25,8 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from mpm3d.analyze import Analysis, _clean, analyze_stack, write_analysis
+from mpm3d.analyze import Analysis, analyze_stack, write_analysis
 from mpm3d.errors import InputError, SourceError
+from tissue_core.jsonio import write_json
 
 __all__ = [
     "align_heightmaps",
@@ -322,9 +322,7 @@ def write_comparison(
     for name, analysis in (("before", first), ("after", second)):
         (folder / name).mkdir()
         write_analysis(analysis, folder / name, figures=figures)
-    with open(folder / "compare.json", "w", encoding="utf-8") as f:
-        json.dump(_clean(report), f, indent=2)
-        f.write("\n")
+    write_json(folder / "compare.json", report)
     with open(folder / "changes.csv", "w", newline="", encoding="utf-8") as f:
         w = csv.DictWriter(f, fieldnames=["metric", "before", "after", "change", "ratio"])
         w.writeheader()

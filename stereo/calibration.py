@@ -50,7 +50,6 @@ __all__ = [
     "detect_board",
     "load_calibration",
     "parse_board",
-    "strict_json",
 ]
 
 log = logging.getLogger(__name__)
@@ -433,32 +432,9 @@ class Calibration:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write the calibration as strict JSON (non-finite numbers in ``extra`` as null)."""
-        with open(path, "w", encoding="utf-8") as f:
-            json.dump(strict_json(self.to_dict()), f, indent=2, allow_nan=False)
-            f.write("\n")
+        from tissue_core.jsonio import write_json
 
-
-def strict_json(value):
-    """``value`` with every non-finite float replaced by None, so that it is valid JSON.
-
-    Examples
-    --------
-    >>> strict_json({"a": [1.0, float("nan")], "b": float("inf"), "c": "x"})
-    {'a': [1.0, None], 'b': None, 'c': 'x'}
-    """
-    if isinstance(value, dict):
-        return {k: strict_json(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [strict_json(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return strict_json(value.tolist())
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
+        write_json(path, self.to_dict())
 
 
 def _node_value(node):

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import csv
 import glob
-import json
 import math
 import re
 from datetime import UTC, datetime
@@ -360,7 +359,7 @@ def _check_reconstruct_options(args) -> None:
         raise InputError(f"--max-reproj must be a positive number of pixels, got {args.max_reproj}")
     _check_match_options(args)
     if args.strain:
-        from surface_strain.cli import parse_directions
+        from surface_strain import parse_directions
 
         parse_directions(args.directions or "xy")
 
@@ -388,9 +387,9 @@ def _source_name(source) -> str:
 
 
 def _cmd_reconstruct(args) -> int:
-    from stereo.calibration import strict_json
     from stereo.reconstruct import reconstruct
     from strain2d.frames import open_frames
+    from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, check_writable
     from tissue_core.version import __version__
 
@@ -488,26 +487,20 @@ def _cmd_reconstruct(args) -> int:
             },
             "match": rec.meta["match"],
         }
-        with open(tmp / "summary.json", "w", encoding="utf-8") as f:
-            json.dump(strict_json(summary), f, indent=2, allow_nan=False)
-            f.write("\n")
+        write_json(tmp / "summary.json", summary)
         if args.strain:
-            from surface_strain.cli import write_strain_folder
-            from surface_strain.mesh import delaunay_triangles, grid_triangles
+            from surface_strain import choose_mesh, write_run
 
             say("computing strain")
-            if not args.points:
-                cols, rows = point_info["grid"]
-                triangles, how = grid_triangles(rows, cols), f"grid {cols}x{rows}"
-            else:
-                triangles, how = delaunay_triangles(rec.points[0]), "Delaunay"
+            usable = rec.visible[0] & np.isfinite(rec.points[0]).all(axis=1)
+            grid = None if args.points else tuple(point_info["grid"])
+            mesh = choose_mesh(rec.points[0], usable, grid=grid)
             (tmp / "strain").mkdir()
-            write_strain_folder(
+            write_run(
                 tmp / "strain",
                 rec.points,
                 rec.visible,
-                triangles,
-                mesh_method=how,
+                mesh,
                 directions=directions,
                 unit=calib.unit,
                 source="points3d.csv",
@@ -524,11 +517,9 @@ def _cmd_reconstruct(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from surface_strain.cli import UsageError
-    from surface_strain.io import PointsError
     from tissue_core.cli import run_command
 
-    return run_command("stereo", _build_parser(), argv, errors=(UsageError, PointsError))
+    return run_command("stereo", _build_parser(), argv)
 
 
 def entry() -> None:

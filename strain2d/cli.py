@@ -415,7 +415,6 @@ def _cmd_analyze(args) -> int:
     import numpy as np
 
     from strain2d.export import (
-        write_json,
         write_pvd,
         write_strain_elements_csv,
         write_strain_nodes_csv,
@@ -424,6 +423,7 @@ def _cmd_analyze(args) -> int:
     from strain2d.pipeline import strain_from_tracks
     from strain2d.report import parse_formats, run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
+    from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, check_writable
 
     t_start = time.perf_counter()
@@ -609,7 +609,7 @@ def _cmd_benchmark(args) -> int:
         run_sweep,
         sweep_markdown,
     )
-    from strain2d.export import write_json
+    from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, check_writable
 
     if args.seed < 0:

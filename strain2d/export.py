@@ -20,7 +20,6 @@ top-left pixel at (0, 0)); strains are Green-Lagrange, dimensionless;
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -31,7 +30,6 @@ from surface_strain import StrainField, element_scalars, nodal_scalars
 __all__ = [
     "ELEMENT_COLUMNS",
     "NODE_COLUMNS",
-    "write_json",
     "write_pvd",
     "write_strain_elements_csv",
     "write_strain_nodes_csv",
@@ -117,26 +115,3 @@ def write_pvd(
     from surface_strain.export import write_pvd as write_series
 
     return write_series(folder, field, name=name, times=times)
-
-
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return _jsonable(obj.item())
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
-
-
-def write_json(path: str | os.PathLike, data: dict) -> None:
-    """Write ``data`` as indented JSON (NumPy values converted, NaN as null)."""
-    with open(path, "w") as f:
-        json.dump(_jsonable(data), f, indent=2)
-        f.write("\n")

@@ -12,7 +12,7 @@ from strain2d.errors import InputError, PointsLeftOutWarning
 from strain2d.grid import validate_points
 from strain2d.trackers import get_tracker
 from strain2d.tracks import Tracks
-from surface_strain import StrainField, compute_strain, delaunay_triangles, grid_triangles
+from surface_strain import StrainField, choose_mesh, compute_strain
 
 __all__ = ["Analysis", "analyze", "strain_from_tracks", "track"]
 
@@ -120,18 +120,8 @@ def strain_from_tracks(
     that frame (NaN) and out of the nodal averages.
     """
     reference = validate_points(tracks.reference)
-    if triangles is None and grid_shape is not None:
-        n_cols, n_rows = grid_shape
-        if n_cols * n_rows != tracks.n_points:
-            raise InputError(
-                f"a {n_cols}x{n_rows} grid needs {n_cols * n_rows} points, got {tracks.n_points}"
-            )
-        triangles = grid_triangles(n_rows, n_cols)
     if triangles is None:
-        try:
-            triangles = delaunay_triangles(reference, min_quality=min_triangle_quality)
-        except ValueError as exc:
-            raise InputError(str(exc)) from None
+        triangles = choose_mesh(reference, grid=grid_shape, min_quality=min_triangle_quality)[0]
     return compute_strain(reference, tracks.positions, triangles, visible=tracks.visible)
 
 

@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 
 from strain2d.errors import InputError
-from strain2d.export import write_json
 from strain2d.html import HtmlReport
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
 from surface_strain import StrainField, nodal_scalars
+from tissue_core.jsonio import write_json
 
 __all__ = [
     "FIGURE_FORMATS",
@@ -689,7 +689,6 @@ def write_study(
     from datetime import UTC, datetime
 
     from strain2d import __version__
-    from strain2d.export import write_json
     from strain2d.study import load_specimens, plain_summary, study_statistics
     from tissue_core.outputs import atomic_dir, check_writable
 

@@ -51,5 +51,12 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "triangle_quality",
         ],
         "surface_strain.nodal": ["nodal_average", "nodal_axes"],
+        "surface_strain.run": [
+            "RUN_SCHEMA",
+            "Mesh",
+            "choose_mesh",
+            "parse_directions",
+            "write_run",
+        ],
     },
 )

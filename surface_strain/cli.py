@@ -11,51 +11,14 @@ with one line on stderr and exit status 2.
 from __future__ import annotations
 
 import json
-import warnings
-from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
+from surface_strain.run import parse_directions, write_run
+from tissue_core.errors import InputError
+
 __all__ = ["main"]
-
-
-class UsageError(ValueError):
-    """A bad option or input, reported as one line."""
-
-
-def _vector(text: str, what: str) -> np.ndarray:
-    try:
-        v = np.array([float(t) for t in text.split(",")])
-    except ValueError:
-        raise UsageError(f"{what} must be three numbers X,Y,Z, got {text!r}") from None
-    if v.shape != (3,) or not np.isfinite(v).all():
-        raise UsageError(f"{what} must be three finite numbers X,Y,Z, got {text!r}")
-    return v
-
-
-def parse_directions(text: str) -> dict:
-    """Keyword arguments of :func:`compute_strain` for ``--directions``.
-
-    ``xy`` (default): global X and Y.  ``vectors:AX,AY,AZ:BX,BY,BZ``: two
-    constant directions.  ``cylinder:PX,PY,PZ:AX,AY,AZ``: axial and
-    circumferential about the axis through P along A.
-    ``sphere:PX,PY,PZ:AX,AY,AZ``: meridional and circumferential about it.
-    """
-    parts = text.split(":")
-    kind = parts[0].lower()
-    usage = (
-        "--directions must be xy, vectors:AX,AY,AZ:BX,BY,BZ, cylinder:PX,PY,PZ:AX,AY,AZ "
-        f"or sphere:PX,PY,PZ:AX,AY,AZ, got {text!r}"
-    )
-    if kind == "xy" and len(parts) == 1:
-        return {}
-    if kind not in ("vectors", "cylinder", "sphere") or len(parts) != 3:
-        raise UsageError(usage)
-    a, b = _vector(parts[1], f"{kind} first vector"), _vector(parts[2], f"{kind} second vector")
-    if kind == "vectors":
-        return {"directions": np.stack([a, b])}
-    return {"directions": "cylindrical" if kind == "cylinder" else "spherical", "axis": (a, b)}
 
 
 def _build_parser():
@@ -100,31 +63,32 @@ def _stereo_summary(points_path: Path) -> dict:
         return {}
 
 
-def mesh_for(
-    points: np.ndarray, visible: np.ndarray, args, summary: dict
-) -> tuple[np.ndarray, str]:
-    """Triangles for the reference points and how they were made."""
-    from surface_strain.io import read_triangles
-    from surface_strain.mesh import delaunay_triangles, grid_triangles
+def _grid(text: str) -> tuple[int, int]:
+    try:
+        cols, rows = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--grid must be COLSxROWS, got {text!r}") from None
+    return cols, rows
 
-    n = points.shape[1]
-    given = [flag for flag, value in (("--triangles", args.triangles), ("--grid", args.grid),
-             ("--projection", getattr(args, "projection", None))) if value]  # fmt: skip
-    if len(given) > 1:
-        raise UsageError(
-            f"{' and '.join(given)} each choose the mesh: give one of them "
+
+def _mesh(points: np.ndarray, visible: np.ndarray, args, summary: dict):
+    """The mesh --triangles, --grid or --projection ask for; else the grid stereo recorded,
+    else Delaunay."""
+    from surface_strain.io import read_triangles
+    from surface_strain.run import choose_mesh
+
+    flags = [flag for flag, value in (("--triangles", args.triangles), ("--grid", args.grid),
+             ("--projection", args.projection)) if value]  # fmt: skip
+    if len(flags) > 1:
+        raise InputError(
+            f"{' and '.join(flags)} each choose the mesh: give one of them "
             "(--projection applies to the Delaunay mesh of scattered points)"
         )
     if args.triangles:
-        return read_triangles(args.triangles, n), f"given ({Path(args.triangles).name})"
-    grid = None
-    if args.grid:
-        try:
-            cols, rows = (int(v) for v in args.grid.lower().split("x"))
-        except ValueError:
-            raise UsageError(f"--grid must be COLSxROWS, got {args.grid!r}") from None
-        grid = (cols, rows)
-    elif not getattr(args, "projection", None):  # an explicit --projection asks for Delaunay
+        triangles = read_triangles(args.triangles, points.shape[1])
+        return choose_mesh(points[0], triangles=triangles, source=Path(args.triangles).name)
+    grid = _grid(args.grid) if args.grid else None
+    if grid is None and not args.projection:  # an explicit --projection asks for Delaunay
         info = summary.get("points") if isinstance(summary, dict) else None
         given = info.get("grid") if isinstance(info, dict) else None
         if isinstance(given, list) and len(given) == 2:
@@ -132,112 +96,7 @@ def mesh_for(
                 grid = (int(given[0]), int(given[1]))
             except (TypeError, ValueError):
                 grid = None
-    if grid is not None:
-        cols, rows = grid
-        if cols < 2 or rows < 2:
-            raise UsageError(f"a grid needs at least 2 x 2 points, got {cols}x{rows}")
-        if cols * rows != n:
-            raise UsageError(f"a {cols}x{rows} grid has {cols * rows} points, the file has {n}")
-        return grid_triangles(rows, cols), f"grid {cols}x{rows}, alternating diagonals"
-    ref = points[0]
-    ok = visible[0]
-    if ok.sum() < 3:
-        raise UsageError("fewer than 3 points are visible on the reference frame")
-    projection = getattr(args, "projection", None) or "plane"
-    try:
-        tri_ok = delaunay_triangles(ref[ok], projection=projection)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
-    index = np.flatnonzero(ok)
-    return index[tri_ok], f"Delaunay on the best-fit {projection}"
-
-
-def write_strain_folder(
-    folder: Path,
-    points: np.ndarray,
-    visible: np.ndarray,
-    triangles: np.ndarray,
-    *,
-    mesh_method: str,
-    directions: str = "xy",
-    unit: str = "mm",
-    fps: float | None = None,
-    figures: bool = True,
-    source: str = "",
-):
-    """Compute strain on 3D tracks and write every result file into ``folder`` (exists).
-
-    Used by ``python -m surface_strain compute`` and ``python -m stereo
-    reconstruct --strain``.  Returns the :class:`StrainField`.
-    """
-    from surface_strain import __version__
-    from surface_strain.export import write_elements_csv, write_nodes_csv, write_pvd
-    from surface_strain.field import compute_strain, nodal_scalars
-
-    # points lost on the reference frame have no reference position: their triangles go,
-    # they keep a placeholder position (tied to no triangle) and stay lost in every frame
-    lost = ~(visible[0] & np.isfinite(points[0]).all(axis=1))
-    triangles = np.asarray(triangles)[~lost[np.asarray(triangles)].any(axis=1)]
-    if len(triangles) == 0:
-        raise UsageError("no triangle has all three points visible on the reference frame")
-    if lost.any():
-        index = np.flatnonzero(lost)
-        named = ", ".join(str(i) for i in index[:5]) + (" ..." if index.size > 5 else "")
-        warnings.warn(
-            f"{index.size} of {lost.size} points are lost (not visible, or NaN) on the "
-            f"reference frame and are left out of the mesh: point(s) {named}",
-            UserWarning,
-            stacklevel=2,
-        )
-    reference = points[0].copy()
-    if lost.any():
-        reference[lost] = reference[~lost].mean(axis=0)
-        visible = visible & ~lost[None, :]
-    try:
-        field = compute_strain(
-            reference, points, triangles, visible=visible, **parse_directions(directions)
-        )
-    except ValueError as exc:
-        if isinstance(exc, UsageError):
-            raise
-        raise UsageError(str(exc)) from None
-    times = np.arange(field.n_frames) / fps if fps else np.arange(field.n_frames, dtype=float)
-    if not np.isfinite(times).all():
-        raise UsageError(f"--fps {fps} gives non-finite times")
-    node = nodal_scalars(field)
-    write_nodes_csv(folder / "strain_nodes.csv", field)
-    write_elements_csv(folder / "strain_elements.csv", field)
-    write_pvd(folder, field, name="strain", times=times)
-    last = field.n_frames - 1
-    if figures:
-        from surface_strain.figures import plot_strain_curves, plot_strain_violins, render_strain
-
-        (folder / "figures").mkdir()
-        for key in ("E1", "E2", "Exx", "Eyy"):
-            render_strain(field, folder / "figures" / f"{key}_frame{last:04d}.png", key=key,
-                          frame=last, unit=unit)  # fmt: skip
-        plot_strain_curves(field, times=times, fps=fps).savefig(
-            folder / "figures" / "strain_over_time.png"
-        )
-        plot_strain_violins(field).savefig(folder / "figures" / f"violins_frame{last:04d}.png")
-    mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
-                for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
-    summary = {
-        "software": {"name": "surface_strain", "version": __version__},
-        "created": datetime.now(UTC).isoformat(timespec="seconds"),
-        "input": source,
-        "unit": unit,
-        "frames": field.n_frames,
-        "points": field.n_points,
-        "mesh": {"method": mesh_method, "n_triangles": field.n_triangles},
-        "directions": directions,
-        "strain": "Green-Lagrange membrane strain; Exx, Eyy, Exy in the directions' frame",
-        "nodal_mean_per_frame": mean,
-    }
-    with open(folder / "summary.json", "w", encoding="utf-8") as f:
-        json.dump(summary, f, indent=2, allow_nan=False, default=str)
-        f.write("\n")
-    return field
+    return choose_mesh(points[0], visible[0], grid=grid, projection=args.projection)
 
 
 def _inputs(args) -> list[Path]:
@@ -254,21 +113,20 @@ def _cmd_compute(args) -> int:
 
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
-        raise UsageError(f"--fps must be a positive number, got {args.fps}")
+        raise InputError(f"--fps must be a positive number, got {args.fps}")
     parse_directions(args.directions)  # fail before the work
     say = Progress(quiet=args.quiet)
     points, visible = read_points3d(args.points)
     say(f"{args.points}: {points.shape[1]} points over {points.shape[0]} frames")
     summary_in = _stereo_summary(Path(args.points))
     unit = args.unit or summary_in.get("unit") or "mm"
-    triangles, how = mesh_for(points, visible, args, summary_in)
+    mesh = _mesh(points, visible, args, summary_in)
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
-        field = write_strain_folder(
+        field = write_run(
             tmp,
             points,
             visible,
-            triangles,
-            mesh_method=how,
+            mesh,
             directions=args.directions,
             unit=unit,
             fps=args.fps,
@@ -278,7 +136,7 @@ def _cmd_compute(args) -> int:
     e1 = nodal_scalars(field)["E1"][-1]
     e1_mean = f"{np.nanmean(e1):.4f}" if np.isfinite(e1).any() else "- (no valid node)"
     say(
-        f"{field.n_points} points, {field.n_triangles} triangles ({how}), "
+        f"{field.n_points} points, {field.n_triangles} triangles ({mesh.description}), "
         f"{field.n_frames} frames; last frame E1 mean {e1_mean}"
     )
     say(f"results in {args.out}")
@@ -287,10 +145,9 @@ def _cmd_compute(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
-    from surface_strain.io import PointsError
     from tissue_core.cli import run_command
 
-    return run_command("surface_strain", _build_parser(), argv, errors=(UsageError, PointsError))
+    return run_command("surface_strain", _build_parser(), argv)
 
 
 def entry() -> None:

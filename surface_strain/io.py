@@ -16,11 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
+from tissue_core.errors import InputError
+
 __all__ = ["PointsError", "read_points3d", "read_triangles"]
 
 
-class PointsError(ValueError):
-    """A points or triangles file that cannot be used (one clear line)."""
+#: A points or triangles file that cannot be used: the toolkit's InputError (one clear line).
+PointsError = InputError
 
 
 def _float(text: str) -> float:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from strain2d.errors import InputError
-from strain2d.export import write_json, write_strain_nodes_csv
+from strain2d.export import write_strain_nodes_csv
 from strain2d.grid import make_grid
 from strain2d.run import load_run
 from strain2d.study import (
@@ -22,6 +22,7 @@ from strain2d.study import (
 )
 from surface_strain import compute_strain, grid_triangles, nodal_scalars
 from tests.tolerances import STUDY_FIELD_MEAN_STRAIN
+from tissue_core.jsonio import write_json
 
 
 def _field(lx: float, ly: float, *, rng, n_frames: int = 12, endpoint: int = 8, noise=0.05):

@@ -145,7 +145,7 @@ def test_grid_meshes_cell_by_cell():
     field = strain_from_tracks(tracks, grid_shape=(4, 3))
     assert field.n_triangles == 2 * 3 * 2
     np.testing.assert_allclose(field.nodal_E[1, :, 0, 0], 0.5 * (1.1**2 - 1))
-    with pytest.raises(Err, match="4x4 grid needs 16"):
+    with pytest.raises(Err, match="4x4 grid has 16 points"):
         strain_from_tracks(tracks, grid_shape=(4, 4))
 
 
