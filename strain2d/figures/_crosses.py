@@ -1,0 +1,167 @@
+"""Principal strain directions drawn as crosses over a video frame."""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from strain2d.errors import InputError
+from strain2d.figures._checks import _check_2d, _check_image, _frame_index
+from strain2d.figures._maps import _figsize_for_image, _show_image
+from strain2d.figures._style import _SHORTENING, _STRETCH
+from surface_strain import (
+    StrainField,
+    element_principal_directions,
+    element_scalars,
+    nodal_principal_directions,
+    nodal_scalars,
+)
+
+__all__ = ["plot_principal_crosses"]
+
+
+def _nice_value(x: float) -> float:
+    """The largest of 1, 2, 5 times a power of ten not above ``x`` (``x > 0``)."""
+    e = math.floor(math.log10(x))
+    for m in (5.0, 2.0, 1.0):
+        if m * 10.0**e <= x * (1 + 1e-9):
+            return float(f"{m * 10.0**e:.12g}")
+    return float(f"{10.0**e:.12g}")
+
+
+def _node_spacing(field: StrainField, frame: int) -> float:
+    """Median over nodes of the shortest valid mesh edge at each node, on ``frame``."""
+    tri = field.triangles[field.element_valid[frame]]
+    if len(tri) == 0:
+        return float("nan")
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    pos = field.points[frame]
+    length = np.linalg.norm(pos[edges[:, 0]] - pos[edges[:, 1]], axis=1)
+    shortest = np.full(field.n_points, np.inf)
+    np.minimum.at(shortest, edges[:, 0], length)
+    np.minimum.at(shortest, edges[:, 1], length)
+    shortest = shortest[np.isfinite(shortest) & (shortest > 0)]
+    return float(np.median(shortest)) if shortest.size else float("nan")
+
+
+def plot_principal_crosses(
+    image: np.ndarray,
+    field: StrainField,
+    frame: int,
+    *,
+    scale: float | None = None,
+    at: Literal["nodes", "triangles"] = "nodes",
+    key_value: float | None = None,
+    title: str | None = None,
+) -> Figure:
+    """Principal strain directions as crosses over the image, on the deformed configuration.
+
+    At each node (or triangle centroid) a cross of two bars centred on it:
+    one along the first principal direction and one along the second, as
+    directions in the current configuration (the material fibres along the
+    reference principal directions after deformation, which stay
+    orthogonal).  Each bar's length is ``scale * |E|`` of its principal
+    strain, red for stretch (E > 0) and blue for shortening (E < 0).
+
+    Parameters
+    ----------
+    image : (H, W) float or uint8
+        The frame shown underneath.
+    field : StrainField
+        A 2D field.
+    frame : int
+    scale : float, keyword-only
+        Bar length in pixels per unit strain.  Default: the longest bar is
+        0.8 times the typical node spacing (the median over nodes of the
+        shortest mesh edge), i.e. each arm from the centre is 0.4 of it.
+    at : {"nodes", "triangles"}, keyword-only
+        Nodal principal strains (:func:`surface_strain.nodal_scalars`,
+        directions from :func:`surface_strain.nodal_principal_directions`)
+        at the nodes, or the constant strain of each triangle at its centroid.
+    key_value : float, keyword-only
+        Strain of the key's bar (default: a round value, 1, 2 or 5 times a
+        power of ten, not above the largest |E| drawn).
+    title : str, keyword-only
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The bars are two :class:`~matplotlib.collections.LineCollection`
+        artists with ``gid`` ``"E1"`` and ``"E2"`` (one segment per drawn
+        point, in the same order); points without finite values are skipped.
+    """
+    from matplotlib.patheffects import withStroke
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    image = _check_image(image)
+    _check_2d(field)
+    k = _frame_index(field, frame)
+    if at not in ("nodes", "triangles"):
+        raise InputError(f"at must be 'nodes' or 'triangles', got {at!r}")
+    if scale is not None and not (np.isfinite(scale) and scale > 0):
+        raise InputError(f"scale must be a positive number of pixels per unit strain, got {scale}")
+    if key_value is not None and not (np.isfinite(key_value) and key_value > 0):
+        raise InputError(f"key_value must be a positive strain, got {key_value}")
+    if at == "nodes":
+        s = nodal_scalars(field)
+        d = nodal_principal_directions(field)
+        centres = field.points[k]
+        ok = field.visible[k].copy()
+    else:
+        s = element_scalars(field)
+        d = element_principal_directions(field)
+        centres = field.points[k][field.triangles].mean(axis=1)
+        ok = field.element_valid[k].copy()
+    e1, e2 = s["E1"][k], s["E2"][k]
+    u1, u2 = d.dir1_cur[k], d.dir2_cur[k]
+    ok &= np.isfinite(e1) & np.isfinite(e2) & np.all(np.isfinite(centres), axis=1)
+    ok &= np.all(np.isfinite(u1), axis=1) & np.all(np.isfinite(u2), axis=1)
+    c, e1, e2, u1, u2 = centres[ok], e1[ok], e2[ok], u1[ok], u2[ok]
+    largest = float(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0)))
+    if scale is None:
+        spacing = _node_spacing(field, k)
+        if not np.isfinite(spacing):
+            spacing = 0.1 * min(image.shape[:2])
+        scale = 0.8 * spacing / largest if largest > 0 else 0.0
+
+    fig = Figure(figsize=_figsize_for_image(image, 1, 6.4), layout="constrained")
+    ax = fig.add_subplot()
+    _show_image(ax, image)
+    outline = [withStroke(linewidth=3.2, foreground="white")]
+    for gid, e, u in (("E1", e1, u1), ("E2", e2, u2)):
+        half = (0.5 * scale * np.abs(e))[:, None] * u
+        segments = np.stack([c - half, c + half], axis=1)
+        colours = np.where(e >= 0, _STRETCH, _SHORTENING)
+        lc = LineCollection(segments, colors=colours, linewidths=1.8, capstyle="round")
+        lc.set_gid(gid)
+        lc.set_path_effects(outline)
+        ax.add_collection(lc, autolim=False)
+    handles = [
+        Line2D([], [], color=_STRETCH, lw=2, label="stretch (E > 0)"),
+        Line2D([], [], color=_SHORTENING, lw=2, label="shortening (E < 0)"),
+    ]
+    ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.85)
+    if scale > 0 and largest > 0:
+        value = _nice_value(largest) if key_value is None else float(key_value)
+        bar = AnchoredSizeBar(
+            ax.transData,
+            scale * value,
+            f"|E| = {value:g}",
+            loc="lower right",
+            color="k",
+            frameon=True,
+            size_vertical=0,
+            pad=0.4,
+            sep=4,
+            fontproperties={"size": 8},
+        )
+        bar.patch.set_alpha(0.85)
+        ax.add_artist(bar)
+    where = "nodes" if at == "nodes" else "triangles"
+    ax.set_title(title or f"principal strains at the {where}, frame {k}")
+    return fig

@@ -1,0 +1,326 @@
+"""Figures of a study: every specimen's curves and violins side by side, specimen means.
+
+Specimens of a group are drawn next to each other, groups in order of appearance.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from strain2d.errors import InputError
+from strain2d.figures._checks import _finite
+from strain2d.figures._curves import _draw_curves
+from strain2d.figures._style import _STRAIN_AXIS, _colour, _label
+from strain2d.figures._violins import _bracket, _draw_violins, _test_lines, format_p
+
+__all__ = ["plot_specimen_means", "plot_study_curves", "plot_study_violins"]
+
+
+def _group_order(items: Sequence[Mapping]) -> list[int]:
+    """Indices of ``items`` with equal ``group`` adjacent, groups in order of appearance."""
+    groups = list(dict.fromkeys(str(it.get("group") or "") for it in items))
+    return sorted(range(len(items)), key=lambda i: groups.index(str(items[i].get("group") or "")))
+
+
+def _name(item: Mapping, i: int) -> str:
+    name = str(item.get("name", f"specimen {i + 1}"))
+    group = item.get("group")
+    return f"{name} ({group})" if group else name
+
+
+def plot_study_curves(
+    curves: Sequence[Mapping],
+    *,
+    time_unit: str = "frame",
+    components: Sequence[str] = ("Exx", "Eyy"),
+    ncols: int | None = None,
+) -> Figure:
+    """Mean +/- spatial SD over time for every specimen, one panel each (the paper's Fig. 14).
+
+    Parameters
+    ----------
+    curves : sequence of dict
+        One per specimen: ``"name"``, optional ``"group"``, ``"times"`` (T,),
+        ``"mean"`` ``{comp: (T,)}``, optional ``"sd"`` ``{comp: (T,)}`` (e.g.
+        from :func:`mean_strain_curves`), optional ``"endpoint"``: an int is a
+        frame index into ``times``, a float a time.
+    time_unit : str, keyword-only
+        ``"frame"`` or the unit of ``times``.
+    components : sequence of str, keyword-only
+    ncols : int, keyword-only
+        Panels per row (default: up to 4).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Panels share the strain axis; specimens of a group are adjacent.
+    """
+    if len(curves) == 0:
+        raise InputError("curves is empty; give at least one specimen")
+    n = len(curves)
+    ncols = min(n, 4) if ncols is None else int(ncols)
+    if ncols < 1:
+        raise InputError(f"ncols must be at least 1, got {ncols}")
+    nrows = math.ceil(n / ncols)
+    fig = Figure(figsize=(3.4 * ncols + 0.6, 2.8 * nrows + 0.7), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharey=True, squeeze=False)).ravel()
+    for ax, i in zip(axes, _group_order(curves), strict=False):
+        c = curves[i]
+        if "times" not in c or "mean" not in c:
+            raise InputError(f"curves[{i}] needs 'times' and 'mean'")
+        t = np.asarray(c["times"], dtype=float)
+        if t.ndim != 1:
+            raise InputError(f"curves[{i}]['times'] must be (T,), got shape {t.shape}")
+        end = c.get("endpoint")
+        if end is None:
+            x_end = None
+        elif isinstance(end, (int, np.integer)) and not isinstance(end, bool):
+            if not -len(t) <= end < len(t):
+                raise InputError(f"curves[{i}]['endpoint'] {end} is out of range of its times")
+            x_end = float(t[end])
+        else:
+            x_end = float(end)
+        _draw_curves(ax, t, c["mean"], c.get("sd"), components, x_end, time_unit, legend=False)
+        ax.set_title(_name(c, i), fontsize=10)
+        ax.tick_params(labelleft=True)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=2 * len(components), fontsize=8)
+    return fig
+
+
+def _group_label(ax, group: str, x: float, offset_pt: float) -> None:
+    """A group's name in bold under the x axis, centred at data ``x``."""
+    ax.annotate(
+        group,
+        xy=(x, 0),
+        xycoords=("data", "axes fraction"),
+        xytext=(0, offset_pt),
+        textcoords="offset points",
+        ha="center",
+        va="top",
+        fontsize=10,
+        fontweight="bold",
+    )
+
+
+def plot_study_violins(
+    specimens: Sequence[Mapping],
+    *,
+    components: Sequence[str] = ("Exx", "Eyy"),
+) -> Figure:
+    """Violins of every specimen side by side (the paper's Fig. 15).
+
+    Parameters
+    ----------
+    specimens : sequence of dict
+        One per specimen: ``"name"``, optional ``"group"``, ``"values"``
+        ``{component: (N,)}``, optional ``"tests"`` (as for
+        :func:`plot_strain_violins`): the p-value of the node-level paired
+        test between the first two components is written above each specimen.
+    components : sequence of str, keyword-only
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The components of a specimen are adjacent and coloured alike across
+        specimens; specimens of a group are adjacent, the group named under
+        its specimens.
+    """
+    if len(specimens) == 0:
+        raise InputError("specimens is empty; give at least one")
+    comps = list(components)
+    order = _group_order(specimens)
+    k = len(comps)
+    step = 0.8
+    positions, centres, group_spans = [], [], {}
+    x = 0.0
+    previous = None
+    for i in order:
+        group = str(specimens[i].get("group") or "")
+        if previous is not None and group != previous:
+            x += 0.8 * step  # a wider gap between groups
+        previous = group
+        xs = x + step * np.arange(k)
+        positions.append(xs)
+        centres.append(float(xs.mean()))
+        lo_hi = group_spans.setdefault(group, [xs[0], xs[-1]])
+        lo_hi[1] = xs[-1]
+        x = xs[-1] + 1.6 * step
+    fig = Figure(figsize=(max(4.5, 0.75 * k * len(order) + 2.0), 4.8), layout="constrained")
+    ax = fig.add_subplot()
+    rng = np.random.default_rng(0)
+    tops, bottoms = [], []
+    per_specimen = []
+    for xs, i in zip(positions, order, strict=True):
+        spec = specimens[i]
+        vals = spec.get("values")
+        if not isinstance(vals, Mapping):
+            raise InputError(f"specimens[{i}] needs 'values', a dict of component -> (N,)")
+        missing = [c for c in comps if c not in vals]
+        if missing:
+            raise InputError(f"specimens[{i}] ({spec.get('name')}) has no values for {missing}")
+        arrays = [_finite(vals[c]) for c in comps]
+        _draw_violins(
+            ax,
+            xs,
+            arrays,
+            [_colour(c, j) for j, c in enumerate(comps)],
+            width=0.7 * step,
+            rng=rng,
+            point_size=4.0,
+        )
+        present = [a for a in arrays if a.size]
+        top = max((float(a.max()) for a in present), default=np.nan)
+        tops.append(top)
+        bottoms.append(min((float(a.min()) for a in present), default=np.nan))
+        per_specimen.append((xs, top, spec.get("tests")))
+    lo, hi = float(np.nanmin([*bottoms, np.inf])), float(np.nanmax([*tops, -np.inf]))
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        lo, hi = -0.01, 0.01
+    span = max(hi - lo, 1e-3)
+    labels = set()
+    for xs, top, tests in per_specimen:
+        if tests and k >= 2 and "t_p" in tests and np.isfinite(top):
+            _bracket(
+                ax,
+                xs[0],
+                xs[1],
+                top + 0.05 * span,
+                0.025 * span,
+                format_p(tests["t_p"]),
+                fontsize=7,
+            )
+            labels.add(str(tests.get("label", "paired t-test")))
+    ax.set_ylim(lo - 0.06 * span, hi + 0.3 * span)
+    ax.set_xticks(centres, [str(specimens[i].get("name", f"specimen {i + 1}")) for i in order])
+    ax.tick_params(axis="x", length=0)
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_ylabel(_STRAIN_AXIS)
+    ax.grid(alpha=0.3, axis="y")
+    ax.set_xlim(positions[0][0] - step, positions[-1][-1] + step)
+    if any(g for g in group_spans):
+        for group, (g0, g1) in group_spans.items():
+            _group_label(ax, group, 0.5 * (g0 + g1), -26)
+        ax.set_xlabel("specimen (group)", labelpad=20)
+    else:
+        ax.set_xlabel("specimen")
+    handles = [
+        Line2D([], [], marker="s", ls="", ms=9, color=_colour(c, j), alpha=0.6, label=_label(c))
+        for j, c in enumerate(comps)
+    ]
+    ax.legend(handles=handles, loc="lower left", fontsize=8, ncols=k)
+    if labels:
+        ax.set_title(
+            f"p-values: {'; '.join(sorted(labels))} of {_label(comps[0])} vs {_label(comps[1])}",
+            fontsize=9,
+        )
+    return fig
+
+
+def plot_specimen_means(
+    table: Sequence[Mapping],
+    *,
+    a: str = "Exx",
+    b: str = "Eyy",
+    tests: Mapping | None = None,
+) -> Figure:
+    """Each specimen's mean of two components joined by a line (specimen-level paired plot).
+
+    The specimen, not the node, is the unit of this plot: it goes with the
+    paired test on specimen means across specimens.
+
+    Parameters
+    ----------
+    table : sequence of dict
+        One row per specimen: ``"name"``, optional ``"group"``, and the two
+        means either as ``row[a]``, ``row[b]`` or as ``row["mean"][a]``, ...
+    a, b : str, keyword-only
+        The two components (left and right in each group).
+    tests : dict, keyword-only
+        The specimen-level paired test, written under the title: one result
+        (keys ``"t_p"``, ``"wilcoxon_p"``, ``"n"``, ``"label"``) or one per
+        group ``{group: result}``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Groups side by side; a thin line per specimen, the group mean as a
+        thick line.
+    """
+    if len(table) == 0:
+        raise InputError("table is empty; give at least one specimen")
+
+    def mean_of(row, comp, i):
+        source = row["mean"] if isinstance(row.get("mean"), Mapping) else row
+        if comp not in source:
+            raise InputError(f"table[{i}] ({row.get('name')}) has no mean for {comp!r}")
+        return float(source[comp])
+
+    groups: dict[str, list[int]] = {}
+    for i, row in enumerate(table):
+        groups.setdefault(str(row.get("group") or ""), []).append(i)
+    fig = Figure(figsize=(max(3.6, 2.6 * len(groups) + 1.2), 4.4), layout="constrained")
+    ax = fig.add_subplot()
+    ca, cb = _colour(a, 0), _colour(b, 1)
+    ticks, ticklabels = [], []
+    for gi, (group, rows) in enumerate(groups.items()):
+        x0, x1 = 3.0 * gi, 3.0 * gi + 1.0
+        va = np.array([mean_of(table[i], a, i) for i in rows])
+        vb = np.array([mean_of(table[i], b, i) for i in rows])
+        for i, ya, yb in zip(rows, va, vb, strict=True):
+            ax.plot([x0, x1], [ya, yb], color="0.55", lw=1, zorder=1)
+            ax.annotate(
+                str(table[i].get("name", i + 1)),
+                xy=(x1, yb),
+                xytext=(5, 0),
+                textcoords="offset points",
+                va="center",
+                fontsize=7,
+                color="0.3",
+            )
+        ax.scatter(
+            np.full(va.size, x0), va, color=ca, s=28, edgecolors="k", linewidths=0.4, zorder=3
+        )
+        ax.scatter(
+            np.full(vb.size, x1), vb, color=cb, s=28, edgecolors="k", linewidths=0.4, zorder=3
+        )
+        ok = np.isfinite(va) & np.isfinite(vb)
+        ma, mb = (va[ok].mean(), vb[ok].mean()) if ok.any() else (np.nan, np.nan)
+        ax.plot(
+            [x0, x1], [ma, mb], color="k", lw=2.4, zorder=2, label="group mean" if gi == 0 else None
+        )
+        ticks += [x0, x1]
+        ticklabels += [_label(a), _label(b)]
+        if group:
+            _group_label(ax, group, 0.5 * (x0 + x1), -22)
+    ax.set_xticks(ticks, ticklabels)
+    ax.set_xlim(-0.6, 3.0 * (len(groups) - 1) + 1.9)
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_ylabel(f"specimen mean, {_STRAIN_AXIS}")
+    ax.set_xlabel(
+        "component (group)" if any(groups) else "component", labelpad=18 if any(groups) else 4
+    )
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(loc="best", fontsize=8)
+    n_total = len(table)
+    title = f"specimen means of {_label(a)} and {_label(b)} (n = {n_total} specimens)"
+    if tests:
+        if "t_p" in tests or "wilcoxon_p" in tests:
+            title += "\n" + _test_lines(tests, short=False).replace("\n", "; ").replace(
+                " nodes", ""
+            )
+        else:
+            parts = [
+                f"{g}: {_test_lines(t, short=True).replace(chr(10), ', ')}"
+                for g, t in tests.items()
+            ]
+            title += "\n" + "; ".join(parts)
+    ax.set_title(title, fontsize=9)
+    return fig
