@@ -20,7 +20,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "strain2d.grid": ["make_grid", "read_points_csv"],
         "strain2d.pipeline": ["Analysis", "analyze", "strain_from_tracks", "track"],
         "strain2d.report": ["run_outputs", "write_run_report", "write_study"],
-        "strain2d.run": ["Run", "load_run"],
+        "strain2d.run": ["Run", "load_run", "write_run"],
         "strain2d.study": ["load_specimens", "read_manifest", "study_statistics"],
         "strain2d.trackers": ["available_trackers", "register_tracker"],
         "strain2d.tracks": ["Tracks", "read_tracks", "write_tracks_csv"],

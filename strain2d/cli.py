@@ -8,10 +8,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import logging
-import sys
 import time
-import warnings
-from datetime import UTC, datetime
 
 from strain2d import __version__
 from strain2d.errors import InputError, SourceError
@@ -281,26 +278,6 @@ def _progress(args):
     return Progress(quiet=args.quiet)
 
 
-def _uncertainty_summary(tracks) -> dict | None:
-    """Median and 95th percentile of the tracker's uncertainty (px), or None."""
-    import numpy as np
-
-    if tracks.uncertainty is None:
-        return None
-    seen = tracks.uncertainty[1:][tracks.visible[1:]]
-    seen = seen[np.isfinite(seen)]
-    last = tracks.uncertainty[-1][tracks.visible[-1]]
-    last = last[np.isfinite(last)]
-    if seen.size == 0:
-        return None
-    return {
-        "meaning": "standard deviation of each coordinate of a tracked position",
-        "median": float(np.median(seen)),
-        "p95": float(np.percentile(seen, 95)),
-        "last_frame_median": float(np.median(last)) if last.size else None,
-    }
-
-
 def _tracker_options(args) -> dict:
     from strain2d.trackers import get_tracker
 
@@ -392,54 +369,22 @@ def _cmd_track(args) -> int:
     return 0
 
 
-def _final_stats(field) -> dict:
-    import numpy as np
-
-    from surface_strain import nodal_scalars
-
-    scalars = nodal_scalars(field)
-    last = field.n_frames - 1
-    out = {}
-    for key in ("Exx", "Eyy", "Exy", "E1", "E2", "J"):
-        v = scalars[key][last]
-        v = v[np.isfinite(v)]
-        out[key] = (
-            {"mean": v.mean(), "sd": v.std(), "min": v.min(), "max": v.max(), "n": v.size}
-            if v.size
-            else {"n": 0}
-        )
-    return out
-
-
 def _cmd_analyze(args) -> int:
-    import numpy as np
-
-    from strain2d.export import (
-        write_pvd,
-        write_strain_elements_csv,
-        write_strain_nodes_csv,
-    )
-    from strain2d.figures import plot_tracked_grid
-    from strain2d.pipeline import strain_from_tracks
-    from strain2d.report import parse_formats, run_outputs, write_run_report
-    from strain2d.tracks import write_tracks_csv
-    from tissue_core.jsonio import write_json
-    from tissue_core.outputs import atomic_dir, check_writable
+    from strain2d.pipeline import analysis_of
+    from strain2d.run import check_run_options, write_run
+    from tissue_core.outputs import check_writable
 
     t_start = time.perf_counter()
-    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
-        raise InputError(f"--fps must be a positive number, got {args.fps}")
-    if not 0 <= args.min_triangle_quality < 1:
-        raise InputError(
-            f"--min-triangle-quality must lie in [0, 1), got {args.min_triangle_quality}"
-        )
-    if not 0 < args.endpoint_tolerance < 1:
-        raise InputError(
-            f"--endpoint-tolerance must lie between 0 and 1, got {args.endpoint_tolerance}"
-        )
-    formats = parse_formats(args.figure_format)
     map_frames = _frame_list(args.maps_at, "--maps-at")
-    _frame_number(args.endpoint, "--endpoint")
+    options = {
+        "fps": args.fps,
+        "endpoint": args.endpoint,
+        "endpoint_tolerance": args.endpoint_tolerance,
+        "maps_at": map_frames,
+        "animation": args.animation,
+        "figure_format": args.figure_format,
+    }
+    check_run_options(**options, min_triangle_quality=args.min_triangle_quality)
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     say = _progress(args)
 
@@ -451,98 +396,26 @@ def _cmd_analyze(args) -> int:
 
     source, point_info, tracks = _track_source(args, say, check=frames_exist)
     t_tracked = time.perf_counter()
-    grid_shape = point_info.get("grid_shape")
-    field = strain_from_tracks(
-        tracks, grid_shape=grid_shape, min_triangle_quality=args.min_triangle_quality
+    analysis = analysis_of(
+        tracks,
+        tracker=args.tracker,
+        grid_shape=point_info.get("grid_shape"),
+        min_triangle_quality=args.min_triangle_quality,
     )
     t_strain = time.perf_counter()
-    say(f"strain on {field.n_triangles} triangles")
-    times = np.arange(tracks.n_frames) / args.fps if args.fps else np.arange(tracks.n_frames)
-    last = tracks.n_frames - 1
-    if not np.isfinite(field.nodal_E[-1]).any():
-        warnings.warn(
-            "no node has a valid strain on the last frame: every triangle lost a point",
-            UserWarning,
-            stacklevel=1,
+    say(f"strain on {analysis.field.n_triangles} triangles")
+    with say.task("figures and animation", unit="frame") as update:
+        summary = write_run(
+            args.out,
+            analysis,
+            source,
+            **options,
+            points_info=point_info,
+            overwrite=args.overwrite,
+            inputs=_inputs(args),
+            progress=update,
+            runtime_s={"tracking": t_tracked - t_start, "strain": t_strain - t_tracked},
         )
-    with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
-        write_tracks_csv(tmp / "tracks.csv", tracks)
-        write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty)
-        write_strain_elements_csv(tmp / "strain_elements.csv", field)
-        write_pvd(tmp, field, name="strain", times=times)
-        figs = tmp / "figures"
-        figs.mkdir()
-        first_img, last_img = source.ends()
-        plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
-        with say.task("figures and animation", unit="frame") as update:
-            extra = run_outputs(
-                tmp,
-                field,
-                tracks,
-                frames=lambda: _open(args),
-                times=times,
-                time_unit="s" if args.fps else "frame",
-                endpoint=args.endpoint,
-                relative_tolerance=args.endpoint_tolerance,
-                map_frames=map_frames,
-                animation=args.animation,
-                animation_fps=args.fps or 10.0,
-                formats=formats,
-                progress=update,
-            )
-        t_figures = time.perf_counter()
-        extra["figures"].insert(
-            0,
-            {
-                "files": ["figures/tracked_grid.png"],
-                "caption": "The tracked grid and mesh on the reference and the last frame; "
-                "lost points are red crosses.",
-            },
-        )
-        summary = {
-            "software": {"name": "strain2d", "version": __version__},
-            "created": datetime.now(UTC).isoformat(timespec="seconds"),
-            "command": ["strain2d", *sys.argv[1:]] if sys.argv else [],
-            "inputs": source.names,
-            "source": {
-                "kind": source.kind,
-                "frames_used": len(source),
-                "frame_range": {"start": args.start, "stop": args.stop, "step": args.step},
-                "frame_size_px": [source.shape[1], source.shape[0]],
-            },
-            # name, options, and whatever else the tracker reports (dic: reference updates)
-            "tracker": {
-                "name": args.tracker,
-                **{k: v for k, v in tracks.meta.items() if k != "tracker"},
-            },
-            "points": {"n": tracks.n_points, **point_info},
-            "mesh": {
-                "method": "grid, alternating diagonals" if grid_shape else "delaunay",
-                "n_triangles": field.n_triangles,
-                "min_triangle_quality": None if grid_shape else args.min_triangle_quality,
-            },
-            "time_axis": {"fps": args.fps, "unit": "s" if args.fps else "frame"},
-            "lost_points_last_frame": int((~tracks.visible[-1]).sum()),
-            "tracking_uncertainty_px": _uncertainty_summary(tracks),
-            "final_frame": {"index": last, "nodal_strain": _final_stats(field)},
-            "contraction_endpoint": extra["contraction_endpoint"],
-            "statistics": extra["statistics"],
-            "units": {"positions": "px", "strain": "Green-Lagrange, dimensionless"},
-            "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
-            "outputs": [
-                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
-                "report.html",
-                "summary.json",
-            ],
-            "figures": extra["figures"],
-            "runtime_s": {
-                "tracking": t_tracked - t_start,
-                "strain": t_strain - t_tracked,
-                "figures": t_figures - t_strain,
-            },
-        }
-        write_json(tmp / "summary.json", summary)
-        write_run_report(tmp, summary)
     ep = summary["contraction_endpoint"]
     say(f"contraction endpoint: frame {ep['frame']} ({ep['source']})")
     say(f"results in {args.out}")
@@ -571,6 +444,7 @@ def _frame_number(k: int | None, flag: str) -> int | None:
 def _cmd_study(args) -> int:
     from strain2d.report import parse_formats, write_study
     from strain2d.study import read_manifest
+    from tissue_core.outputs import recorded_command
 
     say = _progress(args)
     formats = parse_formats(args.figure_format)
@@ -592,7 +466,7 @@ def _cmd_study(args) -> int:
         formats=formats,
         overwrite=args.overwrite,
         manifest=args.manifest,
-        command=["strain2d", *sys.argv[1:]] if sys.argv else [],
+        command=recorded_command.get(),
     )
     if not args.quiet:
         for line in summary["plain_summary"]:

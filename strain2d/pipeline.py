@@ -12,17 +12,38 @@ from strain2d.errors import InputError, PointsLeftOutWarning
 from strain2d.grid import validate_points
 from strain2d.trackers import get_tracker
 from strain2d.tracks import Tracks
-from surface_strain import StrainField, choose_mesh, compute_strain
+from surface_strain import Mesh, StrainField, choose_mesh, compute_strain
 
-__all__ = ["Analysis", "analyze", "strain_from_tracks", "track"]
+__all__ = ["Analysis", "analysis_of", "analyze", "strain_from_tracks", "track"]
 
 
 @dataclass(frozen=True)
 class Analysis:
-    """Tracks and the strain field computed from them."""
+    """Tracks, the strain field computed from them, and how (for :func:`strain2d.write_run`).
+
+    Attributes
+    ----------
+    tracks : Tracks
+    field : StrainField
+    tracker : str
+        The tracker's name.
+    mesh : surface_strain.Mesh
+        The triangles and how they were chosen.
+    grid_shape : (n_cols, n_rows) or None
+        The points form this row-major grid.
+    min_triangle_quality : float
+        The Delaunay quality bound (used when the points are not a grid).
+    points : (N, 2) float or None
+        The reference points as given (trackers may keep them in float32).
+    """
 
     tracks: Tracks
     field: StrainField
+    tracker: str = "gdic"
+    mesh: Mesh | None = None
+    grid_shape: tuple[int, int] | None = None
+    min_triangle_quality: float = 0.1
+    points: np.ndarray | None = None
 
 
 def track(
@@ -154,7 +175,29 @@ def analyze(
     True
     """
     tracks = track(frames, points, tracker=tracker, options=options, progress=progress)
-    field = strain_from_tracks(
-        tracks, grid_shape=grid_shape, min_triangle_quality=min_triangle_quality
+    return analysis_of(
+        tracks,
+        tracker=tracker,
+        grid_shape=grid_shape,
+        min_triangle_quality=min_triangle_quality,
+        points=points,
     )
-    return Analysis(tracks, field)
+
+
+def analysis_of(
+    tracks: Tracks,
+    *,
+    tracker: str,
+    grid_shape: tuple[int, int] | None = None,
+    min_triangle_quality: float = 0.1,
+    points: np.ndarray | None = None,
+) -> Analysis:
+    """Mesh tracks and compute their strain field (:func:`analyze` once tracked).
+
+    ``points`` are the reference points given to the tracker, if any."""
+    mesh = choose_mesh(
+        validate_points(tracks.reference), grid=grid_shape, min_quality=min_triangle_quality
+    )
+    field = strain_from_tracks(tracks, triangles=mesh.triangles)
+    points = None if points is None else np.asarray(points, dtype=float)
+    return Analysis(tracks, field, tracker, mesh, grid_shape, min_triangle_quality, points)

@@ -392,7 +392,7 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
                 summary.get("tracking_uncertainty_px")
             ),
             "time axis": summary.get("time_axis", {}).get("unit"),
-            "command": " ".join(summary.get("command", [])),
+            "command": " ".join(summary.get("command") or []),
         }
     )
     ep = summary.get("contraction_endpoint")
@@ -685,7 +685,6 @@ def write_study(
         summary = write_study("study", ["runs/S01", "runs/S02"])
         print("\n".join(summary["plain_summary"]))
     """
-    import sys
     from datetime import UTC, datetime
 
     from strain2d import __version__
@@ -704,7 +703,7 @@ def write_study(
         summary = {
             "software": {"name": "strain2d", "version": __version__},
             "created": datetime.now(UTC).isoformat(timespec="seconds"),
-            "command": list(command) if command is not None else ["python", *sys.argv],
+            "command": list(command) if command is not None else None,
             "inputs": {
                 "manifest": str(manifest) if manifest else None,
                 "runs": [str(e["run"]) for e in entries],

@@ -14,6 +14,7 @@ import csv
 import json
 import math
 import os
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +23,7 @@ import numpy as np
 from strain2d.errors import InputError
 from strain2d.export import NODE_COLUMNS
 
-__all__ = ["Run", "load_run"]
+__all__ = ["Run", "check_run_options", "load_run", "write_run"]
 
 #: The nodal strain components a run provides.
 COMPONENTS = ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "J")
@@ -222,3 +223,316 @@ def load_run(path: str | os.PathLike) -> Run:
         endpoint=int(endpoint),
         endpoint_source=str(source),
     )
+
+
+def check_run_options(
+    *,
+    fps: float | None = None,
+    endpoint: int | None = None,
+    endpoint_tolerance: float = 0.05,
+    maps_at: Sequence[int] = (),
+    min_triangle_quality: float = 0.1,
+    figure_format: str | Sequence[str] = "png",
+    animation: str = "mp4",
+) -> tuple[str, ...]:
+    """Check :func:`write_run`'s options before any work; returns the figure formats.
+
+    ``strain2d analyze`` calls it before tracking, so that a bad option costs
+    nothing; :func:`write_run` calls it again.
+    """
+    from strain2d.report import ANIMATIONS, parse_formats
+
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"--fps must be a positive number, got {fps}")
+    if not 0 <= min_triangle_quality < 1:
+        raise InputError(f"--min-triangle-quality must lie in [0, 1), got {min_triangle_quality}")
+    if not 0 < endpoint_tolerance < 1:
+        raise InputError(f"--endpoint-tolerance must lie between 0 and 1, got {endpoint_tolerance}")
+    for flag, frames in (("--endpoint", [endpoint]), ("--maps-at", list(maps_at))):
+        for k in frames:
+            if k is not None and (not _whole(k) or k < 0):
+                raise InputError(
+                    f"{flag} takes frame numbers from 0 (the reference frame), got {k}"
+                )
+    if animation not in ANIMATIONS:
+        raise InputError(f"unknown animation {animation!r}; choose from {', '.join(ANIMATIONS)}")
+    return parse_formats(figure_format)
+
+
+def _frames_of(frames) -> tuple[Callable[[], Iterable[np.ndarray]], Callable[[], tuple]]:
+    """(a function that iterates the frames afresh, one that gives the first and last)."""
+    if callable(frames) and not hasattr(frames, "__iter__"):
+        reopen = frames
+    else:
+
+        def reopen():
+            return iter(frames)
+
+    def ends():
+        if hasattr(frames, "ends"):  # strain2d.frames.EndFrames: kept while tracking
+            return frames.ends()
+        if hasattr(frames, "first") and hasattr(frames, "frame"):  # a FrameSource
+            return frames.first(), frames.frame(-1)
+        if isinstance(frames, np.ndarray):
+            return frames[0], frames[-1]
+        first = last = None
+        for k, frame in enumerate(reopen()):
+            first = frame if k == 0 else first
+            last = frame
+        return first, last
+
+    return reopen, ends
+
+
+def _source_info(frames, n_frames: int, shape) -> tuple[list[str], dict]:
+    """The input names and the ``source`` entry of ``summary.json``."""
+    source = getattr(frames, "source", frames)  # through EndFrames
+    names = list(getattr(source, "names", []))
+    window = getattr(source, "_slice", None)
+    return names, {
+        "kind": getattr(source, "kind", "array"),
+        "frames_used": n_frames,
+        "frame_range": {
+            "start": window.start if window else 0,
+            "stop": window.stop if window else None,
+            "step": window.step if window else 1,
+        },
+        "frame_size_px": [int(shape[1]), int(shape[0])],
+    }
+
+
+def _points_info(analysis) -> dict:
+    shape = analysis.grid_shape
+    if shape is None:
+        return {}
+    points = analysis.tracks.reference if analysis.points is None else analysis.points
+    x0, y0 = points.min(axis=0)
+    x1, y1 = points.max(axis=0)
+    return {
+        "grid": f"{shape[0]}x{shape[1]}",
+        "grid_shape": list(shape),
+        "roi": [float(x0), float(y0), float(x1), float(y1)],
+    }
+
+
+def _uncertainty_summary(tracks) -> dict | None:
+    """Median and 95th percentile of the tracker's uncertainty (px), or None."""
+    if tracks.uncertainty is None:
+        return None
+    seen = tracks.uncertainty[1:][tracks.visible[1:]]
+    seen = seen[np.isfinite(seen)]
+    last = tracks.uncertainty[-1][tracks.visible[-1]]
+    last = last[np.isfinite(last)]
+    if seen.size == 0:
+        return None
+    return {
+        "meaning": "standard deviation of each coordinate of a tracked position",
+        "median": float(np.median(seen)),
+        "p95": float(np.percentile(seen, 95)),
+        "last_frame_median": float(np.median(last)) if last.size else None,
+    }
+
+
+def _final_stats(field) -> dict:
+    from surface_strain import nodal_scalars
+
+    scalars = nodal_scalars(field)
+    last = field.n_frames - 1
+    out = {}
+    for key in ("Exx", "Eyy", "Exy", "E1", "E2", "J"):
+        v = scalars[key][last]
+        v = v[np.isfinite(v)]
+        out[key] = (
+            {"mean": v.mean(), "sd": v.std(), "min": v.min(), "max": v.max(), "n": v.size}
+            if v.size
+            else {"n": 0}
+        )
+    return out
+
+
+def write_run(
+    out: str | os.PathLike,
+    analysis,
+    frames,
+    *,
+    fps: float | None = None,
+    endpoint: int | None = None,
+    endpoint_tolerance: float = 0.05,
+    maps_at: Sequence[int] = (),
+    animation: str = "mp4",
+    figure_format: str | Sequence[str] = "png",
+    points_info: dict | None = None,
+    overwrite: bool = False,
+    inputs: Sequence[str | os.PathLike] = (),
+    progress=None,
+    runtime_s: dict | None = None,
+) -> dict:
+    """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
+
+    ``tracks.csv``, ``strain_nodes.csv``, ``strain_elements.csv``, the ParaView
+    series ``strain.pvd``, ``figures/``, ``statistics.json``, ``summary.json``
+    (schema :data:`surface_strain.RUN_SCHEMA`) and ``report.html``, written
+    into a temporary folder and renamed into place (see
+    :func:`tissue_core.outputs.atomic_dir`); :func:`load_run` reads it back.
+
+    Parameters
+    ----------
+    out : path
+        The run folder; it must not exist unless ``overwrite``.
+    analysis : Analysis
+        From :func:`strain2d.analyze`.
+    frames : (T, H, W) array, FrameSource, iterable, or callable
+        The video the points were tracked on (for the figures and the
+        animation): an array or a :class:`~strain2d.FrameSource` (whose file
+        names, kind and frame range go into ``summary.json``), or a function
+        that returns a fresh iterable of ``(H, W)`` frames.
+    fps : float, keyword-only
+        Frame rate: time axes in seconds instead of frames.
+    endpoint : int, keyword-only
+        The contraction endpoint frame; detected when None.
+    endpoint_tolerance : float, keyword-only
+        Endpoint detection: the mean strains' rate, as a fraction of its
+        largest value, below which the tissue counts as still.
+    maps_at : sequence of int, keyword-only
+        Frames that also get contour maps.
+    animation : {"mp4", "gif", "none"}, keyword-only
+    figure_format : str or sequence of {"png", "svg", "pdf"}, keyword-only
+    points_info : dict, keyword-only
+        Extra entries for ``summary.json``'s ``points`` (e.g. ``points_file``).
+    overwrite : bool, keyword-only
+        Replace an existing run folder written by the toolkit.
+    inputs : sequence of path, keyword-only
+        Files the output may not replace.
+    progress : callable(done, total), keyword-only
+        Called as the figures and the animation are made.
+    runtime_s : dict, keyword-only
+        Timings to record (the command line passes tracking and strain).
+
+    Returns
+    -------
+    dict
+        The run's summary, as written to ``summary.json``.
+
+    Examples
+    --------
+    >>> from sample_data_synth.cases import make_case
+    >>> from strain2d import analyze, make_grid, write_run
+    >>> video = make_case("equibiaxial", size=160, n_frames=4)
+    >>> grid = make_grid((160, 160), shape=(3, 3), roi=video.truth.roi)
+    >>> result = analyze(video.frames, grid, tracker="klt", grid_shape=(3, 3))
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "run"
+    >>> summary = write_run(out, result, video.frames, animation="none")
+    >>> load_run(out).n_points
+    9
+    """
+    import time
+    import warnings
+    from datetime import UTC, datetime
+
+    from strain2d.export import write_pvd, write_strain_elements_csv, write_strain_nodes_csv
+    from strain2d.figures import plot_tracked_grid
+    from strain2d.report import run_outputs, write_run_report
+    from strain2d.tracks import write_tracks_csv
+    from surface_strain import RUN_SCHEMA
+    from tissue_core.jsonio import write_json
+    from tissue_core.outputs import atomic_dir, recorded_command
+    from tissue_core.version import __version__
+
+    formats = check_run_options(
+        fps=fps,
+        endpoint=endpoint,
+        endpoint_tolerance=endpoint_tolerance,
+        maps_at=maps_at,
+        figure_format=figure_format,
+        animation=animation,
+    )
+    tracks, field = analysis.tracks, analysis.field
+    T = tracks.n_frames
+    for flag, ks in (("--endpoint", [endpoint]), ("--maps-at", list(maps_at))):
+        bad = [k for k in ks if k is not None and k >= T]
+        if bad:
+            raise InputError(f"{flag} {bad[0]} is outside the frames 0..{T - 1}")
+    reopen, ends = _frames_of(frames)
+    first_img, last_img = ends()
+    names, source = _source_info(frames, T, first_img.shape)
+    times = np.arange(T) / fps if fps else np.arange(T)
+    if not np.isfinite(field.nodal_E[-1]).any():
+        warnings.warn(
+            "no node has a valid strain on the last frame: every triangle lost a point",
+            UserWarning,
+            stacklevel=2,
+        )
+    t_start = time.perf_counter()
+    mesh = analysis.mesh
+    with atomic_dir(out, overwrite=overwrite, inputs=list(inputs)) as tmp:
+        write_tracks_csv(tmp / "tracks.csv", tracks)
+        write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty)
+        write_strain_elements_csv(tmp / "strain_elements.csv", field)
+        write_pvd(tmp, field, name="strain", times=times)
+        figs = tmp / "figures"
+        figs.mkdir()
+        plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
+        extra = run_outputs(
+            tmp,
+            field,
+            tracks,
+            frames=reopen,
+            times=times,
+            time_unit="s" if fps else "frame",
+            endpoint=endpoint,
+            relative_tolerance=endpoint_tolerance,
+            map_frames=list(maps_at),
+            animation=animation,
+            animation_fps=fps or 10.0,
+            formats=formats,
+            progress=progress,
+        )
+        extra["figures"].insert(
+            0,
+            {
+                "files": ["figures/tracked_grid.png"],
+                "caption": "The tracked grid and mesh on the reference and the last frame; "
+                "lost points are red crosses.",
+            },
+        )
+        command = recorded_command.get()
+        summary = {
+            "schema": RUN_SCHEMA,
+            "software": {"name": "strain2d", "version": __version__},
+            "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            "command": list(command) if command else None,
+            "inputs": names,
+            "source": source,
+            # name, options, and whatever else the tracker reports (dic: reference updates)
+            "tracker": {
+                "name": analysis.tracker,
+                **{k: v for k, v in tracks.meta.items() if k != "tracker"},
+            },
+            "points": {"n": tracks.n_points, **_points_info(analysis), **(points_info or {})},
+            "mesh": {
+                "method": "grid, alternating diagonals" if mesh.method == "grid" else mesh.method,
+                "n_triangles": field.n_triangles,
+                "min_triangle_quality": (
+                    analysis.min_triangle_quality if mesh.method == "delaunay" else None
+                ),
+            },
+            "time_axis": {"fps": fps, "unit": "s" if fps else "frame"},
+            "lost_points_last_frame": int((~tracks.visible[-1]).sum()),
+            "tracking_uncertainty_px": _uncertainty_summary(tracks),
+            "final_frame": {"index": T - 1, "nodal_strain": _final_stats(field)},
+            "contraction_endpoint": extra["contraction_endpoint"],
+            "statistics": extra["statistics"],
+            "units": {"positions": "px", "strain": "Green-Lagrange, dimensionless"},
+            "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
+            "outputs": [
+                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
+                "report.html",
+                "summary.json",
+            ],
+            "figures": extra["figures"],
+            "runtime_s": {**(runtime_s or {}), "figures": time.perf_counter() - t_start},
+        }
+        write_json(tmp / "summary.json", summary)
+        write_run_report(tmp, summary)
+    return summary

@@ -1,0 +1,48 @@
+"""A run folder from the Python API equals the command line's (strain2d.write_run)."""
+
+import json
+
+import numpy as np
+
+from strain2d import analyze, load_run, make_grid, open_frames, write_run
+from strain2d.cli import main
+from tissue_core.outputs import MARKER
+
+# what may differ between two runs of the same analysis: when and how it was asked for
+VOLATILE = ("created", "command", "runtime_s")
+
+
+def _summary(folder):
+    summary = json.loads((folder / "summary.json").read_text())
+    return {k: v for k, v in summary.items() if k not in VOLATILE}
+
+
+def test_write_run_makes_the_folder_analyze_makes(small_case, tmp_path):
+    folder, _ = small_case
+    video = folder / "eq.tif"
+    options = ["--grid", "4x4", "--tracker", "klt", "--animation", "gif", "--fps", "5"]
+    assert main(["-q", "analyze", str(video), *options, "--out", str(tmp_path / "cli")]) == 0
+
+    frames = open_frames(video)
+    grid = make_grid(frames.shape, shape=(4, 4))
+    result = analyze(frames, grid, tracker="klt", grid_shape=(4, 4))
+    summary = write_run(tmp_path / "api", result, frames, fps=5, animation="gif")
+
+    cli, api = tmp_path / "cli", tmp_path / "api"
+    files = sorted(p.relative_to(cli) for p in cli.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(api) for p in api.rglob("*") if p.is_file())
+    assert len(files) > 10
+    differ = [
+        str(f)
+        for f in files
+        if f.name not in ("summary.json", "report.html", MARKER)
+        and (cli / f).read_bytes() != (api / f).read_bytes()
+    ]
+    assert differ == []
+    assert _summary(api) == _summary(cli)
+    assert summary["schema"] == 1 and summary["inputs"] == [str(video)]
+    assert json.loads((cli / "summary.json").read_text())["command"][:2] == ["strain2d", "-q"]
+
+    run = load_run(api)
+    assert run.time_unit == "s" and np.allclose(run.times, np.arange(run.n_frames) / 5)
+    assert np.array_equal(run.positions, load_run(cli).positions, equal_nan=True)
