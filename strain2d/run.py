@@ -1,8 +1,12 @@
-"""Read back an ``analyze`` output folder (a *run*) for reports and studies.
+"""Run folders: :func:`write_run` writes one, :func:`load_run` reads one back.
 
 A run folder holds ``summary.json`` and ``strain_nodes.csv`` (see
-:mod:`strain2d.export`); :func:`load_run` checks both and returns a
-:class:`Run` with the nodal strain of every frame.  Anything missing,
+:mod:`strain2d.export`) besides the tables, figures and report that
+:func:`write_run` (and ``strain2d analyze``) write; :func:`load_run` checks
+both and returns a :class:`Run` with the nodal strain of every frame.  It
+reads the 3D runs of ``surface_strain compute`` and ``stereo reconstruct
+--strain`` too (their ``strain_nodes.csv`` is the same table with ``X, Y, Z``
+and ``U, V, W``), so that a study can combine 2D and 3D specimens.  Anything missing,
 unreadable or inconsistent raises :class:`~strain2d.errors.InputError` naming
 the file and the problem, so a study over many runs fails with one clear line
 instead of a traceback.
@@ -10,7 +14,6 @@ instead of a traceback.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import os
@@ -21,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from strain2d.errors import InputError
-from strain2d.export import NODE_COLUMNS
 
 __all__ = ["Run", "check_run_options", "load_run", "write_run"]
 
@@ -42,8 +44,10 @@ class Run:
     times : (T,) float
         Frame times, in ``time_unit``.
     time_unit : {"s", "frame"}
-    positions : (T, N, 2) float
-        Node positions in pixels.
+    positions : (T, N, 2) or (T, N, 3) float
+        Node positions in ``unit``: pixels for 2D runs (``strain2d analyze``),
+        the calibration's unit for 3D ones (``surface_strain compute``,
+        ``stereo reconstruct --strain``).
     visible : (T, N) bool
     nodal : dict of (T, N) float
         Nodal strain components (:data:`COMPONENTS`), NaN where undefined.
@@ -52,6 +56,8 @@ class Run:
         given), or the last frame for runs that did not record one.
     endpoint_source : str
         ``"detected"``, ``"given"`` or ``"last frame"``.
+    unit : str
+        Unit of ``positions``.
     """
 
     path: Path
@@ -64,6 +70,7 @@ class Run:
     endpoint: int
     endpoint_source: str
     meta: dict = field(default_factory=dict)
+    unit: str = "px"
 
     @property
     def n_frames(self) -> int:
@@ -107,41 +114,39 @@ def _whole(value) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _read_nodes(file: Path) -> np.ndarray:
+def _run_folder(path: Path) -> Path:
+    """The folder with the run's strain: ``path``, or a stereo reconstruction's ``strain/``."""
+    if not (path / "strain_nodes.csv").exists() and (path / "strain" / "strain_nodes.csv").exists():
+        return path / "strain"
+    return path
+
+
+def _read_nodes(file: Path):
+    """The nodal table of a 2D (``x,y,...``) or 3D (``X,Y,Z,...``) run: (LongTable, dims)."""
+    from tissue_core.tables import read_long_table
+
     if not file.is_file():
         raise InputError(f"{file.parent}: strain_nodes.csv is missing")
     try:
-        with open(file, newline="", encoding="utf-8-sig") as f:
-            header = next(csv.reader(f), None)
-            rows = f.read()
+        with open(file, encoding="utf-8-sig") as f:
+            header = [h.strip() for h in f.readline().split(",")]
     except UnicodeDecodeError:
         raise InputError(f"{file} is not a text CSV file") from None
-    if header is None:
-        raise InputError(f"{file} is empty")
-    header = [h.strip() for h in header]
-    optional = ("uncertainty_px",)  # written by trackers that measure it
-    if tuple(header) not in (NODE_COLUMNS, NODE_COLUMNS + optional):
-        missing = [c for c in NODE_COLUMNS if c not in header]
-        what = f"lacks the columns {', '.join(missing)}" if missing else "has other columns"
-        raise InputError(f"{file} {what} (expected {','.join(NODE_COLUMNS)})")
-    if not rows.strip():
-        raise InputError(f"{file} has no rows")
-    try:
-        table = np.loadtxt(rows.splitlines(), delimiter=",", ndmin=2)
-    except ValueError as exc:
-        raise InputError(f"{file} has a malformed row: {exc}") from None
-    if table.shape[1] != len(header):
-        raise InputError(f"{file}: rows must have {len(header)} values")
-    return table
+    # 2D is the planar case of one schema: x, y (and u, v) without z
+    dims = ("x", "y", "z") if "Z" in header or "z" in header else ("x", "y")
+    table = read_long_table(file, required=(*dims, "visible", *COMPONENTS))
+    return table, dims
 
 
 def load_run(path: str | os.PathLike) -> Run:
-    """Load an ``analyze`` output folder.
+    """Load a run folder, 2D or 3D.
 
     Parameters
     ----------
     path : path
-        The folder given to ``strain2d analyze --out``.
+        The folder given to ``strain2d analyze --out`` or ``surface_strain
+        compute --out``, or to ``stereo reconstruct --strain --out`` (whose
+        ``strain/`` holds the run).
 
     Returns
     -------
@@ -158,42 +163,24 @@ def load_run(path: str | os.PathLike) -> Run:
         raise InputError(f"run folder {path} does not exist")
     if not path.is_dir():
         raise InputError(f"{path} is not a folder: give an analyze output folder")
-    summary = _read_summary(path)
-    file = path / "strain_nodes.csv"
-    table = _read_nodes(file)
-    col = {name: i for i, name in enumerate(NODE_COLUMNS)}
-    frame = table[:, col["frame"]]
-    point = table[:, col["point"]]
-    whole = np.isfinite(frame) & np.isfinite(point)
-    if not (whole.all() and np.all(frame == np.round(frame)) and np.all(point == np.round(point))):
-        raise InputError(f"{file}: frame and point must be whole numbers")
-    frame = frame.astype(np.int64)
-    point = point.astype(np.int64)
-    T, N = int(frame.max()) + 1, int(point.max()) + 1
-    if frame.min() < 0 or point.min() < 0 or table.shape[0] != T * N:
-        raise InputError(
-            f"{file} is incomplete: {table.shape[0]} rows for {T} frames x {N} points "
-            "(a truncated or edited file?)"
-        )
-    order = np.lexsort((point, frame))
-    table = table[order]
-    expected = np.stack(np.meshgrid(np.arange(T), np.arange(N), indexing="ij"), -1).reshape(-1, 2)
-    if not np.array_equal(np.column_stack([frame[order], point[order]]), expected):
-        raise InputError(f"{file} repeats or skips (frame, point) pairs")
-    grid = table.reshape(T, N, -1)
-    positions = grid[..., [col["x"], col["y"]]]
-    visible = grid[..., col["visible"]] != 0
+    folder = _run_folder(path)
+    summary = _read_summary(folder)
+    file = folder / "strain_nodes.csv"
+    table, dims = _read_nodes(file)
+    T = table.n_frames
+    positions = np.stack([table[d] for d in dims], axis=-1)
+    visible = table["visible"] != 0
     # a lost point may have no position (imported tracks); a visible one must
     if not np.isfinite(positions[visible]).all() or not np.isfinite(positions[0]).all():
         raise InputError(f"{file}: positions of visible nodes must be finite")
-    nodal = {k: grid[..., col[k]].copy() for k in COMPONENTS}
+    nodal = {k: table[k].copy() for k in COMPONENTS}
 
-    frames_used = (summary.get("source") or {}).get("frames_used")
+    frames_used = (summary.get("source") or {}).get("frames_used", summary.get("frames"))
     if frames_used is not None and not _whole(frames_used):
         raise InputError(f"{path / 'summary.json'}: source.frames_used must be a whole number")
     if frames_used is not None and frames_used != T:
         raise InputError(
-            f"{path}: summary.json says {frames_used} frames but strain_nodes.csv has {T}"
+            f"{folder}: summary.json says {frames_used} frames but strain_nodes.csv has {T}"
         )
     fps = (summary.get("time_axis") or {}).get("fps")
     if fps is not None and (
@@ -212,6 +199,7 @@ def load_run(path: str | os.PathLike) -> Run:
                 f"index 0..{T - 1}, got {endpoint!r}"
             )
         source = ep.get("source", "detected")
+    unit = "px" if len(dims) == 2 else str(summary.get("unit") or "mm")
     return Run(
         path=path,
         summary=summary,
@@ -222,6 +210,7 @@ def load_run(path: str | os.PathLike) -> Run:
         nodal=nodal,
         endpoint=int(endpoint),
         endpoint_source=str(source),
+        unit=unit,
     )
 
 

@@ -13,7 +13,6 @@ NumPy layouts: ``.npy`` holding positions ``(T, N, 2)``; ``.npz`` with
 
 from __future__ import annotations
 
-import csv
 import os
 import zipfile
 import zlib
@@ -124,61 +123,21 @@ def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
 
 
 def _read_csv(path: Path) -> Tracks:
-    try:
-        rows = _read_csv_rows(path)
-    except UnicodeDecodeError:
-        raise InputError(f"{path} is not a text CSV file") from None
-    except (TypeError, ValueError, OverflowError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(f"{path}: bad value ({exc})") from None
-    if not rows:
-        raise InputError(f"{path} holds no tracks")
-    return _tracks_from_rows(path, rows)
+    from tissue_core.tables import read_long_table
 
-
-def _read_csv_rows(path: Path) -> list[tuple]:
-    with open(path, newline="", encoding="utf-8-sig") as f:
-        reader = csv.DictReader(f)
-        fields = [c.strip().lower() for c in (reader.fieldnames or [])]
-        missing = [c for c in ("frame", "point", "x", "y") if c not in fields]
-        if missing:
-            raise InputError(f"{path} lacks column(s) {', '.join(missing)}")
-        reader.fieldnames = fields
-        return [
-            (
-                int(r["frame"]),
-                int(r["point"]),
-                float(r["x"]),
-                float(r["y"]),
-                bool(int(float(r["visible"]))) if r.get("visible") not in (None, "") else True,
-                float(r["quality"]) if r.get("quality") not in (None, "") else 1.0,
-                float(r["uncertainty_px"])
-                if r.get("uncertainty_px") not in (None, "", "nan")
-                else np.nan,
-            )
-            for r in reader
-        ]
-
-
-def _tracks_from_rows(path: Path, rows: list[tuple]) -> Tracks:
-    a = np.array(rows, dtype=float)
-    frames, points = a[:, 0].astype(int), a[:, 1].astype(int)
-    if frames.min() < 0 or points.min() < 0:
-        raise InputError(f"{path}: frame and point indices must be >= 0")
-    T, N = frames.max() + 1, points.max() + 1
-    if len(a) != T * N or len(set(zip(frames, points, strict=True))) != T * N:
-        raise InputError(f"{path} must hold exactly one row for each of {T} frames x {N} points")
-    pos = np.empty((T, N, 2))
-    vis = np.empty((T, N), dtype=bool)
-    qual = np.empty((T, N))
-    pos[frames, points] = a[:, 2:4]
-    vis[frames, points] = a[:, 4].astype(bool)
-    qual[frames, points] = a[:, 5]
+    table = read_long_table(
+        path, required=("x", "y"), optional=("visible", "quality", "uncertainty_px")
+    )
+    pos = np.stack([table["x"], table["y"]], axis=-1)
+    flag = table["visible"] if "visible" in table else np.full(pos.shape[:2], np.nan)
+    if np.isinf(flag).any():
+        raise InputError(f"{path}: visible must be 0 or 1, got an infinite value")
+    vis = np.where(np.isnan(flag), True, np.trunc(flag) != 0)  # an empty flag: visible
+    qual = table["quality"] if "quality" in table else np.ones(pos.shape[:2])
+    qual = np.where(np.isnan(qual), 1.0, qual)
     unc = None
-    if np.isfinite(a[:, 6]).any():
-        unc = np.full((T, N), np.nan)
-        unc[frames, points] = _uncertainty(path, a[:, 6])
+    if "uncertainty_px" in table and np.isfinite(table["uncertainty_px"]).any():
+        unc = _uncertainty(path, table["uncertainty_px"])
     return Tracks(pos, vis & np.all(np.isfinite(pos), axis=-1), qual, {"source": str(path)}, unc)
 
 

@@ -17,19 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from tissue_core.errors import InputError
+from tissue_core.tables import read_long_table
 
 __all__ = ["PointsError", "read_points3d", "read_triangles"]
 
 
 #: A points or triangles file that cannot be used: the toolkit's InputError (one clear line).
 PointsError = InputError
-
-
-def _float(text: str) -> float:
-    text = text.strip()
-    if text == "" or text.lower() in ("nan", "none", "null"):
-        return math.nan
-    return float(text)
 
 
 def read_points3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
@@ -49,65 +43,23 @@ def read_points3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise PointsError(f"points file not found: {path}")
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            header = next(reader, None)
-            if header is None:
-                raise PointsError(f"{path}: empty file")
-            names = [h.strip().lower() for h in header]
-            need = ("frame", "point", "x", "y", "z")
-            missing = [n for n in need if n not in names]
-            if missing:
-                raise PointsError(
-                    f"{path}: missing column(s) {', '.join(missing)} (need frame,point,X,Y,Z)"
-                )
-            col = {n: names.index(n) for n in need}
-            vis_col = names.index("visible") if "visible" in names else None
-            rows = []
-            for line, row in enumerate(reader, start=2):
-                if not row or all(not c.strip() for c in row):
-                    continue
-                try:
-                    frame, point = int(row[col["frame"]]), int(row[col["point"]])
-                    xyz = [_float(row[col[k]]) for k in ("x", "y", "z")]
-                    vis = bool(int(float(row[vis_col]))) if vis_col is not None else True
-                except (ValueError, IndexError, OverflowError):
-                    raise PointsError(f"{path}, line {line}: not a number: {row}") from None
-                if frame < 0 or point < 0:
-                    raise PointsError(f"{path}, line {line}: negative frame or point index")
-                rows.append((frame, point, *xyz, vis))
-    except (UnicodeDecodeError, csv.Error) as exc:
-        raise PointsError(f"{path}: not a text CSV file ({exc})") from None
-    if not rows:
-        raise PointsError(f"{path}: no rows")
-    data = np.array([r[:5] for r in rows], np.float64)
-    vis = np.array([r[5] for r in rows], bool)
-    infinite = np.flatnonzero(np.isinf(data[:, 2:5]).any(axis=1))
+    table = read_long_table(path, required=("x", "y", "z"), optional=("visible",))
+    points = np.stack([table["x"], table["y"], table["z"]], axis=-1)
+    infinite = np.argwhere(np.isinf(points).any(axis=-1))
     if infinite.size:
-        frame, point = (int(v) for v in data[infinite[0], :2])
-        raise PointsError(
+        frame, point = infinite[0]
+        raise InputError(
             f"{path}: point {point} on frame {frame} has an infinite coordinate "
             "(write lost points as NaN, or empty, with visible = 0)"
         )
-    T, N = int(data[:, 0].max()) + 1, int(data[:, 1].max()) + 1
-    if len(rows) != T * N:
-        raise PointsError(
-            f"{path}: expected one row for each of {T} frames x {N} points "
-            f"({T * N} rows), found {len(rows)}"
-        )
-    points = np.full((T, N, 3), np.nan)
-    visible = np.zeros((T, N), bool)
-    f, p = data[:, 0].astype(int), data[:, 1].astype(int)
-    seen = np.zeros((T, N), bool)
-    seen[f, p] = True
-    if not seen.all():
-        raise PointsError(f"{path}: some frame/point pairs appear twice, others not at all")
-    points[f, p] = data[:, 2:5]
-    visible[f, p] = vis & np.isfinite(data[:, 2:5]).all(axis=1)
+    flag = table["visible"] if "visible" in table else np.ones(points.shape[:2])
+    if np.isinf(flag).any():
+        raise InputError(f"{path}: visible must be 0 or 1, got an infinite value")
+    visible = np.where(np.isnan(flag), True, np.trunc(flag) != 0)
+    visible &= np.isfinite(points).all(axis=-1)
     points[~visible] = np.nan
-    if T < 1 or not visible[0].any():
-        raise PointsError(f"{path}: no point is visible on the reference frame 0")
+    if not visible[0].any():
+        raise InputError(f"{path}: no point is visible on the reference frame 0")
     return points, visible
 
 

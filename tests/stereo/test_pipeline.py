@@ -301,3 +301,48 @@ def test_reconstruct_with_strain_gives_the_analytic_strain(stretch, tmp_path):
         got = np.array([float(r[key]) for r in rows]).reshape(T, N)
         assert np.sqrt(np.nanmean((got - true) ** 2)) <= STEREO_STRAIN_RMSE
     assert (out / "strain" / "strain.pvd").is_file()
+
+
+def test_a_study_combines_stereo_runs_with_2d_runs(stretch, tmp_path):
+    """strain2d study over a stereo reconstruction, a surface_strain run and two 2D runs."""
+    from sample_data_synth import make_case, write_video
+    from strain2d import load_run
+    from strain2d.cli import main as strain2d
+    from surface_strain.cli import main as surface_strain
+
+    folder, _, points = stretch
+    rec = tmp_path / "rec"
+    assert cli("reconstruct", "--calib", folder / "rig.json", "--left", folder / "left",
+               "--right", folder / "right", "--points", points, "--strain",
+               "--out", rec, "-q") == 0  # fmt: skip
+    assert surface_strain(["compute", str(rec / "points3d.csv"), "--no-figures",
+                           "--out", str(tmp_path / "s3d"), "-q"]) == 0  # fmt: skip
+    runs = [rec, tmp_path / "s3d"]
+    for k in range(2):
+        video = tmp_path / f"v{k}.tif"
+        write_video(make_case("equibiaxial", size=160, n_frames=4, rng=k).frames, video)
+        runs.append(tmp_path / f"2d{k}")
+        assert strain2d(["analyze", str(video), "--grid", "4x4", "--tracker", "klt",
+                         "--animation", "none", "--out", str(runs[-1]), "-q"]) == 0  # fmt: skip
+
+    three_d = load_run(rec)
+    assert three_d.positions.shape[-1] == 3 and three_d.unit == "mm"
+    assert load_run(runs[2]).positions.shape[-1] == 2
+    out = tmp_path / "study"
+    assert strain2d(["study", *map(str, runs), "--out", str(out), "-q"]) == 0
+    rows = {r["run"]: r for r in csv.DictReader((out / "specimens.csv").read_text().splitlines())}
+    assert sorted(rows) == sorted(map(str, runs))
+    # the stereo specimen's means are its nodal strains at its last frame, from its own table
+    nodes = list(csv.DictReader((rec / "strain" / "strain_nodes.csv").read_text().splitlines()))
+    last = max(int(r["frame"]) for r in nodes)
+    for key in ("Exx", "Eyy"):
+        values = [float(r[key]) for r in nodes if int(r["frame"]) == last]
+        assert float(rows[str(rec)][f"mean_{key}"]) == pytest.approx(np.nanmean(values), abs=1e-9)
+    # the same tracks meshed the same way: surface_strain compute reproduces the stereo run
+    # (to the digits points3d.csv keeps)
+    assert float(rows[str(tmp_path / "s3d")]["mean_Exx"]) == pytest.approx(
+        float(rows[str(rec)]["mean_Exx"]), abs=1e-7
+    )
+    # and the 2D specimens measure their equibiaxial stretch
+    for run in runs[2:]:
+        assert float(rows[str(run)]["mean_Exx"]) > 0.1

@@ -430,7 +430,7 @@ def _bad_files(tmp_path):
     files["duplicate points"] = ("--points", p, "twice")
     p = tmp_path / "inf.csv"
     p.write_text("frame,point,x,y,visible\n0,0,1,1,inf\n")
-    files["infinite flag"] = ("--tracks-file", p, "bad value")
+    files["infinite flag"] = ("--tracks-file", p, "visible must be 0 or 1")
     p = tmp_path / "vis.npz"
     np.savez(p, positions=np.zeros((6, 3, 2)), visible=np.ones((6, 4), bool))
     files["misshaped visible"] = ("--tracks-file", p, "visible must have shape")

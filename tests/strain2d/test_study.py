@@ -113,7 +113,7 @@ def test_load_run_without_endpoint_uses_the_last_frame(tmp_path):
             lambda d: (d / "strain_nodes.csv").write_text(
                 (d / "strain_nodes.csv").read_text().replace("\n3,", "\n3,x", 1)
             ),
-            "malformed row",
+            "not a number",
         ),
         (lambda d: (d / "strain_nodes.csv").write_bytes(b"\xff\xfe\x00garbage"), "not a text"),
         (

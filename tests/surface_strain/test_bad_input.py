@@ -93,7 +93,7 @@ CASES = [
      c.dir / "tri_binary.csv", "--out", o), ["tri_binary.csv"]),
     *[(f"compute-csv-{name}", (lambda n: lambda c, o: _compute(
         c, "--out", o, points=c.dir / f"points_{n}.csv"))(name), [f"points_{name}.csv", fragment])
-      for name, fragment in [("no_xyz", "missing column"), ("text", "not a number"),
+      for name, fragment in [("no_xyz", "lacks the column"), ("text", "not a number"),
                              ("infinite", "infinite"), ("duplicate_row", "row"),
                              ("negative_index", "negative"), ("bom_text", "not a number")]],
     *[(f"compute-csv-triangles-{name}", (lambda n: lambda c, o: _compute(

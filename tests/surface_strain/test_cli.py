@@ -148,7 +148,7 @@ def test_errors_exit_2_with_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.csv"
     bad.write_text("frame,point,X,Y\n0,0,1,2\n")
     assert cli("compute", bad, "--out", out) == 2
-    assert "missing column" in one_line(capsys)
+    assert "lacks the column" in one_line(capsys)
     assert cli("compute", src, "--grid", "4x4", "--out", out) == 2
     assert "4x4 grid has 16 points" in one_line(capsys)
     assert cli("compute", src, "--directions", "cone:1,2", "--out", out) == 2

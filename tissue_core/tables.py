@@ -1,0 +1,176 @@
+"""Long tables: the CSV layout of every per-frame, per-point file the toolkit reads.
+
+One row per frame and point, a header naming the columns::
+
+    frame,point,x,y,...
+
+``tracks.csv``, ``strain_nodes.csv`` (2D: ``x,y,u,v``; 3D: ``X,Y,Z,U,V,W``,
+the same names in capitals), ``points3d.csv`` and tracks written by other
+tools all have it.  :func:`read_long_table` reads any of them into ``(T, N)``
+arrays per column and refuses, in one line naming the file and the row,
+what is not such a table: no text, missing columns, values that are not
+numbers, negative or fractional indices, a frame or point missing or given
+twice.  Column names are matched without regard to case or surrounding
+spaces; empty cells and ``nan``/``none``/``null`` are NaN.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from tissue_core.errors import InputError
+
+__all__ = ["LongTable", "read_long_table"]
+
+_MISSING = ("", "nan", "none", "null")
+
+
+@dataclass(frozen=True, repr=False)
+class LongTable:
+    """The columns of a long table as ``(T, N)`` float arrays (frames x points).
+
+    Attributes
+    ----------
+    path : Path
+    names : tuple of str
+        The header's column names as written (stripped).
+    columns : dict of str -> (T, N) float
+        The columns read, by lower-case name (``frame`` and ``point`` left out).
+    """
+
+    path: Path
+    names: tuple[str, ...]
+    columns: dict
+
+    @property
+    def n_frames(self) -> int:
+        return next(iter(self.columns.values())).shape[0]
+
+    @property
+    def n_points(self) -> int:
+        return next(iter(self.columns.values())).shape[1]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.columns[name.lower()]
+
+    def __contains__(self, name: str) -> bool:
+        return name.lower() in self.columns
+
+    def __repr__(self) -> str:
+        return (
+            f"LongTable({str(self.path)!r}, {self.n_frames} frames x {self.n_points} points, "
+            f"columns {', '.join(self.columns)})"
+        )
+
+
+def _number(text: str) -> float:
+    text = text.strip()
+    if text.lower() in _MISSING:
+        return math.nan
+    return float(text)
+
+
+def read_long_table(
+    path: str | os.PathLike,
+    *,
+    required: Sequence[str],
+    optional: Sequence[str] = (),
+) -> LongTable:
+    """Read a long table (one row per frame and point) into ``(T, N)`` arrays.
+
+    Parameters
+    ----------
+    path : path-like
+    required : sequence of str
+        Columns besides ``frame`` and ``point`` that must be there.
+    optional : sequence of str
+        Columns read when present.
+
+    Returns
+    -------
+    LongTable
+
+    Raises
+    ------
+    InputError
+        The file is missing, not text, empty, lacks a column, holds a value
+        that is not a number, or does not hold exactly one row for each frame
+        and point; the message names the file (and the line).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.csv"
+    >>> _ = p.write_text("frame,point,X,Y\\n0,0,1,2\\n0,1,3,4\\n1,0,1.5,2\\n1,1,,\\n")
+    >>> t = read_long_table(p, required=["x", "y"])
+    >>> t["x"]
+    array([[1. , 3. ],
+           [1.5, nan]])
+    """
+    path = Path(path)
+    if not path.is_file():
+        what = "is a folder, not a CSV file" if path.is_dir() else "does not exist"
+        raise InputError(f"{path} {what}")
+    wanted = ["frame", "point", *(c.lower() for c in required)]
+    extra = [c.lower() for c in optional]
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            if header is None:
+                raise InputError(f"{path} is empty")
+            names = tuple(h.strip() for h in header)
+            lower = [n.lower() for n in names]
+            missing = [c for c in wanted if c not in lower]
+            if missing:
+                s = "s" if len(missing) > 1 else ""
+                raise InputError(
+                    f"{path} lacks the column{s} {', '.join(missing)} (needs {','.join(wanted)})"
+                )
+            keep = wanted + [c for c in extra if c in lower]
+            index = [lower.index(c) for c in keep]
+            rows = []
+            for line, row in enumerate(reader, start=2):
+                if not row or all(not c.strip() for c in row):
+                    continue
+                try:
+                    rows.append([_number(row[i]) for i in index])
+                except (ValueError, IndexError):
+                    shown = ",".join(row)
+                    shown = shown if len(shown) <= 80 else shown[:77] + "..."
+                    raise InputError(f"{path}, line {line}: not a number: {shown}") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{path} is not a text CSV file ({exc})") from None
+    if not rows:
+        raise InputError(f"{path} has no rows")
+    data = np.array(rows, dtype=float)
+    frame, point = data[:, 0], data[:, 1]
+    bad = ~(np.isfinite(frame) & np.isfinite(point) & (frame == np.round(frame))
+            & (point == np.round(point)))  # fmt: skip
+    if bad.any():
+        raise InputError(f"{path}: frame and point must be whole numbers (row {bad.argmax() + 1})")
+    if frame.min() < 0 or point.min() < 0:
+        raise InputError(f"{path}: negative frame or point index")
+    frame, point = frame.astype(np.int64), point.astype(np.int64)
+    T, N = int(frame.max()) + 1, int(point.max()) + 1
+    seen = np.zeros((T, N), np.int64)
+    np.add.at(seen, (frame, point), 1)
+    if len(rows) != T * N or not (seen == 1).all():
+        how = "is incomplete" if len(rows) < T * N else "repeats or skips rows"
+        raise InputError(
+            f"{path} {how}: it must hold exactly one row for each of {T} frames x {N} points "
+            f"({T * N} rows), found {len(rows)}"
+        )
+    columns = {}
+    for k, name in enumerate(keep[2:], start=2):
+        values = np.empty((T, N))
+        values[frame, point] = data[:, k]
+        columns[name] = values
+    return LongTable(path, names, columns)
