@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from strain2d.errors import InputError, SourceError
+from tissue_core.errors import InputError, SourceError
 
 __all__ = [
     "CALIBRATION_KEYS",
@@ -771,7 +771,7 @@ def calibrate_stereo(
     except cv2.error as exc:
         raise InputError(f"stereo calibration failed: {exc.err}") from None
     per_view = np.asarray(per_view, np.float64).reshape(len(views), 2)
-    from strain2d import __version__
+    from tissue_core.version import __version__
 
     extra = {
         "rms_left_px": float(cams[0][0]),

@@ -88,7 +88,7 @@ def _check_calibration_size(calib, calib_paths, shape: tuple[int, int], source: 
 def _read_points(path: str, shape: tuple[int, int], *, for_strain: bool) -> np.ndarray:
     """Points (N, 2) of a CSV file with columns x,y, checked against the image; errors name
     the file.  ``for_strain``: the points must also carry a mesh (3 or more, not collinear)."""
-    from strain2d.grid import read_points_csv, validate_points
+    from strain2d import read_points_csv, validate_points
 
     points = read_points_csv(path)
     if len(points) == 0:
@@ -334,7 +334,7 @@ def _cmd_match(args) -> int:
 
 def _check_reconstruct_options(args) -> None:
     """Every option of ``reconstruct`` that can be judged before anything is read."""
-    from strain2d.trackers import available_trackers
+    from strain2d import available_trackers
 
     if args.points and (args.grid is not None or args.roi is not None):
         raise InputError("give either --points or --grid/--roi, not both")
@@ -365,7 +365,7 @@ def _check_reconstruct_options(args) -> None:
 
 
 def _grid_points(args, shape: tuple[int, int]) -> tuple[np.ndarray, dict]:
-    from strain2d.grid import default_roi, make_grid, parse_grid, parse_roi
+    from strain2d import default_roi, make_grid, parse_grid, parse_roi
 
     text = args.grid or _DEFAULT_GRID
     cols, rows = parse_grid(text)
@@ -388,7 +388,7 @@ def _source_name(source) -> str:
 
 def _cmd_reconstruct(args) -> int:
     from stereo.reconstruct import reconstruct
-    from strain2d.frames import open_frames
+    from strain2d import open_frames
     from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, check_writable
     from tissue_core.version import __version__
@@ -432,7 +432,7 @@ def _cmd_reconstruct(args) -> int:
         max_reproj_px=args.max_reproj,
         progress=say,
     )
-    from strain2d.tracks import Tracks, write_tracks_csv
+    from strain2d import Tracks, write_tracks_csv
 
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
         with open(tmp / "points3d.csv", "w", newline="", encoding="utf-8") as f:

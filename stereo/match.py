@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strain2d.errors import InputError
+from tissue_core.errors import InputError
 
 __all__ = [
     "FEATURE_EPIPOLAR_FACTOR",
@@ -199,7 +199,7 @@ def match_views(
     calib : Calibration, optional
         Epipolar checks (features and final matches).
     subset, shape_function, zncc_min
-        The ``dic`` correlation (see :func:`strain2d.trackers.dic.track_dic`).
+        The ``dic`` correlation (see the dic tracker, :func:`strain2d.get_tracker`).
     max_epipolar_px : float
         With a calibration, matches further from their epipolar line are
         not visible, and the feature matches that relate the views are kept
@@ -213,7 +213,9 @@ def match_views(
     """
     import cv2
 
-    from strain2d.trackers.dic import track_dic
+    from strain2d import get_tracker
+
+    track_dic = get_tracker("dic").function
 
     points = np.asarray(points, np.float64).reshape(-1, 2)
     a = np.asarray(left, np.float64)

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from strain2d.errors import InputError
+from tissue_core.errors import InputError
 
 __all__ = ["Reconstruction", "reconstruct"]
 
@@ -90,7 +90,7 @@ def reconstruct(
     """
     from stereo.camera import triangulate
     from stereo.match import match_views
-    from strain2d.pipeline import track
+    from strain2d import track
 
     say = progress or (lambda message: None)
     n_left, n_right = len(left_frames), len(right_frames)

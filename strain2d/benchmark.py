@@ -106,7 +106,7 @@ def run_benchmark(
     progress : callable(message), keyword-only
         Called with a short line before each case and tracker.
     """
-    from sample_data_synth.cases import CASES, make_case
+    from sample_data_synth import CASES, make_case
 
     cases = list(CASES) if cases is None else list(cases)
     registry = available_trackers()
@@ -274,7 +274,7 @@ def run_sweep(
     the equibiaxial case with the changed image and track a 7 x 7 grid.  Errors are
     on the final frame, as in :func:`run_benchmark`.
     """
-    from sample_data_synth.cases import make_case
+    from sample_data_synth import make_case
 
     if kind not in SWEEPS:
         raise ValueError(f"unknown sweep {kind!r}; choose from {', '.join(SWEEPS)}")

@@ -489,7 +489,7 @@ def _cmd_benchmark(args) -> int:
     if args.seed < 0:
         raise InputError(f"--seed must be a whole number >= 0, got {args.seed}")
     check_writable(args.out, overwrite=args.overwrite)
-    from sample_data_synth.cases import CASES
+    from sample_data_synth import CASES
 
     cases = args.cases.split(",") if args.cases else None
     for c in cases or []:

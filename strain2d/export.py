@@ -112,6 +112,6 @@ def write_pvd(
     -------
     Path of the ``.pvd`` file.
     """
-    from surface_strain.export import write_pvd as write_series
+    from surface_strain import write_pvd as write_series
 
     return write_series(folder, field, name=name, times=times)

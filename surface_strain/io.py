@@ -10,7 +10,6 @@ writes.  ``TRI.csv`` has columns ``p0,p1,p2`` (point indices).
 from __future__ import annotations
 
 import csv
-import math
 import os
 from pathlib import Path
 
