@@ -229,8 +229,9 @@ class GroundTruth:
         return out
 
     def save(self, path: str | os.PathLike) -> None:
-        with open(path, "w") as f:
-            json.dump(self.to_dict(), f, indent=2)
+        from tissue_core.jsonio import write_json
+
+        write_json(path, self.to_dict())
 
 
 def load_ground_truth(path: str | os.PathLike) -> GroundTruth:

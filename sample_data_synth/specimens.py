@@ -36,7 +36,6 @@ area-weighted nodal averages; :func:`grid_nodal_strain`), which is what
 from __future__ import annotations
 
 import csv
-import json
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -56,6 +55,7 @@ from sample_data_synth.cases import (
 from sample_data_synth.deformations import Contraction, Field, RampHold, green_lagrange
 from sample_data_synth.render import add_sensor_noise, render_image, render_speckle
 from sample_data_synth.speckle import speckle_pattern
+from tissue_core.jsonio import write_json
 
 __all__ = [
     "DEFAULT_DESIGN",
@@ -612,6 +612,5 @@ def make_study(
             for g in design
         },
     }
-    with open(out / "study_truth.json", "w") as f:
-        json.dump(result, f, indent=2)
+    write_json(out / "study_truth.json", result)
     return result

@@ -38,7 +38,6 @@ after   contracted: large folds     450 um      650-900 um   8 um RMS
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -54,6 +53,7 @@ from sample_data_synth._common import non_negative as _non_negative
 from sample_data_synth._common import positive as _positive
 from sample_data_synth._common import spawn as _spawn
 from sample_data_synth._common import version as _version
+from tissue_core.jsonio import write_json
 from tissue_core.outputs import replaced_on_success
 
 __all__ = [
@@ -881,7 +881,7 @@ def save_stack_truth(prefix: str | os.PathLike, case: SyntheticStack) -> None:
     }
     json_path = prefix.with_name(prefix.name + "_truth.json")
     with replaced_on_success(json_path) as tmp:
-        tmp.write_text(json.dumps(truth, indent=2))
+        write_json(tmp, truth)
     with replaced_on_success(prefix.with_name(prefix.name + "_truth.npz")) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(

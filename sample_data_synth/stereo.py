@@ -130,6 +130,7 @@ from sample_data_synth.camera import (
     undistort_points,
 )
 from sample_data_synth.speckle import SpecklePattern
+from tissue_core.jsonio import write_json
 
 __all__ = [
     "STEREO_CASES",
@@ -740,10 +741,6 @@ def _read_png(path: Path) -> np.ndarray:
     return image
 
 
-def _write_json(path: Path, data: dict) -> None:
-    path.write_text(json.dumps(data, indent=2))
-
-
 def save_stereo_scene(folder: str | os.PathLike, scene: StereoScene) -> None:
     """Write a scene's frames, true calibration and truth into ``folder``.
 
@@ -761,9 +758,9 @@ def save_stereo_scene(folder: str | os.PathLike, scene: StereoScene) -> None:
         (folder / camera).mkdir(parents=True, exist_ok=True)
         for k, image in enumerate(getattr(scene, camera)):
             _write_png(folder / camera / f"frame_{k:03d}.png", image)
-    _write_json(folder / "rig.json", scene.rig.to_dict())
+    write_json(folder / "rig.json", scene.rig.to_dict())
     n = scene.n_frames
-    _write_json(
+    write_json(
         folder / "truth.json",
         {
             "case": scene.case,
@@ -838,8 +835,8 @@ def save_calibration_views(folder: str | os.PathLike, views: CalibrationViews) -
         (folder / camera).mkdir(parents=True, exist_ok=True)
         for k, image in enumerate(getattr(views, camera)):
             _write_png(folder / camera / f"view_{k:0{digits}d}.png", image)
-    _write_json(folder / "rig.json", views.rig.to_dict())
-    _write_json(
+    write_json(folder / "rig.json", views.rig.to_dict())
+    write_json(
         folder / "poses.json",
         {
             "board": views.board.to_dict(),
