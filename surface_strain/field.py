@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -97,6 +98,16 @@ class StrainField:
     directions: FloatArray
     frame: FloatArray | None = None
     meta: dict = field(default_factory=dict)
+
+    @cached_property
+    def _nodal_scalars(self) -> dict[str, FloatArray]:
+        out = scalar_fields(self.nodal_E)
+        out["J"] = nodal_average(
+            area_ratio(self.F), self.triangles, self.n_points, weights=self.reference_areas, axis=1
+        )
+        for v in out.values():
+            v.setflags(write=False)
+        return out
 
     def __post_init__(self) -> None:
         T, N, d = self.points.shape
@@ -410,18 +421,16 @@ def element_scalars(field: StrainField) -> dict[str, FloatArray]:
 
 
 def nodal_scalars(field: StrainField) -> dict[str, FloatArray]:
-    """Per-node scalar fields, each ``(T, N)``.
+    """Per-node scalar fields, each ``(T, N)``, read-only.
 
     Tensor components, principal values, ``max_shear`` and ``theta1_deg`` come
     from the nodal (averaged) tensor ``nodal_E``; ``J`` is the area-weighted
     average of the element area ratios.  NaN at nodes whose adjacent triangles
-    are all lost.
+    are all lost.  Computed once per field (the tables, the ParaView series,
+    the figures and the statistics of a run all use them); copy an array to
+    change it.
     """
-    out = scalar_fields(field.nodal_E)
-    out["J"] = nodal_average(
-        area_ratio(field.F), field.triangles, field.n_points, weights=field.reference_areas, axis=1
-    )
-    return out
+    return dict(field._nodal_scalars)
 
 
 def _check_isotropic(isotropic: str) -> None:
