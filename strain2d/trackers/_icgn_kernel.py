@@ -1,11 +1,23 @@
-"""Compiled IC-GN (numba): the same iteration as ``dic._Correlator.match``, fused per point.
+"""Compiled IC-GN (numba): the subset matcher behind ``dic._Correlator.match``, fused per point.
 
-One pass per point and iteration computes the warped subset coordinates,
-evaluates the cubic B-spline (mirror boundaries, as ``scipy.ndimage`` with
-``mode="mirror"``), the ZNSSD residual, the Gauss-Newton step and the
-inverse-compositional update; points run in parallel.  ``dic`` uses it when
-numba is importable and checks it against the NumPy implementation in the
-tests.
+One kernel, :func:`icgn`, serves both shape functions; the width of the warp
+parameters picks the order (6: affine, first order; 12: quadratic, second
+order). One pass per point and iteration computes the warped subset
+coordinates, evaluates the cubic B-spline (mirror boundaries, as
+``scipy.ndimage`` with ``mode="mirror"``), the ZNSSD residual, the
+Gauss-Newton step and the inverse-compositional update; points run in
+parallel. The tests check it against the NumPy implementation
+(``dic._Correlator.match_numpy``).
+
+References
+----------
+.. [1] Pan, B., Li, K., & Tong, W. (2013). Fast, robust and accurate digital
+   image correlation calculation without redundant computations.
+   Experimental Mechanics 53, 1277-1289. https://doi.org/10.1007/s11340-013-9717-6
+.. [2] Gao, Y., Cheng, T., Su, Y., Xu, X., Zhang, Y., & Zhang, Q. (2015).
+   High-efficiency and high-accuracy digital image correlation for
+   three-dimensional measurement. Optics and Lasers in Engineering 65, 73-80.
+   https://doi.org/10.1016/j.optlaseng.2014.05.013
 """
 
 from __future__ import annotations
@@ -90,79 +102,14 @@ def _residual(coeff, cx, cy, p, ex, ey, f_row, norm_i, G_row, g, b):
     return 1.0 - 0.5 * dist
 
 
-@njit(cache=True, parallel=True)
-def icgn(
-    coeff: np.ndarray,
-    centers: np.ndarray,
-    f: np.ndarray,
-    norm: np.ndarray,
-    G: np.ndarray,
-    p0: np.ndarray,
-    ex: np.ndarray,
-    ey: np.ndarray,
-    half: int,
-    tolerance: float,
-    max_iterations: int,
-    zncc_min: float,
-):
-    """IC-GN for every row; returns (p (n, 6), zncc (n,), converged (n,))."""
-    n, s2 = f.shape
-    p_out = p0.copy()
-    zncc_out = np.full(n, -1.0)
-    conv_out = np.zeros(n, dtype=np.bool_)
-    for i in prange(n):
-        p = p_out[i].copy()
-        g = np.empty(s2)
-        b = np.empty(6)
-        cx = centers[i, 0]
-        cy = centers[i, 1]
-        for iteration in range(max_iterations):
-            zncc = _residual(coeff, cx, cy, p, ex, ey, f[i], norm[i], G[i], g, b)
-            if zncc == -2.0:
-                zncc_out[i] = -1.0
-                break
-            zncc_out[i] = zncc
-            b0, b1, b2, b3, b4, b5 = b[0], b[1], b[2], b[3], b[4], b[5]
-            # dp = -b; W(p) <- W(p) o W(dp)^-1
-            a, bb, c, dd = 1 - b2, -b3, -b4, 1 - b5
-            det = a * dd - bb * c
-            if not np.isfinite(det) or abs(det) < 1e-12:
-                break
-            ia, ib, ic, idd = dd / det, -bb / det, -c / det, a / det
-            itx = -(ia * -b0 + ib * -b1)
-            ity = -(ic * -b0 + idd * -b1)
-            m00, m01, m02 = 1 + p[2], p[3], p[0]
-            m10, m11, m12 = p[4], 1 + p[5], p[1]
-            p[0] = m00 * itx + m01 * ity + m02
-            p[1] = m10 * itx + m11 * ity + m12
-            p[2] = m00 * ia + m01 * ic - 1
-            p[3] = m00 * ib + m01 * idd
-            p[4] = m10 * ia + m11 * ic
-            p[5] = m10 * ib + m11 * idd - 1
-            step = np.sqrt(
-                b0 * b0 + b1 * b1 + half * half * (b2 * b2 + b3 * b3 + b4 * b4 + b5 * b5)
-            )
-            finite = np.isfinite(step)
-            for k in range(6):
-                finite = finite and np.isfinite(p[k])
-            wild = False
-            for k in range(2, 6):
-                wild = wild or abs(p[k]) > 2.0
-            if not finite or wild:
-                break
-            if step < tolerance:
-                conv_out[i] = True
-                break
-            if iteration >= 7 and zncc < zncc_min:
-                break
-        for k in range(6):
-            p_out[i, k] = p[k] if np.isfinite(p[k]) else 0.0
-    return p_out, zncc_out, conv_out
-
-
 @njit(cache=True, inline="always")
 def _matrix2(p: np.ndarray) -> np.ndarray:
-    """6 x 6 matrix of a second-order warp (see ``dic._matrix2``)."""
+    """6 x 6 matrix of a second-order warp from its 12 parameters.
+
+    The warp acts on ``(dx^2, dx dy, dy^2, dx, dy, 1)``; rows 3-4 are the exact
+    quadratic map and rows 0-2 its products truncated at second order, so that
+    composition and inversion are matrix products (Gao et al. 2015 [2]_).
+    """
     u, v, ux, uy, vx, vy = p[0], p[1], p[2], p[3], p[4], p[5]
     uxx, uxy, uyy, vxx, vxy, vyy = p[6], p[7], p[8], p[9], p[10], p[11]
     a1, a2, b1, b2 = 1 + ux, uy, vx, 1 + vy
@@ -201,8 +148,98 @@ def _matrix2(p: np.ndarray) -> np.ndarray:
     return M
 
 
+@njit(cache=True, inline="always")
+def _params2(M: np.ndarray, p: np.ndarray) -> None:
+    """Write the 12 parameters of the second-order warp matrix ``M`` into ``p``."""
+    p[0], p[1] = M[3, 5], M[4, 5]
+    p[2], p[3], p[4], p[5] = M[3, 3] - 1, M[3, 4], M[4, 3], M[4, 4] - 1
+    p[6], p[7], p[8] = 2 * M[3, 0], M[3, 1], 2 * M[3, 2]
+    p[9], p[10], p[11] = 2 * M[4, 0], M[4, 1], 2 * M[4, 2]
+
+
+@njit(cache=True, inline="always")
+def _update_affine(p: np.ndarray, b: np.ndarray) -> bool:
+    """``W(p) <- W(p) o W(dp)^-1`` with ``dp = -b`` (affine, closed form), in place.
+
+    Returns False, leaving ``p`` as it was, where ``W(dp)`` is singular.
+    """
+    b0, b1, b2, b3, b4, b5 = b[0], b[1], b[2], b[3], b[4], b[5]
+    a, bb, c, dd = 1 - b2, -b3, -b4, 1 - b5
+    det = a * dd - bb * c
+    if not np.isfinite(det) or abs(det) < 1e-12:
+        return False
+    ia, ib, ic, idd = dd / det, -bb / det, -c / det, a / det
+    itx = -(ia * -b0 + ib * -b1)
+    ity = -(ic * -b0 + idd * -b1)
+    m00, m01, m02 = 1 + p[2], p[3], p[0]
+    m10, m11, m12 = p[4], 1 + p[5], p[1]
+    p[0] = m00 * itx + m01 * ity + m02
+    p[1] = m10 * itx + m11 * ity + m12
+    p[2] = m00 * ia + m01 * ic - 1
+    p[3] = m00 * ib + m01 * idd
+    p[4] = m10 * ia + m11 * ic
+    p[5] = m10 * ib + m11 * idd - 1
+    return True
+
+
+@njit(cache=True, inline="always")
+def _update_quadratic(p: np.ndarray, b: np.ndarray) -> bool:
+    """As :func:`_update_affine` for the second-order warp (6 x 6 matrix form)."""
+    Md = _matrix2(-b)
+    if not np.all(np.isfinite(Md)):
+        return False
+    _params2(_matrix2(p) @ np.linalg.inv(Md), p)
+    return True
+
+
+@njit(cache=True, inline="always")
+def _match_point(
+    coeff, cx, cy, p, b, g, ex, ey, f_row, norm_i, G_row, half, tolerance, max_iterations, zncc_min
+):
+    """IC-GN of one subset, updating its warp ``p`` in place: returns (zncc, converged).
+
+    ``b`` (scratch for the Gauss-Newton step) has as many entries as ``p``: 6
+    for the affine warp, 12 for the quadratic one. :func:`icgn` allocates it
+    with a constant size in each branch, so each inlined copy of this loop is
+    compiled for its own warp order.
+    """
+    n_params = b.shape[0]
+    zncc_last = -1.0
+    for iteration in range(max_iterations):
+        zncc = _residual(coeff, cx, cy, p, ex, ey, f_row, norm_i, G_row, g, b)
+        if zncc == -2.0:
+            return -1.0, False
+        zncc_last = zncc
+        if n_params == 12:
+            composed = _update_quadratic(p, b)
+        else:
+            composed = _update_affine(p, b)
+        if not composed:
+            break
+        # largest move of a subset pixel (first-order terms at the edge, second-order
+        # terms at the corner)
+        first = b[2] * b[2] + b[3] * b[3] + b[4] * b[4] + b[5] * b[5]
+        second = 0.0
+        for k in range(6, n_params):
+            second += b[k] * b[k]
+        step = np.sqrt(b[0] * b[0] + b[1] * b[1] + half * half * first + 0.25 * half**4 * second)
+        finite = np.isfinite(step)
+        for k in range(n_params):
+            finite = finite and np.isfinite(p[k])
+        wild = False
+        for k in range(2, 6):
+            wild = wild or abs(p[k]) > 2.0
+        if not finite or wild:
+            break
+        if step < tolerance:
+            return zncc_last, True
+        if iteration >= 7 and zncc < zncc_min:
+            break
+    return zncc_last, False
+
+
 @njit(cache=True, parallel=True)
-def icgn2(
+def icgn(
     coeff: np.ndarray,
     centers: np.ndarray,
     f: np.ndarray,
@@ -216,50 +253,69 @@ def icgn2(
     max_iterations: int,
     zncc_min: float,
 ):
-    """IC-GN with the second-order shape function (12 parameters), as :func:`icgn`."""
+    """IC-GN of every subset against one frame, affine or quadratic.
+
+    Parameters
+    ----------
+    coeff : (H, W) float
+        Cubic B-spline coefficients of the frame (mirror boundaries).
+    centers : (n, 2) float
+        Reference centre (x, y) of each subset, pixels.
+    f : (n, S2) float
+        Zero-mean reference subsets divided by their norm (``S2 = len(ex)``).
+    norm : (n,) float
+        Norm of each zero-mean reference subset.
+    G : (n, P, S2) float
+        Gauss-Newton step operator ``H^-1 J^T`` of each subset.
+    p0 : (n, P) float
+        Initial warps; ``P = 6`` selects the affine (first-order) shape
+        function, ``P = 12`` the quadratic (second-order) one.
+    ex, ey : (S2,) float
+        Pixel offsets of the subset from its centre.
+    half : int
+        Half the subset side, pixels.
+    tolerance : float
+        Convergence when the update moves every subset pixel by less (pixels).
+    max_iterations : int
+    zncc_min : float
+        A point still below this correlation after 8 iterations is abandoned.
+
+    Returns
+    -------
+    p : (n, P) float
+        Final warps (non-finite entries set to 0).
+    zncc : (n,) float
+        ZNCC at the last iterate before the final update; -1 for a flat subset.
+    converged : (n,) bool
+    """
     n, s2 = f.shape
+    n_params = p0.shape[1]
+    if n_params != 6 and n_params != 12:
+        raise ValueError("p0 must have 6 (affine) or 12 (quadratic) columns")
+    if G.shape[1] != n_params:
+        raise ValueError("G must have one row per warp parameter (as many as p0 has columns)")
     p_out = p0.copy()
-    zncc_out = np.full(n, -1.0)
+    zncc_out = np.empty(n)
     conv_out = np.zeros(n, dtype=np.bool_)
     for i in prange(n):
         p = p_out[i].copy()
         g = np.empty(s2)
-        b = np.empty(12)
         cx = centers[i, 0]
         cy = centers[i, 1]
-        for iteration in range(max_iterations):
-            zncc = _residual(coeff, cx, cy, p, ex, ey, f[i], norm[i], G[i], g, b)
-            if zncc == -2.0:
-                zncc_out[i] = -1.0
-                break
-            zncc_out[i] = zncc
-            dp = -b
-            Md = _matrix2(dp)
-            if not np.all(np.isfinite(Md)):
-                break
-            M = _matrix2(p) @ np.linalg.inv(Md)
-            p[0], p[1] = M[3, 5], M[4, 5]
-            p[2], p[3], p[4], p[5] = M[3, 3] - 1, M[3, 4], M[4, 3], M[4, 4] - 1
-            p[6], p[7], p[8] = 2 * M[3, 0], M[3, 1], 2 * M[3, 2]
-            p[9], p[10], p[11] = 2 * M[4, 0], M[4, 1], 2 * M[4, 2]
-            first = dp[2] ** 2 + dp[3] ** 2 + dp[4] ** 2 + dp[5] ** 2
-            second = 0.0
-            for k in range(6, 12):
-                second += dp[k] ** 2
-            step = np.sqrt(dp[0] ** 2 + dp[1] ** 2 + half * half * first + 0.25 * half**4 * second)
-            finite = np.isfinite(step)
-            for k in range(12):
-                finite = finite and np.isfinite(p[k])
-            wild = False
-            for k in range(2, 6):
-                wild = wild or abs(p[k]) > 2.0
-            if not finite or wild:
-                break
-            if step < tolerance:
-                conv_out[i] = True
-                break
-            if iteration >= 7 and zncc < zncc_min:
-                break
-        for k in range(12):
+        f_row, norm_i, G_row = f[i], norm[i], G[i]
+        # one inlined copy of the iteration per order, each with a constant-size step
+        if n_params == 12:
+            zncc, converged = _match_point(
+                coeff, cx, cy, p, np.empty(12), g, ex, ey, f_row, norm_i, G_row,
+                half, tolerance, max_iterations, zncc_min,
+            )  # fmt: skip
+        else:
+            zncc, converged = _match_point(
+                coeff, cx, cy, p, np.empty(6), g, ex, ey, f_row, norm_i, G_row,
+                half, tolerance, max_iterations, zncc_min,
+            )  # fmt: skip
+        zncc_out[i] = zncc
+        conv_out[i] = converged
+        for k in range(n_params):
             p_out[i, k] = p[k] if np.isfinite(p[k]) else 0.0
     return p_out, zncc_out, conv_out

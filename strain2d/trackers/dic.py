@@ -96,13 +96,13 @@ def _blocks(n: int, parts: int) -> list[slice]:
 
 
 @functools.cache
-def _compiled_kernel(order: int = 1):
-    """The numba IC-GN kernel for a shape-function order, or None without numba."""
+def _compiled_kernel():
+    """The numba IC-GN kernel (both shape-function orders), or None without numba."""
     try:
-        from strain2d.trackers._icgn_kernel import icgn, icgn2
+        from strain2d.trackers._icgn_kernel import icgn
     except ImportError:
         return None
-    return icgn if order == 1 else icgn2
+    return icgn
 
 
 def _coefficients(frame: np.ndarray) -> np.ndarray:
@@ -287,7 +287,7 @@ class _Correlator:
         Runs the compiled kernel (:mod:`strain2d.trackers._icgn_kernel`) when
         numba is available, else :meth:`match_numpy`; both give the same result.
         """
-        kernel = _compiled_kernel(self.order)
+        kernel = _compiled_kernel()
         if kernel is None:
             return self.match_numpy(coefficients, ref, idx, p0)
         full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
