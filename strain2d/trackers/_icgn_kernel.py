@@ -6,8 +6,8 @@ order). One pass per point and iteration computes the warped subset
 coordinates, evaluates the cubic B-spline (mirror boundaries, as
 ``scipy.ndimage`` with ``mode="mirror"``), the ZNSSD residual, the
 Gauss-Newton step and the inverse-compositional update; points run in
-parallel. The tests check it against the NumPy implementation
-(``dic._Correlator.match_numpy``).
+parallel. The tests check it against a vectorized NumPy oracle
+(``tests/strain2d/icgn_oracle.py``).
 
 References
 ----------

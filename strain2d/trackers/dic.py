@@ -95,16 +95,6 @@ def _blocks(n: int, parts: int) -> list[slice]:
     return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
 
-@functools.cache
-def _compiled_kernel():
-    """The numba IC-GN kernel (both shape-function orders), or None without numba."""
-    try:
-        from strain2d.trackers._icgn_kernel import icgn
-    except ImportError:
-        return None
-    return icgn
-
-
 def _coefficients(frame: np.ndarray) -> np.ndarray:
     """Cubic B-spline coefficients of a frame (mirror boundaries).
 
@@ -136,79 +126,6 @@ def _sample(coefficients: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarra
     if _WORKERS == 1 or x.size < 20_000:
         return run(slice(None))
     return np.concatenate(list(_pool().map(run, _blocks(len(x), _WORKERS))))
-
-
-def _matrix(p: np.ndarray) -> np.ndarray:
-    """Affine warps ``(n, 3, 3)`` from parameters ``(n, 6)``."""
-    M = np.zeros((len(p), 3, 3))
-    M[:, 0] = np.stack([1 + p[:, 2], p[:, 3], p[:, 0]], axis=-1)
-    M[:, 1] = np.stack([p[:, 4], 1 + p[:, 5], p[:, 1]], axis=-1)
-    M[:, 2, 2] = 1.0
-    return M
-
-
-def _params(M: np.ndarray) -> np.ndarray:
-    return np.stack(
-        [M[:, 0, 2], M[:, 1, 2], M[:, 0, 0] - 1, M[:, 0, 1], M[:, 1, 0], M[:, 1, 1] - 1], axis=-1
-    )
-
-
-def _matrix2(p: np.ndarray) -> np.ndarray:
-    """Second-order warps ``(n, 6, 6)`` from parameters ``(n, 12)``.
-
-    The warp acts on ``(dx^2, dx dy, dy^2, dx, dy, 1)``; rows 3-4 are the exact
-    quadratic map and rows 0-2 its products truncated at second order, so that
-    composition and inversion are matrix products (Gao, Y., Cheng, T., Su, Y.,
-    Xu, X., Zhang, Y., & Zhang, Q. (2015). High-efficiency and high-accuracy
-    digital image correlation for three-dimensional measurement. Optics and
-    Lasers in Engineering 65, 73-80. https://doi.org/10.1016/j.optlaseng.2014.05.013).
-    """
-    u, v, ux, uy, vx, vy, uxx, uxy, uyy, vxx, vxy, vyy = p.T
-    a1, a2, b1, b2 = 1 + ux, uy, vx, 1 + vy
-    M = np.zeros((len(p), 6, 6))
-    M[:, 0] = np.stack(
-        [a1**2 + u * uxx, 2 * a1 * a2 + 2 * u * uxy, a2**2 + u * uyy, 2 * u * a1, 2 * u * a2, u**2],
-        axis=-1,
-    )
-    M[:, 1] = np.stack(
-        [
-            a1 * b1 + 0.5 * (u * vxx + v * uxx),
-            a1 * b2 + a2 * b1 + u * vxy + v * uxy,
-            a2 * b2 + 0.5 * (u * vyy + v * uyy),
-            u * b1 + v * a1,
-            u * b2 + v * a2,
-            u * v,
-        ],
-        axis=-1,
-    )
-    M[:, 2] = np.stack(
-        [b1**2 + v * vxx, 2 * b1 * b2 + 2 * v * vxy, b2**2 + v * vyy, 2 * v * b1, 2 * v * b2, v**2],
-        axis=-1,
-    )
-    M[:, 3] = np.stack([0.5 * uxx, uxy, 0.5 * uyy, a1, a2, u], axis=-1)
-    M[:, 4] = np.stack([0.5 * vxx, vxy, 0.5 * vyy, b1, b2, v], axis=-1)
-    M[:, 5, 5] = 1.0
-    return M
-
-
-def _params2(M: np.ndarray) -> np.ndarray:
-    return np.stack(
-        [
-            M[:, 3, 5],
-            M[:, 4, 5],
-            M[:, 3, 3] - 1,
-            M[:, 3, 4],
-            M[:, 4, 3],
-            M[:, 4, 4] - 1,
-            2 * M[:, 3, 0],
-            M[:, 3, 1],
-            2 * M[:, 3, 2],
-            2 * M[:, 4, 0],
-            M[:, 4, 1],
-            2 * M[:, 4, 2],
-        ],
-        axis=-1,
-    )
 
 
 @dataclass
@@ -276,20 +193,20 @@ class _Correlator:
         template = patch[:, 1:-1, 1:-1].astype(np.float32)
         return _Subsets(centers.copy(), np.full(n, frame), fm / norm, norm, Hinv @ J, template)
 
-    def warped_coordinates(self, centers: np.ndarray, p: np.ndarray):
-        return _warp(centers, p, self.ex, self.ey)
-
     def match(
         self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged).
 
-        Runs the compiled kernel (:mod:`strain2d.trackers._icgn_kernel`) when
-        numba is available, else :meth:`match_numpy`; both give the same result.
+        Runs the compiled kernel :func:`strain2d.trackers._icgn_kernel.icgn`
+        with this correlator's shape function (``p0`` has ``n_params``
+        columns). ``zncc`` is measured at the last iterate before the final
+        (sub-tolerance) update.  A point whose correlation is still below
+        ``zncc_min`` after 8 iterations is abandoned: it is not converging to
+        the right match.
         """
-        kernel = _compiled_kernel()
-        if kernel is None:
-            return self.match_numpy(coefficients, ref, idx, p0)
+        from strain2d.trackers._icgn_kernel import icgn  # numba: compiled on first use
+
         full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
         rows = slice(None) if full else idx
         arrays = (
@@ -300,7 +217,7 @@ class _Correlator:
             np.ascontiguousarray(p0, dtype=np.float64),
         )
         with deferred_interrupt():  # Ctrl-C inside the kernel would surface as SystemError
-            return kernel(
+            return icgn(
                 coefficients,
                 *arrays,
                 self.ex,
@@ -310,63 +227,6 @@ class _Correlator:
                 self.max_iterations,
                 self.zncc_min,
             )
-
-    def match_numpy(
-        self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """NumPy implementation of :meth:`match` (vectorized over points).
-
-        ``zncc`` is measured at the last iterate before the final (sub-tolerance)
-        update.  A point whose correlation is still below ``zncc_min`` after 8
-        iterations is abandoned: it is not converging to the right match.
-        """
-        p = p0.copy()
-        full = len(idx) == len(ref.centers) and np.array_equal(idx, np.arange(len(idx)))
-        f = ref.f if full else ref.f[idx]
-        G = ref.G if full else ref.G[idx]
-        norm = ref.norm if full else ref.norm[idx]
-        centers = ref.centers if full else ref.centers[idx]
-        active = np.arange(len(idx))
-        converged = np.zeros(len(idx), dtype=bool)
-        zncc = np.full(len(idx), -1.0)
-        h = self.half
-        for iteration in range(self.max_iterations):
-            if active.size == 0:
-                break
-            every = active.size == len(idx)
-            pa = p if every else p[active]
-            x, y = self.warped_coordinates(centers if every else centers[active], pa)
-            g = _sample(coefficients, x, y)
-            gm = g - g.mean(axis=1, keepdims=True)
-            gnorm = np.sqrt(np.sum(gm**2, axis=1, keepdims=True))
-            flat = gnorm[:, 0] < 1e-9
-            gnorm[flat] = 1.0
-            gn = gm / gnorm
-            fa = f if every else f[active]
-            za = np.where(flat, -1.0, 1.0 - 0.5 * np.sum((fa - gn) ** 2, axis=1))
-            zncc[active] = za
-            r = (fa - gn) * (norm if every else norm[active])  # ZNSSD residual, f's scale
-            dp = -((G if every else G[active]) @ r[..., None])[..., 0]
-            if self.order == 1:
-                p[active] = _params(_matrix(pa) @ np.linalg.inv(_matrix(dp)))
-            else:
-                p[active] = _params2(_matrix2(pa) @ np.linalg.inv(_matrix2(dp)))
-            # largest move of a subset pixel (first-order terms at the edge, second-order
-            # terms at the corner)
-            step = np.sqrt(
-                dp[:, 0] ** 2
-                + dp[:, 1] ** 2
-                + np.sum((h * dp[:, 2:6]) ** 2, axis=1)
-                + np.sum((0.5 * h * h * dp[:, 6:]) ** 2, axis=1)
-            )
-            finite = np.isfinite(step) & np.isfinite(p[active]).all(axis=1)
-            done = finite & (step < self.tolerance)
-            failed = ~finite | (np.abs(p[active, 2:6]) > 2.0).any(axis=1)
-            if iteration >= 7:
-                failed |= za < self.zncc_min
-            converged[active[done & ~failed]] = True
-            active = active[~(done | failed)]
-        return np.nan_to_num(p), zncc, converged
 
 
 def _warp(centers: np.ndarray, p: np.ndarray, ex: np.ndarray, ey: np.ndarray):
