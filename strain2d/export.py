@@ -1,4 +1,6 @@
-"""Result files: nodal and element strain tables, ParaView time series, summary.
+"""Result files of a 2D run: nodal and element strain tables, ParaView time series.
+
+The tables are :mod:`surface_strain.export`'s for a planar field.
 
 ``strain_nodes.csv`` columns::
 
@@ -25,7 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
-from surface_strain import StrainField, element_scalars, nodal_scalars
+from surface_strain import (
+    StrainField,
+    element_columns,
+    node_columns,
+    write_elements_csv,
+    write_nodes_csv,
+)
 
 __all__ = [
     "ELEMENT_COLUMNS",
@@ -35,63 +43,12 @@ __all__ = [
     "write_strain_nodes_csv",
 ]
 
-_SCALARS = ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "theta1_deg", "J")
-NODE_COLUMNS = ("frame", "point", "x", "y", "u", "v", "visible", *_SCALARS)
-ELEMENT_COLUMNS = ("frame", "triangle", "p0", "p1", "p2", "valid", *_SCALARS)
-
-
-def write_strain_nodes_csv(
-    path: str | os.PathLike, field: StrainField, uncertainty: np.ndarray | None = None
-) -> None:
-    """Write per-node strain for every frame (see the module docstring); ``uncertainty``
-    ``(T, N)`` in px adds the ``uncertainty_px`` column."""
-    T, N = field.n_frames, field.n_points
-    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
-    pos = field.points
-    disp = pos - field.reference
-    scalars = nodal_scalars(field)
-    table = np.column_stack(
-        [
-            frame.ravel(),
-            point.ravel(),
-            pos[..., 0].ravel(),
-            pos[..., 1].ravel(),
-            disp[..., 0].ravel(),
-            disp[..., 1].ravel(),
-            field.visible.ravel(),
-            *(scalars[k].ravel() for k in _SCALARS),
-        ]
-    )
-    fmt = ["%d", "%d", "%.6f", "%.6f", "%.6f", "%.6f", "%d"] + ["%.8g"] * len(_SCALARS)
-    header = list(NODE_COLUMNS)
-    if uncertainty is not None:
-        table = np.column_stack([table, np.asarray(uncertainty, float).reshape(T * N)])
-        fmt.append("%.4g")
-        header.append("uncertainty_px")
-    with open(path, "w") as f:
-        f.write(",".join(header) + "\n")
-        np.savetxt(f, table, fmt=fmt, delimiter=",")
-
-
-def write_strain_elements_csv(path: str | os.PathLike, field: StrainField) -> None:
-    """Write per-triangle strain for every frame (see the module docstring)."""
-    T, M = field.n_frames, field.n_triangles
-    frame, tri = np.meshgrid(np.arange(T), np.arange(M), indexing="ij")
-    scalars = element_scalars(field)
-    verts = field.triangles[tri.ravel()]
-    table = np.column_stack(
-        [
-            frame.ravel(),
-            tri.ravel(),
-            verts,
-            field.element_valid.ravel(),
-            *(scalars[k].ravel() for k in _SCALARS),
-        ]
-    )
-    fmt = ["%d"] * 6 + ["%.8g"] * len(_SCALARS)
-    with open(path, "w") as f:
-        f.write(",".join(ELEMENT_COLUMNS) + "\n")
-        np.savetxt(f, table, fmt=fmt, delimiter=",")
+NODE_COLUMNS = node_columns(2)
+ELEMENT_COLUMNS = element_columns(2)
+#: ``write_strain_nodes_csv(path, field, uncertainty=None)``: surface_strain's, for a 2D field
+write_strain_nodes_csv = write_nodes_csv
+#: ``write_strain_elements_csv(path, field)``: surface_strain's, for a 2D field
+write_strain_elements_csv = write_elements_csv
 
 
 def write_pvd(

@@ -12,7 +12,13 @@ __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
         "tissue_core.version": ["__version__"],
-        "surface_strain.export": ["write_elements_csv", "write_nodes_csv", "write_pvd"],
+        "surface_strain.export": [
+            "element_columns",
+            "node_columns",
+            "write_elements_csv",
+            "write_nodes_csv",
+            "write_pvd",
+        ],
         "surface_strain.field": [
             "StrainField",
             "compute_strain",

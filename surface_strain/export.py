@@ -1,17 +1,23 @@
 """Result files for strain on surfaces: node and element tables, ParaView time series.
 
-``strain_nodes.csv`` columns::
+One table schema for 3D and 2D fields; 2D is its planar case.  For 3D fields
+``strain_nodes.csv`` has the columns::
 
     frame,point,X,Y,Z,U,V,W,visible,Exx,Eyy,Exy,E1,E2,max_shear,J
 
-``strain_elements.csv`` columns::
+and for 2D fields (:mod:`strain2d`'s contract) the planar ones, in lower
+case, with the principal angle in the plane::
 
-    frame,triangle,p0,p1,p2,valid,Exx,Eyy,Exy,E1,E2,max_shear,J
+    frame,point,x,y,u,v,visible,Exx,Eyy,Exy,E1,E2,max_shear,theta1_deg,J[,uncertainty_px]
 
-Positions ``X, Y, Z`` and displacements ``U, V, W`` are in the points' unit;
-strains are Green-Lagrange, dimensionless, ``Exx, Eyy, Exy`` in the
-directional frame the field was computed with; ``J`` is the area ratio.
-Lost values are ``nan``.
+``strain_elements.csv`` has ``frame,triangle,p0,p1,p2,valid`` and the same
+strains.  Positions ``X, Y, Z`` and displacements ``U, V, W`` are in the
+points' unit (pixels in 2D); strains are Green-Lagrange, dimensionless,
+``Exx, Eyy, Exy`` in the directional frame the field was computed with;
+``theta1_deg`` is the angle of the first principal direction from the x
+axis; ``J`` is the area ratio; ``uncertainty_px`` the tracker's standard
+deviation of each coordinate.  Lost values, and ``theta1_deg`` where
+``E1 = E2``, are ``nan``.
 
 :func:`write_pvd` writes ``name.pvd`` and one ``.vtp`` per frame: the mesh at
 the frame's positions, point data ``displacement`` (vector), the nodal
@@ -34,11 +40,37 @@ import numpy as np
 
 from surface_strain.field import StrainField, element_scalars, nodal_scalars
 
-__all__ = ["ELEMENT_COLUMNS", "NODE_COLUMNS", "write_elements_csv", "write_nodes_csv", "write_pvd"]
+__all__ = [
+    "ELEMENT_COLUMNS",
+    "NODE_COLUMNS",
+    "element_columns",
+    "node_columns",
+    "write_elements_csv",
+    "write_nodes_csv",
+    "write_pvd",
+]
 
 SCALARS = ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "J")
-NODE_COLUMNS = ("frame", "point", "X", "Y", "Z", "U", "V", "W", "visible", *SCALARS)
-ELEMENT_COLUMNS = ("frame", "triangle", "p0", "p1", "p2", "valid", *SCALARS)
+_PLANAR_SCALARS = ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "theta1_deg", "J")
+
+
+def _scalars(d: int) -> tuple[str, ...]:
+    return _PLANAR_SCALARS if d == 2 else SCALARS
+
+
+def node_columns(d: int = 3) -> tuple[str, ...]:
+    """Columns of ``strain_nodes.csv`` for a field in ``d`` = 2 or 3 dimensions."""
+    axes = ("x", "y", "u", "v") if d == 2 else ("X", "Y", "Z", "U", "V", "W")
+    return ("frame", "point", *axes, "visible", *_scalars(d))
+
+
+def element_columns(d: int = 3) -> tuple[str, ...]:
+    """Columns of ``strain_elements.csv`` for a field in ``d`` = 2 or 3 dimensions."""
+    return ("frame", "triangle", "p0", "p1", "p2", "valid", *_scalars(d))
+
+
+NODE_COLUMNS = node_columns(3)
+ELEMENT_COLUMNS = element_columns(3)
 
 
 def _xyz(a: np.ndarray) -> np.ndarray:
@@ -48,32 +80,43 @@ def _xyz(a: np.ndarray) -> np.ndarray:
     return np.concatenate([a, np.zeros((*a.shape[:-1], 1))], axis=-1)
 
 
-def write_nodes_csv(path: str | os.PathLike, field: StrainField) -> None:
-    """Per-node positions, displacements and strain for every frame."""
+def write_nodes_csv(
+    path: str | os.PathLike, field: StrainField, uncertainty: np.ndarray | None = None
+) -> None:
+    """Per-node positions, displacements and strain for every frame (see the module docstring).
+
+    ``uncertainty`` ``(T, N)`` in px adds the ``uncertainty_px`` column.
+    """
     T, N = field.n_frames, field.n_points
+    d = field.points.shape[-1]
     frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
-    pos = _xyz(field.points)
-    disp = pos - _xyz(field.reference)[None]
+    disp = field.points - field.reference[None]
     scalars = nodal_scalars(field)
     table = np.column_stack(
         [
             frame.ravel(),
             point.ravel(),
-            pos.reshape(-1, 3),
-            disp.reshape(-1, 3),
+            field.points.reshape(-1, d),
+            disp.reshape(-1, d),
             field.visible.ravel(),
-            *(scalars[k].ravel() for k in SCALARS),
+            *(scalars[k].ravel() for k in _scalars(d)),
         ]
     )
-    fmt = ["%d", "%d", *["%.6f"] * 6, "%d"] + ["%.8g"] * len(SCALARS)
+    fmt = ["%d", "%d", *["%.6f"] * (2 * d), "%d"] + ["%.8g"] * len(_scalars(d))
+    header = list(node_columns(d))
+    if uncertainty is not None:
+        table = np.column_stack([table, np.asarray(uncertainty, float).reshape(T * N)])
+        fmt.append("%.4g")
+        header.append("uncertainty_px")
     with open(path, "w") as f:
-        f.write(",".join(NODE_COLUMNS) + "\n")
+        f.write(",".join(header) + "\n")
         np.savetxt(f, table, fmt=fmt, delimiter=",")
 
 
 def write_elements_csv(path: str | os.PathLike, field: StrainField) -> None:
-    """Per-triangle strain for every frame."""
+    """Per-triangle strain for every frame (see the module docstring)."""
     T, M = field.n_frames, field.n_triangles
+    d = field.points.shape[-1]
     frame, tri = np.meshgrid(np.arange(T), np.arange(M), indexing="ij")
     scalars = element_scalars(field)
     table = np.column_stack(
@@ -82,12 +125,12 @@ def write_elements_csv(path: str | os.PathLike, field: StrainField) -> None:
             tri.ravel(),
             field.triangles[tri.ravel()],
             field.element_valid.ravel(),
-            *(scalars[k].ravel() for k in SCALARS),
+            *(scalars[k].ravel() for k in _scalars(d)),
         ]
     )
-    fmt = ["%d"] * 6 + ["%.8g"] * len(SCALARS)
+    fmt = ["%d"] * 6 + ["%.8g"] * len(_scalars(d))
     with open(path, "w") as f:
-        f.write(",".join(ELEMENT_COLUMNS) + "\n")
+        f.write(",".join(element_columns(d)) + "\n")
         np.savetxt(f, table, fmt=fmt, delimiter=",")
 
 
