@@ -177,14 +177,12 @@ def _build_parser() -> CommandLine:
         "--tracker",
         default="dic",
         help="2D tracker that follows the points through each video: dic, klt, or another "
-        "that tracks frames (default dic)",
+        "that tracks frames (default dic); dic's warp is quadratic here (curved surfaces "
+        "seen in perspective)",
     )
-    p.add_argument("--subset", type=int, help="dic subset side in px (odd, default 31)")
-    p.add_argument(
-        "--shape-function",
-        choices=["affine", "quadratic"],
-        help="dic subset warp (default quadratic: curved surfaces seen in perspective)",
-    )
+    from strain2d import add_tracker_arguments
+
+    add_tracker_arguments(p, _frame_trackers(), defaults=_TRACKER_DEFAULTS)
     p.add_argument("--max-reproj", type=float, default=1.0, help="px; worse points are dropped")
     p.add_argument(
         "--strain",
@@ -332,6 +330,28 @@ def _cmd_match(args) -> int:
     return 0
 
 
+#: reconstruct's own tracker defaults: curved surfaces seen in perspective need dic's
+#: second-order warp
+_TRACKER_DEFAULTS = {"dic": {"shape_function": "quadratic"}}
+
+
+def _frame_trackers() -> list[str]:
+    """The trackers reconstruct can use: those that track frames."""
+    from strain2d import available_trackers
+
+    return [name for name, spec in available_trackers().items() if spec.needs_frames]
+
+
+def _tracker_options(args) -> dict:
+    from strain2d import tracker_options
+
+    options = tracker_options(args, args.tracker, defaults=_TRACKER_DEFAULTS)
+    subset = options.get("subset")
+    if isinstance(subset, int) and (subset < 7 or subset % 2 == 0):
+        raise InputError(f"--subset must be an odd number >= 7, got {subset}")
+    return options
+
+
 def _check_reconstruct_options(args) -> None:
     """Every option of ``reconstruct`` that can be judged before anything is read."""
     from strain2d import available_trackers
@@ -340,7 +360,7 @@ def _check_reconstruct_options(args) -> None:
         raise InputError("give either --points or --grid/--roi, not both")
     if args.directions is not None and not args.strain:
         raise InputError("--directions sets the frame of the strain: it needs --strain")
-    usable = [name for name, spec in available_trackers().items() if spec.needs_frames]
+    usable = _frame_trackers()
     if args.tracker not in usable:
         what = "reads tracks made elsewhere" if args.tracker in available_trackers() else None
         reason = (
@@ -349,12 +369,7 @@ def _check_reconstruct_options(args) -> None:
             else f"unknown tracker {args.tracker!r}"
         )
         raise InputError(f"--tracker {args.tracker}: {reason}: use one of {', '.join(usable)}")
-    if args.tracker != "dic":
-        for option, value in (("--subset", args.subset), ("--shape-function", args.shape_function)):
-            if value is not None:
-                raise InputError(f"{option} is an option of the dic tracker, not {args.tracker}")
-    if args.subset is not None and (args.subset < 7 or args.subset % 2 == 0):
-        raise InputError(f"--subset must be an odd number >= 7, got {args.subset}")
+    _tracker_options(args)
     if not (math.isfinite(args.max_reproj) and args.max_reproj > 0):
         raise InputError(f"--max-reproj must be a positive number of pixels, got {args.max_reproj}")
     _check_match_options(args)
@@ -394,7 +409,10 @@ def _cmd_reconstruct(args) -> int:
     from tissue_core.version import __version__
 
     _check_reconstruct_options(args)
+    from strain2d import tracker_inputs
+
     inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])
+    inputs += tracker_inputs(args)
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
     calib = _load_calib(args.calib)
     left, right = open_frames(args.left), open_frames(args.right)
@@ -406,21 +424,16 @@ def _cmd_reconstruct(args) -> int:
     _check_calibration_size(calib, args.calib, left.shape, _source_name(left))
     _check_calibration_size(calib, args.calib, right.shape, _source_name(right))
     _check_subset_fits("--match-subset", args.match_subset, left.shape, "frames")
-    if args.subset is not None:
-        _check_subset_fits("--subset", args.subset, left.shape, "frames")
+    options = _tracker_options(args)
+    if isinstance(options.get("subset"), int):
+        _check_subset_fits("--subset", options["subset"], left.shape, "frames")
     if args.points:
         points = _read_points(args.points, left.shape, for_strain=True)
         point_info = {"source": Path(args.points).name}
     else:
         points, point_info = _grid_points(args, left.shape)
     directions = args.directions or "xy"
-    shape_function = args.shape_function or "quadratic"
     say = _say(args)
-    options = {}
-    if args.tracker == "dic":
-        options["shape_function"] = shape_function
-        if args.subset is not None:
-            options["subset"] = args.subset
     rec = reconstruct(
         left,
         right,
@@ -478,8 +491,9 @@ def _cmd_reconstruct(args) -> int:
             "reprojection_max_px": float(err.max()) if err.size else None,
             "parameters": {
                 "tracker": args.tracker,
-                "subset": args.subset,
-                "shape_function": shape_function if args.tracker == "dic" else None,
+                "subset": options.get("subset"),
+                "shape_function": options.get("shape_function"),
+                "tracker_options": options,
                 "match_subset": args.match_subset,
                 "max_epipolar_px": args.max_epipolar,
                 "max_reproj_px": args.max_reproj,

@@ -29,7 +29,15 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "strain2d.report": ["run_outputs", "write_run_report", "write_study"],
         "strain2d.run": ["Run", "load_run", "write_run"],
         "strain2d.study": ["load_specimens", "read_manifest", "study_statistics"],
-        "strain2d.trackers": ["available_trackers", "get_tracker", "register_tracker"],
+        "strain2d.trackers": [
+            "TrackerOption",
+            "add_tracker_arguments",
+            "available_trackers",
+            "get_tracker",
+            "register_tracker",
+            "tracker_inputs",
+            "tracker_options",
+        ],
         "strain2d.tracks": ["Tracks", "read_tracks", "write_tracks_csv"],
     },
 )

@@ -6,7 +6,6 @@ Errors a user can cause end with one line on stderr and exit status 2.
 from __future__ import annotations
 
 import argparse
-import inspect
 import logging
 import time
 
@@ -14,30 +13,6 @@ from strain2d import __version__
 from strain2d.errors import InputError, SourceError
 
 log = logging.getLogger(__name__)
-
-#: CLI flags that map to tracker options (flag dest -> option name).
-_TRACKER_FLAGS = {
-    "window": "window",
-    "levels": "levels",
-    "fb_threshold": "fb_threshold",
-    "tracks_file": "tracks_file",
-    "subset": "subset",
-    "zncc_min": "zncc_min",
-    "shape_function": "shape_function",
-    "lattice_spacing": "spacing",
-    "curvature": "curvature",
-    "cotracker_repo": "repo",
-    "cotracker_checkpoint": "checkpoint",
-    "cotracker_download": "download",
-    "device": "device",
-    "half": "half",
-    "crop": "crop",
-    "crop_margin": "crop_margin",
-    "chunk_frames": "chunk_frames",
-    "chunk_overlap": "chunk_overlap",
-    "query_chunk": "query_chunk",
-}
-
 
 def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
@@ -52,93 +27,16 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--step", type=int, default=1, help="use every STEP-th frame (default 1)")
 
 
-def _subset_arg(text: str) -> int | str:
-    if text == "auto":
-        return text
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be auto or a whole number of pixels, got {text!r}"
-        ) from None
-
-
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
+    from strain2d.trackers import add_tracker_arguments
+
     p.add_argument(
         "--tracker",
         default="gdic",
         help="tracker name: gdic, dic, klt, cotracker3, imported (default gdic: global and "
         "local correlation, for weak natural texture as well as speckle)",
     )
-    p.add_argument(
-        "--subset",
-        type=_subset_arg,
-        help="gdic, dic: subset side in pixels, or auto (gdic only, its default: sized per "
-        "point from the texture against the noise, 31-81 px); dic's default 31",
-    )
-    p.add_argument(
-        "--shape-function",
-        choices=["auto", "affine", "quadratic"],
-        help="gdic, dic: subset warp, first or second order, or chosen per point and frame "
-        "(gdic only: auto, its default; dic: affine)",
-    )
-    p.add_argument(
-        "--lattice-spacing",
-        type=int,
-        help="gdic: node spacing of the global field in pixels (default 16)",
-    )
-    p.add_argument(
-        "--curvature",
-        type=float,
-        help="gdic: prior scale of the field's second derivatives in 1/px; smaller is "
-        "smoother (default 0.002)",
-    )
-    p.add_argument(
-        "--zncc-min",
-        type=float,
-        help="gdic, dic: correlation below which a local match is not used (gdic: the global "
-        "field's value stands in) or the point is lost (dic); default 0.75",
-    )
-    p.add_argument("--window", type=int, help="klt: window side in pixels (default 31)")
-    p.add_argument("--levels", type=int, help="klt: pyramid levels (default 3)")
-    p.add_argument(
-        "--fb-threshold",
-        type=float,
-        help="klt: forward-backward error in px that marks a point lost (default 1.0)",
-    )
-    p.add_argument("--tracks-file", help="imported: tracks from another tool (CSV, NPY or NPZ)")
-    g = p.add_argument_group("cotracker3 (needs PyTorch: make setup-torch; see the README)")
-    g.add_argument(
-        "--cotracker-repo", metavar="DIR", help="local clone of facebookresearch/co-tracker"
-    )
-    g.add_argument(
-        "--cotracker-checkpoint", metavar="FILE", help="model weights, e.g. scaled_offline.pth"
-    )
-    g.add_argument(
-        "--cotracker-download",
-        action="store_true",
-        default=None,
-        help="allow torch.hub to download the code and/or weights that are not given",
-    )
-    g.add_argument("--device", help="cpu, cuda or cuda:N (default: cuda when present, else cpu)")
-    g.add_argument("--half", action="store_true", default=None, help="float16 autocast (CUDA only)")
-    g.add_argument(
-        "--no-crop",
-        dest="crop",
-        action="store_false",
-        default=None,
-        help="give the model whole frames instead of the points' region plus a margin",
-    )
-    g.add_argument(
-        "--crop-margin",
-        type=float,
-        help="margin around the points' bounding box, as a fraction of its size (default 0.5)",
-    )
-    g.add_argument("--chunk-frames", type=int, help="frames per model call (default 60)")
-    g.add_argument(
-        "--chunk-overlap", type=int, help="frames shared by consecutive chunks (default 4)"
-    )
-    g.add_argument("--query-chunk", type=int, help="points per model call (default 1024)")
+    add_tracker_arguments(p)
 
 
 def _add_points_args(p: argparse.ArgumentParser) -> None:
@@ -279,20 +177,9 @@ def _progress(args):
 
 
 def _tracker_options(args) -> dict:
-    from strain2d.trackers import get_tracker
+    from strain2d.trackers import tracker_options
 
-    spec = get_tracker(args.tracker)
-    accepted = inspect.signature(spec.function).parameters
-    options = {}
-    for dest, name in _TRACKER_FLAGS.items():
-        value = getattr(args, dest, None)
-        if value is None:
-            continue
-        if name not in accepted:
-            flag = "--" + dest.replace("_", "-")
-            raise InputError(f"{flag} does not apply to the {args.tracker} tracker")
-        options[name] = value
-    return options
+    return tracker_options(args, args.tracker)
 
 
 def _reference_points(args, source):
@@ -315,9 +202,9 @@ def _reference_points(args, source):
 
 def _inputs(args) -> list[str]:
     """Every file the command reads, so no output may replace one."""
-    names = ("points", "tracks_file", "cotracker_checkpoint", "cotracker_repo")
-    extra = [getattr(args, name, None) for name in names]
-    return [*args.source, *(e for e in extra if e)]
+    from strain2d.trackers import tracker_inputs
+
+    return [*args.source, *([args.points] if args.points else []), *tracker_inputs(args)]
 
 
 def _open(args):

@@ -75,7 +75,7 @@ from typing import Any
 import numpy as np
 
 from strain2d.errors import InputError
-from strain2d.trackers import register_tracker
+from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.tracks import Tracks
 
 __all__ = ["MODEL_INPUT_SIZE", "crop_box", "load_cotracker3", "track_cotracker"]
@@ -375,6 +375,53 @@ def _call(predictor, torch, video, queries, *, autocast) -> tuple[np.ndarray, ..
     "cotracker3",
     description="Meta's pretrained CoTracker3 (offline); needs PyTorch and its code and weights",
     needs_model=True,
+    group="cotracker3 (needs PyTorch: make setup-torch; see the README)",
+    options=[
+        TrackerOption(
+            "repo",
+            "--cotracker-repo",
+            "local clone of facebookresearch/co-tracker",
+            metavar="DIR",
+            is_file=True,
+        ),
+        TrackerOption(
+            "checkpoint",
+            "--cotracker-checkpoint",
+            "model weights, e.g. scaled_offline.pth",
+            metavar="FILE",
+            is_file=True,
+        ),
+        TrackerOption(
+            "download",
+            "--cotracker-download",
+            "allow torch.hub to download the code and/or weights that are not given",
+            switch=True,
+        ),
+        TrackerOption(
+            "device", "--device", "cpu, cuda or cuda:N (default: cuda when present, else cpu)"
+        ),
+        TrackerOption("half", "--half", "float16 autocast (CUDA only)", switch=True),
+        TrackerOption(
+            "crop",
+            "--no-crop",
+            "give the model whole frames instead of the points' region plus a margin",
+            switch=False,
+        ),
+        TrackerOption(
+            "crop_margin",
+            "--crop-margin",
+            "margin around the points' bounding box, as a fraction of its size",
+            type=float,
+        ),
+        TrackerOption("chunk_frames", "--chunk-frames", "frames per model call", type=int),
+        TrackerOption(
+            "chunk_overlap",
+            "--chunk-overlap",
+            "frames shared by consecutive chunks",
+            type=int,
+        ),
+        TrackerOption("query_chunk", "--query-chunk", "points per model call", type=int),
+    ],
 )
 def track_cotracker(
     frames: Iterable[np.ndarray],

@@ -73,7 +73,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from strain2d.errors import InputError
-from strain2d.trackers import register_tracker
+from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.tracks import Tracks
 from tissue_core.interrupt import deferred_interrupt
 
@@ -363,6 +363,21 @@ def _warp_template(template: np.ndarray, p: np.ndarray) -> np.ndarray:
 @register_tracker(
     "dic",
     description="subset DIC against the reference frame: ZNSSD, IC-GN affine, cubic B-splines",
+    options=[
+        TrackerOption("subset", "--subset", "subset side in px", type=int),
+        TrackerOption(
+            "shape_function",
+            "--shape-function",
+            "subset warp, first or second order",
+            choices=("affine", "quadratic"),
+        ),
+        TrackerOption(
+            "zncc_min",
+            "--zncc-min",
+            "correlation below which the point is lost",
+            type=float,
+        ),
+    ],
 )
 def track_dic(
     frames: Iterable[np.ndarray],

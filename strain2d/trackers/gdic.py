@@ -48,7 +48,7 @@ import numpy as np
 from scipy import ndimage
 
 from strain2d.errors import InputError
-from strain2d.trackers import register_tracker
+from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._lattice import LatticeSolver
 from strain2d.trackers.dic import _coefficients, _Correlator, _inside, _Subsets
 from strain2d.tracks import Tracks
@@ -342,6 +342,40 @@ def _local_sigma(
     description="global DIC over the surface (regularized finite-element lattice, brightness "
     "per node, feature-based initial guess), refined by local subsets with the warp "
     "chosen per point; reports an uncertainty per point",
+    options=[
+        TrackerOption(
+            "subset",
+            "--subset",
+            "subset side in px, or auto (default: sized per point from the texture against "
+            "the noise, 31-81 px)",
+            type=lambda text: text if text == "auto" else int(text),
+        ),
+        TrackerOption(
+            "shape_function",
+            "--shape-function",
+            "subset warp, first or second order, or chosen per point and frame",
+            choices=("auto", "affine", "quadratic"),
+        ),
+        TrackerOption(
+            "spacing",
+            "--lattice-spacing",
+            "node spacing of the global field in px",
+            type=int,
+        ),
+        TrackerOption(
+            "curvature",
+            "--curvature",
+            "prior scale of the field's second derivatives in 1/px; smaller is smoother ",
+            type=float,
+        ),
+        TrackerOption(
+            "zncc_min",
+            "--zncc-min",
+            "correlation below which a local match is not used and the global field's value "
+            "stands in",
+            type=float,
+        ),
+    ],
 )
 def track_gdic(
     frames: Iterable[np.ndarray],

@@ -15,12 +15,23 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from strain2d.errors import InputError
-from strain2d.trackers import register_tracker
+from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.tracks import Tracks, read_tracks
 
 
 @register_tracker(
-    "imported", description="tracks made by another tool, read from CSV/NPY/NPZ", needs_frames=False
+    "imported",
+    description="tracks made by another tool, read from CSV/NPY/NPZ",
+    needs_frames=False,
+    options=[
+        TrackerOption(
+            "tracks_file",
+            "--tracks-file",
+            "tracks from another tool (CSV, NPY or NPZ)",
+            metavar="FILE",
+            is_file=True,
+        )
+    ],
 )
 def track_imported(
     frames: Iterable[np.ndarray] | None,

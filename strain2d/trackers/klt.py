@@ -44,7 +44,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from strain2d.errors import InputError
-from strain2d.trackers import register_tracker
+from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._convert import to_uint8
 from strain2d.tracks import Tracks
 
@@ -94,7 +94,18 @@ def _window_bias(
 
 
 @register_tracker(
-    "klt", description="OpenCV pyramidal Lucas-Kanade, frame to frame, forward-backward check"
+    "klt",
+    description="OpenCV pyramidal Lucas-Kanade, frame to frame, forward-backward check",
+    options=[
+        TrackerOption("window", "--window", "window side in px", type=int),
+        TrackerOption("levels", "--levels", "pyramid levels", type=int),
+        TrackerOption(
+            "fb_threshold",
+            "--fb-threshold",
+            "forward-backward error in px that marks a point lost",
+            type=float,
+        ),
+    ],
 )
 def track_klt(
     frames: Iterable[np.ndarray],

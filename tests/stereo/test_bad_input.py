@@ -827,7 +827,7 @@ for option, value, fragment in (
     ("--subset", "0", "odd"),
     ("--subset", "30", "odd"),
     ("--subset", "-31", "odd"),
-    ("--subset", "31.5", "invalid int"),
+    ("--subset", "31.5", "must be a whole number"),
 ):
 
     @case(f"reconstruct-option-{option[2:]}-{value}")

@@ -186,3 +186,54 @@ def test_klt_velocity_prediction_follows_accelerating_motion():
     tracks = track(frames, points, tracker="klt", options={"levels": 0, "window": 15})
     assert tracks.visible.all()
     np.testing.assert_allclose(tracks.positions[-1, :, 0] - points[:, 0], shifts[-1], atol=0.1)
+
+
+def test_a_tracker_declares_its_options_and_the_command_line_offers_them(
+    small_case, tmp_path, capsys
+):
+    """Adding a tracker touches one file: its options become flags of track and analyze."""
+    from strain2d import trackers as registry
+    from strain2d.cli import main
+    from strain2d.tracks import Tracks, read_tracks
+
+    seen = {}
+
+    @registry.register_tracker(
+        "still",
+        description="every point stays where it was (a test tracker)",
+        options=[
+            registry.TrackerOption("jitter", "--jitter", "offset in px (default 0)", type=float),
+            registry.TrackerOption("mark", "--mark", "flag lost points", switch=True),
+        ],
+    )
+    def track_still(frames, points, *, jitter=0.0, mark=False, progress=None):
+        seen.update(jitter=jitter, mark=mark)
+        n = sum(1 for _ in frames)
+        pos = np.repeat(points[None], n, axis=0) + jitter
+        return Tracks(pos, np.ones(pos.shape[:2], bool), np.ones(pos.shape[:2]))
+
+    try:
+        folder, _ = small_case
+        out = tmp_path / "t.csv"
+        argv = ["track", str(folder / "eq.tif"), "--grid", "3x3", "--tracker", "still"]
+        assert main([*argv, "--jitter", "0.5", "--mark", "--out", str(out), "-q"]) == 0
+        assert seen == {"jitter": 0.5, "mark": True}
+        tracks = read_tracks(out)
+        assert np.allclose(tracks.positions[-1] - tracks.positions[0], 0.0)
+        assert main([*argv, "--jitter", "half", "--out", str(tmp_path / "u.csv")]) == 2
+        assert "--jitter must be a number, got 'half'" in capsys.readouterr().err
+        klt = ["track", str(folder / "eq.tif"), "--tracker", "klt", "--jitter", "1"]
+        assert main([*klt, "--out", str(tmp_path / "v.csv")]) == 2
+        assert "--jitter does not apply to the klt tracker" in capsys.readouterr().err
+    finally:
+        registry._REGISTRY.pop("still", None)
+
+
+def test_a_declared_option_must_be_a_parameter_of_the_tracker():
+    from strain2d import trackers as registry
+
+    with pytest.raises(ValueError, match="no parameter 'gain'"):
+        registry.register_tracker(
+            "broken", description="-", options=[registry.TrackerOption("gain", "--gain", "-")]
+        )(lambda frames, points, *, progress=None: None)
+    assert "broken" not in registry.available_trackers()
