@@ -257,7 +257,8 @@ def check_writable(
 def _probe(parent: Path, path: Path, option: str) -> None:
     """Fail now, not after the work, if nothing can be written beside ``path``."""
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+        with deferred_interrupt():  # a Ctrl-C between the two calls would leave the probe
+            os.rmdir(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
     except OSError as exc:
         raise InputError(
             f"{option} {path} cannot be written: {exc.strerror or exc} in {parent}"
