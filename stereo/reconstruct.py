@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from strain2d import Tracks
 from tissue_core.errors import InputError
 
 __all__ = ["Reconstruction", "reconstruct"]
@@ -29,27 +30,38 @@ class Reconstruction:
 
     Attributes
     ----------
-    points : (T, N, 3) float, calibration units, left-camera frame (NaN where lost)
+    tracks : Tracks
+        The 3D tracks (:class:`strain2d.Tracks`, ``(T, N, 3)``) in calibration
+        units, left-camera frame, NaN where lost; their quality is the
+        negative reprojection error (higher is better).
     reproj_error : (T, N) float, RMS reprojection error over the two views, px
-    visible : (T, N) bool
     left, right : (T, N, 2) float, the 2D tracks in each view, px
     meta : dict
     """
 
-    points: np.ndarray
+    tracks: Tracks
     reproj_error: np.ndarray
-    visible: np.ndarray
     left: np.ndarray
     right: np.ndarray
     meta: dict = field(default_factory=dict)
 
     @property
+    def points(self) -> np.ndarray:
+        """(T, N, 3) float: the tracks' positions."""
+        return self.tracks.positions
+
+    @property
+    def visible(self) -> np.ndarray:
+        """(T, N) bool."""
+        return self.tracks.visible
+
+    @property
     def n_frames(self) -> int:
-        return self.points.shape[0]
+        return self.tracks.n_frames
 
     @property
     def n_points(self) -> int:
-        return self.points.shape[1]
+        return self.tracks.n_points
 
 
 def _first(frames):
@@ -158,9 +170,8 @@ def reconstruct(
         "unit": calib.unit,
     }
     return Reconstruction(
-        points=X,
+        tracks=Tracks(X, visible, np.where(np.isfinite(err), -err, -np.inf), meta),
         reproj_error=err,
-        visible=visible,
         left=left_tracks.positions,
         right=right_positions,
         meta=meta,

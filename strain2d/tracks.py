@@ -1,4 +1,4 @@
-"""``Tracks``: tracked point positions with visibility and quality, and their files.
+"""Files of 2D tracks (:class:`surface_strain.Tracks`, the toolkit's one tracks type).
 
 CSV layout (one row per frame and point)::
 
@@ -16,82 +16,16 @@ from __future__ import annotations
 import os
 import zipfile
 import zlib
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from strain2d.errors import InputError
+from surface_strain import Tracks
 
 __all__ = ["TRACK_COLUMNS", "Tracks", "read_tracks", "write_tracks_csv"]
 
 TRACK_COLUMNS = ("frame", "point", "x", "y", "visible", "quality")
-
-
-@dataclass(frozen=True, repr=False)
-class Tracks:
-    """Positions of N points over T frames.
-
-    Attributes
-    ----------
-    positions : (T, N, 2) float
-        ``(x, y)`` in pixels; frame 0 is the reference.
-    visible : (T, N) bool
-        False where the tracker lost the point.
-    quality : (T, N) float
-        Tracker confidence, higher is better (each tracker documents its scale).
-    meta : dict
-        Tracker name and options, for provenance.
-    uncertainty : (T, N) float or None
-        Standard deviation of each coordinate of the position (px), NaN where
-        unknown; None when the tracker does not measure it.
-    """
-
-    positions: np.ndarray
-    visible: np.ndarray
-    quality: np.ndarray
-    meta: dict = field(default_factory=dict)
-    uncertainty: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        pos = np.asarray(self.positions, dtype=float)
-        if pos.ndim != 3 or pos.shape[2] != 2:
-            raise InputError(f"track positions must have shape (T, N, 2), got {pos.shape}")
-        vis = np.asarray(self.visible, dtype=bool)
-        qual = np.asarray(self.quality, dtype=float)
-        for name, arr in (("visible", vis), ("quality", qual)):
-            if arr.shape != pos.shape[:2]:
-                raise InputError(f"track {name} must have shape {pos.shape[:2]}, got {arr.shape}")
-        if self.uncertainty is not None:
-            unc = np.asarray(self.uncertainty, dtype=float)
-            if unc.shape != pos.shape[:2]:
-                raise InputError(
-                    f"track uncertainty must have shape {pos.shape[:2]}, got {unc.shape}"
-                )
-            object.__setattr__(self, "uncertainty", unc)
-        object.__setattr__(self, "positions", pos)
-        object.__setattr__(self, "visible", vis)
-        object.__setattr__(self, "quality", qual)
-
-    @property
-    def n_frames(self) -> int:
-        return self.positions.shape[0]
-
-    @property
-    def n_points(self) -> int:
-        return self.positions.shape[1]
-
-    @property
-    def reference(self) -> np.ndarray:
-        """Positions on the reference frame, ``(N, 2)``."""
-        return self.positions[0]
-
-    def __repr__(self) -> str:
-        lost = int((~self.visible[-1]).sum())
-        return (
-            f"Tracks({self.n_frames} frames, {self.n_points} points, "
-            f"{lost} lost on the last frame, tracker={self.meta.get('tracker', '?')})"
-        )
 
 
 def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:

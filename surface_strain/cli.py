@@ -116,7 +116,8 @@ def _cmd_compute(args) -> int:
         raise InputError(f"--fps must be a positive number, got {args.fps}")
     parse_directions(args.directions)  # fail before the work
     say = Progress(quiet=args.quiet)
-    points, visible = read_points3d(args.points)
+    tracks = read_points3d(args.points)
+    points, visible = tracks.positions, tracks.visible
     say(f"{args.points}: {points.shape[1]} points over {points.shape[0]} frames")
     summary_in = _stereo_summary(Path(args.points))
     unit = args.unit or summary_in.get("unit") or "mm"

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from surface_strain.tracks import Tracks
 from tissue_core.errors import InputError
 from tissue_core.tables import read_long_table
 
@@ -25,13 +26,14 @@ __all__ = ["PointsError", "read_points3d", "read_triangles"]
 PointsError = InputError
 
 
-def read_points3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+def read_points3d(path: str | os.PathLike) -> Tracks:
     """Read 3D point tracks.
 
     Returns
     -------
-    points : (T, N, 3) float, NaN where lost
-    visible : (T, N) bool
+    Tracks
+        ``positions`` (T, N, 3) float, NaN where lost; ``visible`` (T, N) bool;
+        ``quality`` 1.
 
     Raises
     ------
@@ -59,7 +61,7 @@ def read_points3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     points[~visible] = np.nan
     if not visible[0].any():
         raise InputError(f"{path}: no point is visible on the reference frame 0")
-    return points, visible
+    return Tracks(points, visible, np.ones(visible.shape), {"source": str(path)})
 
 
 def read_triangles(path: str | os.PathLike, n_points: int) -> np.ndarray:

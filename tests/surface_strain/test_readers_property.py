@@ -34,7 +34,8 @@ def test_points3d(tmp_path, head, rows, bom):
     path = tmp_path / "p.csv"
     path.write_text(csv_text(head, rows, bom), encoding="utf-8")
     try:
-        points, visible = read_points3d(path)
+        tracks = read_points3d(path)
+        points, visible = tracks.positions, tracks.visible
     except PointsError:
         return
     assert points.ndim == 3 and points.shape[2] == 3 and visible.shape == points.shape[:2]
