@@ -446,18 +446,17 @@ def _cmd_reconstruct(args) -> int:
         progress=say,
     )
     from strain2d import Tracks, write_tracks_csv
+    from tissue_core.tables import write_long_table
 
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
-        with open(tmp / "points3d.csv", "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f)
-            w.writerow(["frame", "point", "X", "Y", "Z", "reproj_error", "visible"])
-            for t in range(rec.n_frames):
-                for i in range(rec.n_points):
-                    X = rec.points[t, i]
-                    w.writerow(
-                        [t, i, *(f"{v:.6f}" for v in X), f"{rec.reproj_error[t, i]:.4f}",
-                         int(rec.visible[t, i])]
-                    )  # fmt: skip
+        write_long_table(
+            tmp / "points3d.csv",
+            {
+                **{axis: (rec.points[..., k], "%.6f") for k, axis in enumerate("XYZ")},
+                "reproj_error": (rec.reproj_error, "%.4f"),
+                "visible": (rec.visible, "%d"),
+            },
+        )
         for side, pos in (("left", rec.left), ("right", rec.right)):
             seen = np.isfinite(pos).all(axis=2)
             write_tracks_csv(

@@ -31,29 +31,17 @@ TRACK_COLUMNS = ("frame", "point", "x", "y", "visible", "quality")
 def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
     """Write tracks as CSV with columns ``frame,point,x,y,visible,quality`` (and
     ``uncertainty_px`` when the tracks carry one)."""
-    T, N = tracks.positions.shape[:2]
-    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
-    columns = [
-        frame.ravel(),
-        point.ravel(),
-        tracks.positions.reshape(-1, 2),
-        tracks.visible.ravel(),
-        tracks.quality.ravel(),
-    ]
-    fmt = ["%d", "%d", "%.6f", "%.6f", "%d", "%.6g"]
-    header = list(TRACK_COLUMNS)
+    from tissue_core.tables import write_long_table
+
+    columns = {
+        "x": (tracks.positions[..., 0], "%.6f"),
+        "y": (tracks.positions[..., 1], "%.6f"),
+        "visible": (tracks.visible, "%d"),
+        "quality": (tracks.quality, "%.6g"),
+    }
     if tracks.uncertainty is not None:
-        columns.append(tracks.uncertainty.ravel())
-        fmt.append("%.4g")
-        header.append("uncertainty_px")
-    np.savetxt(
-        path,
-        np.column_stack(columns),
-        fmt=fmt,
-        delimiter=",",
-        header=",".join(header),
-        comments="",
-    )
+        columns["uncertainty_px"] = (tracks.uncertainty, "%.4g")
+    write_long_table(path, columns)
 
 
 def _read_csv(path: Path) -> Tracks:

@@ -87,51 +87,32 @@ def write_nodes_csv(
 
     ``uncertainty`` ``(T, N)`` in px adds the ``uncertainty_px`` column.
     """
-    T, N = field.n_frames, field.n_points
+    from tissue_core.tables import write_long_table
+
     d = field.points.shape[-1]
-    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
+    names = node_columns(d)[2:]
     disp = field.points - field.reference[None]
     scalars = nodal_scalars(field)
-    table = np.column_stack(
-        [
-            frame.ravel(),
-            point.ravel(),
-            field.points.reshape(-1, d),
-            disp.reshape(-1, d),
-            field.visible.ravel(),
-            *(scalars[k].ravel() for k in _scalars(d)),
-        ]
-    )
-    fmt = ["%d", "%d", *["%.6f"] * (2 * d), "%d"] + ["%.8g"] * len(_scalars(d))
-    header = list(node_columns(d))
+    columns = {names[k]: (field.points[..., k], "%.6f") for k in range(d)}
+    columns |= {names[d + k]: (disp[..., k], "%.6f") for k in range(d)}
+    columns["visible"] = (field.visible, "%d")
+    columns |= {k: (scalars[k], "%.8g") for k in _scalars(d)}
     if uncertainty is not None:
-        table = np.column_stack([table, np.asarray(uncertainty, float).reshape(T * N)])
-        fmt.append("%.4g")
-        header.append("uncertainty_px")
-    with open(path, "w") as f:
-        f.write(",".join(header) + "\n")
-        np.savetxt(f, table, fmt=fmt, delimiter=",")
+        columns["uncertainty_px"] = (np.asarray(uncertainty, float), "%.4g")
+    write_long_table(path, columns)
 
 
 def write_elements_csv(path: str | os.PathLike, field: StrainField) -> None:
     """Per-triangle strain for every frame (see the module docstring)."""
-    T, M = field.n_frames, field.n_triangles
+    from tissue_core.tables import write_long_table
+
     d = field.points.shape[-1]
-    frame, tri = np.meshgrid(np.arange(T), np.arange(M), indexing="ij")
+    corners = np.broadcast_to(field.triangles, (field.n_frames, *field.triangles.shape))
     scalars = element_scalars(field)
-    table = np.column_stack(
-        [
-            frame.ravel(),
-            tri.ravel(),
-            field.triangles[tri.ravel()],
-            field.element_valid.ravel(),
-            *(scalars[k].ravel() for k in _scalars(d)),
-        ]
-    )
-    fmt = ["%d"] * 6 + ["%.8g"] * len(_scalars(d))
-    with open(path, "w") as f:
-        f.write(",".join(element_columns(d)) + "\n")
-        np.savetxt(f, table, fmt=fmt, delimiter=",")
+    columns = {f"p{k}": (corners[..., k], "%d") for k in range(3)}
+    columns["valid"] = (field.element_valid, "%d")
+    columns |= {k: (scalars[k], "%.8g") for k in _scalars(d)}
+    write_long_table(path, columns, index="triangle")
 
 
 def _directions(field: StrainField) -> dict:

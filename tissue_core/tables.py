@@ -6,8 +6,9 @@ One row per frame and point, a header naming the columns::
 
 ``tracks.csv``, ``strain_nodes.csv`` (2D: ``x,y,u,v``; 3D: ``X,Y,Z,U,V,W``,
 the same names in capitals), ``points3d.csv`` and tracks written by other
-tools all have it.  :func:`read_long_table` reads any of them into ``(T, N)``
-arrays per column and refuses, in one line naming the file and the row,
+tools all have it.  :func:`write_long_table` writes them (one row per frame
+and point, frame by frame); :func:`read_long_table` reads any of them into
+``(T, N)`` arrays per column and refuses, in one line naming the file and the row,
 what is not such a table: no text, missing columns, values that are not
 numbers, negative or fractional indices, a frame or point missing or given
 twice.  Column names are matched without regard to case or surrounding
@@ -19,7 +20,7 @@ from __future__ import annotations
 import csv
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from tissue_core.errors import InputError
 
-__all__ = ["LongTable", "read_long_table"]
+__all__ = ["LongTable", "read_long_table", "write_long_table"]
 
 _MISSING = ("", "nan", "none", "null")
 
@@ -174,3 +175,40 @@ def read_long_table(
         values[frame, point] = data[:, k]
         columns[name] = values
     return LongTable(path, names, columns)
+
+
+def write_long_table(
+    path: str | os.PathLike,
+    columns: Mapping[str, tuple[np.ndarray, str]],
+    *,
+    index: str = "point",
+) -> None:
+    """Write ``(T, N)`` arrays as a long table: ``frame,INDEX,column...``, one row each.
+
+    Parameters
+    ----------
+    path : path-like
+    columns : mapping of name -> ((T, N) array, printf format)
+        In the order of the header, e.g. ``{"x": (x, "%.6f")}``; booleans are
+        written as 0/1 with ``"%d"``.
+    index : str, keyword-only
+        Name of the second column (``"point"``, or ``"triangle"``).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.csv"
+    >>> write_long_table(p, {"x": (np.array([[1.0, 2.0]]), "%.1f")})
+    >>> print(p.read_text(), end="")
+    frame,point,x
+    0,0,1.0
+    0,1,2.0
+    """
+    arrays = [np.asarray(values) for values, _ in columns.values()]
+    T, N = arrays[0].shape[:2]
+    frame, point = np.meshgrid(np.arange(T), np.arange(N), indexing="ij")
+    table = np.column_stack([frame.ravel(), point.ravel(), *(a.reshape(T * N) for a in arrays)])
+    fmt = ["%d", "%d", *(f for _, f in columns.values())]
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(",".join(["frame", index, *columns]) + "\n")
+        np.savetxt(f, table, fmt=fmt, delimiter=",")
