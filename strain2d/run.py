@@ -391,7 +391,7 @@ def write_run(
     overwrite : bool, keyword-only
         Replace an existing run folder written by the toolkit.
     inputs : sequence of path, keyword-only
-        Files the output may not replace.
+        Further files the output may not replace (the video's are known).
     progress : callable(done, total), keyword-only
         Called as the figures and the animation are made.
     runtime_s : dict, keyword-only
@@ -454,7 +454,8 @@ def write_run(
         )
     t_start = time.perf_counter()
     mesh = analysis.mesh
-    with atomic_dir(out, overwrite=overwrite, inputs=list(inputs)) as tmp:
+    # the video's files are inputs too: no output may replace them
+    with atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp:
         write_tracks_csv(tmp / "tracks.csv", tracks)
         write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty)
         write_strain_elements_csv(tmp / "strain_elements.csv", field)
