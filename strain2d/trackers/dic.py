@@ -64,7 +64,7 @@ from __future__ import annotations
 import functools
 import itertools
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -360,6 +360,283 @@ def _warp_template(template: np.ndarray, p: np.ndarray) -> np.ndarray:
     )
 
 
+def _check_options(
+    shape_function: str,
+    subset: int,
+    zncc_min: float,
+    update_below: float,
+    max_iterations: int,
+    tolerance: float,
+) -> None:
+    """Raise :class:`InputError` naming the first invalid option of :func:`track_dic`."""
+    if shape_function not in ("affine", "quadratic"):
+        raise InputError(f"--shape-function must be affine or quadratic, got {shape_function!r}")
+    if isinstance(subset, str) or int(subset) != subset or subset < 7 or subset % 2 == 0:
+        raise InputError(
+            f"--subset must be an odd number >= 7 for dic (auto is gdic's), got {subset}"
+        )
+    if not -1 < zncc_min < 1:
+        raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
+    if not -1 <= update_below < 1:
+        raise InputError(f"update_below must lie between -1 and 1, got {update_below}")
+    if max_iterations < 1 or not (np.isfinite(tolerance) and tolerance > 0):
+        raise InputError("max_iterations must be >= 1 and tolerance a positive number")
+
+
+def _read_reference(
+    frames: Iterable[np.ndarray], subset: int
+) -> tuple[np.ndarray, Iterator[np.ndarray], int | None]:
+    """Frame 0 as float64, an iterator over the later frames, and the frame count.
+
+    The count is None where ``frames`` has no length (a generator).  Raises
+    :class:`InputError` if there is no frame or the subset does not fit in it.
+    """
+    total = len(frames) if hasattr(frames, "__len__") else None
+    rest = iter(frames)
+    try:
+        ref_frame = np.asarray(next(rest), dtype=np.float64)
+    except StopIteration:
+        raise InputError("no frames to track") from None
+    shape = ref_frame.shape
+    if subset >= min(shape):
+        raise InputError(f"--subset {subset} must be smaller than the {shape[1]}x{shape[0]} frames")
+    return ref_frame, rest, total
+
+
+@dataclass
+class _State:
+    """What the frame loop of :func:`track_dic` carries from frame to frame (rows are points)."""
+
+    shape: tuple[int, int]  # (H, W) of the reference frame: warped subsets must stay inside
+    ref: _Subsets  # current reference subset of each point
+    near: np.ndarray  # (N, k) nearest neighbours of each point, itself excluded
+    p: np.ndarray  # (N, P) warp of each point relative to its current reference subset
+    rate: np.ndarray  # (N, P) change of p over the last frame, for the next guess
+    updates: np.ndarray  # (N,) int, incremental reference updates so far
+    last_seen: np.ndarray  # (N,) int, frame index where each point was last matched
+    previous_zncc: np.ndarray  # (N,) correlation at the last match, against the current reference
+    positions: list[np.ndarray]  # one (N, 2) array per frame done
+    visible: list[np.ndarray]  # one (N,) bool array per frame done
+    quality: list[np.ndarray]  # one (N,) array per frame done
+
+
+def _start(corr: _Correlator, ref_frame: np.ndarray, points: np.ndarray, neighbours: int) -> _State:
+    """Reference subsets and neighbour lists of ``points`` ``(N, 2)``, and frame 0's row."""
+    n = len(points)
+    shape = ref_frame.shape
+    ref = corr.reference(_coefficients(ref_frame), points, 0)
+    inside0 = _inside(corr, points, np.zeros((n, corr.n_params)), shape)
+    k = min(neighbours + 1, n)
+    _, near = cKDTree(points).query(points, k)
+    near = near.reshape(n, k)[:, 1:]
+    return _State(
+        shape=shape,
+        ref=ref,
+        near=near,
+        p=np.zeros((n, corr.n_params)),
+        rate=np.zeros((n, corr.n_params)),
+        updates=np.zeros(n, dtype=int),
+        last_seen=np.zeros(n, dtype=int),
+        previous_zncc=np.ones(n),
+        positions=[points.copy()],
+        visible=[inside0.copy()],
+        quality=[np.where(inside0, 1.0, 0.0)],
+    )
+
+
+@dataclass
+class _Matches:
+    """One frame's matches (rows are points), refined in place by each robustness step."""
+
+    p: np.ndarray  # (N, P) warp relative to the point's current reference subset
+    zncc: np.ndarray  # (N,) correlation of that warp
+    ok: np.ndarray  # (N,) bool, whether the match is accepted
+
+
+def _best_neighbours(
+    near: np.ndarray, rows: np.ndarray, matched: np.ndarray, zncc: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``rows`` with a ``matched`` neighbour, and their best-correlated such neighbour."""
+    cand = near[rows]
+    score = np.where(matched[cand], zncc[cand], -np.inf)
+    usable = np.isfinite(score.max(axis=1))
+    best = cand[np.arange(len(rows)), np.argmax(score, axis=1)]
+    return rows[usable], best[usable]
+
+
+def _first_match(
+    corr: _Correlator, state: _State, coeff: np.ndarray, guess: np.ndarray, t: int
+) -> tuple[_Matches, np.ndarray]:
+    """IC-GN of every point on frame ``t`` from ``guess``, and the suspect matches.
+
+    A suspect (its index is returned) is a match whose motion since frame
+    ``t - 1`` disagrees with its neighbours' (the normalized median test);
+    it is still ``ok`` here.
+    """
+    n = len(state.p)
+    p, zncc, conv = corr.match(coeff, state.ref, np.arange(n), guess)
+    ok = conv & (zncc >= corr.zncc_min) & _inside(corr, state.ref.centers, p, state.shape)
+    step = state.ref.centers + p[:, :2] - state.positions[-1]
+    suspect = np.flatnonzero(_median_outliers(step, ok & (state.last_seen == t - 1), state.near))
+    return _Matches(p, zncc, ok), suspect
+
+
+def _retry_weak(
+    corr: _Correlator, state: _State, coeff: np.ndarray, new: _Matches, update_below: float
+) -> None:
+    """Restart matches with ``zncc < update_below``, keeping the better result.
+
+    A weak match may be a false optimum: it restarts from its best matched
+    neighbour, then from the last frame's warp as it was, before a reference
+    update could lock a wrong match in.
+    """
+    weak = np.flatnonzero(new.ok & (new.zncc < update_below))
+    if not weak.size:
+        return
+    strong = new.ok.copy()
+    strong[weak] = False
+    w_idx, b_idx = _best_neighbours(state.near, weak, strong, new.zncc)
+    if not w_idx.size:
+        return
+    ref = state.ref
+    start = _neighbour_guess(ref, state.p, new.p, state.positions, state.last_seen, w_idx, b_idx)
+    for s in (start, state.p[w_idx]):
+        p2, z2, c2 = corr.match(coeff, ref, w_idx, s)
+        better = c2 & (z2 > new.zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p2, state.shape)
+        new.p[w_idx[better]], new.zncc[w_idx[better]] = p2[better], z2[better]
+
+
+def _propagate(corr: _Correlator, state: _State, coeff: np.ndarray, new: _Matches) -> None:
+    """Reliability-guided restart of the failed points from their best matched neighbour.
+
+    Round after round while the matched region grows.
+    """
+    ref = state.ref
+    for _ in range(len(new.ok)):
+        failed = np.flatnonzero(~new.ok)
+        if failed.size == 0 or not new.ok.any():
+            break
+        f_idx, b_idx = _best_neighbours(state.near, failed, new.ok, new.zncc)
+        if f_idx.size == 0:
+            break
+        start = _neighbour_guess(
+            ref, state.p, new.p, state.positions, state.last_seen, f_idx, b_idx
+        )
+        p2, z2, c2 = corr.match(coeff, ref, f_idx, start)
+        good = c2 & (z2 >= corr.zncc_min) & _inside(corr, ref.centers[f_idx], p2, state.shape)
+        new.p[f_idx[good]], new.zncc[f_idx[good]] = p2[good], z2[good]
+        new.ok[f_idx[good]] = True
+        if not good.any():  # the matched region stopped growing
+            break
+
+
+def _integer_search(
+    corr: _Correlator,
+    state: _State,
+    frame: np.ndarray,
+    coeff: np.ndarray,
+    guess: np.ndarray,
+    new: _Matches,
+    radius: int,
+) -> None:
+    """Integer search near the prediction, then IC-GN, for the points still failing.
+
+    The reference subset, deformed by the shape part of ``guess``, is searched
+    for within ``radius`` px of the predicted position.
+    """
+    ref, shape, zncc_min = state.ref, state.shape, corr.zncc_min
+    for i in np.flatnonzero(~new.ok):
+        predicted = ref.centers[i] + guess[i, :2]
+        template = _warp_template(ref.template[i], guess[i])
+        found, score = _search(frame, template, predicted, radius)
+        if score < zncc_min:
+            continue
+        start = guess[i : i + 1].copy()
+        start[0, :2] = found - ref.centers[i]
+        p3, z3, c3 = corr.match(coeff, ref, np.array([i]), start)
+        if c3[0] and z3[0] >= zncc_min and _inside(corr, ref.centers[i : i + 1], p3, shape)[0]:
+            new.p[i], new.zncc[i], new.ok[i] = p3[0], z3[0], True
+
+
+def _advance(
+    corr: _Correlator,
+    state: _State,
+    coeff: np.ndarray,
+    new: _Matches,
+    t: int,
+    update_below: float,
+) -> None:
+    """Accept frame ``t``'s matches, renew the references that need it, append the row.
+
+    Incremental mode: a matched point whose correlation fell below
+    ``update_below`` gets a new reference subset sampled from frame ``t``,
+    but not on a sudden drop (more than 0.05 since its last match), the mark
+    of a false match or an occlusion rather than of deformation, which lowers
+    it gradually.
+    """
+    ok, zncc = new.ok, new.zncc
+    rate = np.where((ok & (state.last_seen == t - 1))[:, None], new.p - state.p, 0.0)
+    rate[:, 6:] = 0.0  # second-order terms are too noisy to extrapolate
+    p = np.where(ok[:, None], new.p, state.p)
+    pos = state.ref.centers + p[:, :2]
+    state.last_seen[ok] = t
+
+    steady = state.previous_zncc - zncc < 0.05
+    renew = np.flatnonzero(ok & (zncc < update_below) & steady)
+    if renew.size:
+        state.ref.replace(renew, corr.reference(coeff, pos[renew], t))
+        p[renew] = 0.0
+        rate[renew] = 0.0
+        state.updates[renew] += 1
+
+    state.p, state.rate = p, rate
+    state.previous_zncc = np.where(ok, zncc, state.previous_zncc)
+    if renew.size:
+        state.previous_zncc[renew] = 1.0
+    state.positions.append(pos.copy())
+    state.visible.append(ok.copy())
+    state.quality.append(np.where(ok, np.clip(zncc, 0.0, 1.0), 0.0))
+
+
+def _track_frame(
+    corr: _Correlator,
+    state: _State,
+    frame: np.ndarray,
+    t: int,
+    *,
+    update_below: float,
+    radius: int,
+) -> None:
+    """Match every point on frame ``t`` (robustness steps 0-3 of the module docstring)."""
+    frame = np.asarray(frame, dtype=np.float64)
+    coeff = _coefficients(frame)
+    guess = state.p + state.rate  # rate holds first-order terms only (see _advance)
+    new, suspect = _first_match(corr, state, coeff, guess, t)
+    # a suspect restarts from its neighbours, and keeps its own match only where
+    # the restart finds a worse one (if it finds nothing, the integer search follows)
+    own_p, own_zncc = new.p[suspect].copy(), new.zncc[suspect].copy()
+    new.ok[suspect] = False
+    _retry_weak(corr, state, coeff, new, update_below)
+    _propagate(corr, state, coeff, new)
+    keep_own = new.ok[suspect] & (own_zncc > new.zncc[suspect])
+    keep = suspect[keep_own]
+    new.p[keep], new.zncc[keep], new.ok[keep] = own_p[keep_own], own_zncc[keep_own], True
+    _integer_search(corr, state, frame, coeff, guess, new, radius)
+    _advance(corr, state, coeff, new, t, update_below)
+
+
+def _assemble(state: _State, options: dict) -> Tracks:
+    """The :class:`Tracks` of a finished run, ``options`` and update counts in ``meta``."""
+    if len(state.positions) < 2:
+        raise InputError("tracking needs at least 2 frames")
+    return Tracks(
+        np.stack(state.positions),
+        np.stack(state.visible),
+        np.stack(state.quality),
+        {"tracker": "dic", "options": options, "reference_updates": state.updates.tolist()},
+    )
+
+
 @register_tracker(
     "dic",
     description="subset DIC against the reference frame: ZNSSD, IC-GN affine, cubic B-splines",
@@ -430,150 +707,19 @@ def track_dic(
         ``meta["reference_updates"]`` is the number of incremental reference
         updates per point.
     """
-    if shape_function not in ("affine", "quadratic"):
-        raise InputError(f"--shape-function must be affine or quadratic, got {shape_function!r}")
-    if isinstance(subset, str) or int(subset) != subset or subset < 7 or subset % 2 == 0:
-        raise InputError(
-            f"--subset must be an odd number >= 7 for dic (auto is gdic's), got {subset}"
-        )
-    if not -1 < zncc_min < 1:
-        raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
-    if not -1 <= update_below < 1:
-        raise InputError(f"update_below must lie between -1 and 1, got {update_below}")
-    if max_iterations < 1 or not (np.isfinite(tolerance) and tolerance > 0):
-        raise InputError("max_iterations must be >= 1 and tolerance a positive number")
+    _check_options(shape_function, subset, zncc_min, update_below, max_iterations, tolerance)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    n = len(points)
     radius = subset if search_radius is None else int(search_radius)
-    total = len(frames) if hasattr(frames, "__len__") else None
-    it = iter(frames)
-    try:
-        ref_frame = np.asarray(next(it), dtype=np.float64)
-    except StopIteration:
-        raise InputError("no frames to track") from None
-    shape = ref_frame.shape
-    if subset >= min(shape):
-        raise InputError(f"--subset {subset} must be smaller than the {shape[1]}x{shape[0]} frames")
+    ref_frame, rest, total = _read_reference(frames, subset)
     order = 1 if shape_function == "affine" else 2
     corr = _Correlator(subset, max_iterations, tolerance, zncc_min, order=order)
-    ref = corr.reference(_coefficients(ref_frame), points, 0)
-    inside0 = _inside(corr, points, np.zeros((n, corr.n_params)), shape)
-    k = min(neighbours + 1, n)
-    _, near = cKDTree(points).query(points, k)
-    near = near.reshape(n, k)[:, 1:]
-
-    p = np.zeros((n, corr.n_params))  # warp of each point relative to its current reference subset
-    rate = np.zeros((n, corr.n_params))  # change of p over the last frame, for the next guess
-    updates = np.zeros(n, dtype=int)
-    last_seen = np.zeros(n, dtype=int)  # frame index where each point was last matched
-    previous_zncc = np.ones(n)  # correlation at the last match, against the current reference
-    positions = [points.copy()]
-    visible = [inside0.copy()]
-    quality = [np.where(inside0, 1.0, 0.0)]
+    state = _start(corr, ref_frame, points, neighbours)
     if progress:
         progress(1, total)
-    for t, frame in enumerate(it, start=1):
-        frame = np.asarray(frame, dtype=np.float64)
-        coeff = _coefficients(frame)
-        guess = p + rate  # rate holds first-order terms only (see below)
-        p_new, zncc, conv = corr.match(coeff, ref, np.arange(n), guess)
-        ok = conv & (zncc >= zncc_min) & _inside(corr, ref.centers, p_new, shape)
-        # a match whose frame-to-frame motion disagrees with its neighbours' is a false
-        # match (the normalized median test); it restarts from its neighbours below
-        step = ref.centers + p_new[:, :2] - positions[-1]
-        suspect = np.flatnonzero(_median_outliers(step, ok & (last_seen == t - 1), near))
-        own_p, own_zncc = p_new[suspect].copy(), zncc[suspect].copy()
-        ok[suspect] = False
-
-        # weak matches (correlation below update_below) may be false optima: restart them
-        # from their best matched neighbour and keep whichever correlates better, before
-        # a reference update could lock a wrong match in
-        weak = np.flatnonzero(ok & (zncc < update_below))
-        if weak.size:
-            strong = ok.copy()
-            strong[weak] = False
-            cand = near[weak]
-            score = np.where(strong[cand], zncc[cand], -np.inf)
-            usable = np.isfinite(score.max(axis=1))
-            w_idx = weak[usable]
-            b_idx = cand[usable][np.arange(usable.sum()), np.argmax(score[usable], axis=1)]
-            if w_idx.size:
-                start = _neighbour_guess(ref, p, p_new, positions, last_seen, w_idx, b_idx)
-                p2, z2, c2 = corr.match(coeff, ref, w_idx, start)
-                better = c2 & (z2 > zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p2, shape)
-                p_new[w_idx[better]], zncc[w_idx[better]] = p2[better], z2[better]
-                # and from the last frame's warp as it was, without extrapolation
-                p3, z3, c3 = corr.match(coeff, ref, w_idx, p[w_idx])
-                better = c3 & (z3 > zncc[w_idx]) & _inside(corr, ref.centers[w_idx], p3, shape)
-                p_new[w_idx[better]], zncc[w_idx[better]] = p3[better], z3[better]
-
-        # 1. reliability-guided propagation: restart failed points from their best
-        #    matched neighbour, round after round while the matched region grows
-        for _ in range(n):
-            failed = np.flatnonzero(~ok)
-            if failed.size == 0 or not ok.any():
-                break
-            cand = near[failed]
-            score = np.where(ok[cand], zncc[cand], -np.inf)
-            best = cand[np.arange(len(failed)), np.argmax(score, axis=1)]
-            usable = np.isfinite(score.max(axis=1))
-            f_idx, b_idx = failed[usable], best[usable]
-            if f_idx.size == 0:
-                break
-            start = _neighbour_guess(ref, p, p_new, positions, last_seen, f_idx, b_idx)
-            p2, z2, c2 = corr.match(coeff, ref, f_idx, start)
-            good = c2 & (z2 >= zncc_min) & _inside(corr, ref.centers[f_idx], p2, shape)
-            p_new[f_idx[good]], zncc[f_idx[good]] = p2[good], z2[good]
-            ok[f_idx[good]] = True
-            if not good.any():  # the matched region stopped growing
-                break
-
-        # a suspect whose restart from its neighbours found a worse match keeps its own one;
-        # if the restart found nothing, the suspect goes on to the integer search
-        keep_own = ok[suspect] & (own_zncc > zncc[suspect])
-        p_new[suspect[keep_own]], zncc[suspect[keep_own]] = own_p[keep_own], own_zncc[keep_own]
-        ok[suspect[keep_own]] = True
-
-        # 2. integer search around the prediction, for the few points still failing
-        for i in np.flatnonzero(~ok):
-            predicted = ref.centers[i] + guess[i, :2]
-            template = _warp_template(ref.template[i], guess[i])
-            found, score = _search(frame, template, predicted, radius)
-            if score < zncc_min:
-                continue
-            start = guess[i : i + 1].copy()
-            start[0, :2] = found - ref.centers[i]
-            p3, z3, c3 = corr.match(coeff, ref, np.array([i]), start)
-            if c3[0] and z3[0] >= zncc_min and _inside(corr, ref.centers[i : i + 1], p3, shape)[0]:
-                p_new[i], zncc[i], ok[i] = p3[0], z3[0], True
-
-        rate = np.where((ok & (last_seen == t - 1))[:, None], p_new - p, 0.0)
-        rate[:, 6:] = 0.0  # second-order terms are too noisy to extrapolate
-        p = np.where(ok[:, None], p_new, p)
-        pos = ref.centers + p[:, :2]
-        last_seen[ok] = t
-
-        # incremental mode: renew the reference subsets that no longer resemble the frame
-        # ... but not on a sudden drop of correlation, the mark of a false match or an
-        # occlusion rather than of deformation, which lowers it gradually
-        steady = previous_zncc - zncc < 0.05
-        renew = np.flatnonzero(ok & (zncc < update_below) & steady)
-        if renew.size:
-            ref.replace(renew, corr.reference(coeff, pos[renew], t))
-            p[renew] = 0.0
-            rate[renew] = 0.0
-            updates[renew] += 1
-
-        previous_zncc = np.where(ok, zncc, previous_zncc)
-        if renew.size:
-            previous_zncc[renew] = 1.0
-        positions.append(pos.copy())
-        visible.append(ok.copy())
-        quality.append(np.where(ok, np.clip(zncc, 0.0, 1.0), 0.0))
+    for t, frame in enumerate(rest, start=1):
+        _track_frame(corr, state, frame, t, update_below=update_below, radius=radius)
         if progress:
-            progress(len(positions), total)
-    if len(positions) < 2:
-        raise InputError("tracking needs at least 2 frames")
+            progress(len(state.positions), total)
     options = {
         "subset": subset,
         "zncc_min": zncc_min,
@@ -585,9 +731,4 @@ def track_dic(
         "interpolation": "cubic B-spline",
         "shape_function": shape_function,
     }
-    return Tracks(
-        np.stack(positions),
-        np.stack(visible),
-        np.stack(quality),
-        {"tracker": "dic", "options": options, "reference_updates": updates.tolist()},
-    )
+    return _assemble(state, options)
