@@ -458,6 +458,8 @@ def _best_neighbours(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The ``rows`` with a ``matched`` neighbour, and their best-correlated such neighbour."""
     cand = near[rows]
+    if cand.shape[1] == 0:  # a single point, or no neighbours asked for
+        return rows[:0], rows[:0]
     score = np.where(matched[cand], zncc[cand], -np.inf)
     usable = np.isfinite(score.max(axis=1))
     best = cand[np.arange(len(rows)), np.argmax(score, axis=1)]

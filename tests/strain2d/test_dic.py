@@ -5,6 +5,7 @@ from sample_data_synth import make_case
 from strain2d import track
 from strain2d.errors import InputError
 from strain2d.pipeline import strain_from_tracks
+from strain2d.trackers.dic import track_dic
 from tests.strain2d import icgn_oracle
 from tests.tolerances import DIC_QUICK_STRAIN_RMSE, DIC_QUICK_TRACK_RMSE_PX
 
@@ -238,3 +239,17 @@ def test_quadratic_shape_function_on_the_paper_cases():
     assert _rmse(tracks, video, points) < 2 * DIC_QUICK_TRACK_RMSE_PX
     with pytest.raises(InputError, match="shape-function"):
         track(video.frames, points, tracker="dic", options={"shape_function": "cubic"})
+
+
+@pytest.mark.parametrize(
+    ("points", "options"),
+    [([[100.0, 100.0]], {}), ([[100.0, 100.0], [60.0, 60.0], [140.0, 140.0]], {"neighbours": 0})],
+)
+def test_a_point_without_neighbours_whose_texture_vanishes_is_lost(points, options):
+    """A single point, or no neighbours asked for: a failed match is lost, not a crash."""
+    video = make_case("equibiaxial", size=200, n_frames=4, rng=0)
+    frames = np.array(video.frames, dtype=float)
+    frames[1:, 80:130, 80:130] = frames[0, 80:130, 80:130].mean()
+    tracks = track_dic(frames, np.array(points), **options)
+    assert not tracks.visible[1:, 0].any()
+    assert tracks.visible[:, 1:].all()
