@@ -22,17 +22,12 @@ top-left pixel at (0, 0)); strains are Green-Lagrange, dimensionless;
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
-import numpy as np
-
 from surface_strain import (
-    StrainField,
     element_columns,
     node_columns,
     write_elements_csv,
     write_nodes_csv,
+    write_pvd,
 )
 
 __all__ = [
@@ -49,26 +44,3 @@ ELEMENT_COLUMNS = element_columns(2)
 write_strain_nodes_csv = write_nodes_csv
 #: ``write_strain_elements_csv(path, field)``: surface_strain's, for a 2D field
 write_strain_elements_csv = write_elements_csv
-
-
-def write_pvd(
-    folder: str | os.PathLike,
-    field: StrainField,
-    *,
-    name: str = "strain",
-    times: np.ndarray | None = None,
-) -> Path:
-    """Write a ParaView time series: ``folder/name.pvd`` and ``folder/name/name_####.vtp``.
-
-    The same files as :func:`surface_strain.export.write_pvd` (2D points at
-    z = 0): point data ``displacement``, the nodal scalars, the principal
-    directions and ``visible``; cell data with the element scalars and
-    ``valid``.
-
-    Returns
-    -------
-    Path of the ``.pvd`` file.
-    """
-    from surface_strain import write_pvd as write_series
-
-    return write_series(folder, field, name=name, times=times)
