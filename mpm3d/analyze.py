@@ -32,6 +32,7 @@ from mpm3d.heightmap import HeightMap, height_map
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
 from tissue_core.jsonio import write_json
+from tissue_core.outputs import recorded_command
 
 __all__ = ["Analysis", "analyze_stack", "write_analysis"]
 
@@ -191,6 +192,7 @@ def analyze_stack(
         },
         "parameters": {**params, **hm.params},
         "software": {"package": "tissue-strain", "module": "mpm3d", "version": _version()},
+        "command": recorded_command.get(),
         "metrics_version": METRICS_VERSION,
     }
     return Analysis(

@@ -310,6 +310,7 @@ def compare_stacks(
         "alignment": alignment,
         "changes": metric_changes(first.metrics, second.metrics),
         "software": first.metrics["software"],
+        "command": first.metrics.get("command"),
     }
     return report, first, second
 

@@ -405,7 +405,7 @@ def _cmd_reconstruct(args) -> int:
     from stereo.reconstruct import reconstruct
     from strain2d import open_frames
     from tissue_core.jsonio import write_json
-    from tissue_core.outputs import atomic_dir, check_writable
+    from tissue_core.outputs import atomic_dir, check_writable, recorded_command
     from tissue_core.version import __version__
 
     _check_reconstruct_options(args)
@@ -476,6 +476,7 @@ def _cmd_reconstruct(args) -> int:
         summary = {
             "software": {"name": "stereo", "version": __version__},
             "created": datetime.now(UTC).isoformat(timespec="seconds"),
+            "command": recorded_command.get(),
             "inputs": {"left": left.names, "right": right.names, "calib": args.calib},
             "unit": calib.unit,
             "calibration": {

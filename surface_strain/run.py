@@ -201,6 +201,7 @@ def write_run(
     from surface_strain.export import write_elements_csv, write_nodes_csv, write_pvd
     from surface_strain.field import compute_strain, nodal_scalars
     from tissue_core.jsonio import write_json
+    from tissue_core.outputs import recorded_command
 
     folder = Path(folder)
     # points lost on the reference frame have no reference position: their triangles go,
@@ -256,6 +257,7 @@ def write_run(
         "schema": RUN_SCHEMA,
         "software": {"name": "surface_strain", "version": __version__},
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "command": recorded_command.get(),
         "input": source,
         "unit": unit,
         "frames": field.n_frames,

@@ -111,6 +111,7 @@ def test_analyze_writes_every_file_and_reports(after_run):
 
 def test_analyze_metrics_match_the_truth(after_run):
     m, case = after_run["m"], after_run["case"]
+    assert m["command"][:2] == ["mpm3d", "analyze"]  # the recorded command
     for key in (
         "fold_wavelength_um",
         "fold_height_um",

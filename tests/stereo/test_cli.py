@@ -31,6 +31,7 @@ def test_reconstruct_summary_is_strict_json_with_an_imported_calibration(small_s
     assert summary["points"] == {"n": 20, "grid": [5, 4], "roi": [280.0, 150.0, 400.0, 240.0]}
     assert summary["parameters"]["shape_function"] == "quadratic"
     assert summary["parameters"]["directions"] is None
+    assert summary["command"] == ["stereo", *map(str, argv)]  # as every result records it
 
 
 def _earlier_calibration(path, small_stereo):

@@ -98,6 +98,7 @@ def test_exact_strain_on_a_stretched_tilted_sheet_and_the_paraview_files(tmp_pat
     assert errors == []  # VTK's reader took every file without complaint
     summary = json.loads((out / "summary.json").read_text())
     assert summary["mesh"]["n_triangles"] == 32 and summary["frames"] == T
+    assert summary["command"][:2] == ["surface_strain", "compute"] and summary["schema"] == 1
     for name in ("E1_frame0003.png", "strain_over_time.png", "violins_frame0003.png"):
         assert (out / "figures" / name).stat().st_size > 10_000
 
