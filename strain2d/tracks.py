@@ -56,7 +56,6 @@ def _read_csv(path: Path) -> Tracks:
         raise InputError(f"{path}: visible must be 0 or 1, got an infinite value")
     vis = np.where(np.isnan(flag), True, np.trunc(flag) != 0)  # an empty flag: visible
     qual = table["quality"] if "quality" in table else np.ones(pos.shape[:2])
-    qual = np.where(np.isnan(qual), 1.0, qual)
     unc = None
     if "uncertainty_px" in table and np.isfinite(table["uncertainty_px"]).any():
         unc = _uncertainty(path, table["uncertainty_px"])

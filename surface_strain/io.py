@@ -44,7 +44,7 @@ def read_points3d(path: str | os.PathLike) -> Tracks:
     path = Path(path)
     if not path.is_file():
         raise PointsError(f"points file not found: {path}")
-    table = read_long_table(path, required=("x", "y", "z"), optional=("visible",))
+    table = read_long_table(path, required=("X", "Y", "Z"), optional=("visible",))
     points = np.stack([table["x"], table["y"], table["z"]], axis=-1)
     infinite = np.argwhere(np.isinf(points).any(axis=-1))
     if infinite.size:

@@ -119,55 +119,54 @@ def read_long_table(
     if not path.is_file():
         what = "is a folder, not a CSV file" if path.is_dir() else "does not exist"
         raise InputError(f"{path} {what}")
-    wanted = ["frame", "point", *(c.lower() for c in required)]
-    extra = [c.lower() for c in optional]
+    wanted = ["frame", "point", *required]  # as the caller names them, for messages
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            header = next(reader, None)
-            if header is None:
-                raise InputError(f"{path} is empty")
-            names = tuple(h.strip() for h in header)
-            lower = [n.lower() for n in names]
-            missing = [c for c in wanted if c not in lower]
-            if missing:
-                s = "s" if len(missing) > 1 else ""
-                raise InputError(
-                    f"{path} lacks the column{s} {', '.join(missing)} (needs {','.join(wanted)})"
-                )
-            keep = wanted + [c for c in extra if c in lower]
-            index = [lower.index(c) for c in keep]
-            rows = []
-            for line, row in enumerate(reader, start=2):
-                if not row or all(not c.strip() for c in row):
-                    continue
-                try:
-                    rows.append([_number(row[i]) for i in index])
-                except (ValueError, IndexError):
-                    shown = ",".join(row)
-                    shown = shown if len(shown) <= 80 else shown[:77] + "..."
-                    raise InputError(f"{path}, line {line}: not a number: {shown}") from None
+            text = f.read().splitlines()
+        header = next(csv.reader(text[:1]), None)
+        if header is None:
+            raise InputError(f"{path} is empty")
+        names = tuple(h.strip() for h in header)
+        lower = [n.lower() for n in names]
+        missing = [c for c in wanted if c.lower() not in lower]
+        if missing:
+            s = "s" if len(missing) > 1 else ""
+            raise InputError(
+                f"{path} lacks the column{s} {', '.join(missing)} (needs {','.join(wanted)})"
+            )
+        keep = [c.lower() for c in wanted]
+        keep += [c.lower() for c in optional if c.lower() in lower]
+        index = [lower.index(c) for c in keep]
+        data, lines = _rows(text[1:], path, index)
     except (UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"{path} is not a text CSV file ({exc})") from None
-    if not rows:
+    if len(data) == 0:
         raise InputError(f"{path} has no rows")
-    data = np.array(rows, dtype=float)
     frame, point = data[:, 0], data[:, 1]
     bad = ~(np.isfinite(frame) & np.isfinite(point) & (frame == np.round(frame))
             & (point == np.round(point)))  # fmt: skip
     if bad.any():
-        raise InputError(f"{path}: frame and point must be whole numbers (row {bad.argmax() + 1})")
+        raise InputError(
+            f"{path}, line {lines[bad.argmax()]}: frame and point must be whole numbers"
+        )
     if frame.min() < 0 or point.min() < 0:
-        raise InputError(f"{path}: negative frame or point index")
+        line = lines[np.argmax((frame < 0) | (point < 0))]
+        raise InputError(f"{path}, line {line}: negative frame or point index")
+    n = len(data)
+    if frame.max() >= n or point.max() >= n:  # more frames or points than rows: incomplete
+        raise InputError(
+            f"{path} is incomplete: it has {n} rows but frame indices up to {frame.max():.6g} "
+            f"and point indices up to {point.max():.6g} (one row for each frame and point)"
+        )
     frame, point = frame.astype(np.int64), point.astype(np.int64)
     T, N = int(frame.max()) + 1, int(point.max()) + 1
     seen = np.zeros((T, N), np.int64)
     np.add.at(seen, (frame, point), 1)
-    if len(rows) != T * N or not (seen == 1).all():
-        how = "is incomplete" if len(rows) < T * N else "repeats or skips rows"
+    if n != T * N or not (seen == 1).all():
+        how = "is incomplete" if n < T * N else "repeats or skips rows"
         raise InputError(
             f"{path} {how}: it must hold exactly one row for each of {T} frames x {N} points "
-            f"({T * N} rows), found {len(rows)}"
+            f"({T * N} rows), found {n}"
         )
     columns = {}
     for k, name in enumerate(keep[2:], start=2):
@@ -175,6 +174,37 @@ def read_long_table(
         values[frame, point] = data[:, k]
         columns[name] = values
     return LongTable(path, names, columns)
+
+
+def _rows(body: list[str], path: Path, index: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The chosen columns of the rows after the header, and each row's line number.
+
+    NumPy's reader takes a clean table at once; a table with empty cells,
+    ``none``/``null``, ragged rows or text is read row by row, which names the
+    line of a value that is not a number.
+    """
+    lines = np.array([k + 2 for k, row in enumerate(body) if row.strip(", \t")], dtype=np.int64)
+    if lines.size == 0:
+        return np.empty((0, len(index))), lines
+    try:
+        data = np.loadtxt(body, delimiter=",", usecols=index, ndmin=2, dtype=float, comments=None)
+        if len(data) == len(lines):
+            return data, lines
+    except ValueError:
+        pass
+    rows, lines = [], []
+    for line, row in enumerate(csv.reader(body), start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        try:
+            rows.append([_number(row[i]) for i in index])
+        except (ValueError, IndexError):
+            shown = ",".join(row)
+            shown = shown if len(shown) <= 80 else shown[:77] + "..."
+            what = "too few values" if len(row) <= max(index) else "not a number"
+            raise InputError(f"{path}, line {line}: {what}: {shown}") from None
+        lines.append(line)
+    return np.array(rows, dtype=float).reshape(-1, len(index)), np.array(lines, dtype=np.int64)
 
 
 def write_long_table(
