@@ -17,7 +17,7 @@ from surface_strain import Mesh, StrainField, choose_mesh, compute_strain
 __all__ = ["Analysis", "analysis_of", "analyze", "strain_from_tracks", "track"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Analysis:
     """Tracks, the strain field computed from them, and how (for :func:`strain2d.write_run`).
 
@@ -25,10 +25,11 @@ class Analysis:
     ----------
     tracks : Tracks
     field : StrainField
-    tracker : str
-        The tracker's name.
-    mesh : surface_strain.Mesh
-        The triangles and how they were chosen.
+    tracker : str or None
+        The tracker's name (None: the one the tracks' ``meta`` names).
+    mesh : surface_strain.Mesh or None
+        The triangles and how they were chosen (None: the field's triangles,
+        given).
     grid_shape : (n_cols, n_rows) or None
         The points form this row-major grid.
     min_triangle_quality : float
@@ -39,11 +40,18 @@ class Analysis:
 
     tracks: Tracks
     field: StrainField
-    tracker: str = "gdic"
+    tracker: str | None = None
     mesh: Mesh | None = None
     grid_shape: tuple[int, int] | None = None
     min_triangle_quality: float = 0.1
     points: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        how = self.mesh.description if self.mesh is not None else "given triangles"
+        return (
+            f"Analysis({self.tracks.n_frames} frames, {self.tracks.n_points} points, "
+            f"{self.field.n_triangles} triangles ({how}), tracker={self.tracker})"
+        )
 
 
 def track(

@@ -133,7 +133,7 @@ def _read_nodes(file: Path):
     except UnicodeDecodeError:
         raise InputError(f"{file} is not a text CSV file") from None
     # 2D is the planar case of one schema: x, y (and u, v) without z
-    dims = ("x", "y", "z") if "Z" in header or "z" in header else ("x", "y")
+    dims = ("X", "Y", "Z") if "Z" in header or "z" in header else ("x", "y")
     table = read_long_table(file, required=(*dims, "visible", *COMPONENTS))
     return table, dims
 
@@ -170,8 +170,9 @@ def load_run(path: str | os.PathLike) -> Run:
     T = table.n_frames
     positions = np.stack([table[d] for d in dims], axis=-1)
     visible = table["visible"] != 0
-    # a lost point may have no position (imported tracks); a visible one must
-    if not np.isfinite(positions[visible]).all() or not np.isfinite(positions[0]).all():
+    # a lost point may have no position (imported tracks, a point stereo lost on the
+    # reference frame); a visible one must
+    if not np.isfinite(positions[visible]).all():
         raise InputError(f"{file}: positions of visible nodes must be finite")
     nodal = {k: table[k].copy() for k in COMPONENTS}
 
@@ -252,6 +253,12 @@ def _frames_of(frames) -> tuple[Callable[[], Iterable[np.ndarray]], Callable[[],
     """(a function that iterates the frames afresh, one that gives the first and last)."""
     if callable(frames) and not hasattr(frames, "__iter__"):
         reopen = frames
+    elif not hasattr(frames, "__iter__") or iter(frames) is frames:
+        raise InputError(
+            "write_run needs the frames twice (first and last, then every frame for the "
+            "animation): give an array, a FrameSource, or a function that returns the frames, "
+            f"not {type(frames).__name__}"
+        )
     else:
 
         def reopen():
@@ -370,11 +377,12 @@ def write_run(
         The run folder; it must not exist unless ``overwrite``.
     analysis : Analysis
         From :func:`strain2d.analyze`.
-    frames : (T, H, W) array, FrameSource, iterable, or callable
+    frames : (T, H, W) array, FrameSource, sequence, or callable
         The video the points were tracked on (for the figures and the
-        animation): an array or a :class:`~strain2d.FrameSource` (whose file
-        names, kind and frame range go into ``summary.json``), or a function
-        that returns a fresh iterable of ``(H, W)`` frames.
+        animation), read twice: an array or a :class:`~strain2d.FrameSource`
+        (whose file names, kind and frame range go into ``summary.json``), a
+        list of frames, or a function that returns a fresh iterable of
+        ``(H, W)`` frames (not a generator, which can be read only once).
     fps : float, keyword-only
         Frame rate: time axes in seconds instead of frames.
     endpoint : int, keyword-only
@@ -423,7 +431,7 @@ def write_run(
     from strain2d.figures import plot_tracked_grid
     from strain2d.report import run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
-    from surface_strain import RUN_SCHEMA
+    from surface_strain import RUN_SCHEMA, Mesh
     from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, recorded_command
     from tissue_core.version import __version__
@@ -453,7 +461,8 @@ def write_run(
             stacklevel=2,
         )
     t_start = time.perf_counter()
-    mesh = analysis.mesh
+    mesh = analysis.mesh or Mesh(field.triangles, "given", "given")
+    tracker = analysis.tracker or tracks.meta.get("tracker") or "unknown"
     # the video's files are inputs too: no output may replace them
     with atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp:
         write_tracks_csv(tmp / "tracks.csv", tracks)
@@ -496,7 +505,7 @@ def write_run(
             "source": source,
             # name, options, and whatever else the tracker reports (dic: reference updates)
             "tracker": {
-                "name": analysis.tracker,
+                "name": tracker,
                 **{k: v for k, v in tracks.meta.items() if k != "tracker"},
             },
             "points": {"n": tracks.n_points, **_points_info(analysis), **(points_info or {})},

@@ -317,7 +317,16 @@ def test_a_study_combines_stereo_runs_with_2d_runs(stretch, tmp_path):
                "--out", rec, "-q") == 0  # fmt: skip
     assert surface_strain(["compute", str(rec / "points3d.csv"), "--no-figures",
                            "--out", str(tmp_path / "s3d"), "-q"]) == 0  # fmt: skip
-    runs = [rec, tmp_path / "s3d"]
+    # a 3D run with a point lost from the reference frame on (stereo loses points so)
+    rows = (rec / "points3d.csv").read_text().splitlines()
+    lost = [rows[0]] + [
+        r if r.split(",")[1] != "0" else ",".join([*r.split(",")[:2], "", "", "", "nan", "0"])
+        for r in rows[1:]
+    ]
+    (tmp_path / "lost.csv").write_text("\n".join(lost) + "\n")
+    assert surface_strain(["compute", str(tmp_path / "lost.csv"), "--grid", "7x7",
+                           "--no-figures", "--out", str(tmp_path / "lost"), "-q"]) == 0  # fmt: skip
+    runs = [rec, tmp_path / "s3d", tmp_path / "lost"]
     for k in range(2):
         video = tmp_path / f"v{k}.tif"
         write_video(make_case("equibiaxial", size=160, n_frames=4, rng=k).frames, video)
@@ -327,7 +336,7 @@ def test_a_study_combines_stereo_runs_with_2d_runs(stretch, tmp_path):
 
     three_d = load_run(rec)
     assert three_d.positions.shape[-1] == 3 and three_d.unit == "mm"
-    assert load_run(runs[2]).positions.shape[-1] == 2
+    assert load_run(runs[3]).positions.shape[-1] == 2
     out = tmp_path / "study"
     assert strain2d(["study", *map(str, runs), "--out", str(out), "-q"]) == 0
     rows = {r["run"]: r for r in csv.DictReader((out / "specimens.csv").read_text().splitlines())}
@@ -344,5 +353,6 @@ def test_a_study_combines_stereo_runs_with_2d_runs(stretch, tmp_path):
         float(rows[str(rec)]["mean_Exx"]), abs=1e-7
     )
     # and the 2D specimens measure their equibiaxial stretch
-    for run in runs[2:]:
+    for run in runs[3:]:
         assert float(rows[str(run)]["mean_Exx"]) > 0.1
+    assert int(rows[str(tmp_path / "lost")]["n_nodes"]) == int(rows[str(rec)]["n_nodes"]) - 1

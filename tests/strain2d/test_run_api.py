@@ -46,3 +46,24 @@ def test_write_run_makes_the_folder_analyze_makes(small_case, tmp_path):
     run = load_run(api)
     assert run.time_unit == "s" and np.allclose(run.times, np.arange(run.n_frames) / 5)
     assert np.array_equal(run.positions, load_run(cli).positions, equal_nan=True)
+
+
+def test_write_run_takes_an_analysis_built_by_hand_and_refuses_a_generator(tmp_path):
+    """Analysis(tracks, field): the tracker is the tracks'; frames are read twice."""
+    import pytest
+
+    from sample_data_synth import make_case
+    from strain2d import InputError, track
+    from strain2d.pipeline import Analysis, strain_from_tracks
+
+    video = make_case("equibiaxial", size=160, n_frames=4)
+    grid = make_grid((160, 160), shape=(3, 3), roi=video.truth.roi)
+    tracks = track(video.frames, grid, tracker="klt")
+    analysis = Analysis(tracks, strain_from_tracks(tracks))
+    with pytest.raises(InputError, match="not generator"):
+        write_run(tmp_path / "g", analysis, (f for f in video.frames), animation="none")
+    assert not (tmp_path / "g").exists()
+    summary = write_run(tmp_path / "a", analysis, lambda: iter(video.frames), animation="none")
+    assert summary["tracker"]["name"] == "klt"
+    assert summary["mesh"]["method"] == "given" and summary["source"]["kind"] == "array"
+    assert load_run(tmp_path / "a").n_points == 9
