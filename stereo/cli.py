@@ -165,7 +165,10 @@ def _build_parser() -> CommandLine:
     _common(p)
 
     p = cli.command(
-        "reconstruct", _cmd_reconstruct, help="track a grid in both videos and triangulate it"
+        "reconstruct",
+        _cmd_reconstruct,
+        later=_tracker_flags,
+        help="track a grid in both videos and triangulate it",
     )
     p.add_argument("--calib", nargs="+", required=True, help="calibration (JSON or OpenCV YAML)")
     p.add_argument("--left", nargs="+", required=True, help="left video, TIFF, folder or images")
@@ -180,9 +183,6 @@ def _build_parser() -> CommandLine:
         "that tracks frames (default dic); dic's warp is quadratic here (curved surfaces "
         "seen in perspective)",
     )
-    from strain2d import add_tracker_arguments
-
-    add_tracker_arguments(p, _frame_trackers(), defaults=_TRACKER_DEFAULTS)
     p.add_argument("--max-reproj", type=float, default=1.0, help="px; worse points are dropped")
     p.add_argument(
         "--strain",
@@ -330,6 +330,14 @@ def _cmd_match(args) -> int:
     return 0
 
 
+def _tracker_flags(p: argparse.ArgumentParser) -> None:
+    """The options of the trackers reconstruct can use, as the registry declares them (built
+    when the command runs: it imports the trackers)."""
+    from strain2d import add_tracker_arguments
+
+    add_tracker_arguments(p, _frame_trackers(), defaults=_TRACKER_DEFAULTS)
+
+
 #: reconstruct's own tracker defaults: curved surfaces seen in perspective need dic's
 #: second-order warp
 _TRACKER_DEFAULTS = {"dic": {"shape_function": "quadratic"}}
@@ -347,7 +355,7 @@ def _tracker_options(args) -> dict:
 
     options = tracker_options(args, args.tracker, defaults=_TRACKER_DEFAULTS)
     subset = options.get("subset")
-    if isinstance(subset, int) and (subset < 7 or subset % 2 == 0):
+    if args.tracker == "dic" and subset is not None and (subset < 7 or subset % 2 == 0):
         raise InputError(f"--subset must be an odd number >= 7, got {subset}")
     return options
 

@@ -14,6 +14,7 @@ from strain2d.errors import InputError, SourceError
 
 log = logging.getLogger(__name__)
 
+
 def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "source",
@@ -28,14 +29,19 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
 
 
 def _add_tracker_args(p: argparse.ArgumentParser) -> None:
-    from strain2d.trackers import add_tracker_arguments
-
     p.add_argument(
         "--tracker",
         default="gdic",
         help="tracker name: gdic, dic, klt, cotracker3, imported (default gdic: global and "
         "local correlation, for weak natural texture as well as speckle)",
     )
+
+
+def _tracker_flags(p: argparse.ArgumentParser) -> None:
+    """Each tracker's options, as the registry declares them (built when the command runs:
+    it imports the trackers)."""
+    from strain2d.trackers import add_tracker_arguments
+
     add_tracker_arguments(p)
 
 
@@ -55,7 +61,9 @@ def _build_parser():
     cli = CommandLine(
         "strain2d", "Track virtual grid points in a video and compute the strain field."
     )
-    p = cli.command("track", _cmd_track, help="track points and write TRACKS.csv")
+    p = cli.command(
+        "track", _cmd_track, later=_tracker_flags, help="track points and write TRACKS.csv"
+    )
     _add_source_args(p)
     _add_points_args(p)
     _add_tracker_args(p)
@@ -63,7 +71,10 @@ def _build_parser():
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
 
     p = cli.command(
-        "analyze", _cmd_analyze, help="track a grid and write strain tables, figures, VTK"
+        "analyze",
+        _cmd_analyze,
+        later=_tracker_flags,
+        help="track a grid and write strain tables, figures, VTK",
     )
     _add_source_args(p)
     _add_points_args(p)
@@ -246,6 +257,7 @@ def _cmd_track(args) -> int:
     from strain2d.tracks import write_tracks_csv
     from tissue_core.outputs import atomic_file, check_writable
 
+    _tracker_options(args)  # bad tracker options fail before anything is read
     kwargs = {"overwrite": args.overwrite, "inputs": _inputs(args)}
     check_writable(args.out, kind="file", **kwargs)
     say = _progress(args)
@@ -272,6 +284,7 @@ def _cmd_analyze(args) -> int:
         "figure_format": args.figure_format,
     }
     check_run_options(**options, min_triangle_quality=args.min_triangle_quality)
+    _tracker_options(args)  # bad tracker options fail before anything is read
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     say = _progress(args)
 

@@ -11,3 +11,17 @@ def test_import_strain2d_stays_light():
     )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert res.stdout.strip() == ""
+
+
+def test_commands_that_track_nothing_do_not_load_the_trackers():
+    """Tracker options are built only for the commands that track (they import the trackers)."""
+    code = (
+        "import sys; from strain2d.cli import _build_parser;"
+        "_build_parser().parse_args(['study', '--out', 'x']);"
+        "print('strain2d.trackers.dic' in sys.modules)"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert res.stdout.strip() == "False"
+    code = code.replace("['study', '--out', 'x']", "['track', 'v.avi', '--out', 'x']")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert res.stdout.strip() == "True"

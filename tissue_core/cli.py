@@ -72,29 +72,43 @@ class CommandLine:
 
     def __init__(self, prog: str, description: str) -> None:
         self.prog = prog
+        self._later: dict[str, tuple[argparse.ArgumentParser, object]] = {}
         self.parser = ArgumentParser(prog=prog, description=description)
         self._add_global_options(self.parser, default=False)
         self._sub = self.parser.add_subparsers(
             dest="command", required=True, parser_class=ArgumentParser
         )
 
-    def command(self, name: str, handler, **kwargs) -> argparse.ArgumentParser:
+    def command(self, name: str, handler, *, later=None, **kwargs) -> argparse.ArgumentParser:
         """Add the subcommand ``name`` run by ``handler(args) -> int``; returns its parser.
 
-        ``kwargs`` go to ``add_parser`` (``help``, ``description``).
+        ``later(parser)`` adds options that are costly to build (they import
+        modules), only when ``name`` is the command given; ``kwargs`` go to
+        ``add_parser`` (``help``, ``description``).
         """
         p = self._sub.add_parser(name, **kwargs)
         # SUPPRESS: a global option not repeated after the command keeps the value given
         # before it
         self._add_global_options(p, default=argparse.SUPPRESS)
         p.set_defaults(handler=handler)
+        if later is not None:
+            self._later[name] = (p, later)
         return p
 
     def parse_args(self, argv: list[str] | None = None) -> argparse.Namespace:
         """Parse ``argv``; conflicting global options end as a usage error."""
+        argv = sys.argv[1:] if argv is None else list(argv)
+        command = next((a for a in argv if not a.startswith("-")), None)
+        if command in self._later:  # the command's costly options, once
+            p, later = self._later.pop(command)
+            later(p)
         args = self.parser.parse_args(argv)
         if args.quiet and args.verbose:
-            self.parser.error("-q/--quiet and -v/--verbose cannot be used together")
+            self.parser.exit(
+                2,
+                f"{self.prog} {args.command}: error: "
+                "-q/--quiet and -v/--verbose cannot be used together\n",
+            )
         return args
 
     def _add_global_options(self, p: argparse.ArgumentParser, *, default) -> None:

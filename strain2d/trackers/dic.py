@@ -639,11 +639,22 @@ def _assemble(state: _State, options: dict) -> Tracks:
     )
 
 
+def _subset_option(text: str) -> int:
+    """``--subset``: a whole number of pixels."""
+    try:
+        return int(text)
+    except ValueError:
+        auto = " (auto is gdic's)" if text == "auto" else ""
+        raise ValueError(
+            f"must be a whole number of pixels for the dic tracker{auto}, got {text!r}"
+        ) from None
+
+
 @register_tracker(
     "dic",
     description="subset DIC against the reference frame: ZNSSD, IC-GN affine, cubic B-splines",
     options=[
-        TrackerOption("subset", "--subset", "subset side in px", type=int),
+        TrackerOption("subset", "--subset", "subset side in px", type=_subset_option),
         TrackerOption(
             "shape_function",
             "--shape-function",

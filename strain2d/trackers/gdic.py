@@ -337,6 +337,16 @@ def _local_sigma(
     return np.sqrt(variance * s2 + misfit), inflation, np.sqrt(variance * s2)
 
 
+def _subset_option(text: str) -> int | str:
+    """``--subset``: auto, or a whole number of pixels."""
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise ValueError(f"must be auto or a whole number of pixels, got {text!r}") from None
+
+
 @register_tracker(
     "gdic",
     description="global DIC over the surface (regularized finite-element lattice, brightness "
@@ -348,7 +358,7 @@ def _local_sigma(
             "--subset",
             "subset side in px, or auto (default: sized per point from the texture against "
             "the noise, 31-81 px)",
-            type=lambda text: text if text == "auto" else int(text),
+            type=_subset_option,
         ),
         TrackerOption(
             "shape_function",

@@ -237,3 +237,23 @@ def test_a_declared_option_must_be_a_parameter_of_the_tracker():
             "broken", description="-", options=[registry.TrackerOption("gain", "--gain", "-")]
         )(lambda frames, points, *, progress=None: None)
     assert "broken" not in registry.available_trackers()
+
+
+@pytest.mark.parametrize(
+    ("tracker", "value", "message"),
+    [
+        ("gdic", "x", "--subset must be auto or a whole number of pixels, got 'x'"),
+        ("dic", "auto", "--subset must be a whole number of pixels for the dic tracker (auto "),
+        ("klt", "x", "--window must be a whole number, got 'x'"),
+    ],
+)
+def test_bad_tracker_option_values_fail_before_anything_is_read(
+    tracker, value, message, tmp_path, capsys
+):
+    from strain2d.cli import main
+
+    flag = "--window" if tracker == "klt" else "--subset"
+    missing = tmp_path / "no_such_video.avi"  # the option is judged first
+    assert main(["track", str(missing), "--tracker", tracker, flag, value,
+                 "--out", str(tmp_path / "t.csv")]) == 2  # fmt: skip
+    assert message in capsys.readouterr().err
