@@ -18,7 +18,13 @@ from matplotlib.figure import Figure
 from strain2d.errors import InputError
 from strain2d.figures._checks import _check_2d, _check_image, _finite, _scalars
 from strain2d.figures._maps import _draw_contours, _show_image, _triangulation
-from strain2d.figures._style import _colorbar, _colour_scale, _label, _unit_label, strain_limits
+from strain2d.figures._style import (
+    _colorbar,
+    _colour_scale,
+    _label,
+    _unit_label,
+    completed_limits,
+)
 from surface_strain import StrainField
 
 __all__ = ["write_strain_animation"]
@@ -105,11 +111,7 @@ def write_strain_animation(
         raise InputError(f"time_labels has {len(time_labels)} entries for {T} frames")
     if max_width < 64:
         raise InputError(f"max_width must be at least 64 px, got {max_width}")
-    if limits is None:
-        limits = strain_limits(field, components)
-    else:
-        missing = [c for c in components if c not in limits]
-        limits = {**strain_limits(field, missing), **limits} if missing else limits
+    limits = completed_limits(field, components, limits)
     scales = {c: _colour_scale(c, *map(float, limits[c])) for c in components}
     tmp = path.with_name(f".{path.stem}.partial{kind}")
     writer = None

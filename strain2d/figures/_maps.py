@@ -26,7 +26,7 @@ from strain2d.figures._style import (
     _label,
     _Scale,
     _unit_label,
-    strain_limits,
+    completed_limits,
 )
 from strain2d.tracks import Tracks
 from surface_strain import StrainField
@@ -244,11 +244,7 @@ def plot_strain_maps_at(
             picked[k] = images[k]
         else:
             raise InputError(f"no image given for frame {f}; images has frames {sorted(images)}")
-    if limits is None:
-        limits = strain_limits(field, components)
-    else:
-        missing = [c for c in components if c not in limits]
-        limits = {**strain_limits(field, missing), **limits} if missing else limits
+    limits = completed_limits(field, components, limits)
     stem = Path(path_stem)
     written = {}
     for k, image in picked.items():

@@ -67,6 +67,16 @@ def _unit_label(comp: str) -> str:
     return f"{_label(comp)} ({_STRAIN_AXIS})"
 
 
+def completed_limits(
+    field: StrainField, components: Sequence[str], limits: dict | None
+) -> dict[str, tuple[float, float]]:
+    """``limits`` with :func:`strain_limits` for the components it lacks (all when None)."""
+    if limits is None:
+        return strain_limits(field, components)
+    missing = [c for c in components if c not in limits]
+    return {**strain_limits(field, missing), **limits} if missing else limits
+
+
 def strain_limits(
     field: StrainField,
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
