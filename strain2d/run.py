@@ -471,7 +471,9 @@ def write_run(
         write_pvd(tmp, field, name="strain", times=times)
         figs = tmp / "figures"
         figs.mkdir()
-        plot_tracked_grid(figs / "tracked_grid.png", first_img, last_img, tracks, field.triangles)
+        grid_files = plot_tracked_grid(
+            figs / "tracked_grid", first_img, last_img, tracks, field.triangles, formats=formats
+        )
         extra = run_outputs(
             tmp,
             field,
@@ -490,7 +492,7 @@ def write_run(
         extra["figures"].insert(
             0,
             {
-                "files": ["figures/tracked_grid.png"],
+                "files": [f"figures/{p.name}" for p in grid_files],
                 "caption": "The tracked grid and mesh on the reference and the last frame; "
                 "lost points are red crosses.",
             },

@@ -62,7 +62,7 @@ def test_run_folder_has_every_figure_and_the_statistics(run_dir):
     assert ep["frame"] == 5 and ep["source"] == "not reached: still deforming at the last frame"
     figs = out / "figures"
     for stem in ("strain_frame0002", "strain_frame0005", "principal_directions_frame0005",
-                 "strain_curves", "violins_frame0005"):  # fmt: skip
+                 "strain_curves", "violins_frame0005", "tracked_grid"):  # fmt: skip
         for fmt in ("png", "svg", "pdf"):
             assert (figs / f"{stem}.{fmt}").is_file(), f"{stem}.{fmt}"
     assert (figs / "strain_animation.mp4").stat().st_size > 1000
@@ -75,7 +75,7 @@ def test_run_folder_has_every_figure_and_the_statistics(run_dir):
     assert "node-level" in paired["note"]
     assert summary["statistics"] == stats
     listed = {f for item in summary["figures"] for f in item["files"]}
-    assert "figures/strain_animation.mp4" in listed and "figures/tracked_grid.png" in listed
+    assert "figures/strain_animation.mp4" in listed and "figures/tracked_grid.svg" in listed
     assert all((out / f).is_file() for f in listed)
     assert {"report.html", "statistics.json"} <= set(summary["outputs"])
 
