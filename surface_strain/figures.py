@@ -11,9 +11,41 @@ import numpy as np
 
 from surface_strain.field import StrainField, nodal_scalars
 
-__all__ = ["plot_strain_curves", "plot_strain_violins", "render_strain"]
+__all__ = ["colour_range", "plot_strain_curves", "plot_strain_violins", "render_strain"]
 
 _COMPONENTS = ("Exx", "Eyy", "Exy", "E1", "E2")
+#: line styles that keep coinciding curves apart (E1 on Exx under a uniaxial stretch)
+_STYLES = ("-", "--", "-.", ":", (0, (6, 2, 1, 2, 1, 2)))
+
+
+def colour_range(values: np.ndarray, *, min_span: float = 0.01) -> tuple[float, float]:
+    """Colour limits that fit strain values: symmetric about 0 where they change sign.
+
+    Values of one sign get their own range, widened about its middle to at
+    least ``min_span`` so that tracking noise on a uniform field does not fill
+    the whole scale.  NaN values are left out.
+
+    Examples
+    --------
+    >>> colour_range(np.array([0.074, 0.08, 0.087]))
+    (0.074, 0.087)
+    >>> colour_range(np.array([0.0800, 0.0803]))  # noise on a uniform field
+    (0.07515, 0.08515)
+    >>> colour_range(np.array([-0.02, 0.05, np.nan]))
+    (-0.05, 0.05)
+    """
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return (0.0, 1.0)
+    lo, hi = float(v.min()), float(v.max())
+    if lo < 0 < hi:
+        m = max(-lo, hi)
+        return (-m, m)
+    if hi - lo < min_span:
+        middle = (hi + lo) / 2
+        lo, hi = middle - min_span / 2, middle + min_span / 2
+    return (round(lo, 12), round(hi, 12))
 
 
 def render_strain(
@@ -28,8 +60,11 @@ def render_strain(
 ) -> None:
     """Render a nodal strain component on the deformed surface at ``frame`` (PNG).
 
-    The colour range is symmetric about zero unless ``clim`` is given, and
-    the same for every frame when ``clim`` is passed by the caller.
+    The colour range fits the values (:func:`colour_range`) unless ``clim``
+    is given: symmetric about zero on a diverging map where they change sign,
+    their own range on a sequential one otherwise, so that E1 between 0.074
+    and 0.087 is not drawn as one colour on a scale from 0.  Pass ``clim`` for
+    the same range in every frame.
     """
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
@@ -48,8 +83,7 @@ def render_strain(
     mesh = pv.PolyData(pts, faces=faces)
     mesh.point_data[key] = values
     if clim is None:
-        m = float(np.nanmax(np.abs(values))) if np.isfinite(values).any() else 1.0
-        clim = (-m, m) if np.nanmin(values) < 0 else (0.0, m)
+        clim = colour_range(values)
     plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
     try:
         plotter.set_background("white")
@@ -63,7 +97,7 @@ def render_strain(
             edge_color="gray",
             ambient=0.6,  # colours close to the colour bar, shading still shows the shape
             diffuse=0.4,
-            scalar_bar_args={"title": f"{key} (Green-Lagrange)", "color": "black"},
+            scalar_bar_args={"title": f"{key} (-), Green-Lagrange", "color": "black"},
         )
         plotter.add_axes(color="black", xlabel=f"X ({unit})", ylabel=f"Y ({unit})",
                          zlabel=f"Z ({unit})")  # fmt: skip
@@ -84,17 +118,17 @@ def plot_strain_curves(field: StrainField, *, times=None, fps: float | None = No
     x = np.arange(T) if times is None else np.asarray(times, float)
     fig = Figure(figsize=(7.5, 4.2), dpi=100, layout="constrained")
     ax = fig.add_subplot()
-    for key in _COMPONENTS:
+    for key, style in zip(_COMPONENTS, _STYLES, strict=True):
         values = node[key]
         with np.errstate(invalid="ignore"):
             ok = np.isfinite(values).any(axis=1)
             mean = np.where(ok, np.nanmean(np.where(ok[:, None], values, 0.0), axis=1), np.nan)
             sd = np.where(ok, np.nanstd(np.where(ok[:, None], values, 0.0), axis=1), np.nan)
-        (line,) = ax.plot(x, mean, label=key)
+        (line,) = ax.plot(x, mean, label=key, linestyle=style, lw=1.6)
         ax.fill_between(x, mean - sd, mean + sd, color=line.get_color(), alpha=0.15, lw=0)
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("time (s)" if fps else "frame")
-    ax.set_ylabel("Green-Lagrange strain (mean ± spatial SD)")
+    ax.set_ylabel("Green-Lagrange strain (-), mean ± spatial SD")
     ax.legend(ncols=5, fontsize=8, loc="upper left")
     ax.grid(alpha=0.3)
     return fig
@@ -114,7 +148,7 @@ def plot_strain_violins(field: StrainField, *, frame: int = -1):
         ax.violinplot([data[i] for i in keep], positions=keep, showmedians=True)
     ax.set_xticks(range(len(_COMPONENTS)), _COMPONENTS)
     ax.axhline(0, color="k", lw=0.6)
-    ax.set_ylabel("Green-Lagrange strain (nodes)")
+    ax.set_ylabel("Green-Lagrange strain (-), over the nodes")
     ax.set_title(f"frame {t}")
     ax.grid(alpha=0.3, axis="y")
     return fig
