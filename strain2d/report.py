@@ -235,7 +235,7 @@ def run_outputs(
     # one pass over the video: the animation, and the images under the contour maps
     images: dict[int, np.ndarray] = {}
     wanted = set(maps)
-    limits = fg.strain_limits(field, components)
+    limits = fg.strain_limits(field, components, cover=maps)  # no node of a map saturates
     if animation != "none":
         path = figdir / f"strain_animation.{animation}"
         fg.write_strain_animation(

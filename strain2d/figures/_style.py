@@ -85,6 +85,7 @@ def strain_limits(
     min_span: float = 0.01,
     symmetric: bool = False,
     percentile: float = 0.5,
+    cover: Sequence[int] = (),
 ) -> dict[str, tuple[float, float]]:
     """Colour limits per component, shared by all frames.
 
@@ -109,6 +110,10 @@ def strain_limits(
         bar shows arrows.  0 gives the full range.  A node that is wrong on
         every frame is more than 0.5 % of the values of a 7x7 grid; raise
         ``percentile`` (e.g. 2.5) or mask the node instead.
+    cover : sequence of int, keyword-only
+        Frames whose every value lies within the limits (the frames drawn as
+        maps): a video that ends at its peak strain would otherwise show many
+        of the last frame's nodes in the end colours.
 
     Returns
     -------
@@ -136,6 +141,7 @@ def strain_limits(
         idx = np.array([_frame_index(field, f, "frames entry") for f in frames], dtype=int)
         if idx.size == 0:
             raise InputError("frames is empty; leave it out to use every frame")
+    covered = [_frame_index(field, f, "cover entry") for f in cover]
     out = {}
     for comp in components:
         finite = _finite(scalars[comp][idx])
@@ -145,13 +151,18 @@ def strain_limits(
             lo, hi = (float(v) for v in np.percentile(finite, [percentile, 100 - percentile]))
         else:
             lo, hi = float(finite.min()), float(finite.max())
+        shown = _finite(scalars[comp][covered]) if covered else np.empty(0)
+        if shown.size:
+            lo, hi = min(lo, float(shown.min())), max(hi, float(shown.max()))
         if symmetric:
             m = max(abs(lo), abs(hi), 0.5 * min_span)
             lo, hi = -m, m
         elif hi - lo < min_span:
             mid = 0.5 * (lo + hi)
             lo, hi = mid - 0.5 * min_span, mid + 0.5 * min_span
-        out[comp] = (round(lo, 12) + 0.0, round(hi, 12) + 0.0)
+        rlo, rhi = round(lo, 12) + 0.0, round(hi, 12) + 0.0
+        # rounded outwards: a covered value must not fall just outside
+        out[comp] = (rlo - 1e-12 if rlo > lo else rlo, rhi + 1e-12 if rhi < hi else rhi)
     return out
 
 

@@ -432,3 +432,19 @@ def test_figures_never_touch_pyplot(tmp_path):
         "assert 'matplotlib.pyplot' not in sys.modules\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_limits_cover_the_frames_drawn_as_maps():
+    """A stretch that ends at its peak: no node of the last frame in the end colours."""
+    from strain2d.figures import strain_limits
+    from surface_strain import compute_strain, grid_triangles, nodal_scalars
+
+    rng = np.random.default_rng(0)
+    X = np.stack(np.meshgrid(np.arange(7.0), np.arange(7.0)), -1).reshape(-1, 2)
+    frames = [X * (1 + 0.025 * k) + (rng.normal(0, 1e-3, X.shape) if k else 0) for k in range(31)]
+    field = compute_strain(X, np.stack(frames), grid_triangles(7, 7))
+    last = nodal_scalars(field)["Exx"][-1]
+    lo, hi = strain_limits(field, ["Exx"])["Exx"]
+    assert (last > hi).mean() > 0.05  # the 0.5 % percentile alone saturates the peak frame
+    lo, hi = strain_limits(field, ["Exx"], cover=[30])["Exx"]
+    assert lo <= last.min() and last.max() <= hi
