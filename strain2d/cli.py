@@ -224,7 +224,7 @@ def _open(args):
     return open_frames(args.source, start=args.start, stop=args.stop, step=args.step)
 
 
-def _track_source(args, say, check=None):
+def _track_source(args, options: dict, say, check=None):
     """Open the frames, place the points and track them: (source, point_info, tracks).
 
     ``check(n_frames)`` runs once the frames are counted, before tracking.
@@ -239,7 +239,6 @@ def _track_source(args, say, check=None):
     if check is not None:
         check(len(source))
     points, point_info = _reference_points(args, source)
-    options = _tracker_options(args)
     n = "the imported" if points is None else str(len(points))
     with say.task(f"tracking {n} points ({args.tracker})") as update:
         tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
@@ -257,11 +256,11 @@ def _cmd_track(args) -> int:
     from strain2d.tracks import write_tracks_csv
     from tissue_core.outputs import atomic_file, check_writable
 
-    _tracker_options(args)  # bad tracker options fail before anything is read
+    options = _tracker_options(args)  # bad tracker options fail before anything is read
     kwargs = {"overwrite": args.overwrite, "inputs": _inputs(args)}
     check_writable(args.out, kind="file", **kwargs)
     say = _progress(args)
-    _, _, tracks = _track_source(args, say)
+    _, _, tracks = _track_source(args, options, say)
     with atomic_file(args.out, **kwargs) as tmp:
         write_tracks_csv(tmp, tracks)
     say(f"tracks in {args.out}")
@@ -284,7 +283,7 @@ def _cmd_analyze(args) -> int:
         "figure_format": args.figure_format,
     }
     check_run_options(**options, min_triangle_quality=args.min_triangle_quality)
-    _tracker_options(args)  # bad tracker options fail before anything is read
+    tracker_options = _tracker_options(args)  # bad ones fail before anything is read
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     say = _progress(args)
 
@@ -294,7 +293,7 @@ def _cmd_analyze(args) -> int:
             if bad:
                 raise InputError(f"{flag} {bad[0]} is outside the frames 0..{n - 1}")
 
-    source, point_info, tracks = _track_source(args, say, check=frames_exist)
+    source, point_info, tracks = _track_source(args, tracker_options, say, check=frames_exist)
     t_tracked = time.perf_counter()
     analysis = analysis_of(
         tracks,

@@ -104,6 +104,8 @@ class FrameSource:
         Input file names, for provenance.
     shape : (int, int)
         Frame height and width in pixels.
+    frame_range : dict
+        ``{"start", "stop", "step"}`` as given (``stop`` None: to the end).
     value_range : (float, float)
         Intensity range mapped to 0-255 for trackers that work on 8-bit images,
         the same for every frame: (0, 255) for 8-bit sources, else the first
@@ -136,6 +138,7 @@ class FrameSource:
         if start < 0 or (stop is not None and stop < 0):
             raise SourceError("frame range start and stop must be >= 0")
         self._slice = slice(start, stop, step)
+        self.frame_range = {"start": start, "stop": stop, "step": step}
         if len(paths) == 1 and paths[0].is_dir():
             files = sorted(
                 (f for f in paths[0].iterdir() if f.suffix.lower() in IMAGE_SUFFIXES),

@@ -122,20 +122,14 @@ def _run_folder(path: Path) -> Path:
 
 
 def _read_nodes(file: Path):
-    """The nodal table of a 2D (``x,y,...``) or 3D (``X,Y,Z,...``) run: (LongTable, dims)."""
+    """The nodal table of a 2D (``x,y,...``) or 3D (``X,Y,Z,...``) run: (LongTable, axes)."""
     from tissue_core.tables import read_long_table
 
     if not file.is_file():
         raise InputError(f"{file.parent}: strain_nodes.csv is missing")
-    try:
-        with open(file, encoding="utf-8-sig") as f:
-            header = [h.strip() for h in f.readline().split(",")]
-    except UnicodeDecodeError:
-        raise InputError(f"{file} is not a text CSV file") from None
     # 2D is the planar case of one schema: x, y (and u, v) without z
-    dims = ("X", "Y", "Z") if "Z" in header or "z" in header else ("x", "y")
-    table = read_long_table(file, required=(*dims, "visible", *COMPONENTS))
-    return table, dims
+    table = read_long_table(file, required=("x", "y", "visible", *COMPONENTS), optional=("z",))
+    return table, ("x", "y", "z") if "z" in table else ("x", "y")
 
 
 def load_run(path: str | os.PathLike) -> Run:
@@ -284,15 +278,11 @@ def _source_info(frames, n_frames: int, shape) -> tuple[list[str], dict]:
     """The input names and the ``source`` entry of ``summary.json``."""
     source = getattr(frames, "source", frames)  # through EndFrames
     names = list(getattr(source, "names", []))
-    window = getattr(source, "_slice", None)
+    whole = {"start": 0, "stop": None, "step": 1}
     return names, {
         "kind": getattr(source, "kind", "array"),
         "frames_used": n_frames,
-        "frame_range": {
-            "start": window.start if window else 0,
-            "stop": window.stop if window else None,
-            "step": window.step if window else 1,
-        },
+        "frame_range": dict(getattr(source, "frame_range", whole)),
         "frame_size_px": [int(shape[1]), int(shape[0])],
     }
 

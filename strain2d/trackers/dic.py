@@ -383,6 +383,17 @@ def _check_options(
         raise InputError("max_iterations must be >= 1 and tolerance a positive number")
 
 
+def _first_frame(frames: Iterable[np.ndarray]) -> tuple[np.ndarray, Iterator, int | None]:
+    """Frame 0 as float64, an iterator over the later frames, and the frame count (None
+    for a generator); :class:`InputError` if there is no frame."""
+    total = len(frames) if hasattr(frames, "__len__") else None
+    rest = iter(frames)
+    try:
+        return np.asarray(next(rest), dtype=np.float64), rest, total
+    except StopIteration:
+        raise InputError("no frames to track") from None
+
+
 def _read_reference(
     frames: Iterable[np.ndarray], subset: int
 ) -> tuple[np.ndarray, Iterator[np.ndarray], int | None]:
@@ -391,12 +402,7 @@ def _read_reference(
     The count is None where ``frames`` has no length (a generator).  Raises
     :class:`InputError` if there is no frame or the subset does not fit in it.
     """
-    total = len(frames) if hasattr(frames, "__len__") else None
-    rest = iter(frames)
-    try:
-        ref_frame = np.asarray(next(rest), dtype=np.float64)
-    except StopIteration:
-        raise InputError("no frames to track") from None
+    ref_frame, rest, total = _first_frame(frames)
     shape = ref_frame.shape
     if subset >= min(shape):
         raise InputError(f"--subset {subset} must be smaller than the {shape[1]}x{shape[0]} frames")

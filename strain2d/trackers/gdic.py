@@ -50,7 +50,7 @@ from scipy import ndimage
 from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._lattice import LatticeSolver
-from strain2d.trackers.dic import _coefficients, _Correlator, _inside, _Subsets
+from strain2d.trackers.dic import _coefficients, _Correlator, _first_frame, _inside, _Subsets
 from strain2d.tracks import Tracks
 
 #: noise part of the local uncertainty (px) above which the field's estimate is blended in
@@ -449,12 +449,7 @@ def track_gdic(
         raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     n = len(points)
-    total = len(frames) if hasattr(frames, "__len__") else None
-    it = iter(frames)
-    try:
-        reference = np.asarray(next(it), dtype=np.float64)
-    except StopIteration:
-        raise InputError("no frames to track") from None
+    reference, it, total = _first_frame(frames)
     shape = reference.shape
     smallest = _SUBSETS[0] if subset == "auto" else subset
     if smallest >= min(shape) or 2 * spacing >= min(shape):
