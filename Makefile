@@ -3,7 +3,8 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 DEMO   := demo_output
-# Debian packages the core needs at run time (VTK's shared libraries).
+# Debian packages the core needs at run time (VTK's shared libraries); Chromium renders
+# the reports in the tests (tests/test_report_browser.py).
 SYSTEM_LIBS := libgl1 libxrender1 libx11-6
 
 .PHONY: setup demo test lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
@@ -18,6 +19,12 @@ system-deps:
 	  else \
 	    echo "missing system libraries:$$missing; install them with:"; \
 	    echo "  sudo apt-get install -y $(SYSTEM_LIBS)"; exit 1; fi; fi
+	@command -v chromium >/dev/null || command -v chromium-browser >/dev/null || \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get update -qq && apt-get install -y -qq chromium; \
+	  else \
+	    echo "note: the report tests render report.html in Chromium; install it with:"; \
+	    echo "  sudo apt-get install -y chromium"; fi
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
 	  { echo "Python >= 3.11 is needed (set PYTHON=python3.11)"; exit 1; }
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || \

@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from strain2d.errors import InputError
-from strain2d.html import HtmlReport
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
 from surface_strain import StrainField, nodal_scalars
+from tissue_core.html import HtmlReport
 from tissue_core.jsonio import write_json
 
 __all__ = [
@@ -440,8 +440,7 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
         if paired:
             doc.paragraph(paired.get("note", ""), css="note")
     _embed_figures(doc, folder, summary.get("figures") or [])
-    doc.heading("Parameters and provenance (summary.json)")
-    doc.json_block({k: v for k, v in summary.items() if k not in ("figures", "statistics")})
+    doc.provenance({k: v for k, v in summary.items() if k not in ("figures", "statistics")})
     out = folder / "report.html"
     doc.write(out)
     return out
@@ -637,8 +636,7 @@ def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) ->
             f"t = {comp['welch_t']:.3g}, p {_p(comp['welch_p'])}."
         )
     _embed_figures(doc, folder, summary.get("figures") or [])
-    doc.heading("Parameters and provenance (summary.json)")
-    doc.json_block({k: v for k, v in summary.items() if k != "figures"})
+    doc.provenance({k: v for k, v in summary.items() if k != "figures"})
     out = folder / "report.html"
     doc.write(out)
     return out

@@ -2,7 +2,14 @@
 
 Images are embedded as base64 ``data:`` URIs (PNG, GIF, JPEG) or inline SVG,
 videos (MP4) as a ``<video>`` element with a ``data:`` source; every piece of
-text is escaped.  Used by the run and study reports.
+text is escaped.  Every package's ``report.html`` is built with it, so the
+reports look alike: the inputs with their checksums (:func:`input_records`),
+parameters, results with units, figures, the quality of the measurement, what
+was flagged, and the provenance folded away at the end.
+
+Tables fit the page: cells wrap (long names and checksums break anywhere) and
+tables with many columns are set smaller, so no report is wider than the
+browser window (``tests/test_report_browser.py`` checks it in Chromium).
 
 Examples
 --------
@@ -16,6 +23,7 @@ True
 from __future__ import annotations
 
 import base64
+import hashlib
 import html
 import json
 import math
@@ -23,7 +31,7 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-__all__ = ["HtmlReport", "format_value"]
+__all__ = ["HtmlReport", "format_value", "input_records"]
 
 _MIME = {
     ".png": "image/png",
@@ -39,13 +47,18 @@ body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; ma
 h1 { font-size: 1.6em; margin-bottom: 0.2em; }
 h2 { margin-top: 1.8em; border-bottom: 1px solid #ddd; }
 .subtitle { color: #555; margin-top: 0; }
-table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.92em; }
-th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; vertical-align: top; }
+table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.92em; max-width: 100%; }
+table.wide { font-size: 0.78em; } table.wide th, table.wide td { padding: 0.2em 0.35em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: left; vertical-align: top;
+         overflow-wrap: anywhere; }
 th { background: #f2f2f2; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 figure { margin: 1.2em 0; } figure img, figure video, figure svg { max-width: 100%; height: auto; }
 figcaption { color: #444; font-size: 0.92em; margin-top: 0.3em; }
 pre { background: #f7f7f7; padding: 0.8em; overflow-x: auto; font-size: 0.85em; }
 .note { background: #fff8e1; border-left: 4px solid #f0b400; padding: 0.5em 0.8em; }
+.ok { background: #eef8ee; border-left: 4px solid #3a9a3a; padding: 0.5em 0.8em; }
+details { margin: 1em 0; } details > summary { cursor: pointer; font-weight: 600; }
+code { overflow-wrap: anywhere; }
 .summary li { margin-bottom: 0.4em; }
 """
 
@@ -65,6 +78,52 @@ def format_value(value, digits: int = 4) -> str:
     if isinstance(value, list | tuple):
         return ", ".join(format_value(v, digits) for v in value)
     return str(value)
+
+
+def _size_text(n) -> str:
+    if not isinstance(n, int):
+        return ""
+    for unit in ("bytes", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+    return ""
+
+
+def _digest_files(paths: Sequence[Path]) -> tuple[str, int]:
+    digest = hashlib.sha256()
+    total = 0
+    for path in paths:
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+                total += len(block)
+    return digest.hexdigest(), total
+
+
+def input_records(paths: Iterable[str | os.PathLike]) -> list[dict]:
+    """``[{"path", "bytes", "sha256", "files"}]`` for each input, for summaries and reports.
+
+    A folder (of images, say) is one record: its regular files in name order
+    hashed as one stream, with their count.  A path that cannot be read is
+    recorded with ``sha256: None`` rather than failing the run that used it.
+    """
+    out = []
+    for raw in paths:
+        path = Path(raw)
+        try:
+            if path.is_dir():
+                files = sorted(
+                    p for p in path.iterdir() if p.is_file() and not p.name.startswith(".")
+                )
+                sha, size = _digest_files(files)
+                out.append({"path": str(raw), "bytes": size, "sha256": sha, "files": len(files)})
+            else:
+                sha, size = _digest_files([path])
+                out.append({"path": str(raw), "bytes": size, "sha256": sha, "files": 1})
+        except OSError:
+            out.append({"path": str(raw), "bytes": None, "sha256": None, "files": 0})
+    return out
 
 
 class HtmlReport:
@@ -103,6 +162,7 @@ class HtmlReport:
         columns = list(columns or rows[0].keys())
         headers = list(headers or columns)
         head = "".join(f"<th>{html.escape(h)}</th>" for h in headers)
+        wide = ' class="wide"' if len(columns) > 7 else ""
         body = []
         for row in rows:
             cells = []
@@ -112,7 +172,7 @@ class HtmlReport:
                 cls = ' class="num"' if num else ""
                 cells.append(f"<td{cls}>{html.escape(format_value(v, digits))}</td>")
             body.append("<tr>" + "".join(cells) + "</tr>")
-        self._parts.append(f"<table><tr>{head}</tr>{''.join(body)}</table>")
+        self._parts.append(f"<table{wide}><tr>{head}</tr>{''.join(body)}</table>")
 
     def key_values(self, mapping: dict, *, digits: int = 6) -> None:
         """A two-column table of a flat dict (nested values shown as JSON)."""
@@ -130,6 +190,36 @@ class HtmlReport:
 
     def json_block(self, data) -> None:
         self.code(json.dumps(data, indent=2, default=str, allow_nan=True))
+
+    def flags(self, items: Sequence[str], *, none: str = "Nothing was flagged.") -> None:
+        """What the run flagged, one warning box per item, or one line saying there was none."""
+        if not items:
+            self.paragraph(none, css="ok")
+        for text in items:
+            self.paragraph(text, css="note")
+
+    def inputs(self, records: Sequence[dict]) -> None:
+        """The input files with their size and SHA-256 (records from :func:`input_records`)."""
+        rows = [
+            {
+                "input": r.get("path", "?"),
+                "size": _size_text(r.get("bytes")),
+                "SHA-256": r.get("sha256") or "",
+                "files": r.get("files", 1),
+            }
+            for r in records
+        ]
+        columns = ["input", "size", "SHA-256"]
+        if any(r["files"] != 1 for r in rows):
+            columns.insert(1, "files")
+        self.table(rows, columns=columns)
+
+    def provenance(self, data, title: str = "Parameters and provenance (summary.json)") -> None:
+        """``data`` as JSON, folded away under ``title`` (opened with a click)."""
+        text = html.escape(json.dumps(data, indent=2, default=str, allow_nan=True))
+        self._parts.append(
+            f"<details><summary>{html.escape(title)}</summary><pre>{text}</pre></details>"
+        )
 
     def media(self, path: str | os.PathLike, caption: str = "", *, alt: str = "") -> None:
         """Embed an image (PNG, GIF, JPEG, SVG) or an MP4 video from a file."""
