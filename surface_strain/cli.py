@@ -4,12 +4,15 @@ Reads 3D point tracks (``frame,point,X,Y,Z[,visible]``: the output of
 ``python -m stereo reconstruct`` as it is), meshes the reference points,
 computes membrane strain per triangle and node for every frame, and writes
 ``strain_nodes.csv``, ``strain_elements.csv``, ``summary.json``, the
-ParaView series ``strain.pvd`` and figures.  Errors a user can cause end
+ParaView series ``strain.pvd``, figures and a self-contained ``report.html``
+(inputs with checksums, parameters, results with units, the quality of the
+measurement, what was flagged).  Errors a user can cause end
 with one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
@@ -45,8 +48,15 @@ def _build_parser():
         help="Delaunay meshing of scattered points: in their best-fit plane (default), or "
         "on the best-fit sphere or cylinder for caps and tubes too curved for one plane",
     )
-    p.add_argument("--fps", type=float, help="frame rate, for times in the ParaView series")
-    p.add_argument("--unit", help="unit of X, Y, Z (default: from summary.json, else mm)")
+    p.add_argument(
+        "--fps",
+        type=float,
+        help="frame rate: times in seconds in the figures, the report and the ParaView series "
+        "(default: from a stereo summary.json beside the points, else frames)",
+    )
+    p.add_argument(
+        "--unit", help="unit of X, Y, Z (default: from summary.json, else 'input units')"
+    )
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -58,9 +68,10 @@ def _stereo_summary(points_path: Path) -> dict:
     if not path.is_file():
         return {}
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        summary = json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError):
         return {}
+    return summary if isinstance(summary, dict) else {}
 
 
 def _grid(text: str) -> tuple[int, int]:
@@ -99,6 +110,31 @@ def _mesh(points: np.ndarray, visible: np.ndarray, args, summary: dict):
     return choose_mesh(points[0], visible[0], grid=grid, projection=args.projection)
 
 
+def _summary_fps(summary: dict) -> float | None:
+    """A frame rate the stereo summary records (``fps``, or ``time_axis.fps``), if any."""
+    axis = summary.get("time_axis")
+    fps = summary.get("fps") or (axis.get("fps") if isinstance(axis, dict) else None)
+    try:
+        fps = float(fps)
+    except (TypeError, ValueError):
+        return None
+    return fps if np.isfinite(fps) and fps > 0 else None
+
+
+def _point_quality(path: Path) -> dict[str, np.ndarray]:
+    """The per-point quality columns of the points file (stereo's ``reproj_error``), if any."""
+    from surface_strain.report import POINT_QUALITY_COLUMNS
+    from tissue_core.tables import read_long_table
+
+    with open(path, newline="", encoding="utf-8-sig") as f:
+        header = [h.strip().lower() for h in next(csv.reader(f), [])]
+    names = [c for c in POINT_QUALITY_COLUMNS if c in header]
+    if not names:
+        return {}
+    table = read_long_table(path, required=names)
+    return {c: table[c] for c in names}
+
+
 def _inputs(args) -> list[Path]:
     """Every file compute reads: the points, --triangles, and stereo's summary beside them."""
     files = [Path(args.points), Path(args.points).parent / "summary.json"]
@@ -120,8 +156,11 @@ def _cmd_compute(args) -> int:
     points, visible = tracks.positions, tracks.visible
     say(f"{args.points}: {points.shape[1]} points over {points.shape[0]} frames")
     summary_in = _stereo_summary(Path(args.points))
-    unit = args.unit or summary_in.get("unit") or "mm"
+    given = summary_in.get("unit")
+    unit = args.unit or (given if isinstance(given, str) and given.strip() else None)
+    fps = args.fps if args.fps is not None else _summary_fps(summary_in)
     mesh = _mesh(points, visible, args, summary_in)
+    quality = _point_quality(Path(args.points))
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         field = write_run(
             tmp,
@@ -130,9 +169,11 @@ def _cmd_compute(args) -> int:
             mesh,
             directions=args.directions,
             unit=unit,
-            fps=args.fps,
+            fps=fps,
             figures=not args.no_figures,
             source=Path(args.points).name,
+            inputs=[p for p in _inputs(args) if p.is_file()],
+            point_quality=quality,
         )
     e1 = nodal_scalars(field)["E1"][-1]
     e1_mean = f"{np.nanmean(e1):.4f}" if np.isfinite(e1).any() else "- (no valid node)"

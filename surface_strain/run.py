@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Literal, NamedTuple
@@ -162,16 +163,21 @@ def write_run(
     mesh: Mesh,
     *,
     directions: str = "xy",
-    unit: str = "mm",
+    unit: str | None = "mm",
     fps: float | None = None,
     figures: bool = True,
     source: str = "",
+    inputs: Sequence[str | os.PathLike] = (),
+    point_quality: Mapping[str, np.ndarray] | None = None,
 ):
     """Compute membrane strain on 3D tracks and write a run folder into ``folder`` (exists).
 
     The folder's files are those of ``python -m surface_strain compute``, which
     calls this, as ``python -m stereo reconstruct --strain`` does (write into
-    a temporary folder, as :func:`tissue_core.outputs.atomic_dir` gives).
+    a temporary folder, as :func:`tissue_core.outputs.atomic_dir` gives):
+    the tables, the ParaView series, ``summary.json``, the figures and a
+    self-contained ``report.html`` (:func:`surface_strain.write_run_report`)
+    with the quality of the measurement (:func:`surface_strain.measurement_quality`).
 
     Parameters
     ----------
@@ -184,14 +190,21 @@ def write_run(
         From :func:`choose_mesh`.
     directions : str, keyword-only
         The frame of Exx, Eyy, Exy (see :func:`parse_directions`).
-    unit : str, keyword-only
-        Unit of the positions.
+    unit : str or None, keyword-only
+        Unit of the positions; None when it is not known (recorded and shown
+        as "input units", and flagged).
     fps : float, keyword-only
         Frame rate: times in seconds in the ParaView series and the summary.
     figures : bool, keyword-only
         Also render the strain maps, curves and violins.
     source : str, keyword-only
         The input's name, for the summary.
+    inputs : sequence of path, keyword-only
+        The files the points came from: recorded with their SHA-256 in
+        ``summary.json`` (``input_files``) and the report.
+    point_quality : mapping of str to (T, N) float, keyword-only
+        Per-point columns of the input (``reproj_error`` in px, ``quality``),
+        summarised in the report.
 
     Returns
     -------
@@ -200,10 +213,20 @@ def write_run(
     from surface_strain import __version__
     from surface_strain.export import write_elements_csv, write_nodes_csv, write_pvd
     from surface_strain.field import compute_strain, nodal_scalars
+    from surface_strain.report import (
+        measurement_quality,
+        quality_flags,
+        strain_statistics,
+        write_run_report,
+    )
+    from tissue_core.html import input_records
     from tissue_core.jsonio import write_json
     from tissue_core.outputs import recorded_command
 
     folder = Path(folder)
+    unit_source = "given" if unit else "unknown"
+    unit = unit or "input units"
+    n_mesh_triangles = len(mesh.triangles)
     # points lost on the reference frame have no reference position: their triangles go,
     # they keep a placeholder position (tied to no triangle) and stay lost in every frame
     lost = ~(visible[0] & np.isfinite(points[0]).all(axis=1))
@@ -240,17 +263,56 @@ def write_run(
     write_elements_csv(folder / "strain_elements.csv", field)
     write_pvd(folder, field, name="strain", times=times)
     last = field.n_frames - 1
+    quality = measurement_quality(
+        field, n_mesh_triangles=n_mesh_triangles, point_quality=point_quality
+    )
+    figure_list = []
     if figures:
-        from surface_strain.figures import plot_strain_curves, plot_strain_violins, render_strain
+        from surface_strain.figures import (
+            plot_strain_curves,
+            plot_strain_violins,
+            plot_tracking_quality,
+            render_strain,
+        )
 
         (folder / "figures").mkdir()
-        for key in ("E1", "E2", "Exx", "Eyy"):
-            render_strain(field, folder / "figures" / f"{key}_frame{last:04d}.png", key=key,
-                          frame=last, unit=unit)  # fmt: skip
-        plot_strain_curves(field, times=times, fps=fps).savefig(
-            folder / "figures" / "strain_over_time.png"
+
+        def figure(name: str, caption: str, section: str = "figures") -> Path:
+            figure_list.append({"file": f"figures/{name}", "caption": caption, "section": section})
+            return folder / "figures" / name
+
+        when = f"t = {times[last]:.4g} s, frame {last}" if fps else f"frame {last}"
+        for key, what in (
+            ("E1", "first principal strain E1"),
+            ("E2", "second principal strain E2"),
+            ("Exx", "Exx"),
+            ("Eyy", "Eyy"),
+        ):
+            path = figure(
+                f"{key}_frame{last:04d}.png",
+                f"Nodal {what} (Green-Lagrange, dimensionless) on the deformed surface on the "
+                f"last frame ({when}); grey: no valid value. Axes in {unit}.",
+            )
+            render_strain(field, path, key=key, frame=last, unit=unit, fps=fps)
+        path = figure(
+            "strain_over_time.png",
+            "Mean nodal strain of each component over time, with a band of +/- one spatial "
+            "SD over the nodes.",
         )
-        plot_strain_violins(field).savefig(folder / "figures" / f"violins_frame{last:04d}.png")
+        plot_strain_curves(field, times=times, fps=fps).savefig(path)
+        path = figure(
+            f"violins_frame{last:04d}.png",
+            f"Distribution over the nodes of each component on the last frame ({when}).",
+        )
+        plot_strain_violins(field, fps=fps).savefig(path)
+        path = figure(
+            "quality_over_time.png",
+            "Points still tracked (of all the input's points) and the reference surface area "
+            "whose triangles have a valid strain, per frame.",
+            section="quality",
+        )
+        visible, coverage = quality["visible_fraction"], quality["surface_coverage"]
+        plot_tracking_quality(visible, coverage, times=times, fps=fps).savefig(path)
     mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
                 for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
     summary = {
@@ -259,14 +321,23 @@ def write_run(
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
         "command": recorded_command.get(),
         "input": source,
+        "input_files": input_records(inputs),
         "unit": unit,
+        "unit_source": unit_source,
         "frames": field.n_frames,
         "points": field.n_points,
         "mesh": {"method": mesh.description, "n_triangles": field.n_triangles},
+        "lost_on_reference": int(lost.sum()),
         "directions": directions,
         "time_axis": {"fps": fps, "unit": "s" if fps else "frame"},
         "strain": "Green-Lagrange membrane strain; Exx, Eyy, Exy in the directions' frame",
         "nodal_mean_per_frame": mean,
+        "last_frame_statistics": strain_statistics(field, last),
+        "quality": quality,
+        "figures": figure_list,
+        "report": "report.html",
     }
+    summary["flagged"] = quality_flags(summary)
     write_json(folder / "summary.json", summary)
+    write_run_report(folder, summary)
     return field
