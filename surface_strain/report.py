@@ -210,8 +210,9 @@ def quality_flags(summary: Mapping) -> list[str]:
     inverted = np.asarray(quality.get("inverted_triangles") or [], dtype=int)
     if inverted.size and inverted.max() > 0:
         t = int(np.argmax(inverted))
+        n = np.count_nonzero(inverted)
         flags.append(
-            f"Triangles turn inside out on {np.count_nonzero(inverted)} frames (up to "
+            f"Triangles turn inside out on {n} frame{'s' if n > 1 else ''} (up to "
             f"{inverted[t]}, {_when(t, times)}): the tracked surface folds or points were "
             "mismatched there."
         )
@@ -274,7 +275,7 @@ def _over_frames(name: str, values, times, *, worse: str = "lower", scale: float
         "last frame": float(v[-1]),
         "median over frames": float(np.nanmedian(v)),
         "worst": float(v[t]),
-        "worst at": _when(t, times),
+        "worst at": _when(t, times) if np.nanmax(v) > np.nanmin(v) else "every frame alike",
     }
 
 
@@ -365,12 +366,7 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
         )
         rows = [
             _over_frames("points visible (%)", quality["visible_fraction"], times, scale=100),
-            _over_frames(
-                "surface coverage (% of the reference area with valid strain)",
-                quality["surface_coverage"],
-                times,
-                scale=100,
-            ),
+            _over_frames("surface coverage (%)", quality["surface_coverage"], times, scale=100),
             _over_frames(
                 "inverted triangles", quality["inverted_triangles"], times, worse="higher"
             ),
@@ -386,6 +382,12 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
             )
         doc.table(rows, columns=["quantity", "reference frame", "last frame",
                                  "median over frames", "worst", "worst at"])  # fmt: skip
+        doc.paragraph(
+            "Points visible: of all the input's points. Surface coverage: the fraction of the "
+            "meshed reference surface area whose triangles have a valid strain (all three "
+            "points tracked). Inverted triangles: valid triangles whose orientation reversed "
+            "from the reference frame (the surface folds, or points were mismatched)."
+        )
         for info in (quality.get("point_quality") or {}).values():
             if info["n"]:
                 tail = "95th" if info["worse"] == "higher" else "5th"
