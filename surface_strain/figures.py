@@ -230,12 +230,14 @@ def plot_tracking_quality(
     x, xlabel = _time_axis(len(visible), times, fps, time_unit)
     fig = Figure(figsize=(7.5, 3.0), dpi=100, layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(x, visible, "-o", ms=3, lw=1.6, label="points visible")
-    ax.plot(x, cover, "--s", ms=3, lw=1.6, label="surface area with valid strain")
+    dots = len(x) <= 30  # markers on short runs only: they would hide the lines of long ones
+    ax.plot(x, visible, "-o" if dots else "-", ms=3, lw=1.6, label="points visible")
+    ax.plot(x, cover, "--s" if dots else "--", ms=3, lw=1.4,
+            label="surface area with valid strain")  # fmt: skip
     low = min(np.nanmin(visible, initial=100), np.nanmin(cover, initial=100))
     ax.set_ylim(max(0.0, min(low - 5, 90.0)), 101)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("% of the reference")
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=8, loc="best")
     ax.grid(alpha=0.3)
     return fig

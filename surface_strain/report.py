@@ -93,8 +93,9 @@ def measurement_quality(
         fraction of the meshed reference area whose triangles have a valid
         strain) and ``inverted_triangles`` (valid triangles whose orientation
         reversed from the reference: folded or tangled tracking), plus
-        ``point_quality`` with ``median``, ``p95``, ``max`` over all frames
-        and ``median_per_frame`` for each column.
+        ``point_quality`` with ``median``, ``tail``, ``worst`` over all frames
+        and ``median_per_frame`` for each column (``tail``: the 95th percentile, or
+        the 5th for a quality that is worse when lower).
 
     Examples
     --------
@@ -143,7 +144,8 @@ def measurement_quality(
             "worse": worse,
             "n": int(seen.size),
             "median": _float(np.median(seen)) if seen.size else None,
-            "p95": _float(np.percentile(seen, 95 if worse == "higher" else 5))
+            "tail_percentile": 95 if worse == "higher" else 5,
+            "tail": _float(np.percentile(seen, 95 if worse == "higher" else 5))
             if seen.size
             else None,
             "worst": _float(seen.max() if worse == "higher" else seen.min()) if seen.size else None,
@@ -390,11 +392,11 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
         )
         for info in (quality.get("point_quality") or {}).values():
             if info["n"]:
-                tail = "95th" if info["worse"] == "higher" else "5th"
                 doc.paragraph(
                     f"The input's {info['what']} over all {info['n']} visible point positions: "
-                    f"median {info['median']:.3g} {info['unit']}, {tail} percentile "
-                    f"{info['p95']:.3g} {info['unit']}, worst {info['worst']:.3g} {info['unit']}."
+                    f"median {info['median']:.3g} {info['unit']}, {info['tail_percentile']}th "
+                    f"percentile {info['tail']:.3g} {info['unit']}, worst {info['worst']:.3g} "
+                    f"{info['unit']}."
                 )
         if len(quality["visible_fraction"]) <= PER_FRAME_ROWS:
             doc.table(_frame_rows(summary, times))
