@@ -1,6 +1,9 @@
 """Figures of a study: every specimen's curves and violins side by side, specimen means.
 
 Specimens of a group are drawn next to each other, groups in order of appearance.
+The specimen is the experimental unit: the specimen-level tests (on one mean
+per specimen) head the figures; node-level p-values are drawn as descriptive
+(the nodes of one specimen are not independent samples).
 """
 
 from __future__ import annotations
@@ -11,12 +14,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from strain2d.errors import InputError
 from strain2d.figures._checks import _finite
 from strain2d.figures._curves import _draw_curves
 from strain2d.figures._style import _STRAIN_AXIS, _colour, _label
-from strain2d.figures._violins import _bracket, _draw_violins, _test_lines, format_p
+from strain2d.figures._violins import _bracket, _draw_violins, _marker_handles, format_p
 
 __all__ = ["plot_specimen_means", "plot_study_curves", "plot_study_violins"]
 
@@ -25,6 +29,91 @@ def _group_order(items: Sequence[Mapping]) -> list[int]:
     """Indices of ``items`` with equal ``group`` adjacent, groups in order of appearance."""
     groups = list(dict.fromkeys(str(it.get("group") or "") for it in items))
     return sorted(range(len(items)), key=lambda i: groups.index(str(items[i].get("group") or "")))
+
+
+_NODE_NOTE = "node-level, descriptive: nodes within a specimen are not independent"
+
+
+def _one_test(t: Mapping) -> str:
+    """``paired t-test p = 0.003, Wilcoxon p = 0.12`` of one specimen-level result."""
+    parts = []
+    if "t_p" in t:
+        parts.append(f"paired t-test {format_p(t['t_p'])}")
+    if "wilcoxon_p" in t:
+        parts.append(f"Wilcoxon {format_p(t['wilcoxon_p'])}")
+    return ", ".join(parts) or "no test"
+
+
+def _specimen_lines(tests: Mapping | None) -> list[str]:
+    """One line per specimen-level result: ``tests`` is one result or ``{group: result}``."""
+    if not tests:
+        return []
+    single = any(k in tests for k in ("t_p", "wilcoxon_p", "n"))
+    items = {"": tests} if single else dict(tests)
+    lines = []
+    for group, t in items.items():
+        if not isinstance(t, Mapping):
+            raise InputError(f"tests[{group!r}] must be a dict of test results")
+        n = t.get("n")
+        who = f"{group} " if group else ""
+        size = f"(n = {n} specimens)" if n is not None else ""
+        head = f"{who}{size}".strip()
+        lines.append(f"{head}: {_one_test(t)}" if head else _one_test(t))
+    return lines
+
+
+def _spread(y: np.ndarray, gap: float, lo: float = -np.inf, hi: float = np.inf) -> np.ndarray:
+    """Label heights at least ``gap`` apart, in the order of ``y``, as near ``y`` as can be.
+
+    Minimises ``sum((p - y)**2)`` subject to ``p[j+1] - p[j] >= gap`` along
+    the sorted ``y``: with ``q_j = p_j - j * gap`` this is isotonic regression
+    of ``y_j - j * gap``, solved by pool-adjacent-violators; clipping ``q``
+    to ``[lo, hi - (n - 1) * gap]`` keeps the labels inside ``[lo, hi]``
+    (the clipped isotonic fit is the bounded optimum).  When they cannot all
+    fit, they are centred on the span.
+
+    Parameters
+    ----------
+    y : (n,) float
+        Wanted heights (finite).
+    gap : float
+        Least distance between neighbours, in the units of ``y``.
+
+    Returns
+    -------
+    (n,) float
+        The heights, in the order of ``y`` as given.
+
+    Examples
+    --------
+    >>> _spread(np.array([0.0, 0.0, 5.0]), 1.0).tolist()
+    [-0.5, 0.5, 5.0]
+    """
+    y = np.asarray(y, dtype=float)
+    n = y.size
+    if n == 0:
+        return y.copy()
+    order = np.argsort(y, kind="stable")
+    steps = gap * np.arange(n)
+    target = y[order] - steps
+    sums: list[float] = []
+    counts: list[int] = []
+    for v in target:
+        sums.append(float(v))
+        counts.append(1)
+        while len(sums) > 1 and sums[-2] / counts[-2] > sums[-1] / counts[-1]:
+            merged, size = sums.pop(), counts.pop()
+            sums[-1] += merged
+            counts[-1] += size
+    q = np.repeat([s / c for s, c in zip(sums, counts, strict=True)], counts)
+    top = hi - steps[-1]
+    if top >= lo:
+        q = np.clip(q, lo, top)
+    elif np.isfinite(lo) and np.isfinite(hi):
+        q = np.full(n, 0.5 * (lo + top))
+    out = np.empty(n)
+    out[order] = q + steps
+    return out
 
 
 def _name(item: Mapping, i: int) -> str:
@@ -114,6 +203,7 @@ def plot_study_violins(
     specimens: Sequence[Mapping],
     *,
     components: Sequence[str] = ("Exx", "Eyy"),
+    tests: Mapping | None = None,
 ) -> Figure:
     """Violins of every specimen side by side (the paper's Fig. 15).
 
@@ -123,15 +213,22 @@ def plot_study_violins(
         One per specimen: ``"name"``, optional ``"group"``, ``"values"``
         ``{component: (N,)}``, optional ``"tests"`` (as for
         :func:`plot_strain_violins`): the p-value of the node-level paired
-        test between the first two components is written above each specimen.
+        test between the first two components is written above each
+        specimen, marked as descriptive.
     components : sequence of str, keyword-only
+    tests : dict, keyword-only
+        The specimen-level paired test of the first two components on
+        specimen means (the headline of the figure): one result (keys
+        ``"t_p"``, ``"wilcoxon_p"``, ``"n"``) or one per group
+        ``{group: result}``, as for :func:`plot_specimen_means`.
 
     Returns
     -------
     matplotlib.figure.Figure
         The components of a specimen are adjacent and coloured alike across
         specimens; specimens of a group are adjacent, the group named under
-        its specimens.
+        its specimens.  A legend under the axes names the components and
+        what the violins draw.
     """
     if len(specimens) == 0:
         raise InputError("specimens is empty; give at least one")
@@ -185,19 +282,19 @@ def plot_study_violins(
     if not (np.isfinite(lo) and np.isfinite(hi)):
         lo, hi = -0.01, 0.01
     span = max(hi - lo, 1e-3)
-    labels = set()
-    for xs, top, tests in per_specimen:
-        if tests and k >= 2 and "t_p" in tests and np.isfinite(top):
+    bracketed = False
+    for xs, top, node_tests in per_specimen:
+        if node_tests and k >= 2 and "t_p" in node_tests and np.isfinite(top):
             _bracket(
                 ax,
                 xs[0],
                 xs[1],
                 top + 0.05 * span,
                 0.025 * span,
-                format_p(tests["t_p"]),
+                format_p(node_tests["t_p"]),
                 fontsize=7,
             )
-            labels.add(str(tests.get("label", "paired t-test")))
+            bracketed = True
     ax.set_ylim(lo - 0.06 * span, hi + 0.3 * span)
     ax.set_xticks(centres, [str(specimens[i].get("name", f"specimen {i + 1}")) for i in order])
     ax.tick_params(axis="x", length=0)
@@ -212,14 +309,30 @@ def plot_study_violins(
     else:
         ax.set_xlabel("specimen")
     handles = [
-        Line2D([], [], marker="s", ls="", ms=9, color=_colour(c, j), alpha=0.6, label=_label(c))
+        Patch(facecolor=_colour(c, j), edgecolor=_colour(c, j), alpha=0.35, label=_label(c))
         for j, c in enumerate(comps)
     ]
-    ax.legend(handles=handles, loc="lower left", fontsize=8, ncols=k)
-    if labels:
+    handles += _marker_handles(point_size=4.0)
+    width = fig.get_figwidth()
+    fig.legend(
+        handles=handles,
+        loc="outside lower center",
+        ncols=max(1, min(len(handles), int(width / 2.1))),
+        fontsize=8,
+        frameon=False,
+    )
+    vs = f"{_label(comps[0])} vs {_label(comps[1])}" if k >= 2 else _label(comps[0])
+    headline = _specimen_lines(tests)
+    if headline:
+        fig.suptitle(
+            "\n".join([f"specimen-level paired tests of {vs} on specimen means", *headline]),
+            fontsize=10,
+        )
+    if bracketed:
         ax.set_title(
-            f"p-values: {'; '.join(sorted(labels))} of {_label(comps[0])} vs {_label(comps[1])}",
-            fontsize=9,
+            f"p above each specimen: paired t-test over its nodes ({_NODE_NOTE})",
+            fontsize=8.5,
+            color="0.3",
         )
     return fig
 
@@ -266,25 +379,22 @@ def plot_specimen_means(
     groups: dict[str, list[int]] = {}
     for i, row in enumerate(table):
         groups.setdefault(str(row.get("group") or ""), []).append(i)
-    fig = Figure(figsize=(max(3.6, 2.6 * len(groups) + 1.2), 4.4), layout="constrained")
+    largest = max(len(rows) for rows in groups.values())
+    # room for one label per specimen of the largest group, _LABEL_GAP apart
+    height = max(4.4, largest * _LABEL_GAP * _LABEL_SIZE / 72 + 1.9)
+    fig = Figure(figsize=(max(3.6, 2.6 * len(groups) + 1.2), height), layout="constrained")
     ax = fig.add_subplot()
     ca, cb = _colour(a, 0), _colour(b, 1)
     ticks, ticklabels = [], []
+    labelled = []  # (name, x of the b point, b mean) per specimen
     for gi, (group, rows) in enumerate(groups.items()):
         x0, x1 = 3.0 * gi, 3.0 * gi + 1.0
         va = np.array([mean_of(table[i], a, i) for i in rows])
         vb = np.array([mean_of(table[i], b, i) for i in rows])
         for i, ya, yb in zip(rows, va, vb, strict=True):
             ax.plot([x0, x1], [ya, yb], color="0.55", lw=1, zorder=1)
-            ax.annotate(
-                str(table[i].get("name", i + 1)),
-                xy=(x1, yb),
-                xytext=(5, 0),
-                textcoords="offset points",
-                va="center",
-                fontsize=7,
-                color="0.3",
-            )
+            if np.isfinite(yb):
+                labelled.append((str(table[i].get("name", i + 1)), x1, float(yb)))
         ax.scatter(
             np.full(va.size, x0), va, color=ca, s=28, edgecolors="k", linewidths=0.4, zorder=3
         )
@@ -294,7 +404,12 @@ def plot_specimen_means(
         ok = np.isfinite(va) & np.isfinite(vb)
         ma, mb = (va[ok].mean(), vb[ok].mean()) if ok.any() else (np.nan, np.nan)
         ax.plot(
-            [x0, x1], [ma, mb], color="k", lw=2.4, zorder=2, label="group mean" if gi == 0 else None
+            [x0, x1],
+            [ma, mb],
+            color="k",
+            lw=2.4,
+            zorder=2,
+            label="group mean" if gi == 0 else None,
         )
         ticks += [x0, x1]
         ticklabels += [_label(a), _label(b)]
@@ -308,19 +423,71 @@ def plot_specimen_means(
         "component (group)" if any(groups) else "component", labelpad=18 if any(groups) else 4
     )
     ax.grid(alpha=0.3, axis="y")
-    ax.legend(loc="best", fontsize=8)
-    n_total = len(table)
-    title = f"specimen means of {_label(a)} and {_label(b)} (n = {n_total} specimens)"
-    if tests:
-        if "t_p" in tests or "wilcoxon_p" in tests:
-            title += "\n" + _test_lines(tests, short=False).replace("\n", "; ").replace(
-                " nodes", ""
-            )
-        else:
-            parts = [
-                f"{g}: {_test_lines(t, short=True).replace(chr(10), ', ')}"
-                for g, t in tests.items()
-            ]
-            title += "\n" + "; ".join(parts)
-    ax.set_title(title, fontsize=9)
+    fig.legend(
+        handles=[
+            Line2D([], [], color="0.55", lw=1, label="one specimen"),
+            Line2D([], [], color="k", lw=2.4, label="group mean" if any(groups) else "mean"),
+        ],
+        loc="outside lower center",
+        ncols=2,
+        fontsize=8,
+        frameon=False,
+    )
+    lines = _specimen_lines(tests)
+    title = f"specimen-level: means of {_label(a)} and {_label(b)}, one per specimen"
+    title += f" (n = {len(table)} specimens)"
+    ax.set_title("\n".join([title, *lines]), fontsize=9)
+    _place_labels(fig, ax, labelled)
     return fig
+
+
+#: specimen labels of :func:`plot_specimen_means`: font size (pt) and least spacing (x size)
+_LABEL_SIZE = 7.0
+_LABEL_GAP = 1.5
+
+
+def _place_labels(fig: Figure, ax, labelled: list[tuple[str, float, float]]) -> None:
+    """Name each specimen right of its point, spread so that no two names overlap.
+
+    The spacing is set in points; turning it into data units needs the laid-out
+    axes, so the figure is laid out first and again once the names are in (a
+    name that widens a margin changes the scale), up to three times.
+    """
+    if not labelled:
+        return
+    ylim = ax.get_ylim()
+    ax.set_ylim(ylim)  # fixed: the names must not rescale the axis they are spread on
+    by_x: dict[float, list[int]] = {}
+    for j, (_, x, _) in enumerate(labelled):
+        by_x.setdefault(x, []).append(j)
+    notes = [
+        ax.annotate(
+            name,
+            xy=(x, y),
+            xytext=(x, y),
+            va="center",
+            ha="left",
+            fontsize=_LABEL_SIZE,
+            color="0.25",
+            arrowprops={"arrowstyle": "-", "color": "0.6", "lw": 0.5, "shrinkA": 0, "shrinkB": 3},
+            annotation_clip=False,
+        )
+        for name, x, y in labelled
+    ]
+    for _ in range(3):
+        fig.draw_without_rendering()
+        box = ax.get_window_extent()
+        per_pt_y = (ylim[1] - ylim[0]) / (box.height * 72 / fig.dpi)
+        per_pt_x = np.diff(ax.get_xlim())[0] / (box.width * 72 / fig.dpi)
+        gap = _LABEL_GAP * _LABEL_SIZE * per_pt_y
+        moved = 0.0
+        for x, idx in by_x.items():
+            want = np.array([labelled[j][2] for j in idx])
+            at = _spread(want, gap, ylim[0] + 0.5 * gap, ylim[1] - 0.5 * gap)
+            for j, y in zip(idx, at, strict=True):
+                new = (x + 7 * per_pt_x, float(y))
+                old = notes[j].xyann
+                moved = max(moved, abs(new[1] - old[1]) / gap, abs(new[0] - old[0]) / per_pt_x)
+                notes[j].xyann = new
+        if moved < 0.02:
+            break

@@ -32,7 +32,12 @@ def format_p(p: float | None) -> str:
 
 
 def _draw_violins(ax, positions, arrays, colours, *, width=0.7, rng=None, point_size=6.0):
-    """Violins with the nodes as jittered points, a median bar and the quartiles."""
+    """Violins with the nodes as jittered points, a median bar and the quartiles.
+
+    The violin is matplotlib's Gaussian kernel density estimate (Scott's
+    bandwidth), drawn only where the values spread; :func:`_marker_handles`
+    gives the legend entries.
+    """
     rng = np.random.default_rng(0) if rng is None else rng
     for x, data, colour in zip(positions, arrays, colours, strict=True):
         if data.size == 0:
@@ -59,6 +64,27 @@ def _draw_violins(ax, positions, arrays, colours, *, width=0.7, rng=None, point_
         q1, med, q3 = np.percentile(data, [25, 50, 75])
         ax.vlines(x, q1, q3, color="k", lw=2.5, zorder=4)
         ax.hlines(med, x - 0.25 * width, x + 0.25 * width, color="k", lw=2, zorder=4)
+
+
+def _marker_handles(*, point_size: float = 6.0) -> list:
+    """Legend entries saying what :func:`_draw_violins` draws.
+
+    The entries are grey or black, so they read as the same for every
+    component; the component colours are the caller's entries.
+    """
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    ms = max(3.0, float(np.sqrt(point_size)) * 1.4)
+    node = Line2D([], [], ls="", marker="o", ms=ms, color="0.55", mec="k", mew=0.3)
+    median = Line2D([], [], color="k", lw=2)
+    iqr = Line2D([], [], ls="", marker="|", ms=11, mew=2.5, color="k")
+    body = Patch(facecolor="0.55", edgecolor="0.55", alpha=0.35)
+    node.set_label("one node (jittered)")
+    median.set_label("median")
+    iqr.set_label("interquartile range")
+    body.set_label("violin: kernel density of the nodes")
+    return [node, median, iqr, body]
 
 
 def _bracket(ax, x0: float, x1: float, y: float, height: float, text: str, *, fontsize=8):
@@ -109,8 +135,9 @@ def plot_strain_violins(
     Returns
     -------
     matplotlib.figure.Figure
-        Each component as a violin with every node as a (jittered) point,
-        the median as a bar and the quartiles as a thick line.
+        Each component as a violin (kernel density) with every node as a
+        (jittered) point, the median as a bar and the interquartile range as
+        a thick line; a legend under the axes says so.
     """
     data = _values(values, "values")
     comps = list(data)
@@ -132,4 +159,11 @@ def plot_strain_violins(
         ax.set_ylim(lo - 0.06 * span, hi + 0.4 * span)
     if title:
         ax.set_title(title)
+    fig.legend(
+        handles=_marker_handles(point_size=6.0),
+        loc="outside lower center",
+        ncols=2,
+        fontsize=8,
+        frameon=False,
+    )
     return fig

@@ -300,6 +300,61 @@ def test_violins_with_tests_and_degenerate_values(tmp_path):
     _assert_image(tmp_path / "odd.png", min_colours=5)
 
 
+def _boxes_apart(fig, a, b) -> bool:
+    """Whether the drawn extents of artists ``a`` and ``b`` do not intersect."""
+    fig.draw_without_rendering()
+    return not a.get_window_extent().overlaps(b.get_window_extent())
+
+
+def test_violin_legend_names_every_mark_and_covers_no_data():
+    rng = np.random.default_rng(1)
+    values = {"Exx": rng.normal(-0.1, 0.01, 49), "Eyy": rng.normal(-0.2, 0.02, 49)}
+    fig = plot_strain_violins(values, tests={"t_p": 0.01, "n": 49})
+    (legend,) = fig.legends
+    names = [t.get_text() for t in legend.get_texts()]
+    assert names == [
+        "one node (jittered)", "median", "interquartile range",
+        "violin: kernel density of the nodes",
+    ]  # fmt: skip
+    # the entries look like the marks: black median bar and IQR line, grey nodes
+    node, median, iqr, _ = legend.legend_handles
+    assert node.get_marker() == "o" and node.get_linestyle() == "None"
+    assert to_rgba(median.get_color()) == to_rgba("k") and iqr.get_marker() == "|"
+    ax = fig.axes[0]
+    assert len(ax.collections) >= 2 + 2  # two violin bodies and two node scatters drawn
+    assert _boxes_apart(fig, legend, ax)  # under the axes, over no node
+
+
+def test_study_violins_lead_with_the_specimen_level_test():
+    rng = np.random.default_rng(2)
+    violins = [
+        {
+            "name": f"S{i}",
+            "group": "g" if i < 2 else "h",
+            "values": {"Exx": rng.normal(-0.1, 0.01, 25), "Eyy": rng.normal(-0.2, 0.01, 25)},
+            "tests": {"t_p": 1e-6, "n": 25},
+        }
+        for i in range(4)
+    ]
+    levels = {"g": {"t_p": 0.0123, "wilcoxon_p": 0.5, "n": 2}, "h": {"t_p": 0.5, "n": 2}}
+    fig = plot_study_violins(violins, tests=levels)
+    head = fig.get_suptitle()
+    assert head.startswith("specimen-level paired tests of")
+    assert "g (n = 2 specimens): paired t-test p = 0.012, Wilcoxon p = 0.50" in head
+    assert "h (n = 2 specimens): paired t-test p = 0.50" in head
+    ax = fig.axes[0]
+    assert "node-level, descriptive: nodes within a specimen are not independent" in (
+        ax.get_title()
+    )
+    (legend,) = fig.legends
+    names = [t.get_text() for t in legend.get_texts()]
+    assert names[:2] == ["$E_{xx}$", "$E_{yy}$"]
+    assert {"one node (jittered)", "median", "interquartile range"} <= set(names)
+    assert _boxes_apart(fig, legend, ax)
+    # without specimen-level results there is no headline to show
+    assert plot_study_violins(violins).get_suptitle() == ""
+
+
 # ------------------------------------------------------------------ animation
 
 
@@ -412,7 +467,7 @@ def test_study_figures(tmp_path):
     fig = plot_specimen_means(table, tests={"aniso": {"t_p": 0.03}, "iso": {"t_p": 0.9}})
     ax = fig.axes[0]
     assert len(ax.get_lines()) == len(table) + 2 + 1  # specimens, group means, zero
-    assert "aniso: t: p = 0.030" in ax.get_title()
+    assert "aniso: paired t-test p = 0.030" in ax.get_title()
     assert "specimen mean" in ax.get_ylabel() and "(-)" in ax.get_ylabel()
     nested = [{"name": r["name"], "mean": {"Exx": r["Exx"], "Eyy": r["Eyy"]}} for r in table]
     save_figure(plot_specimen_means(nested), tmp_path / "means.png", dpi=50)
