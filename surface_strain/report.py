@@ -281,6 +281,17 @@ def _over_frames(name: str, values, times, *, worse: str = "lower", scale: float
     }
 
 
+def _figures(folder: Path, summary: Mapping, *, quality: bool) -> list[dict]:
+    """The figures of ``summary["figures"]`` in the quality section (or not) whose PNG exists."""
+    return [
+        f
+        for f in summary.get("figures") or []
+        if (f.get("section") == "quality") == quality
+        and f.get("files")
+        and (folder / f["files"][0]).is_file()
+    ]
+
+
 def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
     """Write ``report.html`` into a 3D run folder from its ``summary.json`` content.
 
@@ -405,19 +416,13 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
                 f"{len(quality['visible_fraction'])} frames: the per-frame values are in "
                 "summary.json (quality) and in the figure below."
             )
-    for item in summary.get("figures") or []:
-        if item.get("section") == "quality" and (folder / item["file"]).is_file():
-            doc.media(folder / item["file"], item["caption"])
-
-    figures = [
-        f
-        for f in summary.get("figures") or []
-        if f.get("section") != "quality" and (folder / f["file"]).is_file()
-    ]
+    for item in _figures(folder, summary, quality=True):
+        doc.media(folder / item["files"][0], item["caption"])
+    figures = _figures(folder, summary, quality=False)
     if figures:
         doc.heading("Figures")
         for item in figures:
-            doc.media(folder / item["file"], item["caption"])
+            doc.media(folder / item["files"][0], item["caption"])
     doc.provenance(dict(summary))
     out = folder / "report.html"
     doc.write(out)

@@ -278,7 +278,10 @@ def write_run(
         (folder / "figures").mkdir()
 
         def figure(name: str, caption: str, section: str = "figures") -> Path:
-            figure_list.append({"file": f"figures/{name}", "caption": caption, "section": section})
+            # strain2d's layout of summary["figures"], and where the report shows it
+            figure_list.append(
+                {"files": [f"figures/{name}"], "caption": caption, "section": section}
+            )
             return folder / "figures" / name
 
         when = f"t = {times[last]:.4g} s, frame {last}" if fps else f"frame {last}"
