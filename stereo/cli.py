@@ -333,9 +333,17 @@ def _cmd_match(args) -> int:
 def _tracker_flags(p: argparse.ArgumentParser) -> None:
     """The options of the trackers reconstruct can use, as the registry declares them (built
     when the command runs: it imports the trackers)."""
+    from stereo.report import WARP_NOISE_NOTE
     from strain2d import add_tracker_arguments
 
     add_tracker_arguments(p, _frame_trackers(), defaults=_TRACKER_DEFAULTS)
+    # the trade-off of reconstruct's own default warp, told where the warp is chosen
+    for action in p._actions:
+        if "--shape-function" in action.option_strings:
+            action.help += (
+                f". For dic, reconstruct defaults to quadratic: {WARP_NOISE_NOTE}; give "
+                "--shape-function affine for flat specimens"
+            ).replace("%", "%%")
 
 
 #: reconstruct's own tracker defaults: curved surfaces seen in perspective need dic's
@@ -409,9 +417,115 @@ def _source_name(source) -> str:
     return source.names[0] if len(source.names) == 1 else f"{source.names[0]} ..."
 
 
+_VIEWS_CAPTION = (
+    "The reference frames of both views with the points (circles) and where the points "
+    "with a 3D position are on the last frame (crosses)."
+)
+_POINTS_CAPTION = (
+    "The triangulated points in the left camera's frame ({unit}), on the reference frame "
+    "(grey) and the last frame (coloured by reprojection error)."
+)
+_QUALITY_CAPTION = (
+    "Per frame: the reprojection error of the triangulated points (median and 95th "
+    "percentile), the median tracking quality of each view against its reference frame, "
+    "and the share of the points with a 3D position."
+)
+
+
+def _write_frame_quality(path: Path, per_frame: dict) -> None:
+    """``quality_per_frame.csv``: one row per frame (:func:`stereo.report.frame_quality`)."""
+    from stereo.report import FRAME_COLUMNS
+
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(FRAME_COLUMNS)
+        for t in range(len(per_frame["frame"])):
+            row = []
+            for c in FRAME_COLUMNS:
+                v = per_frame[c][t]
+                row.append(int(v) if c in ("frame", "points_3d", "lost") else f"{v:.4f}")
+            w.writerow(row)
+
+
+def _results(rec) -> dict:
+    """The reconstruction's results in the calibration's unit, for the summary."""
+    p0 = rec.points[0][np.isfinite(rec.points[0]).all(axis=1)]
+    moved = np.linalg.norm(rec.points[-1] - rec.points[0], axis=1)
+    moved = moved[np.isfinite(moved)]
+    return {
+        "extent": np.ptp(p0, axis=0).tolist() if len(p0) else None,
+        "mean_depth": float(p0[:, 2].mean()) if len(p0) else None,
+        "displacement_median": float(np.median(moved)) if moved.size else None,
+        "displacement_max": float(moved.max()) if moved.size else None,
+    }
+
+
+def _strain_summary(field, mesh) -> dict:
+    """Nodal strain statistics on the last frame, for the summary and the report."""
+    from surface_strain import nodal_scalars
+
+    node = nodal_scalars(field)
+    last = {}
+    for key in ("Exx", "Eyy", "Exy", "E1", "E2"):
+        v = node[key][-1]
+        v = v[np.isfinite(v)]
+        last[key] = {
+            "mean": float(v.mean()) if v.size else None,
+            "sd": float(v.std(ddof=1)) if v.size > 1 else None,
+            "min": float(v.min()) if v.size else None,
+            "max": float(v.max()) if v.size else None,
+            "n": int(v.size),
+        }
+    return {
+        "folder": "strain",
+        "definition": "Green-Lagrange membrane strain",
+        "mesh": mesh.description,
+        "last_frame": last,
+    }
+
+
+def _quality_summary(summary: dict, rec, calib, per_frame: dict, field, args) -> None:
+    """Add the measurement's quality and what it flags to the summary."""
+    from stereo.report import (
+        calibration_quality,
+        flatness,
+        match_quality,
+        mesh_quality,
+        quality_flags,
+    )
+
+    err = rec.reproj_error[rec.visible]
+    quality = {
+        "calibration": calibration_quality(calib),
+        "matching": match_quality(rec),
+        "reprojection": {
+            "median_px": float(np.median(err)) if err.size else None,
+            "p95_px": float(np.percentile(err, 95)) if err.size else None,
+            "max_px": float(err.max()) if err.size else None,
+        },
+        "tracking_quality": rec.meta["tracking_quality"],
+        "per_frame": "quality_per_frame.csv",
+        "surface": flatness(rec.points),
+    }
+    if field is not None:
+        quality["mesh"] = mesh_quality(field)
+    summary["quality"] = quality
+    summary["flags"] = quality_flags(
+        per_frame,
+        quality["calibration"],
+        quality["matching"],
+        max_reproj_px=args.max_reproj,
+        quality_name=rec.meta["tracking_quality"],
+        warp=summary["parameters"]["shape_function"],
+        surface=quality["surface"],
+        mesh=quality.get("mesh"),
+    )
+
+
 def _cmd_reconstruct(args) -> int:
     from stereo.reconstruct import reconstruct
     from strain2d import open_frames
+    from tissue_core.html import input_records
     from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, check_writable, recorded_command
     from tissue_core.version import __version__
@@ -475,17 +589,24 @@ def _cmd_reconstruct(args) -> int:
                     quality=np.where(rec.visible, 1.0, 0.0),
                 ),
             )
-        from stereo.figures import plot_points3d, plot_views
+        from stereo.figures import plot_points3d, plot_quality, plot_views
+        from stereo.report import frame_quality
 
         (tmp / "figures").mkdir()
         plot_views(left.first(), right.first(), rec).savefig(tmp / "figures" / "views.png")
         plot_points3d(rec, unit=calib.unit).savefig(tmp / "figures" / "points3d.png")
+        per_frame = frame_quality(rec)
+        _write_frame_quality(tmp / "quality_per_frame.csv", per_frame)
+        plot_quality(
+            per_frame, max_reproj_px=args.max_reproj, quality_name=rec.meta["tracking_quality"]
+        ).savefig(tmp / "figures" / "quality.png")
         err = rec.reproj_error[rec.visible]
         summary = {
             "software": {"name": "stereo", "version": __version__},
             "created": datetime.now(UTC).isoformat(timespec="seconds"),
             "command": recorded_command.get(),
             "inputs": {"left": left.names, "right": right.names, "calib": args.calib},
+            "input_files": input_records(inputs),
             "unit": calib.unit,
             "calibration": {
                 "image_size": list(calib.image_size),
@@ -508,8 +629,9 @@ def _cmd_reconstruct(args) -> int:
                 "directions": directions if args.strain else None,
             },
             "match": rec.meta["match"],
+            "results": _results(rec),
         }
-        write_json(tmp / "summary.json", summary)
+        field = None
         if args.strain:
             from surface_strain import choose_mesh, write_run
 
@@ -518,7 +640,7 @@ def _cmd_reconstruct(args) -> int:
             grid = None if args.points else tuple(point_info["grid"])
             mesh = choose_mesh(rec.points[0], usable, grid=grid)
             (tmp / "strain").mkdir()
-            write_run(
+            field = write_run(
                 tmp / "strain",
                 rec.points,
                 rec.visible,
@@ -527,6 +649,22 @@ def _cmd_reconstruct(args) -> int:
                 unit=calib.unit,
                 source="points3d.csv",
             )
+            summary["strain"] = _strain_summary(field, mesh)
+        _quality_summary(summary, rec, calib, per_frame, field, args)
+        figures = [
+            {"file": "figures/views.png", "caption": _VIEWS_CAPTION},
+            {"file": "figures/points3d.png", "caption": _POINTS_CAPTION.format(unit=calib.unit)},
+            {"file": "figures/quality.png", "caption": _QUALITY_CAPTION},
+        ]
+        if args.strain:
+            from stereo.report import strain_figures
+
+            figures += strain_figures(tmp)
+        summary["figures"] = [item["file"] for item in figures]
+        write_json(tmp / "summary.json", summary)
+        from stereo.report import write_report
+
+        write_report(tmp, summary, per_frame, figures=figures)
     rms = summary["reprojection_rms_px"]
     say(
         f"{rec.n_points} points x {rec.n_frames} frames, "

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_points3d", "plot_views"]
+__all__ = ["plot_points3d", "plot_quality", "plot_views"]
 
 
 def _figure(width: float, height: float):
@@ -75,4 +75,57 @@ def plot_points3d(rec, *, unit: str = "mm", frame: int = -1):
     ax.view_init(elev=20, azim=-65)  # from the side, the cameras above
     ax.set_title("triangulated points (left-camera frame)")
     ax.legend(loc="upper left", fontsize=8)
+    return fig
+
+
+def plot_quality(per_frame: dict, *, max_reproj_px: float | None = None, quality_name="ZNCC"):
+    """Reprojection error, tracking quality and points with a 3D position against the frame.
+
+    Parameters
+    ----------
+    per_frame : dict of (T,) arrays
+        :func:`stereo.report.frame_quality` of a reconstruction.
+    max_reproj_px : float, optional
+        The reprojection limit, drawn as a line.
+    quality_name : str
+        What the tracker's quality measures (the middle panel's axis).
+    """
+    fig = _figure(7.5, 6.4)
+    axes = fig.subplots(3, 1, sharex=True)
+    frames = np.asarray(per_frame["frame"])
+    marker = "o" if len(frames) <= 60 else None
+    ax = axes[0]
+    ax.plot(frames, per_frame["reproj_median_px"], marker=marker, ms=3, label="median")
+    ax.plot(frames, per_frame["reproj_p95_px"], "--", marker=marker, ms=3,
+            label="95th percentile")  # fmt: skip
+    p95 = np.asarray(per_frame["reproj_p95_px"], float)
+    top = float(np.nanmax(p95)) if np.isfinite(p95).any() else 1.0
+    if max_reproj_px is not None and max_reproj_px <= 3 * top:
+        ax.axhline(max_reproj_px, color="0.5", lw=0.8, ls=":", label="limit (--max-reproj)")
+        top = max(top, max_reproj_px)
+    elif max_reproj_px is not None:  # far above the data: said, not drawn
+        ax.set_title(
+            f"the limit (--max-reproj {max_reproj_px:g} px) is off the scale",
+            fontsize=8,
+            loc="right",
+        )
+    ax.set_ylabel("reprojection\nerror (px)")
+    ax.set_ylim(0, 1.15 * top if top > 0 else 1.0)
+    ax.legend(fontsize=8, loc="upper left")
+    ax = axes[1]
+    ax.plot(frames, per_frame["quality_left_median"], marker=marker, ms=3, label="left view")
+    ax.plot(frames, per_frame["quality_right_median"], "--", marker="s" if marker else None,
+            ms=3, label="right view")  # fmt: skip
+    ax.set_ylabel(f"median tracking\n{quality_name} (-)")
+    ax.legend(fontsize=8, loc="lower left")
+    ax = axes[2]
+    total = np.asarray(per_frame["points_3d"]) + np.asarray(per_frame["lost"])
+    ax.plot(frames, 100.0 * np.asarray(per_frame["points_3d"]) / np.maximum(total, 1),
+            marker=marker, ms=3, color="C2")  # fmt: skip
+    ax.set_ylabel("points with a\n3D position (%)")
+    ax.set_ylim(-2, 102)
+    ax.set_xlabel("frame")
+    for ax in axes:
+        ax.grid(True, lw=0.3)
+    fig.suptitle("Quality of the reconstruction per frame")
     return fig

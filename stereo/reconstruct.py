@@ -37,6 +37,13 @@ class Reconstruction:
     reproj_error : (T, N) float, RMS reprojection error over the two views, px
     left, right : (T, N, 2) float, the 2D tracks in each view, px
     meta : dict
+        The tracker and its options, the cross-view match (``match``,
+        ``match_quality``: each point's ZNCC between the views, ``epipolar_px``),
+        ``tracking_quality``: what ``left_quality`` and ``right_quality`` measure.
+    left_quality, right_quality : (T, N) float, optional
+        The 2D tracker's quality of each point in each view (ZNCC for ``dic``
+        and ``gdic``, forward-backward agreement for ``klt``; 1 is best), NaN
+        where the point was not tracked in that view.
     """
 
     tracks: Tracks
@@ -44,6 +51,8 @@ class Reconstruction:
     left: np.ndarray
     right: np.ndarray
     meta: dict = field(default_factory=dict)
+    left_quality: np.ndarray | None = None
+    right_quality: np.ndarray | None = None
 
     @property
     def points(self) -> np.ndarray:
@@ -62,6 +71,14 @@ class Reconstruction:
     @property
     def n_points(self) -> int:
         return self.tracks.n_points
+
+
+#: what each tracker's ``Tracks.quality`` measures, for summaries and reports
+TRACKING_QUALITY = {
+    "dic": "ZNCC",
+    "gdic": "ZNCC",
+    "klt": "forward-backward agreement (1 - error / threshold)",
+}
 
 
 def _first(frames):
@@ -150,6 +167,8 @@ def reconstruct(
     right_positions[:, matched] = right_sub.positions
     right_visible = np.zeros((T, N), bool)
     right_visible[:, matched] = right_sub.visible
+    right_quality = np.full((T, N), np.nan)
+    right_quality[:, matched] = right_sub.quality
     say("triangulating")
     X = np.full((T, N, 3), np.nan)
     err = np.full((T, N), np.nan)
@@ -167,6 +186,7 @@ def reconstruct(
         "match": {k: v for k, v in matches.meta.items() if k != "homography"},
         "match_quality": matches.quality.tolist(),
         "epipolar_px": matches.epipolar_px.tolist(),
+        "tracking_quality": TRACKING_QUALITY.get(tracker, "the tracker's quality (1 is best)"),
         "unit": calib.unit,
     }
     return Reconstruction(
@@ -175,4 +195,6 @@ def reconstruct(
         left=left_tracks.positions,
         right=right_positions,
         meta=meta,
+        left_quality=np.asarray(left_tracks.quality, np.float64),
+        right_quality=right_quality,
     )
