@@ -55,10 +55,8 @@ def _specimen_lines(tests: Mapping | None) -> list[str]:
         if not isinstance(t, Mapping):
             raise InputError(f"tests[{group!r}] must be a dict of test results")
         n = t.get("n")
-        who = f"{group} " if group else ""
-        size = f"(n = {n} specimens)" if n is not None else ""
-        head = f"{who}{size}".strip()
-        lines.append(f"{head}: {_one_test(t)}" if head else _one_test(t))
+        size = f" (n = {n} specimens)" if n is not None else ""
+        lines.append(f"{group or 'all specimens'}{size}: {_one_test(t)}")
     return lines
 
 

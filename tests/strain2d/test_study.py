@@ -378,3 +378,67 @@ def test_single_group_gets_its_model_sentence(study_dir):
 def test_mixed_model_errors_are_input_errors():
     with pytest.raises(InputError, match="at least 2 nodes"):
         mixed_model(np.array([0.1, 0.2, 0.15]), np.array(["a", "b", "c"]))
+
+
+# ------------------------------------------------------------------ study figures
+
+
+def test_spread_is_the_least_squares_layout():
+    """Labels at least ``gap`` apart: the known optimum, and scipy's on a random case."""
+    from scipy.optimize import minimize
+
+    from strain2d.figures._study import _spread
+
+    assert _spread(np.array([0.0, 0.0, 5.0]), 1.0).tolist() == [-0.5, 0.5, 5.0]
+    assert _spread(np.array([2.0, 0.0, 0.0]), 1.0).tolist() == [2.0, -0.5, 0.5]  # order kept
+    assert _spread(np.array([0.0, 3.0]), 1.0).tolist() == [0.0, 3.0]  # far apart: untouched
+    assert _spread(np.zeros(3), 1.0, 0.0, 10.0).tolist() == [0.0, 1.0, 2.0]  # floor at 0
+    assert _spread(np.zeros(3), 1.0, 0.0, 1.0).tolist() == [-0.5, 0.5, 1.5]  # cannot fit: centred
+    y = np.random.default_rng(3).normal(0, 1, 7)
+    got = _spread(y, 0.8, -2.6, 2.6)  # 7 labels need 4.8 of the 5.2
+    o = np.argsort(y)
+    cons = [{"type": "ineq", "fun": lambda p, j=j: p[o[j + 1]] - p[o[j]] - 0.8} for j in range(6)]
+    ref = minimize(lambda p: ((p - y) ** 2).sum(), y, constraints=cons,
+                   bounds=[(-2.6, 2.6)] * 7, method="SLSQP", options={"ftol": 1e-12})  # fmt: skip
+    assert ref.success
+    np.testing.assert_allclose(got, ref.x, atol=1e-6)
+
+
+@pytest.mark.parametrize("n", [4, 25])
+def test_specimen_labels_never_overlap(n):
+    """Specimens with nearly equal means: their names, as drawn, do not intersect."""
+    from matplotlib.text import Text
+
+    from strain2d.figures import plot_specimen_means
+
+    rng = np.random.default_rng(n)
+    table = [
+        {"name": f"S{i:02d}", "group": "g" if i % 3 else "h",
+         "Exx": -0.15 + rng.normal(0, 0.01), "Eyy": -0.1 + 1e-5 * i}
+        for i in range(n)
+    ]  # fmt: skip
+    table[0]["Eyy"] = -0.05  # one far from the crowd stays by its point
+    fig = plot_specimen_means(table, tests={"all": {"t_p": 0.2, "n": n}})
+    ax = fig.axes[0]
+    for dpi in (72, 150):
+        fig.set_dpi(dpi)
+        fig.draw_without_rendering()
+        names = {t.get_text(): t for t in ax.texts if t.get_text().startswith("S")}
+        assert sorted(names) == [r["name"] for r in table]
+        # the text's own box (an Annotation's extent also holds its leader line)
+        boxes = {k: Text.get_window_extent(t) for k, t in names.items()}
+        for i, a in enumerate(sorted(boxes)):
+            for b in sorted(boxes)[i + 1 :]:
+                assert not boxes[a].overlaps(boxes[b]), (a, b, dpi)
+        axes_box = ax.get_window_extent()
+        assert all(axes_box.y0 <= b.y0 and b.y1 <= axes_box.y1 for b in boxes.values())
+        # the lone specimen's name sits level with its point
+        point = ax.transData.transform((1.0, table[0]["Eyy"]))
+        centre = 0.5 * (boxes["S00"].y0 + boxes["S00"].y1)
+        assert abs(centre - point[1]) < 0.5 * dpi / 72
+        # within a group the names keep the order of the means (leaders do not cross)
+        for group in ("g", "h"):
+            rows = sorted((r for r in table if r["group"] == group and r["name"] != "S00"),
+                          key=lambda r: r["Eyy"])  # fmt: skip
+            ys = [boxes[r["name"]].y0 for r in rows]
+            assert ys == sorted(ys)
