@@ -8,10 +8,18 @@ stack (:mod:`mpm3d.io`), find the surface (:mod:`mpm3d.heightmap`), mesh it
     OUT/metrics.json      every metric, the spacing, input, parameters, version
     OUT/folds.csv         one row per fold (height, position, width)
     OUT/crests.csv        one row per crest and profile
-    OUT/surface.vtp       the isosurface (ParaView), points (x, y, depth) um
+    OUT/surface.vtp       the isosurface (ParaView), points (x, y, depth) um, with a
+                          height_um point array and its datum in the field data
     OUT/surface.ply       the same mesh for other tools
     OUT/heightmap.tif     float32 height (um) with its pixel size (ImageJ)
     OUT/figures/          heightmap.png, surface3d.png, profiles.png, spectrum.png
+    OUT/report.html       one self-contained page: inputs, parameters, results,
+                          quality, figures, what was flagged
+
+Every height (metrics, heightmap.tif, both height figures, the mesh's
+``height_um``) is measured from one datum, the plane of the stack's deepest
+slice (:data:`mpm3d.heightmap.HEIGHT_DATUM`), and the two height figures
+share one colour scale.
 """
 
 from __future__ import annotations
@@ -20,6 +28,7 @@ import contextlib
 import csv
 import logging
 import os
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -28,9 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from mpm3d.errors import InputError
-from mpm3d.heightmap import HeightMap, height_map
+from mpm3d.heightmap import HEIGHT_DATUM, HeightMap, height_map
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
+from tissue_core.html import input_records
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import recorded_command
 
@@ -121,7 +131,50 @@ def analyze_stack(
     Returns
     -------
     Analysis
+        Its ``metrics`` also list the warnings the analysis raised
+        (``warnings``; they are raised again, once the analysis is done).
     """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            analysis = _analyze(
+                source,
+                channel=channel,
+                spacing=spacing,
+                threshold=threshold,
+                smooth_um=smooth_um,
+                min_fold_height_um=min_fold_height_um,
+                surface=surface,
+                iso_bin=iso_bin,
+                band_um=band_um,
+                decimate=decimate,
+                progress=progress,
+            )
+        finally:
+            flagged = []
+            for record in caught:
+                if issubclass(record.category, UserWarning):
+                    flagged.append(str(record.message))
+    for record in caught:  # raised again: callers and the command line see them as before
+        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+    analysis.metrics["warnings"] = flagged
+    return analysis
+
+
+def _analyze(
+    source,
+    *,
+    channel,
+    spacing,
+    threshold,
+    smooth_um,
+    min_fold_height_um,
+    surface,
+    iso_bin,
+    band_um,
+    decimate,
+    progress,
+) -> Analysis:
     say = progress or (lambda message: None)
     stack = source if isinstance(source, Stack) else read_stack(source, spacing=spacing)
     with _about(stack.path):  # the problem is this stack's: say which it is
@@ -139,7 +192,7 @@ def analyze_stack(
         )
         mesh = None
         if surface:
-            from mpm3d.surface import isosurface
+            from mpm3d.surface import add_height, isosurface
 
             say("building the isosurface")
             mesh = isosurface(
@@ -152,6 +205,7 @@ def analyze_stack(
                 band_um=band_um,
                 decimate=decimate,
             )
+            add_height(mesh, hm.datum_depth_um, datum=_datum_text(hm))
     del volume
     params = {
         "channel": channel,
@@ -163,9 +217,17 @@ def analyze_stack(
         "band_um": band_um,
         "decimate": decimate,
     }
+    height = hm.height_um
+    height_range = [float(height.min()), float(height.max())]
+    colour = list(height_range)
+    if mesh is not None and mesh.n_points:
+        mesh_height = np.asarray(mesh.point_data["height_um"])
+        mesh_range = [float(mesh_height.min()), float(mesh_height.max())]
+        colour = [min(colour[0], mesh_range[0]), max(colour[1], mesh_range[1])]
     record = {
         "input": os.path.basename(stack.path),
         "input_path": str(stack.path),
+        "inputs": input_records([stack.path]),
         **{k: metrics[k] for k in metrics},
         "spacing_um": {"z": stack.spacing[0], "y": stack.spacing[1], "x": stack.spacing[2]},
         "spacing_source": stack.spacing_source,
@@ -178,12 +240,30 @@ def analyze_stack(
         "surface_coverage": hm.coverage,
         "surface_depth_range_um": [float(hm.depth_um.min()), float(hm.depth_um.max())],
         "n_surface_triangles": int(mesh.n_cells) if mesh is not None else None,
+        "height_datum": {
+            "datum": HEIGHT_DATUM,
+            "depth_below_first_slice_um": hm.datum_depth_um,
+            "unit": "um",
+            "used_by": [
+                "heightmap.tif",
+                "figures/heightmap.png",
+                "figures/surface3d.png",
+                "surface.vtp point array height_um",
+                "height_range_um",
+            ],
+        },
+        "height_range_um": height_range,
+        "mesh_height_range_um": mesh_range if mesh is not None and mesh.n_points else None,
+        "height_colour_range_um": colour,
+        "quality": _quality(hm, mesh),
         "conventions": {
-            "height": "elevation above the deepest slice, um (crests high)",
+            "height": "elevation above the deepest slice, um (crests high): the datum of "
+            "heightmap.tif, both height figures and the mesh's height_um array",
             "orientation": "crest direction, degrees from the image x axis (columns) "
             "towards y (rows), in [0, 180)",
             "mesh": "points (x, y, depth below slice 0) in um, normals into the lumen; "
-            "contoured at each column's half-maximum (background to surface peak)",
+            "contoured at each column's half-maximum (background to surface peak); "
+            "point arrays depth_um and height_um (above the deepest slice)",
             "fold_height_um": "median over folds of each fold's median crest-to-trough height",
             "fold_wavelength_um": "null with fewer than 2 fold periods in view: "
             "see fold_wavelength_note and fold_periods_in_view",
@@ -198,6 +278,55 @@ def analyze_stack(
     return Analysis(
         metrics=record, heightmap=hm, spectrum=spectrum, folds=folds, surface=mesh, params=params
     )
+
+
+def _datum_text(hm: HeightMap) -> str:
+    return (
+        f"height_um: elevation in um above the stack's deepest slice "
+        f"({hm.datum_depth_um:g} um below the first slice)"
+    )
+
+
+def _quality(hm: HeightMap, mesh) -> dict:
+    """How well the surface was measured: coverage, segmentation, mesh (metrics.json)."""
+    valid_cnr = hm.cnr[hm.valid]
+    out = {
+        "surface_coverage": hm.coverage,
+        "dropouts": dict(hm.dropouts),
+        "threshold": hm.threshold,
+        "threshold_method": "given (--threshold)"
+        if hm.params.get("threshold_given")
+        else "Otsu on a subsample of the voxels",
+        "background": hm.background,
+        "background_noise": hm.noise,
+        "otsu_separability": hm.separability,
+        "median_surface_cnr": float(np.median(valid_cnr)) if valid_cnr.size else None,
+        "min_cnr": hm.params.get("min_cnr"),
+        "mesh": None,
+        "mesh_vs_heightmap_um": None,
+    }
+    if mesh is not None and mesh.n_cells:
+        from mpm3d.surface import mesh_quality, vertical_error
+
+        _, dy, dx = hm.spacing
+        field = mesh.field_data
+        lateral_bin = int(field["lateral_bin"][0]) if "lateral_bin" in field else 1
+        q = mesh_quality(mesh, edge_um=2.0 * lateral_bin * max(dy, dx))
+        q["developed_area_ratio"] = (
+            q["area_um2"] / q["projected_area_um2"] if q["projected_area_um2"] > 0 else None
+        )
+        q["lateral_bin"] = lateral_bin
+        out["mesh"] = q
+        err = np.abs(vertical_error(mesh, hm.depth_um, spacing=hm.spacing))
+        if err.size:
+            out["mesh_vs_heightmap_um"] = {
+                "median_abs": float(np.median(err)),
+                "p95_abs": float(np.percentile(err, 95)),
+                "note": "depth of each mesh vertex minus the height map's at its (x, y); "
+                "large on steep or overhanging flanks, where a column meets the surface "
+                "more than once",
+            }
+    return out
 
 
 def _write_table(path: Path, table: dict) -> None:
@@ -223,12 +352,18 @@ def _save_vtp(mesh, path: Path) -> None:
 
 
 def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bool = True) -> None:
-    """Write an :class:`Analysis` into an existing, empty ``folder``."""
+    """Write an :class:`Analysis` into an existing, empty ``folder``.
+
+    The figures listed in ``metrics["figures"]`` and ``report.html`` come
+    last; ``metrics.json`` records the colour range both height figures use.
+    """
     import tifffile
+
+    from mpm3d.report import write_analysis_report
 
     folder = Path(folder)
     hm = analysis.heightmap
-    write_json(folder / "metrics.json", analysis.metrics)
+    metrics = analysis.metrics
     _write_table(folder / "folds.csv", analysis.folds.folds)
     _write_table(folder / "crests.csv", analysis.folds.crests)
     _, dy, dx = hm.spacing
@@ -241,15 +376,18 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
             "unit": "um",
             "axes": "CYX",
             "Labels": ["height_um", "measured"],
-            "info": "channel 0: surface height above the deepest slice (um); "
+            "info": "channel 0: surface height above the deepest slice (um; "
+            f"{hm.datum_depth_um:g} um below the first slice); "
             "channel 1: 1 where measured, 0 where filled",
         },
     )
     fig_dir = folder / "figures"
     if figures:
         fig_dir.mkdir()
-    name = analysis.metrics["input"]
+    name = metrics["input"]
     mesh = analysis.surface
+    clim = tuple(metrics["height_colour_range_um"])
+    rendering: dict = {}
 
     def vtk_outputs() -> None:  # VTK work, in a thread beside the matplotlib figures
         _save_vtp(mesh, folder / "surface.vtp")
@@ -257,7 +395,15 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
         if figures:
             from mpm3d.figures import render_surface
 
-            render_surface(mesh, fig_dir / "surface3d.png", title=name)
+            rendering.update(
+                render_surface(
+                    mesh,
+                    fig_dir / "surface3d.png",
+                    datum_depth_um=hm.datum_depth_um,
+                    clim=clim,
+                    title=name,
+                )
+            )
 
     with ThreadPoolExecutor(max_workers=1) as pool:
         pending = pool.submit(vtk_outputs) if mesh is not None else None
@@ -270,8 +416,42 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
                 valid=hm.valid,
                 folds=analysis.folds,
                 title=f"{name}: lumen surface height",
+                clim=clim,
             ).savefig(fig_dir / "heightmap.png")
             fg.plot_profiles(analysis.folds).savefig(fig_dir / "profiles.png")
             fg.plot_spectrum(analysis.spectrum).savefig(fig_dir / "spectrum.png")
         if pending is not None:
             pending.result()
+    if figures:
+        listed = [
+            (
+                "heightmap.png",
+                "Lumen surface height above the stack's deepest slice (µm), "
+                "seen from the objective; shaded where no surface was measured (filled in); "
+                "white dots: the crests found along each profile across the folds.",
+            ),
+            (
+                "surface3d.png",
+                "The isosurface mesh (surface.vtp) seen obliquely from the lumen, "
+                "coloured on the height map's colour scale; axes and scale bar in µm, heights "
+                "above the deepest slice (the grey rectangle).",
+            ),
+            ("profiles.png", "Height along profiles across the fold crests, form removed (µm)."),
+            (
+                "spectrum.png",
+                "Power spectrum of the height map; the circled peak is the "
+                "dominant fold frequency.",
+            ),
+        ]
+        metrics["figures"] = [
+            {"file": f"figures/{f}", "caption": c} for f, c in listed if (fig_dir / f).is_file()
+        ]
+        if rendering:
+            metrics["surface3d_rendering"] = {
+                "colour_range_um": list(rendering["clim"]),
+                "scale_bar_um": rendering["scale_bar_um"],
+                "simplified_for_display": rendering["simplified"],
+                "triangles_drawn": rendering["triangles_drawn"],
+            }
+    write_json(folder / "metrics.json", metrics)
+    write_analysis_report(folder, metrics)

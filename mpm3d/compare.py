@@ -10,6 +10,8 @@ extra); every metric's change is reported.  It writes::
     OUT/changes.csv        metric, before, after, change, ratio
     OUT/figures/compare_heightmaps.png
     OUT/before/, OUT/after/  each stack's full analysis (as ``analyze`` writes it)
+    OUT/report.html        one self-contained page: inputs, parameters, changes with
+                           units, alignment and measurement quality, figures, flags
 """
 
 from __future__ import annotations
@@ -79,7 +81,10 @@ def align_heightmaps(
         overlay ``before``) and ``overlap_correlation``, the correlation
         of the two form-removed maps where they overlap once aligned (near 1
         for the same surface; near 0 when the surfaces have nothing in
-        common, as a contracted specimen's new folds may not).
+        common, as a contracted specimen's new folds may not),
+        ``overlap_fraction`` (share of the map both cover once aligned) and
+        ``residual_rms_um``, the root mean square of their difference there
+        (form removed): what the alignment leaves unexplained.
 
     Examples
     --------
@@ -112,10 +117,15 @@ def align_heightmaps(
     moved = ndimage.shift(b, shift, order=1, cval=np.nan)
     both = np.isfinite(moved)
     r = float(np.corrcoef(ref[both], moved[both])[0, 1]) if both.sum() > 2 else float("nan")
+    residual = (
+        float(np.sqrt(np.mean((ref[both] - moved[both]) ** 2))) if both.any() else float("nan")
+    )
     return {
         "shift_x_um": float(-shift[1] * dx),
         "shift_y_um": float(-shift[0] * dy),
         "overlap_correlation": r,
+        "overlap_fraction": float(both.mean()),
+        "residual_rms_um": residual,
     }
 
 
@@ -305,6 +315,7 @@ def compare_stacks(
         "over each whole field of view"
     )
     report = {
+        "inputs": first.metrics["inputs"] + second.metrics["inputs"],
         "before": first.metrics,
         "after": second.metrics,
         "alignment": alignment,
@@ -318,12 +329,13 @@ def compare_stacks(
 def write_comparison(
     report: dict, first: Analysis, second: Analysis, folder: str | os.PathLike, *, figures=True
 ) -> None:
-    """Write a comparison into an existing, empty ``folder``."""
+    """Write a comparison into an existing, empty ``folder``, ``report.html`` last."""
+    from mpm3d.report import write_comparison_report
+
     folder = Path(folder)
     for name, analysis in (("before", first), ("after", second)):
         (folder / name).mkdir()
         write_analysis(analysis, folder / name, figures=figures)
-    write_json(folder / "compare.json", report)
     with open(folder / "changes.csv", "w", newline="", encoding="utf-8") as f:
         w = csv.DictWriter(f, fieldnames=["metric", "before", "after", "change", "ratio"])
         w.writeheader()
@@ -347,3 +359,12 @@ def write_comparison(
             spacing_after=second.heightmap.spacing,
             titles=titles,
         ).savefig(folder / "figures" / "compare_heightmaps.png")
+        report["figures"] = [
+            {
+                "file": "figures/compare_heightmaps.png",
+                "caption": "Both height maps with their least-squares planes removed, on one "
+                "colour scale (µm), each in its own stack's frame (not shifted).",
+            }
+        ]
+    write_json(folder / "compare.json", report)
+    write_comparison_report(folder, report)

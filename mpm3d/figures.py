@@ -7,11 +7,13 @@ bars their units.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
 __all__ = [
+    "HEIGHT_LABEL",
     "plot_comparison",
     "plot_height_map",
     "plot_profiles",
@@ -56,6 +58,17 @@ def _height_panel(ax, height, spacing, *, vmin=None, vmax=None, title=""):
     return im
 
 
+#: colour-bar label of the heights (see :data:`mpm3d.heightmap.HEIGHT_DATUM`)
+HEIGHT_LABEL = "height above the deepest slice (µm)"
+
+
+def _outlined(color: str = "black", width: float = 2.5):
+    """A stroke round text or markers, so they read on any colour of the map."""
+    from matplotlib import patheffects
+
+    return [patheffects.withStroke(linewidth=width, foreground=color)]
+
+
 def plot_height_map(
     height: np.ndarray,
     *,
@@ -63,31 +76,68 @@ def plot_height_map(
     valid: np.ndarray | None = None,
     folds=None,
     title: str = "lumen surface height",
+    clim: tuple[float, float] | None = None,
+    label: str = HEIGHT_LABEL,
 ):
-    """Height map (um) with a colour bar; drop-outs hatched, fold crests marked.
+    """Height map (um) with a colour bar; drop-outs shaded, fold crests marked.
 
     Parameters
     ----------
     height : (Y, X) um
+        Height above the datum (:data:`mpm3d.heightmap.HEIGHT_DATUM`).
     spacing : (dz, dy, dx) or (dy, dx) um
     valid : (Y, X) bool, optional
         Measured columns; the others (filled in) are shaded.
     folds : mpm3d.metrics.FoldTable, optional
-        Crest positions are drawn as dots, one colour per fold.
+        Crests found along each profile are drawn as white dots with a
+        black rim, each fold labelled at its crest line's upper end.
+    clim : (low, high) um, optional
+        Colour limits (by default the map's range); pass the same limits
+        to :func:`render_surface` so one colour is one height in both.
+    label : str
+        The colour bar's label.
     """
     fig = _figure(6.4, 5.2)
     ax = fig.add_subplot()
-    im = _height_panel(ax, height, spacing, title=title)
-    fig.colorbar(im, ax=ax, label="height (µm)", shrink=0.85)
+    lo, hi = clim if clim is not None else (float(np.nanmin(height)), float(np.nanmax(height)))
+    im = _height_panel(ax, height, spacing, vmin=lo, vmax=hi, title=title)
+    fig.colorbar(im, ax=ax, label=label, shrink=0.85)
     if valid is not None and not np.all(valid):
         shade = _display(np.where(np.asarray(valid, bool), np.nan, 1.0))
         ax.imshow(
             shade, extent=_extent(height.shape, spacing), cmap="Greys", alpha=0.5, vmin=0, vmax=1
         )
     if folds is not None and folds.crests["x_um"].size:
-        ax.scatter(folds.crests["x_um"], folds.crests["y_um"], s=4, c="white", lw=0)
+        ax.scatter(
+            folds.crests["x_um"],
+            folds.crests["y_um"],
+            s=14,
+            facecolor="white",
+            edgecolor="black",
+            linewidths=0.6,
+            label="crest (one per profile)",
+            zorder=3,
+        )
+        ax.legend(loc="lower right", fontsize=8, framealpha=0.85)
+        ny = height.shape[0]
+        dy = tuple(spacing)[-2]
         for i, (x, y) in enumerate(zip(folds.folds["x_um"], folds.folds["y_um"], strict=True)):
-            ax.annotate(f"fold {i}", (x, y), color="white", fontsize=8, ha="center")
+            ax.annotate(
+                f"fold {i}",
+                (x, y),
+                xytext=(0, 0),
+                textcoords="offset points",
+                color="white",
+                fontsize=10,
+                fontweight="bold",
+                ha="center",
+                va="center",
+                path_effects=_outlined(),
+                bbox={"boxstyle": "round,pad=0.25", "fc": "black", "ec": "none", "alpha": 0.55},
+                zorder=4,
+                annotation_clip=True,
+            )
+        ax.set_ylim((ny - 0.5) * dy, -dy / 2)
     return fig
 
 
@@ -176,22 +226,49 @@ def plot_comparison(
     return fig
 
 
+def _nice_ticks(low: float, high: float, n: int = 5) -> np.ndarray:
+    from matplotlib.ticker import MaxNLocator
+
+    ticks = MaxNLocator(n).tick_values(low, high)
+    return ticks[(ticks >= low - 1e-9 * abs(high - low)) & (ticks <= high + 1e-9 * abs(high - low))]
+
+
+def _nice_length(length: float) -> float:
+    """The largest of 1, 2, 5 x 10^k not above ``length``."""
+    k = 10 ** math.floor(math.log10(length))
+    return max(m * k for m in (1, 2, 5) if m * k <= length)
+
+
 def render_surface(
     mesh,
     path,
     *,
-    window_size: tuple[int, int] = (1000, 760),
+    datum_depth_um: float,
+    clim: tuple[float, float] | None = None,
+    window_size: tuple[int, int] = (1000, 800),
     title: str = "",
+    label: str = HEIGHT_LABEL,
     max_triangles: int = 300_000,
-):
-    """Write an off-screen 3D rendering of a surface mesh (PNG).
+) -> dict:
+    """Write an off-screen 3D rendering of a surface mesh (PNG), with axes and a scale bar.
 
-    The mesh (points ``(x, y, depth)`` in um) is coloured by height above
-    its deepest point and seen obliquely from the lumen side, with a colour
-    bar in micrometres.  Meshes over ``max_triangles`` are drawn from a
-    copy simplified by quadric vertex clustering (Lindstrom 2000,
-    doi:10.1145/344779.344912), which looks the same at figure size and
-    renders several times faster without a GPU.
+    The mesh (points ``(x, y, depth)`` in um) is coloured by its height
+    above the datum plane ``datum_depth_um`` below slice 0 (the package's
+    datum: :data:`mpm3d.heightmap.HEIGHT_DATUM`) and seen obliquely from
+    the lumen side, x to the right and y towards the viewer as in the height
+    map figure.  Axes in micrometres run along the datum plane's left and
+    front edges (x, y) and up its back-left corner (height above the
+    datum); a scale bar lies on the datum plane in front; the colour bar is
+    below.  Meshes over ``max_triangles`` are drawn from a copy simplified
+    by quadric vertex clustering (Lindstrom 2000, doi:10.1145/344779.344912),
+    which looks the same at figure size and renders several times faster
+    without a GPU.
+
+    Returns
+    -------
+    dict
+        ``clim`` (the colour limits, um), ``scale_bar_um``, ``simplified``
+        (whether a simplified copy was drawn) and ``triangles_drawn``.
     """
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
@@ -209,34 +286,130 @@ def render_surface(
         clustering.AutoAdjustNumberOfDivisionsOn()
         clustering.Update()
         mesh = pv.wrap(clustering.GetOutput())
-    shown = mesh.copy(deep=False)
-    z = np.asarray(mesh.points[:, 2])
-    shown.point_data["height (µm)"] = z.max() - z
+    shown = pv.PolyData(mesh.points, mesh.faces) if mesh.n_cells else mesh.copy()
+    datum = float(datum_depth_um)
+    height = datum - np.asarray(shown.points[:, 2], np.float64)
+    shown.point_data["height"] = height
+    if clim is None:
+        clim = (float(height.min()), float(height.max()))
+    clim = (float(clim[0]), float(clim[1]))
+    x0, x1, y0, y1, zmin, _ = shown.bounds
+    size = max(x1 - x0, y1 - y0)
+    top = datum - zmin  # the highest point's height
     plotter = pv.Plotter(off_screen=True, window_size=list(window_size))
     try:
         plotter.set_background("white")
         plotter.add_mesh(
             shown,
-            scalars="height (µm)",
+            scalars="height",
             cmap="viridis",
+            clim=clim,
             smooth_shading=not simplified,  # clustering leaves a few non-manifold edges
-            scalar_bar_args={"title": "height (µm)", "color": "black", "vertical": True},
+            show_scalar_bar=False,
         )
-        plotter.add_axes(color="black", xlabel="x", ylabel="y", zlabel="depth")
+        bar_actor = plotter.add_scalar_bar(
+            title=label,
+            color="black",
+            vertical=False,
+            position_x=0.22,
+            position_y=0.03,
+            width=0.56,
+            height=0.09,
+            title_font_size=18,
+            label_font_size=15,
+            n_labels=5,
+            fmt="%.0f",
+        )
+        from vtkmodules.vtkCommonCore import vtkDoubleArray
+
+        values = vtkDoubleArray()
+        for v in _nice_ticks(*clim):
+            values.InsertNextValue(float(v))
+        bar_actor.SetUseCustomLabels(True)
+        bar_actor.SetCustomLabels(values)
+        # the datum plane's outline and the axes, in the stack frame (depth down)
+        floor = np.array([[x0, y0, datum], [x1, y0, datum], [x1, y1, datum], [x0, y1, datum]])
+        plotter.add_mesh(
+            pv.lines_from_points(np.vstack([floor, floor[:1]])), color="grey", line_width=1
+        )
+        plotter.add_mesh(pv.Line((x0, y0, datum), (x0, y0, zmin)), color="black", line_width=2)
+        off = 0.05 * size
+        tick_points, tick_labels, ticks = [], [], []
+        for v in _nice_ticks(x0, x1):
+            ticks.append(((v, y1, datum), (v, y1 + off / 3, datum)))
+            tick_points.append((v, y1 + off, datum))
+            tick_labels.append(f"{v:.0f}")
+        for v in _nice_ticks(y0, y1):
+            if v - y0 < 0.5 * off:  # the corner where the height axis starts at 0
+                continue
+            ticks.append(((x0, v, datum), (x0 - off / 3, v, datum)))
+            tick_points.append((x0 - off, v, datum))
+            tick_labels.append(f"{v:.0f}")
+        for v in _nice_ticks(0.0, top):
+            ticks.append(((x0, y0, datum - v), (x0 - off / 3, y0, datum - v)))
+            tick_points.append((x0 - off, y0, datum - v))
+            tick_labels.append(f"{v:.0f}")
+        for a, b in ticks:
+            plotter.add_mesh(pv.Line(a, b), color="black", line_width=2)
+        plotter.add_mesh(pv.Line((x0, y1, datum), (x1, y1, datum)), color="black", line_width=2)
+        plotter.add_mesh(pv.Line((x0, y0, datum), (x0, y1, datum)), color="black", line_width=2)
+        label_style = {
+            "text_color": "black",
+            "shape": None,
+            "show_points": False,
+            "always_visible": True,
+            "bold": False,
+            "justification_horizontal": "center",
+            "justification_vertical": "center",
+        }
+        plotter.add_point_labels(
+            np.array(tick_points, float), tick_labels, font_size=14, **label_style
+        )
+        titles = [
+            ((x0 + x1) / 2, y1 + 2.6 * off, datum),
+            (x0 - 3.2 * off, (y0 + y1) / 2, datum),
+            (x0, y0, datum - top - 1.2 * off),
+        ]
+        plotter.add_point_labels(
+            np.array(titles, float),
+            ["x (µm)", "y (µm)", "height (µm)"],
+            font_size=16,
+            **label_style,
+        )
+        bar = _nice_length(0.25 * (x1 - x0))
+        bar_y = y1 + 4.2 * off
+        plotter.add_mesh(
+            pv.Line((x1 - bar, bar_y, datum), (x1, bar_y, datum)), color="black", line_width=6
+        )
+        plotter.add_point_labels(
+            np.array([[x1 - bar / 2, bar_y + off, datum]]),
+            [f"{bar:.0f} µm"],
+            font_size=16,
+            **label_style,
+        )
         if title:
             plotter.add_text(title, font_size=10, color="black")
         # look from the objective side (depth grows away from the viewer), obliquely
-        bounds = shown.bounds
-        cx, cy = (bounds[0] + bounds[1]) / 2, (bounds[2] + bounds[3]) / 2
-        cz = (bounds[4] + bounds[5]) / 2
-        size = max(bounds[1] - bounds[0], bounds[3] - bounds[2])
+        cx, cy, cz = (x0 + x1) / 2, (y0 + y1) / 2, (zmin + datum) / 2
         plotter.camera_position = [
             (cx - 0.3 * size, cy + 1.1 * size, cz - 1.2 * size),
             (cx, cy, cz),
             (0.0, 0.0, -1.0),
         ]
         plotter.reset_camera()
-        plotter.camera.zoom(1.15)
+        camera = plotter.camera
+        camera.zoom(1.05)
+        # lift the scene a little on the screen: the colour bar lies below it
+        up = np.asarray(camera.up, float)
+        lift = -0.06 * size * up / np.linalg.norm(up)
+        camera.position = tuple(np.asarray(camera.position) + lift)
+        camera.focal_point = tuple(np.asarray(camera.focal_point) + lift)
         plotter.screenshot(str(path))
     finally:
         plotter.close()
+    return {
+        "clim": clim,
+        "scale_bar_um": float(bar),
+        "simplified": bool(simplified),
+        "triangles_drawn": int(shown.n_cells),
+    }

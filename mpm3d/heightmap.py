@@ -7,6 +7,12 @@ lumen, so the surface is where a column first turns bright.  The height map
 holds the surface **depth** ``D(y, x)`` in micrometres; the **height**
 (elevation above the deepest slice, larger on fold crests) is
 ``(Z - 1) * dz - D``.
+
+The height datum, the plane of the stack's deepest slice, is the one datum
+of every height the package writes (the height map, its figure, the 3D
+rendering, the mesh's ``height_um`` array, metrics.json): it is fixed by the
+stack's geometry alone, so it does not move with noise, smoothing or the
+mesh's resolution, and the mesh and the map agree on it exactly.
 """
 
 from __future__ import annotations
@@ -22,9 +28,11 @@ import numpy as np
 from mpm3d.errors import InputError, SurfaceOutsideWarning
 
 __all__ = [
+    "HEIGHT_DATUM",
     "HeightMap",
     "fill_gaps",
     "height_map",
+    "otsu_separability",
     "otsu_threshold",
     "smooth_map",
     "surface_levels",
@@ -33,6 +41,9 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 Spacing = tuple[float, float, float]
+
+#: the datum of every height (um) the package writes: see the module's docstring
+HEIGHT_DATUM = "the plane of the stack's deepest slice, (Z - 1) * dz below the first"
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +76,17 @@ class HeightMap:
     cut_fraction : float
         Fraction of the columns bright from the first slice on (the surface
         lies above the stack there); they are not ``valid``.
+    noise : float
+        Robust standard deviation of the lumen's grey values.
+    separability : float
+        Otsu's separability of the grey values at ``threshold``: the
+        between-class share of their variance, in [0, 1] (1: two distinct
+        grey levels; NaN for a given threshold on a sample below it).
+    dropouts : dict
+        Fractions of the columns not measured, by reason: ``no_crossing``
+        (never reaches the threshold), ``above_stack`` (bright from slice
+        0), ``faint`` (contrast-to-noise below ``min_cnr``), ``outlier``
+        (a spike off the neighbours' median).
     params : dict
         The options used, for the record.
     """
@@ -79,12 +101,20 @@ class HeightMap:
     level: float
     peak: np.ndarray
     cut_fraction: float = 0.0
+    noise: float = float("nan")
+    separability: float = float("nan")
+    dropouts: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
+
+    @property
+    def datum_depth_um(self) -> float:
+        """Depth of the height datum (the deepest slice) below slice 0, um."""
+        return (self.n_slices - 1) * self.spacing[0]
 
     @property
     def height_um(self) -> np.ndarray:
         """(Y, X) elevation above the deepest slice, um (crests high)."""
-        return (self.n_slices - 1) * self.spacing[0] - self.depth_um
+        return self.datum_depth_um - self.depth_um
 
     @property
     def coverage(self) -> float:
@@ -171,6 +201,31 @@ def otsu_threshold(values: np.ndarray, *, bins: int = 1024) -> float:
     return float(threshold_otsu(hist=(counts, edges[1:])))
 
 
+def otsu_separability(values: np.ndarray, threshold: float) -> float:
+    """Between-class share of the variance of ``values`` split at ``threshold``.
+
+    Otsu's separability measure eta = sigma_B^2 / sigma_T^2 (N. Otsu 1979,
+    doi:10.1109/TSMC.1979.4310076, eq. 12): 1 for two distinct grey
+    levels, about 0.64 for a Gaussian split at its mean; NaN when one class
+    is empty or the values are constant.
+
+    Examples
+    --------
+    >>> v = np.r_[np.full(100, 10.0), np.full(50, 200.0)]
+    >>> round(otsu_separability(v, 100.0), 6)
+    1.0
+    """
+    v = np.asarray(values, np.float64).ravel()
+    v = v[np.isfinite(v)]
+    high = v >= threshold
+    w1 = float(high.mean()) if v.size else 0.0
+    total = float(v.var()) if v.size else 0.0
+    if not 0 < w1 < 1 or total <= 0:
+        return float("nan")
+    between = w1 * (1 - w1) * (float(v[high].mean()) - float(v[~high].mean())) ** 2
+    return between / total
+
+
 def height_map(
     volume: np.ndarray,
     *,
@@ -253,7 +308,10 @@ def height_map(
             f"a smoothing of {sigma_um:g} um (--smooth) is wider than the field of view "
             f"({ny * dy:g} x {nx * dx:g} um)"
         )
+    threshold_given = threshold is not None
     threshold, background, noise = surface_levels(volume, threshold=threshold)
+    step = max(1, round((volume.size / 2_000_000) ** (1 / 3)))  # surface_levels' sample
+    separability = otsu_separability(volume[::step, ::step, ::step], threshold)
     window = max(1, math.ceil(min(peak_window_um / dz, nz)))  # slices, at most the stack
     depth = np.empty((ny, nx), np.float64)
     peak = np.empty((ny, nx), np.float64)
@@ -268,13 +326,24 @@ def height_map(
         cnr = np.where(found, (peak - background) / max(noise, 1e-12), 0.0)
     cnr = np.nan_to_num(cnr, nan=0.0).astype(np.float32)
     valid = found & (cnr >= min_cnr)
+    faint = float((found & ~valid).mean())
     depth_um = np.where(found, depth * dz, np.nan)
     if outlier_um is None:
         outlier_um = 3.0 * dz
     if valid.any():
         filled = fill_gaps(depth_um, valid)
         med = ndimage.median_filter(filled, size=3, mode="nearest")
+        before = int(valid.sum())
         valid &= np.abs(filled - med) <= outlier_um
+        outliers = (before - int(valid.sum())) / valid.size
+    else:
+        outliers = 0.0
+    dropouts = {
+        "no_crossing": float((~np.isfinite(depth)).mean()),
+        "above_stack": cut_fraction,
+        "faint": faint,
+        "outlier": float(outliers),
+    }
     coverage = float(valid.mean())
     if coverage < min_coverage:
         raise InputError(
@@ -297,6 +366,7 @@ def height_map(
     peak_map = fill_gaps(np.where(valid, peak, np.nan), valid).astype(np.float32)
     params = {
         "threshold": threshold,
+        "threshold_given": threshold_given,
         "peak_window_um": peak_window_um,
         "smooth_um": sigma_um,
         "min_cnr": min_cnr,
@@ -313,6 +383,9 @@ def height_map(
         level=float(level),
         peak=peak_map,
         cut_fraction=cut_fraction,
+        noise=float(noise),
+        separability=float(separability),
+        dropouts=dropouts,
         params=params,
     )
 

@@ -17,7 +17,15 @@ import numpy as np
 
 from mpm3d.errors import InputError
 
-__all__ = ["heightmap_mesh", "isosurface", "largest_component", "orient_outward"]
+__all__ = [
+    "add_height",
+    "heightmap_mesh",
+    "isosurface",
+    "largest_component",
+    "mesh_quality",
+    "orient_outward",
+    "vertical_error",
+]
 
 log = logging.getLogger(__name__)
 
@@ -288,6 +296,7 @@ def isosurface(
     mesh.point_data["depth_um"] = mesh.points[:, 2].copy()
     mesh.field_data["level"] = np.array([float(level)])
     mesh.field_data["spacing_um"] = np.array([dz, dy, dx])
+    mesh.field_data["lateral_bin"] = np.array([int(bin)])
     return mesh
 
 
@@ -337,3 +346,124 @@ def vertical_error(mesh, depth_um: np.ndarray, *, spacing: Sequence[float]) -> n
     if not math.isfinite(float(ref.sum())):
         raise InputError("the reference depth map has NaN")
     return p[:, 2] - ref
+
+
+def add_height(mesh, datum_depth_um: float, *, datum: str = ""):
+    """Add the height above a datum to a mesh: a ``height_um`` point array and field data.
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+        Points ``(x, y, depth)`` in um; changed in place and returned.
+    datum_depth_um : float
+        Depth of the datum plane below slice 0 (for the package's datum,
+        :attr:`mpm3d.heightmap.HeightMap.datum_depth_um`).
+    datum : str
+        The datum in words, stored as the field data ``height_datum``.
+
+    Returns
+    -------
+    pyvista.PolyData
+        With ``point_data["height_um"] = datum_depth_um - depth`` and field
+        data ``height_datum`` (text), ``height_datum_depth_um`` and
+        ``length_unit`` (``"um"``).
+
+    Examples
+    --------
+    >>> m = add_height(heightmap_mesh(np.full((2, 2), 30.0), spacing=(1.0, 1.0)), 100.0)
+    >>> m.point_data["height_um"].tolist(), str(m.field_data["length_unit"][0])
+    ([70.0, 70.0, 70.0, 70.0], 'um')
+    """
+    depth = np.asarray(mesh.points[:, 2], np.float64)
+    mesh.point_data["height_um"] = float(datum_depth_um) - depth
+    mesh.field_data["height_datum"] = np.array(
+        [datum or f"the plane {float(datum_depth_um):g} um below slice 0"]
+    )
+    mesh.field_data["height_datum_depth_um"] = np.array([float(datum_depth_um)])
+    mesh.field_data["length_unit"] = np.array(["um"])
+    return mesh
+
+
+def mesh_quality(mesh, *, edge_um: float = 0.0) -> dict:
+    """Counts that say whether a surface mesh is one clean, open sheet.
+
+    Parameters
+    ----------
+    mesh : pyvista.PolyData
+        A triangle mesh, points ``(x, y, depth)`` in um.
+    edge_um : float
+        A boundary loop with every vertex further than this from the
+        mesh's lateral bounding box is a **hole**; the others are the
+        sheet's outer edge (where it meets the field of view's sides).
+
+    Returns
+    -------
+    dict
+        ``triangles``, ``points``, ``boundary_edges``, ``boundary_loops``,
+        ``holes``, ``non_manifold_edges`` (shared by more than two
+        triangles), ``degenerate_triangles`` (zero area), ``area_um2``
+        (developed area) and ``projected_area_um2`` (net area of the
+        projection on the (x, y) plane: overhangs count once).
+
+    Examples
+    --------
+    A 4 x 4 point grid (3 x 3 squares, two triangles each) without its
+    middle square has one hole:
+
+    >>> m = heightmap_mesh(np.zeros((4, 4)), spacing=(1.0, 1.0))
+    >>> q = mesh_quality(m.remove_cells([4, 13]), edge_um=0.5)
+    >>> q["holes"], q["boundary_loops"], q["triangles"]
+    (1, 2, 16)
+    """
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    out = {
+        "triangles": int(mesh.n_cells),
+        "points": int(mesh.n_points),
+        "boundary_edges": 0,
+        "boundary_loops": 0,
+        "holes": 0,
+        "non_manifold_edges": 0,
+        "degenerate_triangles": 0,
+        "area_um2": 0.0,
+        "projected_area_um2": 0.0,
+    }
+    if mesh.n_cells == 0:
+        return out
+    f = np.asarray(mesh.regular_faces, np.int64)
+    p = np.asarray(mesh.points, np.float64)
+    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()  # every triangle's three edges
+    n_points = np.int64(len(p))
+    keys, counts = np.unique(np.minimum(a, b) * n_points + np.maximum(a, b), return_counts=True)
+    once = keys[counts == 1]
+    border = np.column_stack([once // n_points, once % n_points])
+    u, v = p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]]
+    cross = np.column_stack(
+        [
+            u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1],
+            u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
+            u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0],
+        ]
+    )
+    area = 0.5 * np.linalg.norm(cross, axis=1)
+    out["non_manifold_edges"] = int((counts > 2).sum())
+    out["degenerate_triangles"] = int((area <= 1e-12 * max(area.max(), 1e-300)).sum())
+    out["area_um2"] = float(area.sum())
+    # normals point into the lumen (-z): the signed projection counts overhangs once
+    out["projected_area_um2"] = float(abs(0.5 * cross[:, 2].sum()))
+    out["boundary_edges"] = len(border)
+    if len(border):
+        used, inverse = np.unique(border, return_inverse=True)
+        inverse = inverse.reshape(-1, 2)
+        n = len(used)
+        graph = sp.csr_matrix((np.ones(len(border)), (inverse[:, 0], inverse[:, 1])), shape=(n, n))
+        n_loops, label = connected_components(graph, directed=False)
+        lo, hi = p[:, :2].min(axis=0), p[:, :2].max(axis=0)
+        xy = p[used, :2]
+        near = ((xy - lo) <= edge_um).any(axis=1) | ((hi - xy) <= edge_um).any(axis=1)
+        touches = np.zeros(n_loops, bool)
+        np.logical_or.at(touches, label, near)
+        out["boundary_loops"] = int(n_loops)
+        out["holes"] = int((~touches).sum())
+    return out

@@ -1,9 +1,7 @@
 """``python -m mpm3d analyze``: the files it writes against the synthetic stacks' truth,
 its input formats, and every error a user can cause (exit 2, one line, no traceback)."""
 
-import contextlib
 import csv
-import io
 import json
 import subprocess
 import sys
@@ -25,11 +23,11 @@ FIGURES = {
     "figures/heightmap.png": (572, 704),  # 6.4 x 5.2 in at 110 dpi
     "figures/profiles.png": (440, 770),  # 7.0 x 4.0 in
     "figures/spectrum.png": (528, 616),  # 5.6 x 4.8 in
-    "figures/surface3d.png": (760, 1000),  # the render window
+    "figures/surface3d.png": (800, 1000),  # the render window
 }
 #: options for a quick, quiet run
 FAST = ("--no-surface", "--no-figures", "-q")
-TABLES = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif"}
+TABLES = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif", "report.html"}
 FULL = TABLES | {"surface.vtp", "surface.ply", "figures", MARKER} | set(FIGURES)
 
 
@@ -60,25 +58,6 @@ def assert_one_error_line(captured, *fragments: str, command: str = "analyze") -
 
 
 # --------------------------------------------------------------------------- fixtures
-
-
-@pytest.fixture(scope="module")
-def after_run(mpm_pair, tmp_path_factory):
-    """One full ``analyze after.tif`` (surface and figures), shared by the tests below."""
-    path, case = mpm_pair["after"]
-    out = tmp_path_factory.mktemp("analyze") / "after_out"
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err):
-        status = cli("analyze", path, "--out", out)
-    metrics = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
-    return {
-        "status": status,
-        "path": path,
-        "out": out,
-        "case": case,
-        "stderr": err.getvalue(),
-        "m": metrics,
-    }
 
 
 @pytest.fixture(scope="module")

@@ -1,9 +1,6 @@
 """``python -m mpm3d compare`` and its parts: the report against the synthetic stacks' truth,
 height-map alignment against known shifts, metric changes, and the optional ICP (open3d)."""
 
-import contextlib
-import csv
-import io
 import json
 import math
 import sys
@@ -20,7 +17,7 @@ from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SHIFT_P
 from tissue_core.outputs import MARKER
 
 #: one side's analysis without the surface (the comparison needs only the height maps)
-SIDE = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif", "figures"} | {
+SIDE = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif", "report.html", "figures"} | {
     f"figures/{name}.png" for name in ("heightmap", "profiles", "spectrum")
 }
 
@@ -31,21 +28,6 @@ def no_open3d(monkeypatch):
     monkeypatch.setitem(sys.modules, "open3d", None)
 
 
-@pytest.fixture(scope="module")
-def compared(mpm_pair, tmp_path_factory):
-    """One ``compare before.tif after.tif`` (figures, no isosurfaces), open3d missing."""
-    out = tmp_path_factory.mktemp("compare") / "cmp"
-    err = io.StringIO()
-    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stderr(err):
-        mp.setitem(sys.modules, "open3d", None)
-        before, after = mpm_pair["before"][0], mpm_pair["after"][0]
-        status = cli("compare", before, after, "--out", out, "--no-surface", "-q")
-    report = json.loads((out / "compare.json").read_text(encoding="utf-8"))
-    with open(out / "changes.csv", newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
-    return {"status": status, "out": out, "stderr": err.getvalue(), "report": report, "rows": rows}
-
-
 # --------------------------------------------------------------------------- compare command
 
 
@@ -53,7 +35,8 @@ def test_compare_writes_every_file(compared):
     out = compared["out"]
     assert compared["status"] == 0
     assert compared["stderr"] == ""  # -q: no progress, and no warning
-    expected = {"compare.json", "changes.csv", "figures", "figures/compare_heightmaps.png"}
+    expected = {"compare.json", "changes.csv", "report.html", "figures"}
+    expected.add("figures/compare_heightmaps.png")
     for side in ("before", "after"):
         expected |= {side} | {f"{side}/{name}" for name in SIDE}
     assert listing(out) == expected | {MARKER}
@@ -105,6 +88,8 @@ def test_compare_alignment_skips_icp_without_open3d(compared):
         "shift_x_um",
         "shift_y_um",
         "overlap_correlation",
+        "overlap_fraction",
+        "residual_rms_um",
         "icp",
         "matched",
         "note",
