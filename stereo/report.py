@@ -207,24 +207,27 @@ def mesh_quality(field) -> dict:
         ``triangles``; ``radius_ratio_min`` and ``_median`` (2 r_in / r_circ,
         1 for an equilateral triangle) and ``poor_triangles`` (below
         :data:`POOR_TRIANGLE`) on the reference; ``edge_median`` (length
-        unit); ``folded_max`` the most triangles facing against the reference
-        mesh's side in any frame (:func:`surface_strain.folded_triangles`) and
-        ``folded_frame`` where; ``lost_last_frame`` the triangles without
-        strain on the last frame.
+        unit); ``folded_max`` the most triangles in a frame that face against
+        the side most of the mesh faces then (area-weighted,
+        :func:`surface_strain.folded_triangles`) and ``folded_frame`` where;
+        ``lost_last_frame`` the triangles without strain on the last frame.
     """
     from surface_strain import edge_lengths, folded_triangles, triangle_quality
 
     tri = np.asarray(field.triangles)
     ratio = triangle_quality(field.reference, tri)
     edges = edge_lengths(field.reference, tri)
-    ref = np.asarray(field.reference, float)
-    n0 = np.cross(ref[tri[:, 1]] - ref[tri[:, 0]], ref[tri[:, 2]] - ref[tri[:, 0]]).sum(axis=0)
     folded = np.zeros(field.n_frames, int)
-    if np.linalg.norm(n0) > 0:
-        for t in range(field.n_frames):
-            ok = np.asarray(field.element_valid[t], bool)
-            p = np.where(np.isfinite(field.points[t]), field.points[t], 0.0)
-            folded[t] = int((folded_triangles(p, tri, normal=n0) & ok).sum())
+    for t in range(field.n_frames):
+        ok = np.asarray(field.element_valid[t], bool)
+        if not ok.any():
+            continue
+        p = np.where(np.isfinite(field.points[t]), field.points[t], 0.0)
+        q = p[tri[ok]]
+        # the area-weighted mean normal of the frame's triangles: the side most of the mesh faces
+        normal = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]).sum(axis=0)
+        if np.linalg.norm(normal) > 0:
+            folded[t] = int(folded_triangles(p, tri[ok], normal=normal).sum())
     return {
         "triangles": len(tri),
         "radius_ratio_min": float(ratio.min()),
@@ -313,7 +316,7 @@ def quality_flags(
             )
         if mesh["folded_max"]:
             flags.append(
-                f"{mesh['folded_max']} triangles fold over (face against the reference mesh) "
+                f"{mesh['folded_max']} triangles fold over (face against the rest of the mesh) "
                 f"at frame {mesh['folded_frame']}: the strain there is not meaningful."
             )
         if mesh["lost_last_frame"]:
