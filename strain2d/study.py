@@ -87,6 +87,12 @@ class Specimen:
         return self.run.nodal[component][self.endpoint]
 
 
+#: how the node-level tests are labelled wherever they appear: descriptive, never the headline
+_NODE_LEVEL_LABEL = (
+    "node-level paired tests, descriptive: nodes within a specimen are not independent"
+)
+
+
 def read_manifest(path: str | os.PathLike) -> list[dict]:
     """Read a study manifest CSV.
 
@@ -357,10 +363,13 @@ def study_statistics(
 
     Returns a dict with ``specimens`` (one row per specimen: name, group,
     endpoint, n_nodes, mean/SD of ``a``, ``b`` and their difference, and the
-    node-level tests), ``specimen_level`` (``all`` and one entry per group,
-    see :func:`specimen_tests`), ``mixed_model`` (see :func:`mixed_model`;
-    ``None`` with fewer than 2 specimens), ``groups_compared`` (two groups
-    only: Welch's t-test on the specimen mean differences) and the settings.
+    node-level tests, labelled descriptive), ``specimen_level`` (``all`` and
+    one entry per group, see :func:`specimen_tests`; ``headline`` names it:
+    the specimen is the experimental unit), ``mixed_model`` (see
+    :func:`mixed_model`; ``None`` with fewer than 2 specimens),
+    ``groups_compared`` (two groups only: Welch's t-test on the specimen mean
+    differences), the settings (``alpha``, ``confidence``, ``n_boot``) and
+    ``software`` (name and version).
     """
     for comp in (a, b):
         if comp not in COMPONENTS:
@@ -394,7 +403,7 @@ def study_statistics(
             node = paired_node_tests(va, vb, positions=pos, n_boot=n_boot, confidence=confidence)
         except InputError as exc:
             node = {"error": str(exc)}
-        node["label"] = "node-level paired tests (nodes of one specimen)"
+        node["label"] = _NODE_LEVEL_LABEL
         row["node_level"] = node
         rows.append(row)
         long_d.append(va[ok] - vb[ok])
@@ -450,11 +459,17 @@ def study_statistics(
         compared["label"] = (
             f"Welch's t-test between the groups' specimen mean differences ({a} - {b})"
         )
+    from strain2d import __version__
+
     return {
+        "software": {"name": "strain2d", "version": __version__},
         "components": [a, b],
         "frame": "each specimen's contraction endpoint",
+        # the specimen is the experimental unit: these results answer the study's question
+        "headline": "specimen_level",
         "alpha": alpha,
         "confidence": confidence,
+        "n_boot": n_boot,
         "specimens": rows,
         "excluded": excluded,
         "groups": groups if has_groups else [],
@@ -578,9 +593,10 @@ def plain_summary(stats: dict) -> list[str]:
     if node:
         k = sum(1 for r in node if math.isfinite(r["t_p"]) and r["t_p"] < alpha)
         lines.append(
-            f"Node-level paired t-tests (the source paper's test) are significant in {k} of "
-            f"{len(node)} specimens. They treat the nodes of one specimen as independent "
-            "samples and describe that specimen's field, not the population; use the "
-            "specimen-level results above for conclusions about the tissue."
+            f"Node-level paired t-tests (the source paper's test; descriptive) are significant "
+            f"in {k} of {len(node)} specimens. They treat the nodes of one specimen as "
+            "independent samples, which they are not, and describe that specimen's field, not "
+            "the population; use the specimen-level results above for conclusions about the "
+            "tissue."
         )
     return lines
