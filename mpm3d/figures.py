@@ -226,11 +226,13 @@ def plot_comparison(
     return fig
 
 
-def _nice_ticks(low: float, high: float, n: int = 5) -> np.ndarray:
+def _nice_ticks(low: float, high: float, n: int = 5, *, slack: float = 0.01) -> np.ndarray:
+    """Round tick values in [low, high], or up to ``slack`` of the range outside it."""
     from matplotlib.ticker import MaxNLocator
 
     ticks = MaxNLocator(n).tick_values(low, high)
-    return ticks[(ticks >= low - 1e-9 * abs(high - low)) & (ticks <= high + 1e-9 * abs(high - low))]
+    tol = slack * abs(high - low)  # 0 on an axis from 1.25 um, say
+    return ticks[(ticks >= low - tol) & (ticks <= high + tol)]
 
 
 def _nice_length(length: float) -> float:
@@ -323,7 +325,7 @@ def render_surface(
         from vtkmodules.vtkCommonCore import vtkDoubleArray
 
         values = vtkDoubleArray()
-        for v in _nice_ticks(*clim):
+        for v in _nice_ticks(*clim, slack=0.0):
             values.InsertNextValue(float(v))
         bar_actor.SetUseCustomLabels(True)
         bar_actor.SetCustomLabels(values)
@@ -345,7 +347,8 @@ def render_surface(
             ticks.append(((x0, v, datum), (x0 - off / 3, v, datum)))
             tick_points.append((x0 - off, v, datum))
             tick_labels.append(f"{v:.0f}")
-        for v in _nice_ticks(0.0, top):
+        # as many height ticks for the axis's length as the x and y axes have for theirs
+        for v in _nice_ticks(0.0, top, max(2, min(5, round(6 * top / size)))):
             ticks.append(((x0, y0, datum - v), (x0 - off / 3, y0, datum - v)))
             tick_points.append((x0 - off, y0, datum - v))
             tick_labels.append(f"{v:.0f}")
