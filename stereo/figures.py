@@ -125,6 +125,9 @@ def plot_quality(per_frame: dict, *, max_reproj_px: float | None = None, quality
     ax.set_ylabel("points with a\n3D position (%)")
     ax.set_ylim(-2, 102)
     ax.set_xlabel("frame")
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     for ax in axes:
         ax.grid(True, lw=0.3)
     fig.suptitle("Quality of the reconstruction per frame")

@@ -328,18 +328,23 @@ def quality_flags(
 
 
 def _rows_to_show(per_frame: dict, limit: int = 15) -> list[int]:
-    """All frames when few; else the first, evenly spaced ones, the last and the worst."""
+    """All frames when few; else ``limit`` of them: the worst of each column, the first and
+    the last, and evenly spaced ones between."""
     T = len(per_frame["frame"])
     if T <= limit:
         return list(range(T))
-    picks = set(np.linspace(0, T - 1, limit - 4).round().astype(int).tolist())
+    worst = {int(np.asarray(per_frame["lost"]).argmax())}
     for key, low in (("reproj_p95_px", False), ("quality_left_median", True),
                      ("quality_right_median", True)):  # fmt: skip
         _, k = _worst(np.asarray(per_frame[key], float), low=low)
         if k >= 0:
-            picks.add(k)
-    lost = np.asarray(per_frame["lost"])
-    picks.add(int(lost.argmax()))
+            worst.add(k)
+    picks = worst | {0, T - 1}
+    candidates = np.linspace(0, T - 1, limit).round().astype(int)
+    while len(picks) < limit:  # farthest from what is picked first: spread over the run
+        chosen = np.array(sorted(picks))
+        gaps = np.abs(candidates[:, None] - chosen[None, :]).min(axis=1)
+        picks.add(int(candidates[gaps.argmax()]))
     return sorted(picks)
 
 
@@ -352,6 +357,16 @@ def _short(path: str) -> str:
 def _table(doc: HtmlReport, mapping: dict) -> None:
     """Key-value rows to 4 significant figures, leaving out what is unknown (None)."""
     doc.key_values({k: v for k, v in mapping.items() if v is not None}, digits=4)
+
+
+def _finite(value):
+    """``value`` if it is a finite number, else None (the row is left out)."""
+    return value if isinstance(value, int | float) and np.isfinite(value) else None
+
+
+def _pair(a, b):
+    """Two numbers for one row, or None when neither is known."""
+    return [a, b] if _finite(a) is not None or _finite(b) is not None else None
 
 
 def _known(value):
@@ -442,7 +457,8 @@ def write_report(
         {
             "frames": summary.get("frames"),
             "points placed": points.get("n"),
-            "points with a 3D position, all frames (%)": 100 * summary["visible_fraction"],
+            "points with a 3D position, all frames (%)": 100
+            * summary.get("visible_fraction", float("nan")),
             f"reference extent X, Y, Z ({unit})": res.get("extent"),
             f"mean depth Z on the reference ({unit})": res.get("mean_depth"),
             f"displacement on the last frame, median ({unit})": res.get("displacement_median"),
@@ -470,11 +486,10 @@ def write_report(
         doc,
         {
             "RMS reprojection error, rig (px)": _known(cal.get("rms_px")),
-            "RMS reprojection error, left / right camera (px)": [
-                cal.get("rms_left_px"),
-                cal.get("rms_right_px"),
-            ],
-            "worst view (px)": cal.get("worst_view_rms_px"),
+            "RMS reprojection error, left / right camera (px)": _pair(
+                cal.get("rms_left_px"), cal.get("rms_right_px")
+            ),
+            "worst target view (px)": _finite(cal.get("worst_view_rms_px")),
             "target views used / rejected": f"{views} / {cal.get('views_rejected')}"
             if views
             else None,

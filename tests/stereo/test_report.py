@@ -223,3 +223,38 @@ def test_the_warp_help_states_the_noise_trade_off(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "--shape-function affine for flat specimens" in text
     assert "0.0027 mm against 0.0018 mm" in text
+
+
+def test_a_long_run_is_summarised_in_a_table_that_fits_the_page(tmp_path):
+    """200 frames: the table shows 15 of them, the worst included; the figure shows all."""
+    from stereo.figures import plot_quality
+    from stereo.report import write_report
+
+    T = 200
+    rng = np.random.default_rng(0)
+    per_frame = {
+        "frame": np.arange(T),
+        "points_3d": np.full(T, 49),
+        "lost": np.zeros(T, int),
+        "reproj_median_px": rng.uniform(0.01, 0.02, T),
+        "reproj_p95_px": rng.uniform(0.03, 0.04, T),
+        "quality_left_median": rng.uniform(0.98, 0.99, T),
+        "quality_right_median": rng.uniform(0.98, 0.99, T),
+    }
+    per_frame["reproj_p95_px"][137] = 0.5
+    per_frame["lost"][61], per_frame["points_3d"][61] = 9, 40
+    (tmp_path / "figures").mkdir()
+    plot_quality(per_frame, max_reproj_px=1.0).savefig(tmp_path / "figures" / "quality.png")
+    report = write_report(
+        tmp_path,
+        {"unit": "mm", "frames": T},
+        per_frame,
+        figures=[{"file": "figures/quality.png", "caption": "per frame"}],
+    )
+    html = report.read_text(encoding="utf-8")
+    table = html[html.index("reprojection median (px)") :]
+    table = table[: table.index("</table>")]
+    shown = [int(m) for m in re.findall(r'<tr><td class="num">(\d+)</td>', table)]
+    assert len(shown) == 15 and {0, 61, 137, T - 1} <= set(shown)
+    assert "15 of 200 frames shown" in html
+    assert problems(report) == []
