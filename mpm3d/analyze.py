@@ -322,6 +322,7 @@ def _quality(hm: HeightMap, mesh) -> dict:
             out["mesh_vs_heightmap_um"] = {
                 "median_abs": float(np.median(err)),
                 "p95_abs": float(np.percentile(err, 95)),
+                "max_abs": float(err.max()),
                 "note": "depth of each mesh vertex minus the height map's at its (x, y); "
                 "large on steep or overhanging flanks, where a column meets the surface "
                 "more than once",

@@ -132,6 +132,10 @@ def test_dropouts_add_up_to_what_was_not_measured(after_run):
     mesh = q["mesh"]
     assert mesh["triangles"] == after_run["m"]["n_surface_triangles"]
     assert mesh["holes"] == 0 and mesh["boundary_loops"] == 1
+    # the isosurface lies on the height map: half a z-step apart at most, on the median
+    dz = after_run["case"].spacing[0]
+    err = q["mesh_vs_heightmap_um"]
+    assert err["median_abs"] < dz / 2 and err["median_abs"] <= err["p95_abs"] <= err["max_abs"]
     # the mesh's developed area ratio is the height map's Sdr, measured independently
     sdr = after_run["m"]["Sdr_percent"] / 100
     assert mesh["developed_area_ratio"] == pytest.approx(1 + sdr, rel=0.02)
