@@ -55,9 +55,33 @@ def _specimen_lines(tests: Mapping | None) -> list[str]:
         if not isinstance(t, Mapping):
             raise InputError(f"tests[{group!r}] must be a dict of test results")
         n = t.get("n")
-        size = f" (n = {n} specimens)" if n is not None else ""
-        lines.append(f"{group or 'all specimens'}{size}: {_one_test(t)}")
+        size = f" (n = {n} specimen{'s' if n != 1 else ''})" if n is not None else ""
+        lines.append(f"{group or 'all'}{size}: {_one_test(t)}")
     return lines
+
+
+def _wrap(lines: Sequence[str], width_in: float, fontsize: float) -> str:
+    """``lines`` as one text, each wrapped at spaces to fit ``width_in`` inches at ``fontsize``.
+
+    Widths are estimated from the visible characters (mathtext's ``$``,
+    braces and ``_`` take no room) at 0.6 em each, DejaVu Sans' widest average.
+    """
+    room = max(20.0, width_in * 72 / (0.6 * fontsize))
+
+    def seen(word: str) -> int:
+        return sum(ch not in "${}_\\" for ch in word)
+
+    out = []
+    for line in lines:
+        current = ""
+        for word in line.split(" "):
+            if current and seen(current) + 1 + seen(word) > room:
+                out.append(current)
+                current = word
+            else:
+                current = f"{current} {word}" if current else word
+        out.append(current)
+    return "\n".join(out)
 
 
 def _spread(y: np.ndarray, gap: float, lo: float = -np.inf, hi: float = np.inf) -> np.ndarray:
@@ -248,7 +272,7 @@ def plot_study_violins(
         lo_hi = group_spans.setdefault(group, [xs[0], xs[-1]])
         lo_hi[1] = xs[-1]
         x = xs[-1] + 1.6 * step
-    fig = Figure(figsize=(max(4.5, 0.75 * k * len(order) + 2.0), 4.8), layout="constrained")
+    fig = Figure(figsize=(max(5.5, 0.75 * k * len(order) + 2.0), 4.8), layout="constrained")
     ax = fig.add_subplot()
     rng = np.random.default_rng(0)
     tops, bottoms = [], []
@@ -322,16 +346,11 @@ def plot_study_violins(
     vs = f"{_label(comps[0])} vs {_label(comps[1])}" if k >= 2 else _label(comps[0])
     headline = _specimen_lines(tests)
     if headline:
-        fig.suptitle(
-            "\n".join([f"specimen-level paired tests of {vs} on specimen means", *headline]),
-            fontsize=10,
-        )
+        head = [f"specimen-level paired tests of {vs} on specimen means", *headline]
+        fig.suptitle(_wrap(head, width, 10), fontsize=10)
     if bracketed:
-        ax.set_title(
-            f"p above each specimen: paired t-test over its nodes ({_NODE_NOTE})",
-            fontsize=8.5,
-            color="0.3",
-        )
+        note = ["p above each specimen: paired t-test over its nodes", f"({_NODE_NOTE})"]
+        ax.set_title(_wrap(note, width - 0.4, 8.5), fontsize=8.5, color="0.3")
     return fig
 
 
@@ -380,7 +399,7 @@ def plot_specimen_means(
     largest = max(len(rows) for rows in groups.values())
     # room for one label per specimen of the largest group, _LABEL_GAP apart
     height = max(4.4, largest * _LABEL_GAP * _LABEL_SIZE / 72 + 1.9)
-    fig = Figure(figsize=(max(3.6, 2.6 * len(groups) + 1.2), height), layout="constrained")
+    fig = Figure(figsize=(max(4.8, 2.6 * len(groups) + 1.2), height), layout="constrained")
     ax = fig.add_subplot()
     ca, cb = _colour(a, 0), _colour(b, 1)
     ticks, ticklabels = [], []
@@ -432,9 +451,9 @@ def plot_specimen_means(
         frameon=False,
     )
     lines = _specimen_lines(tests)
-    title = f"specimen-level: means of {_label(a)} and {_label(b)}, one per specimen"
-    title += f" (n = {len(table)} specimens)"
-    ax.set_title("\n".join([title, *lines]), fontsize=9)
+    title = f"specimen-level: specimen means of {_label(a)} and {_label(b)}"
+    title += f" (n = {len(table)} specimen{'s' if len(table) != 1 else ''})"
+    ax.set_title(_wrap([title, *lines], fig.get_figwidth() - 0.4, 9), fontsize=9)
     _place_labels(fig, ax, labelled)
     return fig
 
