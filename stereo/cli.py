@@ -3,7 +3,8 @@
 * ``calibrate --left GLOB --right GLOB --board SPEC --out calib.json``
 * ``import-calib INTRINSICS.yml [EXTRINSICS.yml] --out calib.json`` (OpenCV files)
 * ``match LEFT_IMAGE RIGHT_IMAGE --points POINTS.csv [--calib calib.json] --out MATCHES.csv``
-* ``reconstruct --calib calib.json --left SRC --right SRC --grid 7x7 --out DIR``
+* ``reconstruct --calib calib.json --left SRC --right SRC --grid 7x7 --out DIR`` (3D points,
+  each view's tracks, the per-frame quality, figures, ``summary.json`` and ``report.html``)
 
 Errors a user can cause end with one line on stderr and exit status 2.
 """
