@@ -513,23 +513,25 @@ def study_outputs(
         }
         for s in specimens
     ]
-    fig = fg.plot_study_violins(violins, components=(a, b))
+    levels = stats["specimen_level"]
+    tests = {g: levels[g] for g in stats["groups"]} if stats["groups"] else levels["all"]
+    fig = fg.plot_study_violins(violins, components=(a, b), tests=tests)
     record(
         fg.save_figure(fig, figdir / "study_violins", formats),
-        f"Nodal {a} and {b} at each specimen's contraction endpoint, with the node-level "
-        "paired t-test p-value of each specimen (nodes are not independent samples).",
+        f"Nodal {a} and {b} at each specimen's contraction endpoint. Title: the specimen-level "
+        "paired tests (one mean per specimen). Above each specimen: the p-value of its "
+        "node-level paired t-test, descriptive only: nodes within a specimen are not "
+        "independent.",
     )
     table = [
         {"name": r["specimen"], "group": r["group"], a: r[f"mean_{a}"], b: r[f"mean_{b}"]}
         for r in stats["specimens"]
     ]
-    levels = stats["specimen_level"]
-    tests = {g: levels[g] for g in stats["groups"]} if stats["groups"] else levels["all"]
     fig = fg.plot_specimen_means(table, a=a, b=b, tests=tests)
     record(
         fg.save_figure(fig, figdir / "specimen_means", formats),
-        f"Specimen means of {a} and {b} at the contraction endpoint, joined per specimen: "
-        "the data of the specimen-level paired tests.",
+        f"Specimen means of {a} and {b} at the contraction endpoint, joined per specimen, "
+        "with the specimen-level paired tests (the specimen is the experimental unit).",
     )
 
     columns = [
@@ -548,40 +550,100 @@ def study_outputs(
     return {"figures": written}
 
 
+_NODE_CAVEAT = (
+    "Node-level, descriptive: these tests treat the nodes of one specimen as independent "
+    "samples, which they are not (neighbouring nodes share the tissue and the mesh). They "
+    "describe each specimen's field; conclusions about the tissue rest on the specimen-level "
+    "results above."
+)
+
+
+def _study_figure(doc: HtmlReport, folder: Path, figures: list[dict], stem: str) -> bool:
+    """Embed the study figure whose files are named ``stem``.*; whether there was one."""
+    for item in figures:
+        if any(Path(f).stem == stem for f in item["files"]):
+            path = _embeddable(folder, item["files"])
+            if path is not None:
+                also = [f for f in item["files"] if folder / f != path]
+                doc.media(path, item["caption"] + (f" Also: {', '.join(also)}." if also else ""))
+                return True
+    return False
+
+
+def _study_flags(stats: dict) -> list[str]:
+    """What a reader of the study should know before trusting its numbers."""
+    a, b = stats["components"]
+    out = []
+    if stats.get("excluded"):
+        out.append(
+            f"Left out, no node with both {a} and {b} at the endpoint: "
+            f"{', '.join(stats['excluded'])}."
+        )
+    for key, t in stats["specimen_level"].items():
+        who = "The study" if key == "all" else f"Group {key}"
+        if t["n"] < 2:
+            out.append(f"{who} has {t['n']} specimen(s): nothing can be tested.")
+        elif t["n"] < 6:
+            out.append(
+                f"{who} has {t['n']} specimens: its Wilcoxon signed-rank test "
+                "cannot reach p < 0.05 (two-sided)."
+            )
+    model = stats.get("mixed_model")
+    if model and not model["usable"]:
+        out.append(
+            "The mixed-effects model did not fit cleanly ("
+            + ("; ".join(model["warnings"]) or "no convergence")
+            + "): its p-values are reported, not used."
+        )
+    elif stats.get("mixed_model_note"):
+        out.append(f"No mixed-effects model: {stats['mixed_model_note']}.")
+    for r in stats["specimens"]:
+        if str(r.get("endpoint_source", "")).startswith("not reached"):
+            out.append(f"{r['specimen']}: endpoint {r['endpoint_source']}.")
+    return out
+
+
+def _endpoint_text(row: dict) -> str:
+    text = f"frame {row['endpoint']}"
+    if row.get("time_unit") not in (None, "frame"):
+        text += f" (t = {row['endpoint_time']:.4g} {row['time_unit']})"
+    return text
+
+
 def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) -> Path:
-    """Write a study folder's self-contained ``report.html``."""
+    """Write a study folder's self-contained ``report.html``.
+
+    The specimen is the experimental unit: the report leads with the
+    specimen-level tests on specimen means (and the mixed-effects model),
+    then the per-specimen tables; the node-level tests come last, marked as
+    descriptive.
+    """
     from strain2d.study import plain_summary
 
     folder = Path(folder)
     software = summary.get("software", {})
     a, b = stats["components"]
     n = len(stats["specimens"])
+    figures = summary.get("figures") or []
+    pct = round(100 * stats["confidence"])
     doc = HtmlReport(
         f"Strain study: {n} specimen{'s' if n != 1 else ''}, {a} against {b}",
         subtitle=f"{software.get('name', 'strain2d')} {software.get('version', '?')}, "
-        f"created {summary.get('created', '?')}",
+        f"created {summary.get('created', '?')}; {a} and {b} compared at each specimen's "
+        "contraction endpoint",
     )
     doc.heading("Summary")
     doc.bullets(plain_summary(stats), css="summary")
-    doc.heading("Specimens")
-    columns = [
-        "specimen", "group", "run", "endpoint", "endpoint_source", "n_nodes",
-        f"mean_{a}", f"sd_{a}", f"mean_{b}", f"sd_{b}", "mean_difference",
-        "node t-test p", "node Wilcoxon p",
-    ]  # fmt: skip
-    doc.table(
-        [
-            {
-                **r,
-                "node t-test p": _p(r["node_level"].get("t_p")),
-                "node Wilcoxon p": _p(r["node_level"].get("wilcoxon_p")),
-                "run": Path(r["run"]).name,
-            }
-            for r in stats["specimens"]
-        ],
-        columns=columns,
+    doc.heading("Flagged")
+    doc.flags(_study_flags(stats))
+
+    doc.heading("Specimen-level results (the specimen is the experimental unit)")
+    doc.paragraph(
+        f"Each specimen gives one mean of {a} and of {b} over its nodes at its contraction "
+        f"endpoint; the paired t-test and the Wilcoxon signed-rank test compare these means "
+        f"across specimens, the mean difference {a} - {b} with its {pct}% t interval and "
+        "Cohen's d_z (mean difference / SD of the differences)."
     )
-    doc.heading("Specimen-level paired tests (the specimen is the unit)")
     rows = []
     for key, t in stats["specimen_level"].items():
         rows.append(
@@ -589,21 +651,30 @@ def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) ->
                 "specimens": "all" if key == "all" else f"group {key}",
                 "n": t["n"],
                 f"mean {a} - {b}": t["mean_difference"],
-                f"{round(100 * t['confidence'])}% CI (t)": t["mean_difference_ci"],
+                f"{pct}% CI (t)": t["mean_difference_ci"],
                 "paired t p": _p(t["t_p"]),
                 "Wilcoxon p": _p(t["wilcoxon_p"]),
                 "Cohen's d_z": t["cohens_dz"],
             }
         )
     doc.table(rows)
+    comp = stats.get("groups_compared")
+    if comp:
+        doc.heading("Between the groups", level=3)
+        doc.paragraph(
+            f"{comp['label']}: difference {comp['difference']:+.4f}, "
+            f"t = {comp['welch_t']:.3g}, p {_p(comp['welch_p'])}."
+        )
+    _study_figure(doc, folder, figures, "specimen_means")
     model = stats.get("mixed_model")
     if model:
-        doc.heading("Mixed-effects model")
+        doc.heading("Mixed-effects model", level=3)
         doc.paragraph(
             f"{model['formula']}, fitted by {model['method']} on {model['n_nodes']} nodes of "
-            f"{model['n_specimens']} specimens, where d = {a} - {b} at each node. p (t) uses "
-            "a t reference with specimen-level degrees of freedom; p (z) is the Wald z "
-            "statsmodels reports, anticonservative with few specimens."
+            f"{model['n_specimens']} specimens, where d = {a} - {b} at each node: the nodes "
+            "enter with the specimen as a random effect, so they are not counted as "
+            "independent. p (t) uses a t reference with specimen-level degrees of freedom; "
+            "p (z) is the Wald z statsmodels reports, anticonservative with few specimens."
         )
         doc.table(
             [
@@ -628,14 +699,66 @@ def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) ->
                 "fit warnings": "; ".join(model["warnings"]) or "none",
             }
         )
-    comp = stats.get("groups_compared")
-    if comp:
-        doc.heading("Between the groups")
-        doc.paragraph(
-            f"{comp['label']}: difference {comp['difference']:+.4f}, "
-            f"t = {comp['welch_t']:.3g}, p {_p(comp['welch_p'])}."
-        )
-    _embed_figures(doc, folder, summary.get("figures") or [])
+
+    doc.heading("Specimens")
+    doc.table(
+        [
+            {
+                "specimen": r["specimen"],
+                "group": r["group"],
+                "run folder": Path(r["run"]).name,
+                "endpoint": _endpoint_text(r),
+                "endpoint source": r["endpoint_source"],
+                "nodes": r["n_nodes"],
+            }
+            for r in stats["specimens"]
+        ]
+    )
+    doc.paragraph(
+        f"Means and SDs over each specimen's nodes at its endpoint (the SD describes the "
+        f"spread within the specimen); mean {a} - {b} is what the specimen-level tests compare."
+    )
+    doc.table(
+        [
+            {
+                "specimen": r["specimen"],
+                "group": r["group"],
+                f"mean {a}": r[f"mean_{a}"],
+                f"SD {a}": r[f"sd_{a}"],
+                f"mean {b}": r[f"mean_{b}"],
+                f"SD {b}": r[f"sd_{b}"],
+                f"mean {a} - {b}": r["mean_difference"],
+            }
+            for r in stats["specimens"]
+        ]
+    )
+
+    doc.heading("Node-level tests (descriptive)")
+    doc.paragraph(_NODE_CAVEAT, css="note")
+    doc.table(
+        [
+            {
+                "specimen": r["specimen"],
+                "nodes": r["node_level"].get("n", r["n_nodes"]),
+                "node t-test p": _p(r["node_level"].get("t_p")),
+                "node Wilcoxon p": _p(r["node_level"].get("wilcoxon_p")),
+                "Cohen's d_z (nodes)": r["node_level"].get("cohens_dz"),
+                "Moran's I": r["node_level"].get("morans_i"),
+                "Moran's I p": _p(r["node_level"].get("morans_p")),
+                "note": r["node_level"].get("error", ""),
+            }
+            for r in stats["specimens"]
+        ],
+        columns=[
+            "specimen", "nodes", "node t-test p", "node Wilcoxon p", "Cohen's d_z (nodes)",
+            "Moran's I", "Moran's I p",
+            *(["note"] if any("error" in r["node_level"] for r in stats["specimens"]) else []),
+        ],
+    )  # fmt: skip
+
+    doc.heading("Figures")
+    for stem in ("study_violins", "study_curves"):
+        _study_figure(doc, folder, figures, stem)
     doc.provenance({k: v for k, v in summary.items() if k != "figures"})
     out = folder / "report.html"
     doc.write(out)

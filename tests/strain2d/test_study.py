@@ -442,3 +442,38 @@ def test_specimen_labels_never_overlap(n):
                           key=lambda r: r["Eyy"])  # fmt: skip
             ys = [boxes[r["name"]].y0 for r in rows]
             assert ys == sorted(ys)
+
+
+def test_study_report_leads_with_the_specimen_and_fits_the_window(study_dir, tmp_path):
+    """The report: specimen-level results first, node-level marked descriptive, 1024 px wide."""
+    import re
+
+    from strain2d.report import write_study
+    from tests.report_browser import problems
+
+    root, _ = study_dir
+    entries = read_manifest(root / "manifest.csv")
+    entries = entries[:3] + entries[5:8]  # 3 specimens per group keep it quick
+    summary = write_study(tmp_path / "study", entries, manifest=root / "manifest.csv")
+    report = tmp_path / "study" / "report.html"
+    page = report.read_text(encoding="utf-8")
+    heads = re.findall(r"<h[23]>(.*?)</h[23]>", page)
+    first = heads.index("Specimen-level results (the specimen is the experimental unit)")
+    assert first < heads.index("Specimens") < heads.index("Node-level tests (descriptive)")
+    assert heads.index("Mixed-effects model") < heads.index("Specimens")
+    # the specimen means figure sits with the specimen-level results, before the node level
+    means = page.index("with the specimen-level paired tests (the specimen is the")
+    assert page.index(heads[first]) < means < page.index("Node-level tests (descriptive)")
+    assert "nodes within a specimen are not independent" in page
+    # the specimens' metadata and their means are two tables, neither needing small print
+    assert 'class="wide"' not in page
+    tables = re.findall(r"<table.*?</table>", page, re.S)
+    meta = [t for t in tables if "<th>endpoint source</th>" in t]
+    means = [t for t in tables if "<th>SD Exx</th>" in t]
+    assert len(meta) == len(means) == 1 and meta != means
+    assert all(f"<td>{r['specimen']}</td>" in means[0] for r in summary["specimens"])
+    stats = json.loads((tmp_path / "study" / "statistics.json").read_text())
+    assert stats["headline"] == "specimen_level" and stats["software"]["name"] == "strain2d"
+    assert stats["n_boot"] == 2000
+    assert all("descriptive" in r["node_level"]["label"] for r in stats["specimens"])
+    assert problems(report) == []
