@@ -134,9 +134,10 @@ def analyze_stack(
         Its ``metrics`` also list the warnings the analysis raised
         (``warnings``; they are raised again, once the analysis is done).
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
+    caught: list = []
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             analysis = _analyze(
                 source,
                 channel=channel,
@@ -150,13 +151,10 @@ def analyze_stack(
                 decimate=decimate,
                 progress=progress,
             )
-        finally:
-            flagged = []
-            for record in caught:
-                if issubclass(record.category, UserWarning):
-                    flagged.append(str(record.message))
-    for record in caught:  # raised again: callers and the command line see them as before
-        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+    finally:  # raised again, even when the analysis failed: callers see them as before
+        for record in caught:
+            warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+    flagged = [str(r.message) for r in caught if issubclass(r.category, UserWarning)]
     analysis.metrics["warnings"] = flagged
     return analysis
 

@@ -195,3 +195,13 @@ def test_warnings_are_flagged_in_metrics_and_report(mpm_small, tmp_path, capsys)
     assert "no voxel spacing" in warning
     page = (out / "report.html").read_text(encoding="utf-8")
     assert html.escape(warning) in page and "Nothing was flagged." not in page
+
+
+def test_warnings_are_shown_when_the_analysis_then_fails(mpm_small, tmp_path, capsys):
+    plain = tmp_path / "plain.tif"
+    tifffile.imwrite(plain, mpm_small[1].stack[:, 1], photometric="minisblack", metadata=None)
+    args = ("--no-surface", "--no-figures", "-q", "--threshold", "1e9")
+    assert cli("analyze", plain, "--out", tmp_path / "out", *args) == 2
+    warning, error = capsys.readouterr().err.splitlines()
+    assert warning.startswith("mpm3d analyze: warning: ") and "no voxel spacing" in warning
+    assert error.startswith("mpm3d analyze: error: ") and "no surface found" in error
