@@ -382,7 +382,10 @@ def plot_specimen_means(
     -------
     matplotlib.figure.Figure
         Groups side by side; a thin line per specimen, the group mean as a
-        thick line.
+        thick line.  The specimen-level tests head the title.  Each
+        specimen is named right of its ``b`` point; names of nearly equal
+        means are moved apart (at least 1.5 line heights, as little as
+        possible, in order, with a leader line), so no two overlap.
     """
     if len(table) == 0:
         raise InputError("table is empty; give at least one specimen")
