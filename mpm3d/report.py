@@ -82,6 +82,7 @@ def _parameters(metrics: dict) -> dict:
         "channel": metrics.get("channel"),
         "surface threshold (grey value)": f"{_number(metrics.get('threshold'), 6)}, "
         f"{quality.get('threshold_method', '?')}",
+        "peak window below the first crossing (µm)": _number(params.get("peak_window_um")),
         "least contrast-to-noise of a measured column": _number(params.get("min_cnr")),
         "outlier limit (µm off the 3 x 3 median)": _number(params.get("outlier_um")),
         "height-map smoothing sigma (µm)": _number(smooth),

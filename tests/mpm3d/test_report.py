@@ -205,3 +205,23 @@ def test_warnings_are_shown_when_the_analysis_then_fails(mpm_small, tmp_path, ca
     warning, error = capsys.readouterr().err.splitlines()
     assert warning.startswith("mpm3d analyze: warning: ") and "no voxel spacing" in warning
     assert error.startswith("mpm3d analyze: error: ") and "no surface found" in error
+
+
+def test_compare_report_shows_the_icp_residual(compared, tmp_path):
+    """The page of a comparison refined by ICP (open3d) lists its fitness and residual."""
+    from mpm3d.report import write_comparison_report
+
+    report = json.loads((compared["out"] / "compare.json").read_text(encoding="utf-8"))
+    report["alignment"]["icp"] = {
+        "translation_um": [1.5, -2.0, 0.25],
+        "rotation_deg": 0.125,
+        "fitness": 0.375,
+        "inlier_rmse_um": 3.625,
+        "matched": False,
+    }
+    page = write_comparison_report(tmp_path, report).read_text(encoding="utf-8")
+    assert "ICP fitness (share of points paired)</td><td>0.375<" in page
+    assert "ICP residual: inlier RMSE (µm)</td><td>3.625<" in page
+    assert "1.5, -2, 0.25; 0.125" in page
+    assert "ICP: fitness below 0.5" in page  # flagged
+    assert problems(tmp_path / "report.html") == []
