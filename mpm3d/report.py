@@ -221,7 +221,8 @@ def write_analysis_report(folder: str | os.PathLike, metrics: dict) -> Path:
     doc.key_values(
         {
             "height range of the height map (µm above the datum)": metrics.get("height_range_um"),
-            "height range of the mesh (µm above the datum)": metrics.get("mesh_height_range_um"),
+            "height range of the mesh (µm above the datum)": metrics.get("mesh_height_range_um")
+            or "no mesh (--no-surface)",
             "colour range of both height figures (µm)": metrics.get("height_colour_range_um"),
         },
         digits=4,
