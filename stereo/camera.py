@@ -5,6 +5,14 @@ top-left pixel is ``(0, 0)``; distortion ``(k1, k2, p1, p2, k3)``; world
 coordinates are the left camera's, and a point ``X`` is ``R X + T`` in the
 right camera's.  Lengths are in the calibration's unit (e.g. mm).
 
+Skew: the camera matrix ``K = [[fx, s, cx], [0, fy, cy], [0, 0, 1]]`` maps the
+distorted normalized point ``(xd, yd)`` to the pixel ``(fx xd + s yd + cx,
+fy yd + cy)`` (Hartley & Zisserman 2004, eq. 6.10; Bouguet's toolbox, VIC-3D
+and DICe's VIC-3D model).  OpenCV's own functions ignore ``s`` (its
+calibration always writes 0), so with ``s = 0`` this is exactly
+``cv2.projectPoints``; with ``s != 0`` the skew is carried exactly, in
+:func:`distort` and :func:`undistort` alike.
+
 References
 ----------
 * R. Hartley, A. Zisserman, Multiple View Geometry in Computer Vision, 2nd
@@ -39,7 +47,8 @@ def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     Parameters
     ----------
     normalized : (..., 2)
-    K : (3, 3) camera matrix (its skew term is ignored, as OpenCV does)
+    K : (3, 3) camera matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``; the skew
+        ``s`` shears the distorted point: ``u = fx xd + s yd + cx``
     dist : OpenCV's coefficients: (k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4]]]);
         the rational (k4-k6) and thin-prism (s1-s4) terms are supported, the
         tilted-sensor terms (14 coefficients) only when zero
@@ -60,7 +69,7 @@ def distort(normalized: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarr
     radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
     xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + r2 * (s1 + s2 * r2)
     yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + r2 * (s3 + s4 * r2)
-    u = K[0, 0] * xd + K[0, 2]
+    u = K[0, 0] * xd + K[0, 1] * yd + K[0, 2]
     v = K[1, 1] * yd + K[1, 2]
     return np.stack([u, v], axis=-1)
 
@@ -70,7 +79,9 @@ def undistort(pixels: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray
 
     OpenCV's iterative undistortion, polished by Newton steps on
     :func:`distort` so the round trip holds to 1e-9 px even for strong
-    distortion.
+    distortion.  OpenCV ignores the skew ``K[0, 1]``; it is taken out of the
+    pixels first (``u - s (v - cy) / fy`` is the pixel of the same distorted
+    point without skew), so the skew is inverted exactly.
 
     Parameters
     ----------
@@ -86,11 +97,16 @@ def undistort(pixels: np.ndarray, K: np.ndarray, dist: np.ndarray) -> np.ndarray
     if pixels.size == 0:
         return pixels.copy()
     d = np.asarray(dist, np.float64).ravel()
+    K = np.asarray(K, np.float64)
+    unskewed = pixels.copy()
+    unskewed[:, 0] -= K[0, 1] * (pixels[:, 1] - K[1, 2]) / K[1, 1]
+    K0 = K.copy()
+    K0[0, 1] = 0.0
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
     try:
-        start = cv2.undistortPointsIter(pixels[:, None, :], K, d, None, None, crit)[:, 0, :]
+        start = cv2.undistortPointsIter(unskewed[:, None, :], K0, d, None, None, crit)[:, 0, :]
     except AttributeError:  # OpenCV 5 folds the criteria into undistortPoints
-        start = cv2.undistortPoints(pixels[:, None, :], K, d, criteria=crit)[:, 0, :]
+        start = cv2.undistortPoints(unskewed[:, None, :], K0, d, criteria=crit)[:, 0, :]
     p = start.astype(np.float64)
     eps = 1e-7
     ex, ey = np.array([eps, 0.0]), np.array([0.0, eps])
