@@ -530,14 +530,25 @@ def _read_json_calibration(path: Path) -> Calibration:
         raise InputError(f"{path}: {exc}") from None
 
 
-def load_calibration(*paths: str | os.PathLike) -> Calibration:
-    """Read a calibration: this package's JSON, or OpenCV YAML/XML file(s).
+def load_calibration(
+    *paths: str | os.PathLike, image_size: tuple[int, int] | None = None
+) -> Calibration:
+    """Read a calibration: this package's JSON, OpenCV YAML/XML file(s), VIC-3D or DICe XML.
 
     OpenCV files (e.g. the ``intrinsics.yml`` and ``extrinsics.yml`` of
     OpenCV's stereo sample) may be given together; matrices are found under
     the usual names (``M1/D1/M2/D2``, ``K1/K2``, ``cameraMatrix1``...,
     ``R``, ``T``), the image size under ``image_size``/``imageSize`` or
-    ``image_width``/``image_height``.
+    ``image_width``/``image_height``, or from ``image_size`` (OpenCV's
+    stereo sample writes none).  VIC-3D and DICe XML files are converted by
+    :mod:`stereo.calib_formats` (their conventions are described there).
+
+    Parameters
+    ----------
+    *paths : the file(s)
+    image_size : (width, height) px, keyword-only
+        For files that hold no image size (``--image-size``); a file that
+        holds another one is refused.
 
     Every value is checked (see :class:`Calibration`).
 
@@ -560,6 +571,15 @@ def load_calibration(*paths: str | os.PathLike) -> Calibration:
         if p.stat().st_size == 0:
             raise SourceError(f"{p} is empty: not a calibration file")
     first = paths[0]
+    from stereo.calib_formats import read_dice, read_vic3d, sniff
+
+    kinds = [sniff(p) for p in paths]
+    if any(kinds):
+        if len(paths) > 1:
+            names = ", ".join(map(str, paths))
+            raise InputError(f"give one VIC-3D or DICe calibration file, not {names}")
+        reader = read_vic3d if kinds[0] == "vic3d" else read_dice
+        return reader(first, image_size=image_size)
 
     def is_json(p: Path) -> bool:
         with open(p, "rb") as f:
@@ -594,13 +614,26 @@ def load_calibration(*paths: str | os.PathLike) -> Calibration:
     elif "image_width" in merged and "image_height" in merged:
         origin["image_size"] = (merged["image_width"][0], "image_width, image_height")
         size = [merged["image_width"][2], merged["image_height"][2]]
+    elif image_size is not None:
+        size = list(image_size)
     else:
         raise InputError(
             f"{', '.join(map(str, paths))}: no image size (image_size, or image_width and "
-            "image_height); add it to the file"
+            "image_height; OpenCV's stereo_calib sample writes none): give --image-size WxH"
         )
+    if image_size is not None and "image_size" in origin:
+        try:
+            same = np.array_equal(np.asarray(size, np.float64).ravel(), np.asarray(image_size))
+        except (TypeError, ValueError):
+            same = True  # a malformed size in the file: the checks below name it
+        if not same:
+            path, name = origin["image_size"]
+            raise InputError(
+                f"{path}: {name} says the images are not {image_size[0]}x{image_size[1]} px "
+                "as --image-size says"
+            )
     try:
-        return Calibration(image_size=size, **values)
+        return Calibration(image_size=size, **values, extra={"imported_format": "opencv"})
     except CalibrationValueError as exc:
         path, name = origin.get(exc.field, (first, exc.field))
         label = exc.field if name == exc.field else f"{name} ({exc.field})"

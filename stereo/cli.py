@@ -1,7 +1,8 @@
 """Command line: ``python -m stereo {calibrate,import-calib,match,reconstruct}``.
 
 * ``calibrate --left GLOB --right GLOB --board SPEC --out calib.json``
-* ``import-calib INTRINSICS.yml [EXTRINSICS.yml] --out calib.json`` (OpenCV files)
+* ``import-calib INTRINSICS.yml [EXTRINSICS.yml] [--image-size WxH] --out calib.json``
+  (OpenCV files), or ``import-calib CAL.xml --out calib.json`` (VIC-3D or DICe)
 * ``match LEFT_IMAGE RIGHT_IMAGE --points POINTS.csv [--calib calib.json] --out MATCHES.csv``
 * ``reconstruct --calib calib.json --left SRC --right SRC --grid 7x7 --out DIR`` (3D points,
   each view's tracks, the per-frame quality, figures, ``summary.json`` and ``report.html``)
@@ -147,10 +148,20 @@ def _build_parser() -> CommandLine:
     _common(p)
 
     p = cli.command(
-        "import-calib", _cmd_import, help="convert OpenCV YAML/XML calibration files to JSON"
+        "import-calib",
+        _cmd_import,
+        help="convert a calibration (OpenCV YAML/XML, VIC-3D or DICe XML) to JSON",
     )
     p.add_argument(
-        "files", nargs="+", help="OpenCV FileStorage files (e.g. intrinsics, extrinsics)"
+        "files",
+        nargs="+",
+        help="OpenCV FileStorage files (e.g. intrinsics.yml extrinsics.yml), or one VIC-3D "
+        "calibration XML, or one DICe cal.xml",
+    )
+    p.add_argument(
+        "--image-size",
+        help="WIDTHxHEIGHT px, for files that hold no image size (OpenCV's stereo_calib "
+        "sample, VIC-3D .cal files)",
     )
     p.add_argument("--unit", default="mm", help="unit of T (default mm)")
     p.add_argument("--out", required=True, help="calibration JSON to write")
@@ -261,18 +272,33 @@ def _cmd_calibrate(args) -> int:
 
 
 def _cmd_import(args) -> int:
+    from stereo.calib_formats import parse_image_size
     from stereo.calibration import load_calibration
     from tissue_core.outputs import atomic_file, check_writable
+    from tissue_core.version import __version__
 
     _check_unit(args.unit)
+    size = parse_image_size(args.image_size) if args.image_size is not None else None
     writing = {"overwrite": args.overwrite, "inputs": args.files}
     check_writable(args.out, kind="file", **writing)
-    calib = load_calibration(*args.files)
+    calib = load_calibration(*args.files, image_size=size)
     calib.unit = args.unit
     calib.extra["imported_from"] = [Path(f).name for f in args.files]
+    calib.extra["import_options"] = {"image_size": args.image_size, "unit": args.unit}
+    calib.extra["software"] = {
+        "package": "tissue-strain",
+        "module": "stereo",
+        "version": __version__,
+    }
     with atomic_file(args.out, **writing) as tmp:
         calib.save(tmp)
-    _say(args)(f"calibration of {' and '.join(args.files)} written to {args.out}")
+    say = _say(args)
+    for note in calib.extra.get("notes", []):
+        say(f"note: {note}")
+    say(
+        f"{calib.extra.get('imported_format', 'JSON')} calibration of {' and '.join(args.files)} "
+        f"written to {args.out}"
+    )
     return 0
 
 
