@@ -1,10 +1,11 @@
-"""Calibration targets: checkerboards and ChArUco boards, their corners and textures.
+"""Calibration targets: checkerboards, ChArUco boards and circle grids, their points and textures.
 
 Board coordinates are millimetres, ``X_board = (x, y, 0)`` with ``x`` along
 the board's columns, ``y`` along its rows and ``z`` into the board; where
 each board's origin lies and how its poses are given: the conventions of
 :mod:`sample_data_synth.stereo`.  :func:`parse_board` reads the command-line
-spelling (``checkerboard:9x6:10``, ``charuco:11x8:8:6``).
+spelling (``checkerboard:9x6:10``, ``charuco:11x8:8:6``, ``circles:9x6:10:5``,
+``acircles:4x11:10:7``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from sample_data_synth._common import non_negative as _non_negative
 from sample_data_synth._common import positive as _positive
 from sample_data_synth._raytrace import _DARK, _LIGHT, _Raster
 
-__all__ = ["Board", "CharucoBoard", "Checkerboard", "parse_board"]
+__all__ = ["Board", "CharucoBoard", "Checkerboard", "CircleGrid", "parse_board"]
 
 
 _DICTIONARIES = {f"DICT_{b}X{b}_{n}": n for b in (4, 5, 6, 7) for n in (50, 100, 250, 1000)} | {
@@ -206,15 +207,127 @@ class CharucoBoard:
         return _Raster(img.astype(np.float32), (x0, x0), d)
 
 
-Board = Checkerboard | CharucoBoard
+@dataclass(frozen=True)
+class CircleGrid:
+    """A grid of dark dots on a light board (``cv2.findCirclesGrid``'s target).
+
+    Parameters
+    ----------
+    cols, rows : int
+        Dots per row and rows (``patternSize = (cols, rows)``).
+    spacing : float
+        mm.  Symmetric grid: the distance between neighbouring dots along a
+        row and a column.  Asymmetric grid (OpenCV's ``ASYMMETRIC_GRID``):
+        odd rows are shifted by ``spacing``, so dots in a row are ``2 spacing``
+        apart and rows ``spacing`` apart (the ``squareSize`` of OpenCV's
+        calibration sample).
+    diameter : float
+        Dot diameter in mm, smaller than the nearest-neighbour distance
+        (``spacing``, or ``sqrt(2) spacing`` for the asymmetric grid).
+    asymmetric : bool
+    margin : float or None
+        Light border from the outermost dot centres in mm (default: one
+        spacing, at least the diameter).
+    """
+
+    cols: int = 9
+    rows: int = 6
+    spacing: float = 10.0
+    diameter: float = 5.0
+    asymmetric: bool = False
+    margin: float | None = None
+
+    def __post_init__(self) -> None:
+        _check_counts(self, ("cols", "rows"))
+        object.__setattr__(self, "spacing", _positive(self.spacing, "spacing"))
+        object.__setattr__(self, "diameter", _positive(self.diameter, "diameter"))
+        nearest = self.spacing * (np.sqrt(2.0) if self.asymmetric else 1.0)
+        if self.diameter >= nearest:
+            raise ValueError(
+                f"diameter ({self.diameter:g}) must be smaller than the distance between "
+                f"neighbouring dots ({nearest:g})"
+            )
+        default = max(self.spacing, self.diameter)
+        margin = default if self.margin is None else _non_negative(self.margin, "margin")
+        if margin < self.diameter / 2:
+            raise ValueError(f"margin must be at least the dot radius, got {margin!r}")
+        object.__setattr__(self, "margin", margin)
+
+    @property
+    def kind(self) -> str:
+        return "acircles" if self.asymmetric else "circles"
+
+    @property
+    def pattern_size(self) -> tuple[int, int]:
+        """``(cols, rows)``, as ``cv2.findCirclesGrid`` wants."""
+        return (self.cols, self.rows)
+
+    def object_points(self) -> np.ndarray:
+        """Dot centres ``(rows * cols, 3)`` in board mm, row-major, in
+        ``cv2.findCirclesGrid``'s order: ``(j s, i s, 0)``, or ``((2 j + i % 2) s,
+        i s, 0)`` for the asymmetric grid."""
+        jj, ii = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
+        x = (2 * jj + ii % 2) if self.asymmetric else jj
+        return np.column_stack(
+            [x.ravel() * self.spacing, ii.ravel() * self.spacing, np.zeros(jj.size)]
+        )
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(x0, y0, x1, y1)`` of the board with its margin, in board mm."""
+        p, m = self.object_points(), self.margin
+        return (-m, -m, float(p[:, 0].max()) + m, float(p[:, 1].max()) + m)
+
+    def spec(self) -> str:
+        """The command-line spelling, e.g. ``circles:9x6:10:5``."""
+        return f"{self.kind}:{self.cols}x{self.rows}:{self.spacing:g}:{self.diameter:g}"
+
+    def to_dict(self) -> dict:
+        return {
+            "kind": self.kind,
+            "spec": self.spec(),
+            "cols": self.cols,
+            "rows": self.rows,
+            "spacing_mm": self.spacing,
+            "diameter_mm": self.diameter,
+            "margin_mm": self.margin,
+            "origin": "first dot's centre; object points row-major as cv2.findCirclesGrid: "
+            + ("((2 j + i % 2) * spacing, i * spacing, 0)" if self.asymmetric else "")
+            + ("" if self.asymmetric else "(j * spacing, i * spacing, 0)"),
+        }
+
+    def _texture(self, per_square: int) -> _Raster:
+        d = self.spacing / per_square
+        x0, y0, x1, y1 = self.extent()
+        w, h = int(np.ceil((x1 - x0) / d)), int(np.ceil((y1 - y0) / d))
+        dark = np.zeros((h, w))
+        r = self.diameter / 2
+        half = int(np.ceil(r / d)) + 2
+        for cx, cy, _ in self.object_points():
+            # texel centres near the dot; coverage from the signed distance to its edge
+            j0, i0 = int((cx - x0) / d), int((cy - y0) / d)
+            js = np.arange(max(j0 - half, 0), min(j0 + half + 1, w))
+            is_ = np.arange(max(i0 - half, 0), min(i0 + half + 1, h))
+            xs, ys = x0 + (js + 0.5) * d, y0 + (is_ + 0.5) * d
+            dist = np.hypot(xs[None, :] - cx, ys[:, None] - cy)
+            cover = np.clip(0.5 + (r - dist) / d, 0.0, 1.0)
+            block = dark[is_[0] : is_[-1] + 1, js[0] : js[-1] + 1]
+            np.maximum(block, cover, out=block)
+        img = _LIGHT - (_LIGHT - _DARK) * dark
+        img = ndimage.gaussian_filter(img, 1.0, mode="nearest")
+        return _Raster(img.astype(np.float32), (x0 + 0.5 * d, y0 + 0.5 * d), d)
+
+
+Board = Checkerboard | CharucoBoard | CircleGrid
 
 
 def parse_board(text: str) -> Board:
     """A board from its command-line spelling.
 
-    ``checkerboard:COLSxROWS:SQUARE`` (inner corners, mm) or
+    ``checkerboard:COLSxROWS:SQUARE`` (inner corners, mm),
     ``charuco:SXxSY:SQUARE:MARKER[:DICTIONARY]`` (squares, mm; the dictionary
-    defaults to ``DICT_4X4_50``).
+    defaults to ``DICT_4X4_50``), ``circles:COLSxROWS:SPACING:DIAMETER`` or
+    ``acircles:COLSxROWS:SPACING:DIAMETER`` (dots, mm; see :class:`CircleGrid`;
+    the renderer needs the diameter, the detector of ``stereo calibrate`` not).
 
     Examples
     --------
@@ -222,6 +335,8 @@ def parse_board(text: str) -> Board:
     Checkerboard(cols=9, rows=6, square=10.0, margin=10.0)
     >>> parse_board("charuco:11x8:8:6").dictionary
     'DICT_4X4_50'
+    >>> parse_board("acircles:4x11:10:7").spec()
+    'acircles:4x11:10:7'
     """
     parts = str(text).strip().split(":")
     try:
@@ -232,10 +347,15 @@ def parse_board(text: str) -> Board:
         if kind == "charuco" and len(parts) in (4, 5):
             dictionary = parts[4] if len(parts) == 5 else "DICT_4X4_50"
             return CharucoBoard(nx, ny, float(parts[2]), float(parts[3]), dictionary)
+        if kind in ("circles", "acircles") and len(parts) == 4:
+            return CircleGrid(
+                nx, ny, float(parts[2]), float(parts[3]), asymmetric=kind == "acircles"
+            )
     except (IndexError, ValueError) as exc:
         if "must" in str(exc):  # the board's own validation: say what is wrong
             raise ValueError(f"board {text!r}: {exc}") from None
     raise ValueError(
-        f"board must be checkerboard:COLSxROWS:SQUARE or "
-        f"charuco:SXxSY:SQUARE:MARKER[:DICTIONARY], got {text!r}"
+        f"board must be checkerboard:COLSxROWS:SQUARE, "
+        f"charuco:SXxSY:SQUARE:MARKER[:DICTIONARY] or "
+        f"circles|acircles:COLSxROWS:SPACING:DIAMETER, got {text!r}"
     )

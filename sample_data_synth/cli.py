@@ -112,8 +112,9 @@ def _build_parser() -> CommandLine:
     p.add_argument(
         "--board",
         default="checkerboard:9x6:10",
-        help="checkerboard:COLSxROWS:SQUARE_MM or charuco:SXxSY:SQUARE_MM:MARKER_MM[:DICT] "
-        "(checkerboard:9x6:10)",
+        help="checkerboard:COLSxROWS:SQUARE_MM, charuco:SXxSY:SQUARE_MM:MARKER_MM[:DICT], or a "
+        "dot grid circles:COLSxROWS:SPACING_MM:DIAMETER_MM (acircles: for OpenCV's asymmetric "
+        "grid) (checkerboard:9x6:10)",
     )
     p.add_argument("--views", type=int, default=15, help="calibration views (15)")
     p.add_argument("--frames", type=int, default=11, help="frames of the surface cases (11)")

@@ -15,7 +15,12 @@ Conventions (a contract: the stereo package is written against it)
   its first inner corner, its object points are ``(j * square, i * square, 0)``
   row-major (OpenCV's usual ``objp``); a :class:`CharucoBoard`'s are
   ``cv2.aruco.CharucoBoard.getChessboardCorners()`` (origin at the board's
-  outer top-left corner).
+  outer top-left corner); a :class:`CircleGrid`'s are its dot centres in
+  ``cv2.findCirclesGrid``'s order (origin at the first dot).  The "corners"
+  of a circle grid (``image_points``) are the projected dot centres, which
+  are not the centres of the dots' images (an ellipse's centre is not the
+  projection of the circle's centre): a detector that takes blob centroids is
+  biased by a few hundredths of a pixel on tilted views.
 * Surfaces: a material point ``X = (X1, X2)`` (mm) of the reference sheet or
   disc sits at ``c + X1 e1 + X2 e2`` at frame 0; ``e1``, ``e2`` are the
   material axes (``e1`` roughly along image x, ``e2`` along image y) and the
@@ -120,7 +125,7 @@ from sample_data_synth._surfaces import (
     _surface_from_dict,
     _surface_texture,
 )
-from sample_data_synth.boards import Board, CharucoBoard, Checkerboard, parse_board
+from sample_data_synth.boards import Board, CharucoBoard, Checkerboard, CircleGrid, parse_board
 from sample_data_synth.camera import (
     Camera,
     StereoRig,
@@ -137,6 +142,7 @@ __all__ = [
     "CalibrationViews",
     "CharucoBoard",
     "Checkerboard",
+    "CircleGrid",
     "StereoRig",
     "StereoScene",
     "default_rig",
@@ -182,7 +188,7 @@ class CalibrationViews:
     left, right : (V, H, W) uint8
         The views of the left and right camera.
     rig : StereoRig
-    board : Checkerboard or CharucoBoard
+    board : Checkerboard, CharucoBoard or CircleGrid
     rotations : (V, 3, 3) float
         ``R_b`` per view: ``X_left = R_b @ X_board + t_b``.
     translations : (V, 3) float
@@ -337,7 +343,7 @@ def render_calibration_views(
     Parameters
     ----------
     rig : StereoRig
-    board : Checkerboard, CharucoBoard or str
+    board : Checkerboard, CharucoBoard, CircleGrid or str
         The target, or its spelling for :func:`parse_board`.
     n_views : int, keyword-only
         Views with the whole board (and its margin) inside both images.
@@ -371,8 +377,10 @@ def render_calibration_views(
     """
     if isinstance(board, str):
         board = parse_board(board)
-    if not isinstance(board, Checkerboard | CharucoBoard):
-        raise ValueError(f"board must be a Checkerboard, CharucoBoard or str, got {board!r}")
+    if not isinstance(board, Checkerboard | CharucoBoard | CircleGrid):
+        raise ValueError(
+            f"board must be a Checkerboard, CharucoBoard, CircleGrid or str, got {board!r}"
+        )
     for name, value in (("n_views", n_views), ("partial_views", partial_views)):
         if int(value) != value or value < 0:
             raise ValueError(f"{name} must be an integer >= 0, got {value!r}")
