@@ -1,4 +1,4 @@
-"""Stereo calibration from images of a checkerboard or ChArUco target.
+"""Stereo calibration from images of a checkerboard, ChArUco or circle-grid target.
 
 :func:`calibrate_stereo` detects the target in every image pair, calibrates
 each camera (intrinsics and distortion), rejects pairs whose reprojection
@@ -25,6 +25,9 @@ References
   2280-2292, doi:10.1016/j.patcog.2014.01.005 (ArUco / ChArUco).
 * P. Duda, J. Frese, Accurate detection and localization of checkerboard
   corners for calibration, BMVC 2018 (OpenCV's findChessboardCornersSB).
+* J. Heikkila, Geometric camera calibration using circular control points,
+  IEEE TPAMI 22 (2000) 1066-1077, doi:10.1109/34.879788 (circle grids; the
+  centre of a dot's image is not the image of its centre).
 """
 
 from __future__ import annotations
@@ -59,10 +62,14 @@ log = logging.getLogger(__name__)
 class Board:
     """A calibration target.
 
-    ``kind`` is ``"checkerboard"`` (``cols x rows`` inner corners) or
+    ``kind`` is ``"checkerboard"`` (``cols x rows`` inner corners),
     ``"charuco"`` (``cols x rows`` squares, ArUco markers of ``marker``
-    size from ``dictionary``); ``square`` is the square size in the unit
-    the results will use (e.g. mm).
+    size from ``dictionary``), ``"circles"`` (a symmetric grid of ``cols x
+    rows`` dark dots) or ``"acircles"`` (OpenCV's asymmetric dot grid: odd
+    rows shifted by ``square``, dots in a row ``2 square`` apart, rows
+    ``square`` apart); ``square`` is the square size or dot spacing in the
+    unit the results will use (e.g. mm).  ``marker`` holds a dot grid's
+    diameter when it was given (checked, not needed for detection).
     """
 
     kind: str
@@ -77,15 +84,20 @@ class Board:
         base = f"{self.kind}:{self.cols}x{self.rows}:{self.square:g}"
         if self.kind == "charuco":
             return f"{base}:{self.marker:g}:{self.dictionary}"
+        if self.marker is not None:  # a dot grid's diameter
+            return f"{base}:{self.marker:g}"
         return base
 
     def object_points(self) -> np.ndarray:
-        """(M, 3) positions of the inner corners on the board (z = 0), row-major."""
-        if self.kind == "checkerboard":
-            nx, ny = self.cols, self.rows
-        else:
+        """(M, 3) positions of the inner corners or dot centres on the board (z = 0),
+        row-major (``cv2.findCirclesGrid``'s order for dot grids)."""
+        if self.kind == "charuco":
             nx, ny = self.cols - 1, self.rows - 1
+        else:
+            nx, ny = self.cols, self.rows
         gy, gx = np.mgrid[0:ny, 0:nx]
+        if self.kind == "acircles":
+            gx = 2 * gx + gy % 2
         return np.column_stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)]) * self.square
 
     def opencv_board(self):
@@ -99,7 +111,8 @@ class Board:
 
 
 def parse_board(text: str) -> Board:
-    """Parse ``checkerboard:COLSxROWS:SQUARE`` or ``charuco:COLSxROWS:SQUARE:MARKER:DICT``.
+    """Parse ``checkerboard:COLSxROWS:SQUARE``, ``charuco:COLSxROWS:SQUARE:MARKER:DICT``,
+    ``circles:COLSxROWS:SPACING[:DIAMETER]`` or ``acircles:COLSxROWS:SPACING[:DIAMETER]``.
 
     Examples
     --------
@@ -107,27 +120,37 @@ def parse_board(text: str) -> Board:
     Board(kind='checkerboard', cols=9, rows=6, square=10.0, marker=None, dictionary=None)
     >>> parse_board("charuco:11x8:8:6:DICT_4X4_50").spec()
     'charuco:11x8:8:6:DICT_4X4_50'
+    >>> parse_board("acircles:4x11:10").object_points()[4:6, :2].tolist()
+    [[10.0, 10.0], [30.0, 10.0]]
     """
     import cv2
 
     usage = (
-        "--board must be checkerboard:COLSxROWS:SQUARE or "
-        f"charuco:COLSxROWS:SQUARE:MARKER:DICTIONARY, got {text!r}"
+        "--board must be checkerboard:COLSxROWS:SQUARE, "
+        "charuco:COLSxROWS:SQUARE:MARKER:DICTIONARY, circles:COLSxROWS:SPACING[:DIAMETER] "
+        f"or acircles:COLSxROWS:SPACING[:DIAMETER], got {text!r}"
     )
     parts = str(text).strip().split(":")
     kind = parts[0].lower()
-    if kind not in ("checkerboard", "charuco") or len(parts) != (
-        3 if kind == "checkerboard" else 5
-    ):
+    counts = {"checkerboard": (3,), "charuco": (5,), "circles": (3, 4), "acircles": (3, 4)}
+    if len(parts) not in counts.get(kind, ()):
         raise InputError(usage)
     try:
         cols, rows = (int(v) for v in parts[1].lower().split("x"))
         square = float(parts[2])
-        marker = float(parts[3]) if kind == "charuco" else None
+        marker = float(parts[3]) if len(parts) > 3 else None
     except ValueError:
         raise InputError(usage) from None
     if cols < 3 or rows < 3 or not (math.isfinite(square) and square > 0):
         raise InputError(f"{usage}: at least 3 x 3 and a positive square size")
+    if kind in ("circles", "acircles"):
+        nearest = square * (math.sqrt(2) if kind == "acircles" else 1)
+        if marker is not None and not (math.isfinite(marker) and 0 < marker < nearest):
+            raise InputError(
+                f"{usage}: the dot diameter must be smaller than the distance between "
+                f"neighbouring dots ({nearest:g})"
+            )
+        return Board(kind, cols, rows, square, marker)
     if kind == "charuco":
         if not (math.isfinite(marker) and 0 < marker < square):
             raise InputError(f"{usage}: the marker must be smaller than the square")
@@ -163,11 +186,41 @@ def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarra
             return None
         pts = corners.reshape(-1, 2).astype(np.float64)
         return pts, np.arange(len(pts))
+    if board.kind in ("circles", "acircles"):
+        return _detect_circles(gray, board)
     detector = cv2.aruco.CharucoDetector(board.opencv_board())
     corners, ids, _, _ = detector.detectBoard(gray)
     if ids is None or len(ids) < 6:
         return None
     return corners.reshape(-1, 2).astype(np.float64), ids.ravel().astype(np.int64)
+
+
+def _detect_circles(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] | None:
+    """Dot centres by ``cv2.findCirclesGrid`` (dark dots on light, or light on dark).
+
+    The blob detector is OpenCV's, with the area limits set by the grid: from 4
+    px to the image's area shared among the dots (a dot cannot be larger; a
+    larger limit lets the bright board itself, thresholded near its own gray
+    level, count as a blob and pull a dot's centre away).  A dot's centre is
+    its image's centroid (OpenCV's estimate), not corrected for perspective
+    (Heikkila 2000): small dots keep the bias small.
+    """
+    import cv2
+
+    params = cv2.SimpleBlobDetector_Params()
+    params.minArea = 4.0
+    params.maxArea = max(gray.size / (board.cols * board.rows), 8.0)
+    params.minDistBetweenBlobs = 2.0
+    size = (board.cols, board.rows)
+    grid = cv2.CALIB_CB_ASYMMETRIC_GRID if board.kind == "acircles" else cv2.CALIB_CB_SYMMETRIC_GRID
+    for image in (gray, 255 - gray):  # dark dots first, then light ones
+        detector = cv2.SimpleBlobDetector_create(params)
+        for flags in (grid, grid | cv2.CALIB_CB_CLUSTERING):
+            found, centers = cv2.findCirclesGrid(image, size, flags=flags, blobDetector=detector)
+            if found:
+                pts = centers.reshape(-1, 2).astype(np.float64)
+                return pts, np.arange(len(pts))
+    return None
 
 
 #: largest deviation of ``R @ R.T`` from the identity accepted for a rotation
@@ -725,9 +778,10 @@ def calibrate_stereo(
             )
             rejected.append({"image": names[i], "reason": f"no target found ({side})"})
             continue
-        if board.kind == "checkerboard" and _reversed(dl[0], dr[0]):
-            # a checkerboard has no marked origin: the detector may start at the opposite
-            # corner in one view; the two views of a rig see the board the same way round
+        if board.kind in ("checkerboard", "circles") and _reversed(dl[0], dr[0]):
+            # a checkerboard or symmetric dot grid has no marked origin: the detector may
+            # start at the opposite corner in one view; the two views of a rig see the
+            # board the same way round
             dr = (dr[0][::-1].copy(), dr[1])
         common, il, ir = np.intersect1d(dl[1], dr[1], return_indices=True)
         if common.size < 6:

@@ -137,8 +137,9 @@ def _build_parser() -> CommandLine:
     p.add_argument(
         "--board",
         required=True,
-        help="checkerboard:COLSxROWS:SQUARE (inner corners) or "
-        "charuco:COLSxROWS:SQUARE:MARKER:DICTIONARY (squares), sizes in --unit",
+        help="checkerboard:COLSxROWS:SQUARE (inner corners), "
+        "charuco:COLSxROWS:SQUARE:MARKER:DICTIONARY (squares), or a dot grid "
+        "circles:COLSxROWS:SPACING (acircles: for OpenCV's asymmetric grid), sizes in --unit",
     )
     p.add_argument("--unit", default="mm", help="unit of the square size (default mm)")
     p.add_argument(
