@@ -391,7 +391,9 @@ class Calibration:
     Attributes
     ----------
     image_size : (width, height) px
-    K_left, K_right : (3, 3) camera matrices
+    K_left, K_right : (3, 3) camera matrices ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``;
+        the skew ``s`` is part of the model (see :mod:`stereo.camera`), 0 for
+        OpenCV's own calibrations
     dist_left, dist_right : (5,) distortion (k1, k2, p1, p2, k3), or OpenCV's
         8, 12 or 14 coefficients
     R, T : (3, 3), (3,) ``x_right = R x_left + T``
