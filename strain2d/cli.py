@@ -92,6 +92,20 @@ def _build_parser():
         default=None,
         help="frame rate for time axes in seconds (default: the frame index)",
     )
+    scale = p.add_mutually_exclusive_group()
+    scale.add_argument(
+        "--scale",
+        metavar="SIZE",
+        help="pixel size on the specimen, e.g. 0.012mm/px or 83.3px/mm (nm, um, mm, cm, m): "
+        "tables gain positions and displacements in that unit (x_mm, u_mm...), figure axes "
+        "and the ParaView files are in it (default: pixels; strain is dimensionless)",
+    )
+    scale.add_argument(
+        "--scale-ruler",
+        metavar="X0,Y0,X1,Y1:LENGTH",
+        help="measure the pixel size on the first frame: two pixel positions on a ruler, "
+        "scale bar or target and the length between them, e.g. 100,400,600,400:6mm",
+    )
     g = p.add_argument_group("figures, statistics and report")
     g.add_argument(
         "--endpoint",
@@ -227,7 +241,7 @@ def _open(args):
 def _track_source(args, options: dict, say, check=None):
     """Open the frames, place the points and track them: (source, point_info, tracks).
 
-    ``check(n_frames)`` runs once the frames are counted, before tracking.
+    ``check(n_frames, (H, W))`` runs once the frames are counted, before tracking.
     ``source`` is an :class:`~strain2d.frames.EndFrames` wrapper, so the first and
     last frames need not be decoded again afterwards."""
     from strain2d.frames import EndFrames
@@ -237,7 +251,7 @@ def _track_source(args, options: dict, say, check=None):
     h, w = source.shape
     say(f"{source.names[0]}: {len(source)} frames of {w}x{h} px ({source.kind})")
     if check is not None:
-        check(len(source))
+        check(len(source), (h, w))
     points, point_info = _reference_points(args, source)
     n = "the imported" if points is None else str(len(points))
     with say.task(f"tracking {n} points ({args.tracker})") as update:
@@ -283,6 +297,7 @@ def _cmd_analyze(args) -> int:
         "figure_format": args.figure_format,
     }
     check_run_options(**options, min_triangle_quality=args.min_triangle_quality)
+    scale = _scale_option(args)
     tracker_options = _tracker_options(args)  # bad ones fail before anything is read
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     say = _progress(args)
@@ -293,7 +308,16 @@ def _cmd_analyze(args) -> int:
             if bad:
                 raise InputError(f"{flag} {bad[0]} is outside the frames 0..{n - 1}")
 
-    source, point_info, tracks = _track_source(args, tracker_options, say, check=frames_exist)
+    def check(n: int, shape: tuple[int, int]) -> None:
+        nonlocal scale
+        frames_exist(n)
+        if args.scale_ruler:  # the ruler's points must be in the frame: known once it is open
+            from strain2d.scale import scale_from_ruler
+
+            scale = scale_from_ruler(args.scale_ruler, shape)
+            say(f"pixel size {scale.per_px:.6g} {scale.unit} ({scale.source})")
+
+    source, point_info, tracks = _track_source(args, tracker_options, say, check=check)
     t_tracked = time.perf_counter()
     analysis = analysis_of(
         tracks,
@@ -314,11 +338,26 @@ def _cmd_analyze(args) -> int:
             inputs=_inputs(args),
             progress=update,
             runtime_s={"tracking": t_tracked - t_start, "strain": t_strain - t_tracked},
+            scale=scale,
         )
     ep = summary["contraction_endpoint"]
-    say(f"contraction endpoint: frame {ep['frame']} ({ep['source']})")
+    say(f"{ep['label']}: frame {ep['frame']} ({ep['source']})")
     say(f"results in {args.out}")
     return 0
+
+
+def _scale_option(args):
+    """``--scale`` parsed (before any work), or None; ``--scale-ruler`` is checked on the frame."""
+    if args.scale_ruler:
+        from strain2d.scale import scale_from_ruler
+
+        scale_from_ruler(args.scale_ruler)  # the form, before the video is read
+        return None
+    if args.scale:
+        from strain2d.scale import parse_scale
+
+        return parse_scale(args.scale)
+    return None
 
 
 def _frame_list(text: str | None, flag: str) -> list[int]:

@@ -123,9 +123,22 @@ def endpoint_of(
     else:
         chosen = T - 1 if detected is None else detected
         source = status
+    kind = _deformation_kind(curves[chosen], components)
+    if source == "given":
+        label = f"{kind} endpoint (given)"
+    elif source == "detected":
+        label = f"{kind} endpoint"
+    elif source.startswith("not reached"):
+        label = f"last frame ({kind} endpoint not reached)"
+    elif source.startswith("none"):
+        label = "last frame (no deformation)"
+    else:
+        label = "last frame"
     return {
         "frame": int(chosen),
         "time": float(t[chosen]),
+        "label": label,
+        "deformation": kind,
         "source": source,
         "detected_frame": detected,
         "detection": status,
@@ -138,6 +151,29 @@ def endpoint_of(
             )
         ),
     }
+
+
+def _deformation_kind(mean: np.ndarray, components: Sequence[str]) -> str:
+    """ "contraction" when the mean normal strains at a frame are both <= 0 (not both 0),
+    "stretch" when both >= 0, else "deformation" (one shortens, the other stretches)."""
+    normal = [float(mean[j]) for j, c in enumerate(components) if c in ("Exx", "Eyy")]
+    normal = [v for v in normal if math.isfinite(v)]
+    if not normal or all(abs(v) < NO_DEFORMATION for v in normal):
+        return "deformation"
+    if all(v <= 0 for v in normal):
+        return "contraction"
+    if all(v >= 0 for v in normal):
+        return "stretch"
+    return "deformation"
+
+
+def _median_uncertainty(tracks: Tracks, frame: int) -> float | None:
+    """The median tracking uncertainty (px) of the visible points on ``frame``, if measured."""
+    if tracks.uncertainty is None:
+        return None
+    u = tracks.uncertainty[frame][tracks.visible[frame]]
+    u = u[np.isfinite(u)]
+    return float(np.median(u)) if u.size else None
 
 
 class _FigureLog:
@@ -179,6 +215,7 @@ def run_outputs(
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
     n_boot: int = 2000,
     progress: Callable[[int, int | None], None] | None = None,
+    length=None,
 ) -> dict:
     """Write a run's figures and ``statistics.json`` into ``folder``; return summary entries.
 
@@ -199,6 +236,8 @@ def run_outputs(
     animation : {"mp4", "gif", "none"}
     formats : sequence of {"png", "svg", "pdf"}
         Every figure is written in each format (animations excepted).
+    length : PixelScale, optional
+        The pixel size (``--scale``): image axes in its unit.
 
     Returns
     -------
@@ -223,6 +262,7 @@ def run_outputs(
         relative_tolerance=relative_tolerance,
     )
     k_end = ep["frame"]
+    end_name = ep["label"]
     maps = sorted({*map_frames, k_end, T - 1})
     unit = "s" if time_unit == "s" else "frame"
 
@@ -247,6 +287,7 @@ def run_outputs(
             fps=animation_fps,
             time_labels=[when(k) for k in range(T)],
             progress=progress,
+            length=length,
         )
         record([path], f"Strain field over time on the video ({animation.upper()}).")
     else:
@@ -257,8 +298,16 @@ def run_outputs(
         raise InputError(f"the video ended before frame {min(missing)}")
 
     for k in maps:
-        what = "contraction endpoint" if k == k_end else ("last frame" if k == T - 1 else "")
-        fig = fg.strain_maps_figure(images[k], field, k, components=components, limits=limits)
+        what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
+        fig = fg.strain_maps_figure(
+            images[k],
+            field,
+            k,
+            components=components,
+            limits=limits,
+            title=f"{when(k)}: {what}" if what else when(k),
+            length=length,
+        )
         paths = fg.save_figure(fig, figdir / f"strain_frame{k:04d}", formats)
         record(
             paths,
@@ -266,11 +315,33 @@ def run_outputs(
             + (f", the {what}" if what else "")
             + "; the colour scale is the same at every frame.",
         )
-    fig = fg.plot_principal_crosses(images[k_end], field, k_end)
+    sigma = _median_uncertainty(tracks, k_end)
+    noise = fg.principal_noise_floor(field, sigma, frame=0) if sigma is not None else 0.0
+    noise = noise if np.isfinite(noise) else 0.0
+    fig = fg.plot_principal_crosses(
+        images[k_end],
+        field,
+        k_end,
+        noise=noise,
+        length=length,
+        title=f"principal strains at {when(k_end)}\n{end_name}",
+    )
+    if sigma is None:
+        noise_text = (
+            "The tracker does not measure its uncertainty, so crosses are drawn wherever "
+            "E1 differs from E2."
+        )
+    else:
+        noise_text = (
+            f"Crosses only where E1 - E2 exceeds {noise:.2g}, the 95th percentile that the "
+            f"tracking noise alone ({sigma:.2g} px, median uncertainty) gives on this mesh; "
+            "elsewhere the directions are not measured and an open circle shows the mean "
+            "principal strain."
+        )
     record(
         fg.save_figure(fig, figdir / f"principal_directions_frame{k_end:04d}", formats),
-        f"Principal strain directions at the contraction endpoint ({when(k_end)}): arm "
-        "lengths proportional to |E1| and |E2|, red = stretch, blue = shortening.",
+        f"Principal strain directions at {when(k_end)}, the {end_name}: arm lengths "
+        f"proportional to |E1| and |E2|, red = stretch, blue = shortening. {noise_text}",
     )
     fig = fg.plot_strain_curves(
         field, times=times, time_unit=unit, components=components, endpoint=k_end
@@ -292,13 +363,14 @@ def run_outputs(
     values = {c: node[c][k_end][np.isfinite(node[c][k_end])] for c in (a, b, "Exy")}
     fig = fg.plot_strain_violins(
         values,
-        title=f"nodal strain at the contraction endpoint, {when(k_end)}",
+        title=f"nodal strain at {when(k_end)}: {end_name}",
         tests=None if "error" in tests else tests,
     )
     record(
         fg.save_figure(fig, figdir / f"violins_frame{k_end:04d}", formats),
-        f"Distribution of the nodal strains at the contraction endpoint, with the node-level "
-        f"paired tests of {a} against {b}.",
+        f"Distribution of the nodal strains at the {end_name}, with the node-level "
+        f"paired tests of {a} against {b} (descriptive: nodes of one specimen are not "
+        "independent).",
     )
 
     table = {}
@@ -317,8 +389,9 @@ def run_outputs(
             else {"n": 0}
         )
     statistics = {
+        "principal_direction_noise_floor": noise,
         "frame": k_end,
-        "frame_meaning": "contraction endpoint",
+        "frame_meaning": end_name,
         "nodal_strain": table,
         "paired": {"components": [a, b], **tests},
     }
@@ -360,6 +433,15 @@ def _uncertainty_text(u) -> str:
     return text
 
 
+def _scale_text(scale) -> str:
+    if not isinstance(scale, dict) or scale.get("length_per_px") is None:
+        return "not given (positions in pixels; strain is dimensionless)"
+    return (
+        f"{scale['length_per_px']:.6g} {scale['unit']}/px ({scale['px_per_unit']:.6g} "
+        f"px/{scale['unit']}), {scale.get('source', '')}"
+    )
+
+
 def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
     """Write ``report.html`` for a run folder from its ``summary.json`` content.
 
@@ -375,6 +457,7 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
         f"created {summary.get('created', '?')}",
     )
     doc.heading("Run")
+    units = summary.get("units") or {}
     source = summary.get("source", {})
     tracker = summary.get("tracker", {})
     points = summary.get("points", {})
@@ -383,6 +466,7 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
             "inputs": ", ".join(inputs),
             "frames used": source.get("frames_used"),
             "frame size (px)": source.get("frame_size_px"),
+            "pixel size": _scale_text(units.get("scale")),
             "tracker": tracker.get("name"),
             "tracker options": tracker.get("options", {}),
             "points": points.get("grid") or points.get("points_file") or points.get("points"),
@@ -397,7 +481,7 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
     )
     ep = summary.get("contraction_endpoint")
     if ep:
-        doc.heading("Contraction endpoint")
+        doc.heading(ep.get("label", "contraction endpoint").capitalize())
         text = f"Frame {ep['frame']}"
         if summary.get("time_axis", {}).get("unit") == "s":
             text += f" (t = {ep['time']:.4g} s)"
@@ -409,11 +493,11 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
         elif ep["source"] == "detected":
             text += f", detected: {ep['method']}."
         else:
-            text += f": the contraction endpoint was {ep['source']}."
+            text += f": the endpoint was {ep['source']}."
         doc.paragraph(text)
     stats = summary.get("statistics")
     if stats:
-        doc.heading("Nodal strain at the contraction endpoint")
+        doc.heading(f"Nodal strain at frame {stats.get('frame')}: {stats.get('frame_meaning')}")
         rows = [{"component": k, **v} for k, v in stats["nodal_strain"].items() if v.get("n", 0)]
         doc.table(rows, columns=["component", "mean", "sd", "min", "max", "n"])
         paired = stats["paired"]

@@ -336,6 +336,39 @@ def _final_stats(field) -> dict:
     return out
 
 
+def _units(scale, fps, uncertainty: bool) -> dict:
+    """``summary.json``'s ``units``: the pixel size and every table column's unit."""
+    length = None if scale is None else scale.unit
+    position = {"x": "px", "y": "px"}
+    displacement = {"u": "px", "v": "px"}
+    if length:
+        position |= {f"x_{length}": length, f"y_{length}": length}
+        displacement |= {f"u_{length}": length, f"v_{length}": length}
+    strain = dict.fromkeys(("Exx", "Eyy", "Exy", "E1", "E2", "max_shear", "J"), "1")
+    tracks = {**position, "visible": "1 (flag)", "quality": "tracker's own (see tracker)"}
+    nodes = {**position, **displacement, "visible": "1 (flag)", **strain, "theta1_deg": "degree"}
+    if uncertainty:
+        extra = {"uncertainty_px": "px"} | ({f"uncertainty_{length}": length} if length else {})
+        tracks |= extra
+        nodes |= extra
+    return {
+        "positions": "px",
+        "length": length or "px",
+        "scale": None if scale is None else scale.to_json(),
+        "time": "s" if fps else "frame",
+        "strain": "Green-Lagrange, dimensionless",
+        "vtp": (
+            f"points and displacement in {length or 'px'}; field data length_unit, "
+            "time_unit and array_units"
+        ),
+        "columns": {
+            "tracks.csv": tracks,
+            "strain_nodes.csv": nodes,
+            "strain_elements.csv": {"valid": "1 (flag)", **strain, "theta1_deg": "degree"},
+        },
+    }
+
+
 def write_run(
     out: str | os.PathLike,
     analysis,
@@ -352,6 +385,7 @@ def write_run(
     inputs: Sequence[str | os.PathLike] = (),
     progress=None,
     runtime_s: dict | None = None,
+    scale=None,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -394,6 +428,11 @@ def write_run(
         Called as the figures and the animation are made.
     runtime_s : dict, keyword-only
         Timings to record (the command line passes tracking and strain).
+    scale : PixelScale or str, keyword-only
+        The pixel size (``"0.012mm/px"``, see :mod:`strain2d.scale`): the
+        tables gain positions and displacements in its unit (``x_mm``...),
+        the figures' axes and the ParaView files are in it, and
+        ``summary.json`` records it.  Strain does not depend on it.
 
     Returns
     -------
@@ -422,6 +461,7 @@ def write_run(
     from strain2d.report import run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
     from surface_strain import RUN_SCHEMA, Mesh
+    from tissue_core.html import sequence_record
     from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, recorded_command
     from tissue_core.version import __version__
@@ -434,6 +474,11 @@ def write_run(
         figure_format=figure_format,
         animation=animation,
     )
+    if isinstance(scale, str):
+        from strain2d.scale import parse_scale
+
+        scale = parse_scale(scale)
+    length = {} if scale is None else {"length_scale": scale.per_px, "length_unit": scale.unit}
     tracks, field = analysis.tracks, analysis.field
     T = tracks.n_frames
     for flag, ks in (("--endpoint", [endpoint]), ("--maps-at", list(maps_at))):
@@ -455,14 +500,22 @@ def write_run(
     tracker = analysis.tracker or tracks.meta.get("tracker") or "unknown"
     # the video's files are inputs too: no output may replace them
     with atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp:
-        write_tracks_csv(tmp / "tracks.csv", tracks)
-        write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty)
+        write_tracks_csv(tmp / "tracks.csv", tracks, **length)
+        write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty, **length)
         write_strain_elements_csv(tmp / "strain_elements.csv", field)
-        write_pvd(tmp, field, name="strain", times=times)
+        write_pvd(
+            tmp, field, name="strain", times=times, time_unit="s" if fps else "frame", **length
+        )
         figs = tmp / "figures"
         figs.mkdir()
         grid_files = plot_tracked_grid(
-            figs / "tracked_grid", first_img, last_img, tracks, field.triangles, formats=formats
+            figs / "tracked_grid",
+            first_img,
+            last_img,
+            tracks,
+            field.triangles,
+            formats=formats,
+            length=scale,
         )
         extra = run_outputs(
             tmp,
@@ -478,6 +531,7 @@ def write_run(
             animation_fps=fps or 10.0,
             formats=formats,
             progress=progress,
+            length=scale,
         )
         extra["figures"].insert(
             0,
@@ -494,6 +548,7 @@ def write_run(
             "created": datetime.now(UTC).isoformat(timespec="seconds"),
             "command": list(command) if command else None,
             "inputs": names,
+            "input_files": [sequence_record(names)] if names else [],
             "source": source,
             # name, options, and whatever else the tracker reports (dic: reference updates)
             "tracker": {
@@ -514,7 +569,7 @@ def write_run(
             "final_frame": {"index": T - 1, "nodal_strain": _final_stats(field)},
             "contraction_endpoint": extra["contraction_endpoint"],
             "statistics": extra["statistics"],
-            "units": {"positions": "px", "strain": "Green-Lagrange, dimensionless"},
+            "units": _units(scale, fps, tracks.uncertainty is not None),
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
             "outputs": [
                 *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),

@@ -28,19 +28,37 @@ __all__ = ["TRACK_COLUMNS", "Tracks", "read_tracks", "write_tracks_csv"]
 TRACK_COLUMNS = ("frame", "point", "x", "y", "visible", "quality")
 
 
-def write_tracks_csv(path: str | os.PathLike, tracks: Tracks) -> None:
+def write_tracks_csv(
+    path: str | os.PathLike,
+    tracks: Tracks,
+    *,
+    length_scale: float | None = None,
+    length_unit: str | None = None,
+) -> None:
     """Write tracks as CSV with columns ``frame,point,x,y,visible,quality`` (and
-    ``uncertainty_px`` when the tracks carry one)."""
+    ``uncertainty_px`` when the tracks carry one).
+
+    ``length_scale`` (``length_unit`` per pixel, e.g. 0.012 mm) adds the
+    positions in that unit, ``x_mm,y_mm`` after ``x,y`` (and ``uncertainty_mm``);
+    ``x`` and ``y`` stay in pixels.
+    """
     from tissue_core.tables import write_long_table
 
+    if length_scale is not None and not (np.isfinite(length_scale) and length_scale > 0):
+        raise ValueError(f"length_scale must be a positive number, got {length_scale}")
     columns = {
         "x": (tracks.positions[..., 0], "%.6f"),
         "y": (tracks.positions[..., 1], "%.6f"),
-        "visible": (tracks.visible, "%d"),
-        "quality": (tracks.quality, "%.6g"),
     }
+    if length_scale is not None:
+        columns[f"x_{length_unit}"] = (tracks.positions[..., 0] * length_scale, "%.8g")
+        columns[f"y_{length_unit}"] = (tracks.positions[..., 1] * length_scale, "%.8g")
+    columns["visible"] = (tracks.visible, "%d")
+    columns["quality"] = (tracks.quality, "%.6g")
     if tracks.uncertainty is not None:
         columns["uncertainty_px"] = (tracks.uncertainty, "%.4g")
+        if length_scale is not None:
+            columns[f"uncertainty_{length_unit}"] = (tracks.uncertainty * length_scale, "%.4g")
     write_long_table(path, columns)
 
 

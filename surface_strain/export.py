@@ -10,6 +10,11 @@ case, with the principal angle in the plane::
 
     frame,point,x,y,u,v,visible,Exx,Eyy,Exy,E1,E2,max_shear,theta1_deg,J[,uncertainty_px]
 
+With a physical length (``length_unit``, e.g. a 2D run's ``--scale``) the
+node table also has the positions and displacements in that unit, named with
+it (``x_mm,y_mm,u_mm,v_mm`` after ``u,v``; ``uncertainty_mm`` after
+``uncertainty_px``); the columns without a suffix keep the points' own unit.
+
 ``strain_elements.csv`` has ``frame,triangle,p0,p1,p2,valid`` and the same
 strains.  Positions ``X, Y, Z`` and displacements ``U, V, W`` are in the
 points' unit (pixels in 2D); strains are Green-Lagrange, dimensionless,
@@ -28,7 +33,11 @@ is isotropic) and ``visible``; cell data with the element scalars, their
 principal directions and ``valid``.  Vectors are zero where undefined (a
 lost point's displacement, an isotropic strain's directions): VTK's XML
 readers cannot take NaN vectors; ``visible`` and the NaN scalars say where.
-ParaView opens the ``.pvd`` as a time series.
+ParaView opens the ``.pvd`` as a time series.  Each ``.vtp`` carries field
+data naming the units: ``length_unit`` (of the points and ``displacement``),
+``time_unit`` (of the ``.pvd``'s time steps) and ``array_units``, one
+``"name: unit"`` string per array (strains ``1``, i.e. dimensionless).
+With ``length_scale`` the points and displacements are in ``length_unit``.
 """
 
 from __future__ import annotations
@@ -80,25 +89,53 @@ def _xyz(a: np.ndarray) -> np.ndarray:
     return np.concatenate([a, np.zeros((*a.shape[:-1], 1))], axis=-1)
 
 
+def _check_length(length_scale: float | None, length_unit: str | None) -> None:
+    if length_scale is not None and not (np.isfinite(length_scale) and length_scale > 0):
+        raise ValueError(f"length_scale must be a positive number, got {length_scale}")
+    if length_scale is not None and not length_unit:
+        raise ValueError("length_scale needs its length_unit")
+
+
 def write_nodes_csv(
-    path: str | os.PathLike, field: StrainField, uncertainty: np.ndarray | None = None
+    path: str | os.PathLike,
+    field: StrainField,
+    uncertainty: np.ndarray | None = None,
+    *,
+    length_scale: float | None = None,
+    length_unit: str | None = None,
 ) -> None:
     """Per-node positions, displacements and strain for every frame (see the module docstring).
 
     ``uncertainty`` ``(T, N)`` in px adds the ``uncertainty_px`` column.
+    ``length_scale`` (``length_unit`` per point unit, e.g. 0.012 mm per px)
+    adds the positions and displacements in ``length_unit``.
     """
     from tissue_core.tables import write_long_table
 
+    _check_length(length_scale, length_unit)
     d = field.points.shape[-1]
     names = node_columns(d)[2:]
     disp = field.points - field.reference[None]
     scalars = nodal_scalars(field)
     columns = {names[k]: (field.points[..., k], "%.6f") for k in range(d)}
     columns |= {names[d + k]: (disp[..., k], "%.6f") for k in range(d)}
+    if length_scale is not None:
+        columns |= {
+            f"{names[k]}_{length_unit}": (field.points[..., k] * length_scale, "%.8g")
+            for k in range(d)
+        }
+        columns |= {
+            f"{names[d + k]}_{length_unit}": (disp[..., k] * length_scale, "%.8g") for k in range(d)
+        }
     columns["visible"] = (field.visible, "%d")
     columns |= {k: (scalars[k], "%.8g") for k in _scalars(d)}
     if uncertainty is not None:
         columns["uncertainty_px"] = (np.asarray(uncertainty, float), "%.4g")
+        if length_scale is not None:
+            columns[f"uncertainty_{length_unit}"] = (
+                np.asarray(uncertainty, float) * length_scale,
+                "%.4g",
+            )
     write_long_table(path, columns)
 
 
@@ -125,14 +162,46 @@ def _directions(field: StrainField) -> dict:
     }
 
 
+_DIMENSIONLESS = {*SCALARS, *_PLANAR_SCALARS} - {"theta1_deg"}
+
+
+def _name_units(mesh, length_unit: str, time_unit: str) -> None:
+    """Field data saying the unit of the points and of every point and cell array."""
+    units = []
+    for kind, data in (("point", mesh.point_data), ("cell", mesh.cell_data)):
+        for key in data.keys():
+            if key == "displacement":
+                unit = length_unit
+            elif key in _DIMENSIONLESS:
+                unit = "1 (dimensionless)"
+            elif key == "theta1_deg":
+                unit = "degree"
+            elif key.startswith("principal_direction"):
+                unit = "1 (unit vector)"
+            else:  # visible, valid
+                unit = "1 (flag)"
+            units.append(f"{kind} {key}: {unit}")
+    mesh.field_data["length_unit"] = np.array([length_unit])
+    mesh.field_data["time_unit"] = np.array([time_unit])
+    mesh.field_data["array_units"] = np.array(units)
+
+
 def write_pvd(
     folder: str | os.PathLike,
     field: StrainField,
     *,
     name: str = "strain",
     times: np.ndarray | None = None,
+    time_unit: str = "frame",
+    length_scale: float | None = None,
+    length_unit: str | None = None,
 ) -> Path:
     """Write a ParaView time series: ``folder/name.pvd`` and ``folder/name/name_####.vtp``.
+
+    ``times`` are in ``time_unit``.  ``length_scale`` converts the points'
+    unit to ``length_unit`` (e.g. 0.012 mm per px); without it the files stay
+    in the points' unit, named by ``length_unit`` when given (default
+    ``"px"`` for 2D fields, ``"input units"`` for 3D ones).
 
     Returns
     -------
@@ -140,6 +209,7 @@ def write_pvd(
     """
     import pyvista as pv
 
+    _check_length(length_scale, length_unit)
     folder = Path(folder)
     sub = folder / name
     sub.mkdir(parents=True, exist_ok=True)
@@ -149,10 +219,12 @@ def write_pvd(
     elem = element_scalars(field)
     dirs = _directions(field)
     faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
-    ref = _xyz(field.reference)
+    factor = 1.0 if length_scale is None else float(length_scale)
+    unit = length_unit or ("px" if field.points.shape[-1] == 2 else "input units")
+    ref = _xyz(field.reference) * factor
     entries = []
     for t in range(T):
-        cur = _xyz(field.points[t])
+        cur = _xyz(field.points[t]) * factor
         mesh = pv.PolyData(np.where(np.isfinite(cur), cur, ref), faces=faces)
         mesh.point_data["displacement"] = np.nan_to_num(cur - ref)  # lost: 0, see "visible"
         for key, values in node.items():
@@ -168,6 +240,7 @@ def write_pvd(
             data["principal_direction_2"] = np.nan_to_num(_xyz(pd.dir2_ref[t]))
             data["principal_direction_1_current"] = np.nan_to_num(_xyz(pd.dir1_cur[t]))
             data["principal_direction_2_current"] = np.nan_to_num(_xyz(pd.dir2_cur[t]))
+        _name_units(mesh, unit, time_unit)
         fname = f"{name}_{t:04d}.vtp"
         mesh.save(sub / fname, binary=True)
         entries.append(f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>')

@@ -31,7 +31,7 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-__all__ = ["HtmlReport", "format_value", "input_records"]
+__all__ = ["HtmlReport", "format_value", "input_records", "sequence_record"]
 
 _MIME = {
     ".png": "image/png",
@@ -124,6 +124,24 @@ def input_records(paths: Iterable[str | os.PathLike]) -> list[dict]:
         except OSError:
             out.append({"path": str(raw), "bytes": None, "sha256": None, "files": 0})
     return out
+
+
+def sequence_record(paths: Sequence[str | os.PathLike]) -> dict:
+    """One record for files read as one input in order (an image sequence), hashed as one stream.
+
+    ``path`` names the first and the last file and the count.
+    """
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise ValueError("sequence_record needs at least one path")
+    if len(paths) == 1:
+        return input_records(paths)[0]
+    name = f"{paths[0]} ... {paths[-1].name}"
+    try:
+        sha, size = _digest_files(paths)
+    except OSError:
+        return {"path": name, "bytes": None, "sha256": None, "files": len(paths)}
+    return {"path": name, "bytes": size, "sha256": sha, "files": len(paths)}
 
 
 class HtmlReport:

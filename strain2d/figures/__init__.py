@@ -39,7 +39,7 @@ colours, colour scales, :func:`strain_limits`) and ``_checks``.
 """
 
 from strain2d.figures._animation import write_strain_animation
-from strain2d.figures._crosses import plot_principal_crosses
+from strain2d.figures._crosses import plot_principal_crosses, principal_noise_floor
 from strain2d.figures._curves import mean_strain_curves, plot_strain_curves
 from strain2d.figures._maps import (
     plot_strain_errors,
@@ -66,6 +66,7 @@ __all__ = [
     "plot_study_curves",
     "plot_study_violins",
     "plot_tracked_grid",
+    "principal_noise_floor",
     "save_figure",
     "strain_limits",
     "strain_maps_figure",

@@ -44,6 +44,7 @@ def write_strain_animation(
     alpha: float = 0.6,
     max_width: int = 960,
     dpi: int = 100,
+    length=None,
 ) -> Path:
     """Write a video of the strain field over time, drawn on the frames (MP4 or GIF).
 
@@ -79,6 +80,8 @@ def write_strain_animation(
         both are even.
     dpi : int, keyword-only
         Resolution of the rendering (sets text size relative to the frame).
+    length : PixelScale, keyword-only
+        The pixel size: axes in its unit instead of pixels.
 
     Returns
     -------
@@ -125,7 +128,9 @@ def write_strain_animation(
                 raise InputError(f"frames yields more images than the field's {T} frames")
             image = _check_image(image, f"frame {k}")
             if not state:
-                state = _animation_figure(image, field, components, scales, alpha, max_width, dpi)
+                state = _animation_figure(
+                    image, field, components, scales, alpha, max_width, dpi, length
+                )
             rgb = _animation_frame(
                 state,
                 image,
@@ -192,7 +197,7 @@ def _close_writer(writer, kind: str) -> None:
         writer.close()
 
 
-def _animation_figure(image, field, components, scales, alpha, max_width, dpi) -> dict:
+def _animation_figure(image, field, components, scales, alpha, max_width, dpi, length) -> dict:
     """The reused figure of an animation: image, mesh and label artists, fixed colour bars."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -223,7 +228,7 @@ def _animation_figure(image, field, components, scales, alpha, max_width, dpi) -
         "size": (width_px, height_px),
     }
     for ax, comp in zip(axes, components, strict=True):
-        state["images"].append(_show_image(ax, image, vmin=vmin, vmax=vmax))
+        state["images"].append(_show_image(ax, image, vmin=vmin, vmax=vmax, length=length))
         mesh = LineCollection([], colors="k", linewidths=0.3, alpha=0.45)
         ax.add_collection(mesh, autolim=False)
         state["meshes"].append(mesh)

@@ -22,7 +22,7 @@ from surface_strain import (
     nodal_scalars,
 )
 
-__all__ = ["plot_principal_crosses"]
+__all__ = ["plot_principal_crosses", "principal_noise_floor"]
 
 
 def _nice_value(x: float) -> float:
@@ -49,6 +49,47 @@ def _node_spacing(field: StrainField, frame: int) -> float:
     return float(np.median(shortest)) if shortest.size else float("nan")
 
 
+def principal_noise_floor(
+    field: StrainField,
+    sigma_px: float,
+    *,
+    frame: int = 0,
+    quantile: float = 0.95,
+    draws: int = 32,
+    seed: int = 0,
+) -> float:
+    """The ``E1 - E2`` that tracking noise alone gives on this mesh (its ``quantile``).
+
+    Gaussian noise of ``sigma_px`` per coordinate is added to the node
+    positions of ``frame`` (a still specimen, ``draws`` times), the nodal
+    strain computed as the run computes it, and the ``quantile`` of
+    ``E1 - E2`` over nodes and draws returned: below it a difference of the
+    principal strains is not distinguishable from noise, so their directions
+    are not measured.  Small strains are linear in the noise, so the floor
+    scales with ``sigma_px``.
+    """
+    from surface_strain import compute_strain
+
+    if not (np.isfinite(sigma_px) and sigma_px >= 0):
+        raise InputError(f"sigma_px must be a number >= 0, got {sigma_px}")
+    if sigma_px == 0:
+        return 0.0
+    k = _frame_index(field, frame)
+    ref = field.points[k]
+    ok = np.all(np.isfinite(ref), axis=1)
+    tri = field.triangles[np.all(ok[field.triangles], axis=1)]
+    if len(tri) == 0:
+        return float("nan")
+    base = np.where(ok[:, None], ref, 0.0)
+    rng = np.random.default_rng(seed)
+    noisy = base[None] + rng.normal(0.0, sigma_px, (draws, *base.shape))
+    sim = compute_strain(base, noisy, tri)
+    node = nodal_scalars(sim)
+    diff = (node["E1"] - node["E2"])[:, ok]
+    diff = diff[np.isfinite(diff)]
+    return float(np.quantile(diff, quantile)) if diff.size else float("nan")
+
+
 def plot_principal_crosses(
     image: np.ndarray,
     field: StrainField,
@@ -58,6 +99,8 @@ def plot_principal_crosses(
     at: Literal["nodes", "triangles"] = "nodes",
     key_value: float | None = None,
     title: str | None = None,
+    noise: float = 0.0,
+    length=None,
 ) -> Figure:
     """Principal strain directions as crosses over the image, on the deformed configuration.
 
@@ -87,13 +130,24 @@ def plot_principal_crosses(
         Strain of the key's bar (default: a round value, 1, 2 or 5 times a
         power of ten, not above the largest |E| drawn).
     title : str, keyword-only
+    noise : float, keyword-only
+        The strain noise floor: where ``E1 - E2`` is not above it the
+        principal directions are not measured (any direction fits the data
+        within noise), and the point is drawn as an open circle of diameter
+        ``scale * |E1 + E2| / 2`` instead of a cross (see
+        :func:`principal_noise_floor`).  Default 0: crosses everywhere the
+        strain is not exactly isotropic.
+    length : PixelScale, keyword-only
+        The pixel size: axes in its unit instead of pixels.
 
     Returns
     -------
     matplotlib.figure.Figure
         The bars are two :class:`~matplotlib.collections.LineCollection`
         artists with ``gid`` ``"E1"`` and ``"E2"`` (one segment per drawn
-        point, in the same order); points without finite values are skipped.
+        point, in the same order); points without finite values are skipped,
+        points isotropic within ``noise`` are in the collection with ``gid``
+        ``"isotropic"`` (a circle each).
     """
     from matplotlib.patheffects import withStroke
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
@@ -107,6 +161,8 @@ def plot_principal_crosses(
         raise InputError(f"scale must be a positive number of pixels per unit strain, got {scale}")
     if key_value is not None and not (np.isfinite(key_value) and key_value > 0):
         raise InputError(f"key_value must be a positive strain, got {key_value}")
+    if not (np.isfinite(noise) and noise >= 0):
+        raise InputError(f"noise must be a strain >= 0, got {noise}")
     if at == "nodes":
         s = nodal_scalars(field)
         d = nodal_principal_directions(field)
@@ -121,8 +177,14 @@ def plot_principal_crosses(
     u1, u2 = d.dir1_cur[k], d.dir2_cur[k]
     ok &= np.isfinite(e1) & np.isfinite(e2) & np.all(np.isfinite(centres), axis=1)
     ok &= np.all(np.isfinite(u1), axis=1) & np.all(np.isfinite(u2), axis=1)
+    iso = ok & np.isfinite(e1) & np.isfinite(e2) & (np.abs(e1 - e2) <= noise)
+    iso &= np.all(np.isfinite(centres), axis=1)
+    ok &= ~iso
+    c_iso, e_iso = centres[iso], 0.5 * (e1[iso] + e2[iso])
     c, e1, e2, u1, u2 = centres[ok], e1[ok], e2[ok], u1[ok], u2[ok]
-    largest = float(max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0)))
+    largest = float(
+        max(np.abs(e1).max(initial=0.0), np.abs(e2).max(initial=0.0), np.abs(e_iso).max(initial=0))
+    )
     if scale is None:
         spacing = _node_spacing(field, k)
         if not np.isfinite(spacing):
@@ -131,7 +193,7 @@ def plot_principal_crosses(
 
     fig = Figure(figsize=_figsize_for_image(image, 1, 6.4), layout="constrained")
     ax = fig.add_subplot()
-    _show_image(ax, image)
+    _show_image(ax, image, length=length)
     outline = [withStroke(linewidth=3.2, foreground="white")]
     for gid, e, u in (("E1", e1, u1), ("E2", e2, u2)):
         half = (0.5 * scale * np.abs(e))[:, None] * u
@@ -145,6 +207,36 @@ def plot_principal_crosses(
         Line2D([], [], color=_STRETCH, lw=2, label="stretch (E > 0)"),
         Line2D([], [], color=_SHORTENING, lw=2, label="shortening (E < 0)"),
     ]
+    if c_iso.size:
+        from matplotlib.collections import EllipseCollection
+
+        diam = np.maximum(scale * np.abs(e_iso), 1e-9)
+        circles = EllipseCollection(
+            diam,
+            diam,
+            np.zeros_like(diam),
+            units="xy",
+            offsets=c_iso,
+            offset_transform=ax.transData,
+            facecolors="none",
+            edgecolors=np.where(e_iso >= 0, _STRETCH, _SHORTENING),
+            linewidths=1.4,
+        )
+        circles.set_gid("isotropic")
+        circles.set_path_effects(outline)
+        ax.add_collection(circles, autolim=False)
+        handles.append(
+            Line2D(
+                [],
+                [],
+                ls="",
+                marker="o",
+                mfc="none",
+                mec="0.3",
+                mew=1.4,
+                label=f"E1 - E2 within noise ({noise:.2g}): no direction",
+            )
+        )
     ax.legend(handles=handles, loc="upper right", fontsize=8, framealpha=0.85)
     if scale > 0 and largest > 0:
         value = _nice_value(largest) if key_value is None else float(key_value)

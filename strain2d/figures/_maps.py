@@ -1,7 +1,9 @@
 """Figures over a video frame: strain contour maps, the tracked grid and strain error maps.
 
 Image axes are in pixels with y pointing down (x = column, y = row, the
-centre of the top-left pixel at (0, 0)).
+centre of the top-left pixel at (0, 0)); with a pixel size (``length``, a
+:class:`strain2d.scale.PixelScale`) they are labelled in its unit, at round
+values of that unit, with the same origin.
 """
 
 from __future__ import annotations
@@ -40,12 +42,30 @@ __all__ = [
 ]
 
 
-def _show_image(ax, image: np.ndarray, *, vmin=None, vmax=None):
+def _length_axes(ax, shape: tuple[int, int], length=None) -> None:
+    """Axis labels in px, or in ``length``'s unit at round values (the data stay in px)."""
+    if length is None:
+        ax.set_xlabel("x (px)")
+        ax.set_ylabel("y (px)")
+        return
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+
+    per_px, unit = float(length.per_px), length.unit
+    for axis, n in ((ax.xaxis, shape[1]), (ax.yaxis, shape[0])):
+        lo, hi = -0.5 * per_px, (n - 0.5) * per_px
+        ticks = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(lo, hi)
+        ticks = ticks[(ticks >= lo) & (ticks <= hi)]
+        axis.set_major_locator(FixedLocator(ticks / per_px))
+        axis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v * per_px:.6g}"))
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+
+
+def _show_image(ax, image: np.ndarray, *, vmin=None, vmax=None, length=None):
     artist = ax.imshow(
         image, cmap="gray", interpolation="nearest", origin="upper", vmin=vmin, vmax=vmax
     )
-    ax.set_xlabel("x (px)")
-    ax.set_ylabel("y (px)")
+    _length_axes(ax, image.shape[:2], length)
     ax.set_xlim(-0.5, image.shape[1] - 0.5)
     ax.set_ylim(image.shape[0] - 0.5, -0.5)
     return artist
@@ -90,6 +110,7 @@ def strain_maps_figure(
     min_span: float = 0.01,
     alpha: float = 0.75,
     title: str | None = None,
+    length=None,
 ) -> Figure:
     """Contour maps of nodal strain components on the deformed configuration.
 
@@ -113,6 +134,8 @@ def strain_maps_figure(
         Opacity of the contours over the image.
     title : str, keyword-only
         Figure title above the panels.
+    length : PixelScale, keyword-only
+        The pixel size: axes in its unit instead of pixels.
 
     Returns
     -------
@@ -126,7 +149,7 @@ def strain_maps_figure(
     fig = Figure(figsize=_figsize_for_image(image, len(components)), layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(components)))
     for ax, comp in zip(axes, components, strict=True):
-        _show_image(ax, image)
+        _show_image(ax, image, length=length)
         values = scalars[comp][k]
         tri = _triangulation(field, k, values)
         used = values[np.unique(tri.triangles)] if tri is not None else values[:0]
@@ -272,11 +295,13 @@ def plot_tracked_grid(
     last_index: int | None = None,
     dpi: int = 120,
     formats: str | Sequence[str] | None = None,
+    length=None,
 ) -> list[Path]:
     """Save the tracked grid and mesh over the reference and the last frame.
 
     Lost points on the last frame are drawn as red crosses.  Returns the
     written files (see :func:`save_figure` for ``path`` and ``formats``).
+    ``length`` (a :class:`~strain2d.scale.PixelScale`) labels the axes in its unit.
     """
     last_index = tracks.n_frames - 1 if last_index is None else last_index
     fig = Figure(figsize=(11, 5.4), layout="constrained")
@@ -285,7 +310,7 @@ def plot_tracked_grid(
         (axes[0], first, 0, "frame 0 (reference)"),
         (axes[1], last, last_index, f"frame {last_index}"),
     ):
-        _show_image(ax, image)
+        _show_image(ax, image, length=length)
         pos = tracks.positions[k]
         vis = tracks.visible[k]
         ok_tri = np.all(vis[triangles], axis=1)

@@ -91,7 +91,9 @@ def test_run_report_is_self_contained(run_dir):
     assert page.media >= 7
     text = " ".join(page.text)
     assert summary["software"]["version"] in text
-    assert "eq.avi" in text and "Contraction endpoint" in text
+    # the endpoint's heading names the deformation (this video stretches)
+    label = summary["contraction_endpoint"]["label"]
+    assert "stretch" in label and "eq.avi" in text and label.capitalize() in text
     assert "node-level paired tests" in text
 
 

@@ -1,0 +1,93 @@
+"""Figures say what the data show: endpoints named after the deformation, crosses beyond noise."""
+
+import numpy as np
+import pytest
+
+from strain2d.figures import plot_principal_crosses, principal_noise_floor
+from strain2d.pipeline import strain_from_tracks
+from strain2d.report import endpoint_of
+from strain2d.tracks import Tracks
+
+
+def _grid(n=7, spacing=40.0):
+    ax = np.arange(n) * spacing + 60.0
+    xx, yy = np.meshgrid(ax, ax)
+    return np.column_stack([xx.ravel(), yy.ravel()])
+
+
+def _field(mapping, n_frames=12, ramp_until=None, noise=0.0, seed=0):
+    """A field whose frames apply mapping(s) with s ramping 0..1 (held after ramp_until)."""
+    g = _grid()
+    rng = np.random.default_rng(seed)
+    ramp_until = n_frames - 1 if ramp_until is None else ramp_until
+    s = np.minimum(np.arange(n_frames) / ramp_until, 1.0)
+    pos = np.stack([mapping(g, v) for v in s])
+    pos[1:] += rng.normal(0, noise, pos[1:].shape)
+    tracks = Tracks(pos, np.ones(pos.shape[:2], bool), np.ones(pos.shape[:2]))
+    return strain_from_tracks(tracks, grid_shape=(7, 7))
+
+
+def _scale_about_centre(fx, fy):
+    def mapping(g, s):
+        c = g.mean(axis=0)
+        return c + (g - c) * [1 + s * (fx - 1), 1 + s * (fy - 1)]
+
+    return mapping
+
+
+@pytest.mark.parametrize(
+    ("fx", "fy", "kind"),
+    [(0.8, 0.85, "contraction"), (1.2, 1.1, "stretch"), (1.2, 0.9, "deformation")],
+)
+def test_the_endpoint_is_named_after_the_deformation(fx, fy, kind):
+    field = _field(_scale_about_centre(fx, fy), ramp_until=6)
+    ep = endpoint_of(field)
+    assert ep["source"] == "detected" and ep["deformation"] == kind
+    assert ep["label"] == f"{kind} endpoint"
+
+
+def test_an_endpoint_not_reached_is_not_called_one():
+    field = _field(_scale_about_centre(1.2, 1.2))  # still stretching at the last frame
+    ep = endpoint_of(field)
+    assert ep["source"].startswith("not reached")
+    assert ep["label"] == "last frame (stretch endpoint not reached)"
+    assert endpoint_of(field, frame=5)["label"] == "stretch endpoint (given)"
+    still = _field(lambda g, s: g)
+    assert endpoint_of(still)["label"] == "last frame (no deformation)"
+
+
+def test_the_noise_floor_is_what_noise_alone_gives():
+    """On a still, noisy specimen, about 5 % of nodes exceed the 95th-percentile floor."""
+    field = _field(lambda g, s: g)
+    floor = principal_noise_floor(field, 0.1)
+    assert floor > 0
+    # linear in the noise but for Green-Lagrange's quadratic term
+    assert principal_noise_floor(field, 0.2) == pytest.approx(2 * floor, rel=2e-3)
+    assert principal_noise_floor(field, 0.0) == 0.0
+    from surface_strain import nodal_scalars
+
+    exceed = []
+    for seed in range(20):  # independent noise, not the floor's own draws
+        noisy = _field(lambda g, s: g, n_frames=2, noise=0.1, seed=100 + seed)
+        node = nodal_scalars(noisy)
+        exceed.append(np.mean(node["E1"][1] - node["E2"][1] > floor))
+    assert 0.02 < np.mean(exceed) < 0.09
+
+
+def test_crosses_are_drawn_only_beyond_noise():
+    iso = _field(_scale_about_centre(1.1, 1.1), noise=0.05, seed=3)
+    uni = _field(_scale_about_centre(1.1, 1.0), noise=0.05, seed=3)
+    image = np.zeros((400, 400))
+    floor = principal_noise_floor(iso, 0.05)
+    drawn = {}
+    for name, field in (("iso", iso), ("uni", uni)):
+        fig = plot_principal_crosses(image, field, -1, noise=floor)
+        by_gid = {c.get_gid(): c for c in fig.axes[0].collections}
+        drawn[name] = len(by_gid["E1"].get_segments())
+        circles = len(by_gid["isotropic"].get_offsets()) if "isotropic" in by_gid else 0
+        assert drawn[name] + circles == 49
+    # the floor is noise's 95th percentile: a few isotropic nodes still pass it by chance
+    assert drawn["iso"] <= 8 and drawn["uni"] == 49
+    # without a noise floor, noise alone draws directions on the isotropic field
+    fig = plot_principal_crosses(image, iso, -1)
+    assert len({c.get_gid(): c for c in fig.axes[0].collections}["E1"].get_segments()) == 49
