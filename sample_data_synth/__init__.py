@@ -47,6 +47,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "CalibrationViews",
             "CharucoBoard",
             "Checkerboard",
+            "CircleGrid",
             "StereoRig",
             "StereoScene",
             "default_rig",

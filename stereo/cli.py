@@ -676,6 +676,7 @@ def _cmd_reconstruct(args) -> int:
                 directions=directions,
                 unit=calib.unit,
                 source="points3d.csv",
+                point_quality={"reproj_error": rec.reproj_error},
             )
             summary["strain"] = _strain_summary(field, mesh)
         _quality_summary(summary, rec, calib, per_frame, field, args)

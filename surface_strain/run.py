@@ -261,7 +261,14 @@ def write_run(
     node = nodal_scalars(field)
     write_nodes_csv(folder / "strain_nodes.csv", field)
     write_elements_csv(folder / "strain_elements.csv", field)
-    write_pvd(folder, field, name="strain", times=times)
+    write_pvd(
+        folder,
+        field,
+        name="strain",
+        times=times,
+        time_unit="s" if fps else "frame",
+        length_unit=unit,
+    )
     last = field.n_frames - 1
     quality = measurement_quality(
         field, n_mesh_triangles=n_mesh_triangles, point_quality=point_quality
