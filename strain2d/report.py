@@ -22,7 +22,7 @@ from strain2d.errors import InputError
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
 from surface_strain import StrainField, nodal_scalars
-from tissue_core.html import HtmlReport
+from tissue_core.html import HtmlReport, format_value
 from tissue_core.jsonio import write_json
 
 __all__ = [
@@ -373,6 +373,19 @@ def run_outputs(
         "independent).",
     )
 
+    quality = fg.run_quality(tracks, field)
+    fig = fg.plot_run_quality(
+        quality, times, time_unit=unit, tracker=str(tracks.meta.get("tracker", "")), length=length
+    )
+    record(
+        fg.save_figure(fig, figdir / "tracking_quality", formats),
+        "Quality of the measurement over time: the points still tracked and the mesh area "
+        "with a valid strain (top); the tracker's own quality over the tracked points, median "
+        "and 5th percentile, and its measured uncertainty where it has one (bottom).",
+    )
+    quality_summary = _quality_summary(quality, field, sigma, noise, times, unit)
+    flags = _run_flags(quality_summary, ep, field, values, noise)
+
     table = {}
     for key in ("Exx", "Eyy", "Exy", "E1", "E2", "J"):
         v = node[key][k_end]
@@ -396,7 +409,86 @@ def run_outputs(
         "paired": {"components": [a, b], **tests},
     }
     write_json(folder / "statistics.json", statistics)
-    return {"contraction_endpoint": ep, "statistics": statistics, "figures": written}
+    return {
+        "contraction_endpoint": ep,
+        "statistics": statistics,
+        "figures": written,
+        "quality": quality_summary,
+        "flags": flags,
+    }
+
+
+def _worst(values, lowest: bool = True) -> tuple[float | None, int | None]:
+    a = np.array([np.nan if v is None else v for v in values], dtype=float)
+    if not np.isfinite(a).any():
+        return None, None
+    k = int(np.nanargmin(a) if lowest else np.nanargmax(a))
+    return float(a[k]), k
+
+
+def _quality_summary(quality: dict, field: StrainField, sigma, noise, times, unit) -> dict:
+    """The quality of a run for ``summary.json``: worst frames, mesh, noise; per-frame lists."""
+    from surface_strain import triangle_quality
+
+    ratio = triangle_quality(field.reference, field.triangles)
+    vis, k_vis = _worst(quality["visible_pct"])
+    cov, k_cov = _worst(quality["coverage_pct"])
+    q, k_q = _worst(quality["quality_median"])
+    return {
+        "lowest_visible_pct": vis,
+        "lowest_visible_frame": k_vis,
+        "lowest_coverage_pct": cov,
+        "lowest_coverage_frame": k_cov,
+        "lowest_median_quality": q,
+        "lowest_median_quality_frame": k_q,
+        "median_uncertainty_px": sigma,
+        "principal_direction_noise_floor": noise,
+        "mesh": {
+            "n_triangles": int(field.n_triangles),
+            "radius_ratio_min": float(ratio.min()) if ratio.size else None,
+            "radius_ratio_median": float(np.median(ratio)) if ratio.size else None,
+            "slivers": int((ratio < 0.1).sum()),
+        },
+        "per_frame": quality,
+        "time_unit": unit,
+    }
+
+
+def _run_flags(q: dict, ep: dict, field: StrainField, values: dict, noise: float) -> list[str]:
+    """What a reader of the run should know before trusting it, one sentence each."""
+    flags = []
+    if q["lowest_visible_pct"] is not None and q["lowest_visible_pct"] < 100:
+        flags.append(
+            f"Points were lost: {q['lowest_visible_pct']:.0f} % still tracked on frame "
+            f"{q['lowest_visible_frame']}; their triangles have no strain there."
+        )
+    if q["lowest_coverage_pct"] is not None and q["lowest_coverage_pct"] < 90:
+        flags.append(
+            f"Only {q['lowest_coverage_pct']:.0f} % of the mesh area has a valid strain on "
+            f"frame {q['lowest_coverage_frame']}."
+        )
+    if q["lowest_median_quality"] is not None and q["lowest_median_quality"] < 0.8:
+        flags.append(
+            f"The tracker's median quality falls to {q['lowest_median_quality']:.2f} on frame "
+            f"{q['lowest_median_quality_frame']}: check the tracked grid on the video."
+        )
+    if q["mesh"]["slivers"]:
+        flags.append(
+            f"{q['mesh']['slivers']} of {q['mesh']['n_triangles']} triangles are slivers "
+            "(radius ratio below 0.1): their strain magnifies tracking noise."
+        )
+    source = str(ep.get("source", ""))
+    if source.startswith(("not reached", "none", "too few")):
+        flags.append(f"Endpoint: {source}.")
+    e1 = values.get("Exx")
+    if noise > 0 and e1 is not None and e1.size:
+        typical = float(np.median(np.abs(np.concatenate(list(values.values())))))
+        if typical < 2 * noise:
+            flags.append(
+                f"The strain at the endpoint (median |E| {typical:.2g}) is within twice the "
+                f"noise floor ({noise:.2g}) that the tracking uncertainty gives."
+            )
+    return flags
 
 
 def _embeddable(folder: Path, files: list[str]) -> Path | None:
@@ -431,6 +523,57 @@ def _uncertainty_text(u) -> str:
     if u.get("last_frame_median") is not None:
         text += f"; median {u['last_frame_median']:.3g} on the last frame"
     return text
+
+
+def _quality_section(doc: HtmlReport, summary: dict) -> None:
+    q = summary.get("quality")
+    if not q:
+        return
+    doc.heading("Quality of the measurement")
+    mesh = q.get("mesh", {})
+    unc = q.get("median_uncertainty_px")
+    scale = (summary.get("units") or {}).get("scale")
+    unc_text = "not measured by this tracker"
+    if unc is not None:
+        unc_text = f"{unc:.3g} px"
+        if isinstance(scale, dict) and scale.get("length_per_px"):
+            unc_text += f" = {unc * scale['length_per_px']:.3g} {scale['unit']}"
+    rows = [
+        ("points tracked, lowest", q.get("lowest_visible_pct"), q.get("lowest_visible_frame"), "%"),
+        (
+            "mesh area with strain, lowest",
+            q.get("lowest_coverage_pct"),
+            q.get("lowest_coverage_frame"),
+            "%",
+        ),
+        (
+            "tracker's median quality, lowest",
+            q.get("lowest_median_quality"),
+            q.get("lowest_median_quality_frame"),
+            "(-)",
+        ),
+    ]
+    table = [
+        {"measure": name, "value": "n/a" if v is None else f"{v:.4g} {u}", "frame": k}
+        for name, v, k, u in rows
+    ]
+    table += [
+        {"measure": "tracking uncertainty at the endpoint, median (1 sigma)", "value": unc_text},
+        {
+            "measure": "mesh: triangles, radius ratio min / median, slivers",
+            "value": f"{mesh.get('n_triangles')}, {format_value(mesh.get('radius_ratio_min'))}"
+            f" / {format_value(mesh.get('radius_ratio_median'))}, {mesh.get('slivers')}",
+        },
+        {
+            "measure": "principal-direction noise floor (E1 - E2)",
+            "value": format_value(q.get("principal_direction_noise_floor")),
+        },
+    ]
+    doc.table(table, columns=["measure", "value", "frame"])
+    doc.paragraph(
+        "Every frame's values are in summary.json (quality.per_frame) and in the tracking "
+        "quality figure below."
+    )
 
 
 def _scale_text(scale) -> str:
@@ -479,6 +622,12 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
             "command": " ".join(summary.get("command") or []),
         }
     )
+    if summary.get("input_files"):
+        doc.heading("Inputs")
+        doc.inputs(summary["input_files"])
+    doc.heading("What was flagged")
+    doc.flags(summary.get("flags") or [])
+    _quality_section(doc, summary)
     ep = summary.get("contraction_endpoint")
     if ep:
         doc.heading(ep.get("label", "contraction endpoint").capitalize())

@@ -568,6 +568,8 @@ def write_run(
             "tracking_uncertainty_px": _uncertainty_summary(tracks),
             "final_frame": {"index": T - 1, "nodal_strain": _final_stats(field)},
             "contraction_endpoint": extra["contraction_endpoint"],
+            "quality": extra["quality"],
+            "flags": extra["flags"],
             "statistics": extra["statistics"],
             "units": _units(scale, fps, tracks.uncertainty is not None),
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",

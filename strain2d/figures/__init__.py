@@ -48,6 +48,7 @@ from strain2d.figures._maps import (
     plot_tracked_grid,
     strain_maps_figure,
 )
+from strain2d.figures._quality import plot_run_quality, run_quality
 from strain2d.figures._save import save_figure
 from strain2d.figures._study import plot_specimen_means, plot_study_curves, plot_study_violins
 from strain2d.figures._style import strain_limits
@@ -57,6 +58,7 @@ __all__ = [
     "format_p",
     "mean_strain_curves",
     "plot_principal_crosses",
+    "plot_run_quality",
     "plot_specimen_means",
     "plot_strain_curves",
     "plot_strain_errors",
@@ -67,6 +69,7 @@ __all__ = [
     "plot_study_violins",
     "plot_tracked_grid",
     "principal_noise_floor",
+    "run_quality",
     "save_figure",
     "strain_limits",
     "strain_maps_figure",

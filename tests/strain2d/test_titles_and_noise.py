@@ -91,3 +91,26 @@ def test_crosses_are_drawn_only_beyond_noise():
     # without a noise floor, noise alone draws directions on the isotropic field
     fig = plot_principal_crosses(image, iso, -1)
     assert len({c.get_gid(): c for c in fig.axes[0].collections}["E1"].get_segments()) == 49
+
+
+def test_run_quality_counts_lost_points_and_the_area_they_take():
+    from strain2d.figures import plot_run_quality, run_quality
+
+    g = _grid()
+    pos = np.stack([g, g * 1.01, g * 1.02])
+    vis = np.ones((3, 49), bool)
+    vis[2, 0] = False  # a corner: its one triangle of the grid's 72 loses its strain
+    quality = np.ones((3, 49))
+    quality[1] = np.linspace(0.5, 1.0, 49)
+    tracks = Tracks(pos, vis, quality)
+    field = strain_from_tracks(tracks, grid_shape=(7, 7))
+    q = run_quality(tracks, field)
+    assert q["visible_pct"] == [100.0, 100.0, pytest.approx(100 * 48 / 49)]
+    lost_area = field.element_valid[2].size - field.element_valid[2].sum()
+    assert lost_area in (1, 2)  # the corner node touches one or two triangles
+    assert q["coverage_pct"][2] == pytest.approx(100 * (72 - lost_area) / 72)
+    assert q["quality_median"][1] == pytest.approx(0.75)
+    assert q["quality_p5"][1] == pytest.approx(np.percentile(quality[1], 5))
+    assert q["uncertainty_median_px"] is None
+    fig = plot_run_quality(q, [0.0, 0.5, 1.0], time_unit="s", tracker="dic")
+    assert fig.axes[1].get_xlabel() == "time (s)" and "ZNCC" in fig.axes[1].get_ylabel()

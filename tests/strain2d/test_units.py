@@ -96,7 +96,8 @@ def test_a_scaled_run_writes_mm_in_every_table_figure_report_and_vtp(small_case,
     # every figure with image axes says mm, none says px
     svgs = sorted((out / "figures").glob("*.svg"))
     assert len(svgs) >= 5
-    image_figures = [p for p in svgs if not p.name.startswith(("strain_curves", "violins"))]
+    plots = ("strain_curves", "violins", "tracking_quality")  # time axes, no image
+    image_figures = [p for p in svgs if not p.name.startswith(plots)]
     assert len(image_figures) >= 3
     for svg in image_figures:
         text = _svg_text(svg)
@@ -104,9 +105,15 @@ def test_a_scaled_run_writes_mm_in_every_table_figure_report_and_vtp(small_case,
     for svg in svgs:
         assert "(px)" not in _svg_text(svg), svg.name
     assert "time (s)" in _svg_text(out / "figures" / "strain_curves.svg")
+    assert "uncertainty (mm, 1 sigma)" in _svg_text(out / "figures" / "tracking_quality.svg")
 
     report = (out / "report.html").read_text()
     assert "0.02 mm/px" in report
+    assert summary["input_files"][0]["sha256"] and summary["input_files"][0]["sha256"] in report
+    assert "Quality of the measurement" in report and "What was flagged" in report
+    from tests.report_browser import problems
+
+    assert problems(out / "report.html") == []
 
 
 def test_without_a_scale_positions_stay_in_pixels(small_case, tmp_path):
