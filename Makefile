@@ -44,13 +44,13 @@ demo: setup
 	mkdir -p $(DEMO)
 	$(BIN)/python -m sample_data_synth video --case equibiaxial --out $(DEMO)/data --overwrite
 	$(BIN)/python -m strain2d analyze $(DEMO)/data/equibiaxial.avi --grid 7x7 \
-	    --roi 202,202,597,597 --out $(DEMO)/equibiaxial --overwrite
-	@echo "demo results in $(DEMO)/equibiaxial: tracks.csv, strain_nodes.csv, strain.pvd, figures/"
+	    --roi 202,202,597,597 --scale 0.012mm/px --fps 10 --out $(DEMO)/equibiaxial --overwrite
+	@echo "demo results in $(DEMO)/equibiaxial: report.html, tracks.csv, strain_nodes.csv, strain.pvd, figures/"
 	$(BIN)/python -m sample_data_synth stack --case pair --out $(DEMO)/stacks --overwrite -q
 	$(BIN)/python -m mpm3d analyze $(DEMO)/stacks/after.tif --out $(DEMO)/mpm3d_after --overwrite
 	$(BIN)/python -m mpm3d compare $(DEMO)/stacks/before.tif $(DEMO)/stacks/after.tif \
 	    --out $(DEMO)/mpm3d_compare --overwrite
-	@echo "demo results in $(DEMO)/mpm3d_after (metrics.json, surface.vtp, figures/) and $(DEMO)/mpm3d_compare"
+	@echo "demo results in $(DEMO)/mpm3d_after (report.html, metrics.json, surface.vtp, figures/) and $(DEMO)/mpm3d_compare"
 	$(BIN)/python -m sample_data_synth stereo --case calibration --out $(DEMO)/stereo_targets --overwrite -q
 	$(BIN)/python -m sample_data_synth stereo --case dome --out $(DEMO)/stereo_scene --overwrite -q
 	$(BIN)/python -m stereo calibrate --board checkerboard:9x6:10 \
@@ -60,7 +60,7 @@ demo: setup
 	$(BIN)/python -m stereo reconstruct --calib $(DEMO)/stereo_calib.json \
 	    --left $(DEMO)/stereo_scene/dome/left --right $(DEMO)/stereo_scene/dome/right \
 	    --grid 13x13 --roi 525,318,664,456 --strain --out $(DEMO)/stereo_dome --overwrite
-	@echo "demo results in $(DEMO)/stereo_calib.json and $(DEMO)/stereo_dome (points3d.csv, strain/, figures/)"
+	@echo "demo results in $(DEMO)/stereo_calib.json and $(DEMO)/stereo_dome (report.html, points3d.csv, strain/, figures/)"
 	$(BIN)/python -m sample_data_synth study --out $(DEMO)/study_data --overwrite -q
 	roi=$$($(BIN)/python -c "import csv,sys; print(next(csv.DictReader(open(sys.argv[1])))['roi'])" \
 	    $(DEMO)/study_data/manifest.csv) && \

@@ -6,7 +6,9 @@ Writes docs/images/: the demo's tracked grid and strain maps (from
 demo_output/), the four synthetic benchmark cases, a 3D membrane-strain
 example computed by surface_strain, and dic's strain-error maps on two
 heterogeneous fields with a coarse and a fine grid; and the mpm3d demo's
-height map, 3D surface, fold profiles and before/after comparison.
+height map, 3D surface, fold profiles and before/after comparison; and a
+screenshot of the top of every package's report.html, taken in headless
+Chromium (``tests/report_browser.py``).
 """
 
 from __future__ import annotations
@@ -186,6 +188,33 @@ def report_figures() -> None:
     image.save(OUT / "run_animation_frame.png", optimize=True)
 
 
+def report_screenshots() -> None:
+    """The top of each demo report.html as the browser shows it (1100 px wide), shrunk."""
+    import sys
+
+    from PIL import Image
+
+    sys.path.insert(0, str(ROOT))
+    from tests.report_browser import screenshot
+
+    demo = ROOT / "demo_output"
+    reports = {
+        "report_strain2d.png": demo / "equibiaxial" / "report.html",
+        "report_study.png": demo / "study" / "report.html",
+        "report_mpm3d.png": demo / "mpm3d_after" / "report.html",
+        "report_mpm3d_compare.png": demo / "mpm3d_compare" / "report.html",
+        "report_stereo.png": demo / "stereo_dome" / "report.html",
+        "report_surface_strain.png": demo / "stereo_dome" / "strain" / "report.html",
+    }
+    for name, path in reports.items():
+        if not path.is_file():
+            raise SystemExit(f"run `make demo` first ({path} is missing)")
+        shot = screenshot(path, OUT / name, size=(1100, 1500))
+        image = Image.open(shot).convert("RGB")
+        image.thumbnail((640, 900))
+        image.save(shot, optimize=True)
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     demo_figures()
@@ -194,4 +223,5 @@ if __name__ == "__main__":
     error_figures()
     mpm3d_figures()
     report_figures()
+    report_screenshots()
     print(f"figures written to {OUT}")
