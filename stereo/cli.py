@@ -198,6 +198,12 @@ def _build_parser() -> CommandLine:
     )
     p.add_argument("--max-reproj", type=float, default=1.0, help="px; worse points are dropped")
     p.add_argument(
+        "--fps",
+        type=float,
+        default=None,
+        help="frame rate of the videos: time axes in seconds (default: the frame index)",
+    )
+    p.add_argument(
         "--strain",
         action="store_true",
         help="also compute membrane strain on the 3D tracks into DIR/strain/",
@@ -402,6 +408,8 @@ def _check_reconstruct_options(args) -> None:
 
     if args.points and (args.grid is not None or args.roi is not None):
         raise InputError("give either --points or --grid/--roi, not both")
+    if args.fps is not None and not (np.isfinite(args.fps) and args.fps > 0):
+        raise InputError(f"--fps must be a positive number, got {args.fps}")
     if args.directions is not None and not args.strain:
         raise InputError("--directions sets the frame of the strain: it needs --strain")
     usable = _frame_trackers()
@@ -626,7 +634,10 @@ def _cmd_reconstruct(args) -> int:
         per_frame = frame_quality(rec)
         _write_frame_quality(tmp / "quality_per_frame.csv", per_frame)
         plot_quality(
-            per_frame, max_reproj_px=args.max_reproj, quality_name=rec.meta["tracking_quality"]
+            per_frame,
+            max_reproj_px=args.max_reproj,
+            quality_name=rec.meta["tracking_quality"],
+            fps=args.fps,
         ).savefig(tmp / "figures" / "quality.png")
         err = rec.reproj_error[rec.visible]
         summary = {
@@ -642,6 +653,8 @@ def _cmd_reconstruct(args) -> int:
                 "rms_px": calib.rms_px,  # NaN (null) for a calibration made elsewhere
             },
             "frames": rec.n_frames,
+            # surface_strain compute reads the frame rate from here for points3d.csv
+            "time_axis": {"fps": args.fps, "unit": "s" if args.fps else "frame"},
             "points": {"n": rec.n_points, **point_info},
             "visible_fraction": float(rec.visible.mean()),
             "reprojection_rms_px": float(np.sqrt(np.mean(err**2))) if err.size else None,
@@ -677,6 +690,7 @@ def _cmd_reconstruct(args) -> int:
                 unit=calib.unit,
                 source="points3d.csv",
                 point_quality={"reproj_error": rec.reproj_error},
+                fps=args.fps,
             )
             summary["strain"] = _strain_summary(field, mesh)
         _quality_summary(summary, rec, calib, per_frame, field, args)

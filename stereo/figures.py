@@ -78,7 +78,13 @@ def plot_points3d(rec, *, unit: str = "mm", frame: int = -1):
     return fig
 
 
-def plot_quality(per_frame: dict, *, max_reproj_px: float | None = None, quality_name="ZNCC"):
+def plot_quality(
+    per_frame: dict,
+    *,
+    max_reproj_px: float | None = None,
+    quality_name="ZNCC",
+    fps: float | None = None,
+):
     """Reprojection error, tracking quality and points with a 3D position against the frame.
 
     Parameters
@@ -89,10 +95,14 @@ def plot_quality(per_frame: dict, *, max_reproj_px: float | None = None, quality
         The reprojection limit, drawn as a line.
     quality_name : str
         What the tracker's quality measures (the middle panel's axis).
+    fps : float, optional
+        Frame rate: the time axis in seconds instead of frames.
     """
     fig = _figure(7.5, 6.4)
     axes = fig.subplots(3, 1, sharex=True)
     frames = np.asarray(per_frame["frame"])
+    if fps:
+        frames = frames / fps
     marker = "o" if len(frames) <= 60 else None
     ax = axes[0]
     ax.plot(frames, per_frame["reproj_median_px"], marker=marker, ms=3, label="median")
@@ -124,10 +134,11 @@ def plot_quality(per_frame: dict, *, max_reproj_px: float | None = None, quality
             marker=marker, ms=3, color="C2")  # fmt: skip
     ax.set_ylabel("points with a\n3D position (%)")
     ax.set_ylim(-2, 102)
-    ax.set_xlabel("frame")
-    from matplotlib.ticker import MaxNLocator
+    ax.set_xlabel("time (s)" if fps else "frame")
+    if not fps:
+        from matplotlib.ticker import MaxNLocator
 
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     for ax in axes:
         ax.grid(True, lw=0.3)
     fig.suptitle("Quality of the reconstruction per frame")

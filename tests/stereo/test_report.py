@@ -42,9 +42,13 @@ def test_reconstruct_report_shows_inputs_quality_and_flags(small_stereo, tmp_pat
     calib_path.write_text(json.dumps(calib))
     out = tmp_path / "rec"
     argv = ["reconstruct", "--calib", calib_path, "--left", s.left, "--right", s.right,
-            "--points", s.points, "--strain", "--out", out, "-q"]  # fmt: skip
+            "--points", s.points, "--strain", "--fps", 4, "--out", out, "-q"]  # fmt: skip
     assert main([str(a) for a in argv]) == 0
     summary = json.loads((out / "summary.json").read_text(), parse_constant=pytest.fail)
+    # the frame rate reaches both time axes: the reconstruction's and its strain run's
+    assert summary["time_axis"] == {"fps": 4.0, "unit": "s"}
+    strain = json.loads((out / "strain" / "summary.json").read_text())
+    assert strain["time_axis"] == {"fps": 4.0, "unit": "s"}
 
     # inputs with their checksums, in the summary and the report
     records = {Path(r["path"]).name: r for r in summary["input_files"]}
