@@ -353,7 +353,7 @@ def _scale_option(args):
 
         scale_from_ruler(args.scale_ruler)  # the form, before the video is read
         return None
-    if args.scale:
+    if args.scale is not None:
         from strain2d.scale import parse_scale
 
         return parse_scale(args.scale)

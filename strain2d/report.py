@@ -316,7 +316,7 @@ def run_outputs(
             + "; the colour scale is the same at every frame.",
         )
     sigma = _median_uncertainty(tracks, k_end)
-    noise = fg.principal_noise_floor(field, sigma, frame=0) if sigma is not None else 0.0
+    noise = fg.principal_noise_floor(field, sigma, frame=k_end) if sigma is not None else 0.0
     noise = noise if np.isfinite(noise) else 0.0
     fig = fg.plot_principal_crosses(
         images[k_end],
@@ -806,6 +806,7 @@ def _study_figure(doc: HtmlReport, folder: Path, figures: list[dict], stem: str)
 def _study_flags(stats: dict) -> list[str]:
     """What a reader of the study should know before trusting its numbers."""
     a, b = stats["components"]
+    alpha = float(stats.get("alpha", 0.05))
     out = []
     if stats.get("excluded"):
         out.append(
@@ -816,10 +817,11 @@ def _study_flags(stats: dict) -> list[str]:
         who = "The study" if key == "all" else f"Group {key}"
         if t["n"] < 2:
             out.append(f"{who} has {t['n']} specimen(s): nothing can be tested.")
-        elif t["n"] < 6:
+        elif 2.0 / 2.0 ** t["n"] >= alpha:  # the exact test's smallest two-sided p
             out.append(
                 f"{who} has {t['n']} specimens: its Wilcoxon signed-rank test "
-                "cannot reach p < 0.05 (two-sided)."
+                f"cannot reach p < {alpha:g} (two-sided; its smallest p is "
+                f"{2.0 / 2.0 ** t['n']:.3g})."
             )
     model = stats.get("mixed_model")
     if model and not model["usable"]:

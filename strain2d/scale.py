@@ -50,7 +50,7 @@ class PixelScale:
     source: str = "given"
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.per_px) and self.per_px > 0):
+        if not (math.isfinite(self.per_px) and 1e-300 < self.per_px < 1e300):
             raise InputError(f"the pixel size must be a positive number, got {self.per_px}")
         if self.unit not in LENGTH_UNITS:
             raise InputError(f"unknown length unit {self.unit!r}; use {', '.join(LENGTH_UNITS)}")
@@ -75,7 +75,7 @@ class PixelScale:
 
 def _number(text: str, what: str) -> float:
     value = float(text)
-    if not (math.isfinite(value) and value > 0):
+    if not (math.isfinite(value) and 1e-300 < value < 1e300):
         raise InputError(f"{what} must be a positive number, got {text}")
     return value
 

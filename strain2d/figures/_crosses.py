@@ -53,20 +53,24 @@ def principal_noise_floor(
     field: StrainField,
     sigma_px: float,
     *,
-    frame: int = 0,
+    frame: int = -1,
     quantile: float = 0.95,
     draws: int = 32,
     seed: int = 0,
 ) -> float:
-    """The ``E1 - E2`` that tracking noise alone gives on this mesh (its ``quantile``).
+    """The ``E1 - E2`` that tracking noise alone gives on this mesh at ``frame`` (a quantile).
 
     Gaussian noise of ``sigma_px`` per coordinate is added to the node
-    positions of ``frame`` (a still specimen, ``draws`` times), the nodal
-    strain computed as the run computes it, and the ``quantile`` of
-    ``E1 - E2`` over nodes and draws returned: below it a difference of the
-    principal strains is not distinguishable from noise, so their directions
-    are not measured.  Small strains are linear in the noise, so the floor
-    scales with ``sigma_px``.
+    positions of ``frame`` (``draws`` times; the reference positions are the
+    field's own, as a tracker's are), the nodal strain computed as the run
+    computes it, and the change of the strain tensor that the noise made is
+    turned into the ``E1 - E2`` it would give on an isotropic strain:
+    ``2 sqrt(((dExx - dEyy) / 2)^2 + dExy^2)``.  Its ``quantile`` over nodes
+    and draws is returned: below it a difference of the principal strains is
+    not distinguishable from noise, so their directions are not measured.
+    The noise is taken at ``frame``'s deformation because Green-Lagrange
+    strain amplifies it with the stretch (a contraction damps it).  Small
+    noise is linear, so the floor scales with ``sigma_px``.
     """
     from surface_strain import compute_strain
 
@@ -75,17 +79,21 @@ def principal_noise_floor(
     if sigma_px == 0:
         return 0.0
     k = _frame_index(field, frame)
-    ref = field.points[k]
-    ok = np.all(np.isfinite(ref), axis=1)
+    cur = field.points[k]
+    ok = np.all(np.isfinite(cur), axis=1) & np.all(np.isfinite(field.reference), axis=1)
     tri = field.triangles[np.all(ok[field.triangles], axis=1)]
     if len(tri) == 0:
         return float("nan")
-    base = np.where(ok[:, None], ref, 0.0)
+    ref = np.where(ok[:, None], field.reference, 0.0)
+    base = np.where(ok[:, None], cur, 0.0)
     rng = np.random.default_rng(seed)
     noisy = base[None] + rng.normal(0.0, sigma_px, (draws, *base.shape))
-    sim = compute_strain(base, noisy, tri)
-    node = nodal_scalars(sim)
-    diff = (node["E1"] - node["E2"])[:, ok]
+    clean = nodal_scalars(compute_strain(ref, base[None], tri))
+    node = nodal_scalars(compute_strain(ref, noisy, tri))
+    dxx = node["Exx"] - clean["Exx"]
+    dyy = node["Eyy"] - clean["Eyy"]
+    dxy = node["Exy"] - clean["Exy"]
+    diff = (2.0 * np.sqrt(((dxx - dyy) / 2.0) ** 2 + dxy**2))[:, ok]
     diff = diff[np.isfinite(diff)]
     return float(np.quantile(diff, quantile)) if diff.size else float("nan")
 

@@ -477,3 +477,16 @@ def test_study_report_leads_with_the_specimen_and_fits_the_window(study_dir, tmp
     assert stats["n_boot"] == 2000
     assert all("descriptive" in r["node_level"]["label"] for r in stats["specimens"])
     assert problems(report) == []
+
+
+@pytest.mark.parametrize(("n", "alpha", "flagged"), [(5, 0.05, True), (6, 0.05, False),
+                                                     (7, 0.01, True), (8, 0.01, False),
+                                                     (5, 0.1, False)])  # fmt: skip
+def test_the_small_group_flag_follows_alpha(n, alpha, flagged):
+    """The exact two-sided Wilcoxon p is at least 2 / 2^n: flagged when that is not < alpha."""
+    from strain2d.report import _study_flags
+
+    stats = {"components": ["Exx", "Eyy"], "alpha": alpha, "specimen_level": {"all": {"n": n}}}
+    stats["specimens"] = []
+    flags = _study_flags(stats)
+    assert any("cannot reach" in f for f in flags) == flagged

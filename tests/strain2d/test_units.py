@@ -29,7 +29,9 @@ def test_scale_parses_both_ways(text, per_px, unit):
     assert PixelScale.from_json(scale.to_json()) == scale
 
 
-@pytest.mark.parametrize("text", ["0.012", "mm/px", "0.012 inch/px", "-1mm/px", "0mm/px", "x"])
+@pytest.mark.parametrize(
+    "text", ["0.012", "mm/px", "0.012 inch/px", "-1mm/px", "0mm/px", "x", "", "1e-320mm/px"]
+)
 def test_a_bad_scale_is_one_clear_error(text):
     with pytest.raises(InputError, match=r"--scale|positive"):
         parse_scale(text)
