@@ -96,9 +96,10 @@ def _build_parser():
     scale.add_argument(
         "--scale",
         metavar="SIZE",
-        help="pixel size on the specimen, e.g. 0.012mm/px or 83.3px/mm (nm, um, mm, cm, m): "
-        "tables gain positions and displacements in that unit (x_mm, u_mm...), figure axes "
-        "and the ParaView files are in it (default: pixels; strain is dimensionless)",
+        help="pixel size on the specimen, e.g. 0.012mm/px or 83.3px/mm (nm, um, mm, cm, m), "
+        "or 'auto': the one a TIFF records (ImageJ/Fiji, OME); tables gain positions and "
+        "displacements in that unit (x_mm, u_mm...), figure axes and the ParaView files "
+        "are in it (default: pixels; strain is dimensionless)",
     )
     scale.add_argument(
         "--scale-ruler",
@@ -353,6 +354,10 @@ def _scale_option(args):
 
         scale_from_ruler(args.scale_ruler)  # the form, before the video is read
         return None
+    if args.scale is not None and args.scale.strip().lower() == "auto":
+        from strain2d.scale import scale_from_file
+
+        return scale_from_file(args.source[0])
     if args.scale is not None:
         from strain2d.scale import parse_scale
 

@@ -3,7 +3,9 @@
 A :class:`PixelScale` says how long one pixel is on the specimen.  It comes
 from a number (``--scale``) or from a known length measured on the first
 frame (``--scale-ruler X0,Y0,X1,Y1:LENGTH``: two pixel positions on a ruler,
-a calibration target or a scale bar, and the length between them).  With a
+a calibration target or a scale bar, and the length between them), or from
+the pixel size a TIFF records (``--scale auto``: ImageJ/Fiji's calibration,
+OME-TIFF's ``PhysicalSizeX``, or the TIFF resolution in centimetres).  With a
 scale, a run's positions and displacements are written in that unit as well
 as in pixels (``x_mm``, ``u_mm``... beside ``x``, ``u``), its figures' axes
 are in the unit, its ParaView files are in the unit, and ``summary.json``
@@ -30,7 +32,7 @@ from dataclasses import dataclass
 
 from tissue_core.errors import InputError
 
-__all__ = ["LENGTH_UNITS", "PixelScale", "parse_scale", "scale_from_ruler"]
+__all__ = ["LENGTH_UNITS", "PixelScale", "parse_scale", "scale_from_file", "scale_from_ruler"]
 
 #: accepted length units and their size in metres
 LENGTH_UNITS = {"nm": 1e-9, "um": 1e-6, "µm": 1e-6, "mm": 1e-3, "cm": 1e-2, "m": 1.0}
@@ -138,4 +140,88 @@ def scale_from_ruler(text: str, image_shape: tuple[int, int] | None = None) -> P
         unit,
         f"ruler on the first frame: ({x0:g}, {y0:g}) to ({x1:g}, {y1:g}), "
         f"{px:.2f} px = {size:g} {unit}",
+    )
+
+
+#: unit names that TIFF writers use (ImageJ writes "micron" or an escaped "µm")
+_TIFF_UNITS = {
+    "nm": "nm", "nanometer": "nm", "nanometre": "nm",
+    "um": "um", "µm": "um", "micron": "um", "microns": "um",
+    "micrometer": "um", "micrometre": "um",
+    "mm": "mm", "millimeter": "mm", "millimetre": "mm",
+    "cm": "cm", "centimeter": "cm", "centimetre": "cm",
+    "m": "m", "meter": "m", "metre": "m",
+}  # fmt: skip
+
+
+def _ratio(value) -> float | None:
+    try:
+        num, den = value
+        return float(num) / float(den) if den else None
+    except (TypeError, ValueError):
+        return None
+
+
+def scale_from_file(path) -> PixelScale:
+    """The pixel size a TIFF records (``--scale auto``), or InputError saying why there is none.
+
+    Read, in order: ImageJ/Fiji's calibration (``unit`` in its metadata and
+    the X resolution in pixels per unit), OME-TIFF's ``PhysicalSizeX`` and
+    its unit, and a TIFF resolution in centimetres.  Square pixels are
+    assumed; a file whose X and Y resolutions differ is refused.  A
+    resolution in inches is a print setting (72 dpi...), not a pixel size,
+    and is refused too.
+    """
+    import os
+
+    name = os.fspath(path)
+    if os.path.isdir(name):  # a folder of frames: the first TIFF's
+        tiffs = sorted(f for f in os.listdir(name) if f.lower().endswith((".tif", ".tiff")))
+        name = os.path.join(name, tiffs[0]) if tiffs else name
+    if not name.lower().endswith((".tif", ".tiff")):
+        raise InputError(
+            f"--scale auto reads the pixel size of a TIFF; {name} is not one: give --scale "
+            f"0.012mm/px or --scale-ruler"
+        )
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(name) as tif:
+            page = tif.pages[0]
+            tags = page.tags
+            xres = _ratio(tags["XResolution"].value) if "XResolution" in tags else None
+            yres = _ratio(tags["YResolution"].value) if "YResolution" in tags else None
+            res_unit = int(tags["ResolutionUnit"].value) if "ResolutionUnit" in tags else 1
+            ij = tif.imagej_metadata or {}
+            ome = tif.ome_metadata if tif.is_ome else None
+    except Exception as exc:  # tifffile raises many types on damaged files
+        raise InputError(f"{name}: cannot read its TIFF tags ({exc})") from None
+    if xres and yres and abs(xres - yres) > 1e-6 * max(xres, yres):
+        raise InputError(
+            f"{name}: its pixels are not square ({1 / xres:.6g} x {1 / yres:.6g} per pixel); "
+            "give --scale"
+        )
+    raw_unit = str(ij.get("unit", "")).strip()
+    unit = _TIFF_UNITS.get(raw_unit.lower().replace("\\u00b5", "µ"))
+    if unit and xres:
+        return PixelScale(1.0 / xres, unit, f"{name}: ImageJ calibration, {1 / xres:.6g} {unit}/px")
+    if ome:
+        import re as _re
+
+        size = _re.search(r'PhysicalSizeX="([^"]+)"', ome)
+        size_unit = _re.search(r'PhysicalSizeXUnit="([^"]+)"', ome)
+        ome_unit = _TIFF_UNITS.get((size_unit.group(1) if size_unit else "µm").lower())
+        if size and ome_unit:
+            value = float(size.group(1))
+            return PixelScale(value, ome_unit, f"{name}: OME PhysicalSizeX {value:g} {ome_unit}")
+    if res_unit == 3 and xres:  # pixels per centimetre
+        return PixelScale(10.0 / xres, "mm", f"{name}: TIFF resolution {xres:g} px/cm")
+    if res_unit == 2 and xres:
+        raise InputError(
+            f"{name} records {xres:g} pixels per inch, a print setting rather than the "
+            "pixel size on the specimen: give --scale or --scale-ruler"
+        )
+    raise InputError(
+        f"{name} records no pixel size (no ImageJ calibration, OME PhysicalSizeX or "
+        "resolution in cm): give --scale or --scale-ruler"
     )

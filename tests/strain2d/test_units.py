@@ -164,3 +164,44 @@ def test_the_animation_axes_are_in_the_scale_unit(small_case):
     assert ax.get_xlabel() == "x (um)" and ax.get_ylabel() == "y (um)"
     ticks = [float(t.get_text()) for t in ax.get_xticklabels() if t.get_text()]
     assert ticks and max(ticks) <= 100 and all(t == round(t) for t in ticks)
+
+
+def test_scale_auto_reads_the_pixel_size_a_tiff_records(tmp_path, small_case):
+    """ImageJ/Fiji's calibration, OME's PhysicalSizeX and a resolution in cm; inches refused."""
+    import tifffile
+
+    from strain2d.scale import scale_from_file
+
+    _, video = small_case
+    frames = video.frames
+    ij = tmp_path / "ij.tif"
+    tifffile.imwrite(
+        ij, frames, imagej=True, resolution=(2.0, 2.0), metadata={"unit": "micron", "axes": "TYX"}
+    )
+    scale = scale_from_file(ij)
+    assert (scale.per_px, scale.unit) == (0.5, "um")
+    ome = tmp_path / "ome.ome.tif"
+    tifffile.imwrite(ome, frames, metadata={"axes": "TYX", "PhysicalSizeX": 0.25,
+                                            "PhysicalSizeXUnit": "mm"})  # fmt: skip
+    scale = scale_from_file(ome)
+    assert (scale.per_px, scale.unit) == (0.25, "mm")
+    cm = tmp_path / "cm.tif"
+    tifffile.imwrite(cm, frames, resolution=(400.0, 400.0), resolutionunit="CENTIMETER")
+    scale = scale_from_file(cm)
+    assert scale.unit == "mm" and scale.per_px == pytest.approx(0.025)
+    inch = tmp_path / "inch.tif"
+    tifffile.imwrite(inch, frames, resolution=(72.0, 72.0), resolutionunit="INCH")
+    with pytest.raises(InputError, match="print setting"):
+        scale_from_file(inch)
+    plain = tmp_path / "plain.tif"
+    tifffile.imwrite(plain, frames)
+    with pytest.raises(InputError, match="records no pixel size"):
+        scale_from_file(plain)
+
+    out = tmp_path / "run"
+    args = ["-q", "analyze", str(ij), "--grid", "3x3", "--tracker", "klt", "--animation", "none"]
+    assert main([*args, "--scale", "auto", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["units"]["scale"]["length_per_px"] == 0.5
+    assert "ImageJ calibration" in summary["units"]["scale"]["source"]
+    assert "x_um" in (out / "tracks.csv").read_text().splitlines()[0]
