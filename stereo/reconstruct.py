@@ -43,7 +43,8 @@ class Reconstruction:
     left_quality, right_quality : (T, N) float, optional
         The 2D tracker's quality of each point in each view (ZNCC for ``dic``
         and ``gdic``, forward-backward agreement for ``klt``; 1 is best), NaN
-        where the point was not tracked in that view.
+        where the point was not tracked in that view: lost by the tracker there,
+        or never matched between the views (then NaN in both).
     """
 
     tracks: Tracks
@@ -167,8 +168,13 @@ def reconstruct(
     right_positions[:, matched] = right_sub.positions
     right_visible = np.zeros((T, N), bool)
     right_visible[:, matched] = right_sub.visible
+    # a view's tracking quality counts only the points tracked in it: matched
+    # between the views and not lost (a lost point's quality is the tracker's 0)
     right_quality = np.full((T, N), np.nan)
-    right_quality[:, matched] = right_sub.quality
+    right_quality[:, matched] = np.where(right_sub.visible, right_sub.quality, np.nan)
+    left_quality = np.where(
+        left_tracks.visible & matches.visible[None, :], left_tracks.quality, np.nan
+    )
     say("triangulating")
     X = np.full((T, N, 3), np.nan)
     err = np.full((T, N), np.nan)
@@ -195,6 +201,6 @@ def reconstruct(
         left=left_tracks.positions,
         right=right_positions,
         meta=meta,
-        left_quality=np.asarray(left_tracks.quality, np.float64),
+        left_quality=np.asarray(left_quality, np.float64),
         right_quality=right_quality,
     )

@@ -84,8 +84,9 @@ def frame_quality(rec) -> dict[str, np.ndarray]:
         the median and 95th percentile of the reprojection error over the
         points with a 3D position (NaN where there is none);
         ``quality_left_median``, ``quality_right_median`` the median of the
-        2D tracker's quality over the points tracked in that view (NaN
-        without the qualities).
+        2D tracker's quality over the points tracked in that view (those
+        matched between the views and not lost there: the points whose
+        quality is not NaN; NaN without the qualities).
     """
     T, N = rec.visible.shape
     err = np.where(rec.visible, rec.reproj_error, np.nan)

@@ -136,15 +136,42 @@ def _reconstruction(err, visible, left_q, right_q) -> Reconstruction:
 def test_frame_quality_counts_and_percentiles():
     err = np.array([[0.1, 0.2, 0.3, 0.4, 0.5], [0.1, 0.2, 0.3, 5.0, np.nan]])
     visible = np.array([[1, 1, 1, 1, 1], [1, 1, 1, 0, 0]], bool)
-    left_q = np.array([[1, 1, 1, 1, 1], [0.9, 0.8, 0.7, 0.0, 0.0]])
+    # as reconstruct stores them: point 4 was never matched (NaN in both views);
+    # point 3 is tracked in both views in frame 1, only over the reprojection limit
+    left_q = np.array([[1, 1, 1, 1, np.nan], [0.9, 0.8, 0.7, 0.6, np.nan]])
     right_q = np.array([[1, 1, 1, 1, np.nan], [0.95, 0.85, 0.75, 0.65, np.nan]])
     q = frame_quality(_reconstruction(err, visible, left_q, right_q))
     assert q["points_3d"].tolist() == [5, 3] and q["lost"].tolist() == [0, 2]
     assert q["reproj_median_px"] == pytest.approx([0.3, 0.2], abs=EXACT)
     # numpy's linear percentile: 0.4 + 0.8 * 0.1 and 0.2 + 0.9 * 0.1
     assert q["reproj_p95_px"] == pytest.approx([0.48, 0.29], abs=EXACT)
-    assert q["quality_left_median"] == pytest.approx([1.0, 0.7], abs=EXACT)
-    assert q["quality_right_median"] == pytest.approx([1.0, 0.8], abs=EXACT)  # NaN: not tracked
+    # the medians over the 4 points tracked in each view: (0.7 + 0.8) / 2, (0.75 + 0.85) / 2
+    assert q["quality_left_median"] == pytest.approx([1.0, 0.75], abs=EXACT)
+    assert q["quality_right_median"] == pytest.approx([1.0, 0.8], abs=EXACT)
+
+
+def test_tracking_quality_counts_only_points_tracked_in_that_view(small_stereo):
+    """A grid larger than the sheet: the points off it are never matched, and the
+    trackers lose some; a lost point's quality (the tracker's 0) is not the view's."""
+    from stereo.calibration import load_calibration
+    from stereo.reconstruct import reconstruct
+    from strain2d import open_frames
+
+    s = small_stereo
+    x, y = np.meshgrid(np.linspace(60, 450, 6), np.linspace(60, 320, 5))
+    left, right = open_frames([str(s.left)]), open_frames([str(s.right)])
+    rec = reconstruct(
+        left, right, load_calibration(s.calib), np.column_stack([x.ravel(), y.ravel()])
+    )
+    matched = np.isfinite(rec.right[0]).all(axis=1)
+    assert 0 < matched.sum() < matched.size
+    for q in (rec.left_quality, rec.right_quality):
+        assert np.isnan(q[:, ~matched]).all()
+        assert (q[np.isfinite(q)] > 0.5).all()  # no lost point's 0
+    assert np.isfinite(rec.left_quality[:, rec.visible.any(axis=0)]).all()
+    per_frame = frame_quality(rec)
+    for side in ("left", "right"):
+        assert (per_frame[f"quality_{side}_median"] > 0.99).all(), side  # was 0 on the left
 
 
 def test_mesh_quality_of_right_triangles_and_a_fold():
