@@ -243,25 +243,40 @@ def read_vic3d(path: str | os.PathLike, *, image_size=None):
     -------
     Calibration
         camera 0 as the left camera; ``extra["imported_format"] = "vic3d"``.
+
+    Raises
+    ------
+    InputError
+        The file holds no or several ``<calibration>`` elements, or a camera
+        id twice within it.
     """
     path = Path(path)
     root = _parse(path)
-    cameras = {}
     found_size = None
     for el in root.iter():
-        tag = _tag(el)
-        if tag == "polygonmask" and found_size is None:
+        if _tag(el) == "polygonmask" and found_size is None:
             try:
                 found_size = (int(el.get("width")), int(el.get("height")))
             except (TypeError, ValueError):
                 raise InputError(
                     f"{path}: polygonmask width and height must be whole numbers"
                 ) from None
-        if tag != "camera":
+    blocks = [el for el in root.iter() if _tag(el) == "calibration"]
+    if len(blocks) != 1:
+        raise InputError(
+            f"{path}: not a VIC-3D stereo calibration: need one <calibration> element, "
+            f"found {len(blocks)}"
+            + ("; keep the one that was used for this measurement" if blocks else "")
+        )
+    cameras = {}
+    for el in blocks[0].iter():
+        if _tag(el) != "camera":
             continue
         cid = el.get("id")
         if cid is None or not cid.strip().isdigit():
             raise InputError(f"{path}: a <camera> has no numeric id (id={cid!r})")
+        if int(cid) in cameras:
+            raise InputError(f'{path}: <camera id="{int(cid)}"> appears more than once')
         orientation = [c for c in el if _tag(c) == "orientation"]
         if len(orientation) != 1:
             raise InputError(f"{path}: camera {cid} has no <orientation> (6 numbers)")
@@ -458,8 +473,12 @@ def _fmt(value: float) -> str:
     return repr(float(value))
 
 
-def write_vic3d(calib, path: str | os.PathLike) -> None:
+def write_vic3d(calib, path: str | os.PathLike, *, overwrite: bool = False) -> None:
     """Write a calibration as VIC-3D's ``<calibration>`` XML (camera 0 at the identity).
+
+    The file appears whole or not at all (:func:`tissue_core.outputs.atomic_file`);
+    an existing one is replaced only with ``overwrite`` and only when the toolkit
+    wrote it.
 
     Raises
     ------
@@ -485,11 +504,14 @@ def write_vic3d(calib, path: str | os.PathLike) -> None:
         )
     w, h = calib.image_size
     lines += [f'  <polygonmask width="{w}" height="{h}"/>', "</calibration>", ""]
-    Path(path).write_text("\n".join(lines), encoding="utf-8")
+    _write_text(path, "\n".join(lines), overwrite=overwrite)
 
 
-def write_dice(calib, path: str | os.PathLike) -> None:
+def write_dice(calib, path: str | os.PathLike, *, overwrite: bool = False) -> None:
     """Write a calibration as a DICe XML ``ParameterList`` (``OPENCV_LENS_DISTORTION``).
+
+    Written like :func:`write_vic3d`: whole or not at all, replacing a file only
+    with ``overwrite``.
 
     Raises
     ------
@@ -534,7 +556,14 @@ def write_dice(calib, path: str | os.PathLike) -> None:
         )
         out.append("  </ParameterList>")
     out += ["</ParameterList>", ""]
-    Path(path).write_text("\n".join(out), encoding="utf-8")
+    _write_text(path, "\n".join(out), overwrite=overwrite)
+
+
+def _write_text(path: str | os.PathLike, text: str, *, overwrite: bool) -> None:
+    from tissue_core.outputs import atomic_file
+
+    with atomic_file(path, overwrite=overwrite) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 _SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")

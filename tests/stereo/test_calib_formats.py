@@ -128,6 +128,29 @@ def test_vic3d_round_trip_and_image_size_option(tmp_path):
         read_vic3d(out, image_size=(5, 5))
 
 
+@pytest.mark.parametrize("write", [write_vic3d, write_dice])
+def test_writers_replace_only_their_own_file_and_only_with_overwrite(tmp_path, write):
+    calib = read_vic3d(_write(tmp_path / "cal.xml", vic3d_text()))
+    calib.K_left[0, 1] = calib.K_right[0, 1] = 0.0  # DICe's OpenCV model has no skew
+    mine, theirs = tmp_path / "mine.xml", _write(tmp_path / "theirs.xml", "a lab's notes")
+    write(calib, mine)
+    first = mine.read_bytes()
+    with pytest.raises(InputError, match="exists"):
+        write(calib, mine)
+    with pytest.raises(InputError):
+        write(calib, theirs, overwrite=True)
+    assert theirs.read_text() == "a lab's notes" and mine.read_bytes() == first
+    calib.T[0] += 1.0
+    write(calib, mine, overwrite=True)
+    assert load_calibration(mine).T[0] == pytest.approx(calib.T[0])
+    assert sorted(p.name for p in tmp_path.iterdir() if "tmp" in p.name) == []
+
+
+def _write(path, text):
+    path.write_text(text)
+    return path
+
+
 def dice_pixels(X, cam):
     """DICe's Camera::sensor_to_image written out for the models the toolkit converts."""
     v = {k: cam.get(k, 0.0) for k in ("CX", "CY", "FX", "FY", "FS", "K1", "K2", "K3", "K4",
@@ -357,6 +380,17 @@ BAD = {
         ["baseline"],
     ),
     "broken-xml": (lambda: vic3d_text()[:-40], ["not a readable XML calibration"]),
+    # the reader took the last camera 1 / the last block's cameras
+    "vic3d-camera-twice": (
+        lambda: vic3d_text([*VIC_CAMERAS, VIC_CAMERAS[0]]).replace('id="2"', 'id="1"'),
+        ['<camera id="1"> appears more than once'],
+    ),
+    "vic3d-two-calibrations": (
+        lambda: vic3d_text().replace(
+            "</project>", vic3d_text(mask=False, project=False).split("\n", 1)[1] + "</project>"
+        ),
+        ["one <calibration> element, found 2"],
+    ),
 }
 
 

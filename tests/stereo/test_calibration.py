@@ -245,7 +245,7 @@ def test_a_vic3d_or_dice_file_cut_anywhere_loads_or_is_refused_in_one_line(
     calib.K_right[0, 1] = 0.0  # DICe's OpenCV model has no skew
     calib.dist_left[2:4] = calib.dist_right[2:4] = 0.0  # VIC-3D's has no tangential terms
     whole = tmp_path / "whole.xml"
-    (write_vic3d if fmt == "vic3d" else write_dice)(calib, whole)
+    (write_vic3d if fmt == "vic3d" else write_dice)(calib, whole, overwrite=True)
     data = whole.read_bytes()
     path = tmp_path / "cal.xml"
     path.write_bytes(data[: cut % (len(data) + 1)])
