@@ -96,6 +96,7 @@ import numpy as np
 from tissue_core.errors import InputError
 
 __all__ = [
+    "ImageSizeMissing",
     "euler_rotation",
     "parse_image_size",
     "read_dice",
@@ -194,6 +195,14 @@ def _rig(poses: list[tuple[np.ndarray, np.ndarray]], relative: bool = False):
     return R, t1 - R @ t0
 
 
+class ImageSizeMissing(InputError):
+    """A calibration file that holds no image size, and none was given.
+
+    ``stereo import-calib`` asks for ``--image-size``; ``stereo reconstruct``
+    and ``stereo match`` take the size of the images they read.
+    """
+
+
 def _size(found, given, path: Path) -> tuple[int, int]:
     if found is not None and given is not None and tuple(found) != tuple(given):
         raise InputError(
@@ -202,7 +211,7 @@ def _size(found, given, path: Path) -> tuple[int, int]:
         )
     size = found if found is not None else given
     if size is None:
-        raise InputError(
+        raise ImageSizeMissing(
             f"{path}: the calibration holds no image size; give it with --image-size WxH"
         )
     return int(size[0]), int(size[1])

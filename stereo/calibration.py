@@ -603,7 +603,7 @@ def load_calibration(
     *paths : the file(s)
     image_size : (width, height) px, keyword-only
         For files that hold no image size (``--image-size``); a file that
-        holds another one is refused.
+        holds another one is refused, a calibration JSON included.
 
     Every value is checked (see :class:`Calibration`).
 
@@ -614,6 +614,8 @@ def load_calibration(
     InputError
         A file that is not a calibration, or a value that is not part of a
         camera model; one line naming the file and the value.
+        :class:`stereo.calib_formats.ImageSizeMissing` (an ``InputError``): the
+        files hold no image size and ``image_size`` is None.
     """
     if not paths:
         raise InputError("no calibration file given")
@@ -626,7 +628,7 @@ def load_calibration(
         if p.stat().st_size == 0:
             raise SourceError(f"{p} is empty: not a calibration file")
     first = paths[0]
-    from stereo.calib_formats import read_dice, read_vic3d, sniff
+    from stereo.calib_formats import ImageSizeMissing, read_dice, read_vic3d, sniff
 
     kinds = [sniff(p) for p in paths]
     if any(kinds):
@@ -648,7 +650,14 @@ def load_calibration(
                 f"give one calibration JSON, or OpenCV YAML/XML files (intrinsics, "
                 f"extrinsics), not {names}"
             )
-        return _read_json_calibration(first)
+        calib = _read_json_calibration(first)
+        if image_size is not None and tuple(calib.image_size) != tuple(image_size):
+            w, h = calib.image_size
+            raise InputError(
+                f"{first}: the calibration is for {w}x{h} px images, --image-size says "
+                f"{image_size[0]}x{image_size[1]}"
+            )
+        return calib
     merged: dict = {}  # lower-case name -> (file, name in the file, value)
     for p in paths:
         for key, (name, value) in _opencv_file(p).items():
@@ -672,7 +681,7 @@ def load_calibration(
     elif image_size is not None:
         size = list(image_size)
     else:
-        raise InputError(
+        raise ImageSizeMissing(
             f"{', '.join(map(str, paths))}: no image size (image_size, or image_width and "
             "image_height; OpenCV's stereo_calib sample writes none): give --image-size WxH"
         )

@@ -128,6 +128,13 @@ def _say(args):
     return Progress(quiet=args.quiet)
 
 
+_CALIB_HELP = (
+    "calibration: the JSON of stereo calibrate or import-calib, OpenCV YAML/XML files "
+    "(intrinsics, extrinsics), or one VIC-3D or DICe XML; a file without the image size "
+    "is taken to be for the size of the images read"
+)
+
+
 def _build_parser() -> CommandLine:
     cli = CommandLine("stereo", "Stereo calibration and 3D point tracks.")
 
@@ -172,7 +179,7 @@ def _build_parser() -> CommandLine:
     p.add_argument("left_image")
     p.add_argument("right_image")
     p.add_argument("--points", required=True, help="CSV with columns x,y (left image, px)")
-    p.add_argument("--calib", nargs="+", help="calibration (JSON, or OpenCV YAML files)")
+    p.add_argument("--calib", nargs="+", help=_CALIB_HELP)
     _match_args(p)
     p.add_argument("--out", required=True, help="CSV to write")
     _common(p)
@@ -183,7 +190,7 @@ def _build_parser() -> CommandLine:
         later=_tracker_flags,
         help="track a grid in both videos and triangulate it",
     )
-    p.add_argument("--calib", nargs="+", required=True, help="calibration (JSON or OpenCV YAML)")
+    p.add_argument("--calib", nargs="+", required=True, help=_CALIB_HELP)
     p.add_argument("--left", nargs="+", required=True, help="left video, TIFF, folder or images")
     p.add_argument("--right", nargs="+", required=True, help="right video, TIFF, folder or images")
     p.add_argument("--grid", help=f"grid COLSxROWS (default {_DEFAULT_GRID})")
@@ -309,10 +316,27 @@ def _cmd_import(args) -> int:
     return 0
 
 
-def _load_calib(paths):
+def _load_calib(paths, shape: tuple[int, int], say) -> tuple:
+    """The calibration in ``paths`` (None without) and where its image size comes from.
+
+    A file that holds no image size (OpenCV's stereo_calib sample, VIC-3D
+    ``.cal`` files) is for images of ``shape`` (H, W), those the command reads:
+    ``"frames"``, said through ``say``; otherwise ``"calibration"``.
+    """
+    from stereo.calib_formats import ImageSizeMissing
     from stereo.calibration import load_calibration
 
-    return load_calibration(*paths) if paths else None
+    if not paths:
+        return None, None
+    try:
+        return load_calibration(*paths), "calibration"
+    except ImageSizeMissing:
+        h, w = shape
+        calib = load_calibration(*paths, image_size=(w, h))
+        calib.extra["image_size_from"] = "frames"
+        names = " + ".join(Path(p).name for p in paths)
+        say(f"note: {names} holds no image size: taken from the images, {w}x{h} px")
+        return calib, "frames"
 
 
 def _cmd_match(args) -> int:
@@ -324,13 +348,13 @@ def _cmd_match(args) -> int:
     inputs = [args.left_image, args.right_image, args.points, *(args.calib or [])]
     writing = {"overwrite": args.overwrite, "inputs": inputs}
     check_writable(args.out, kind="file", **writing)
-    calib = _load_calib(args.calib)
     left, right = read_gray(args.left_image), read_gray(args.right_image)
     if left.shape != right.shape:
         raise InputError(
             f"the views differ in size: {args.left_image} is {left.shape[1]}x{left.shape[0]}, "
             f"{args.right_image} is {right.shape[1]}x{right.shape[0]}"
         )
+    calib, _ = _load_calib(args.calib, left.shape, _say(args))
     if calib is not None:
         _check_calibration_size(calib, args.calib, left.shape, args.left_image)
     _check_subset_fits("--match-subset", args.match_subset, left.shape, "images")
@@ -572,13 +596,14 @@ def _cmd_reconstruct(args) -> int:
     inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])
     inputs += tracker_inputs(args)
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
-    calib = _load_calib(args.calib)
+    say = _say(args)
     left, right = open_frames(args.left), open_frames(args.right)
     if len(left) != len(right):
         raise InputError(
             f"the views have different frame counts: {len(left)} in {_source_name(left)}, "
             f"{len(right)} in {_source_name(right)}"
         )
+    calib, size_from = _load_calib(args.calib, left.shape, say)
     _check_calibration_size(calib, args.calib, left.shape, _source_name(left))
     _check_calibration_size(calib, args.calib, right.shape, _source_name(right))
     _check_subset_fits("--match-subset", args.match_subset, left.shape, "frames")
@@ -591,7 +616,6 @@ def _cmd_reconstruct(args) -> int:
     else:
         points, point_info = _grid_points(args, left.shape)
     directions = args.directions or "xy"
-    say = _say(args)
     rec = reconstruct(
         left,
         right,
@@ -649,6 +673,8 @@ def _cmd_reconstruct(args) -> int:
             "unit": calib.unit,
             "calibration": {
                 "image_size": list(calib.image_size),
+                # "frames": the calibration file holds none; it is that of the frames
+                "image_size_from": size_from,
                 "baseline": calib.baseline,
                 "rms_px": calib.rms_px,  # NaN (null) for a calibration made elsewhere
             },

@@ -131,6 +131,8 @@ def calibration_quality(calib) -> dict:
         "baseline": float(calib.baseline),
         "unit": calib.unit,
         "image_size": [int(v) for v in calib.image_size],
+        # "frames" where the calibration file holds none (stereo reconstruct takes the frames')
+        "image_size_from": extra.get("image_size_from", "calibration"),
     }
 
 
@@ -497,7 +499,10 @@ def write_report(
             "target": cal.get("board"),
             "imported from": cal.get("imported_from"),
             f"baseline ({unit})": cal.get("baseline"),
-            "image size (px)": cal.get("image_size"),
+            "image size (px)": cal.get("image_size")
+            if cal.get("image_size_from") != "frames"
+            else f"{cal['image_size'][0]}x{cal['image_size'][1]}, the frames' (the "
+            "calibration file holds none)",
         },
     )
     doc.heading("Matching the views (reference frames)", 3)

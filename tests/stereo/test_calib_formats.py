@@ -454,3 +454,42 @@ def test_skew_is_carried_exactly(skewed):
     pr = project(X, skewed.K_right, skewed.dist_right, skewed.R, skewed.T)
     Y, err = triangulate(pl, pr, skewed)
     assert np.abs(Y - X).max() < ROUND_PX and err.max() < ROUND_PX
+
+
+# --------------------------------------------------------------------------- image size
+
+
+def test_match_and_reconstruct_take_a_missing_image_size_from_the_images(
+    small_stereo, tmp_path, capsys
+):
+    """They have no --image-size: an OpenCV file without one is for the images they read."""
+    from tests.stereo.conftest import SMALL_SIZE, write_opencv_yaml
+
+    s = small_stereo
+    yml = tmp_path / "stereo.yml"
+    write_opencv_yaml(yml, json.loads(s.calib.read_text()), image_size=False)
+    out = tmp_path / "matches.csv"
+    argv = ["match", s.left0, s.right0, "--points", s.points, "--calib", yml, "--out", out]
+    assert main([str(a) for a in argv]) == 0
+    assert "holds no image size: taken from the images, 512x384 px" in capsys.readouterr().err
+    rec = tmp_path / "rec"
+    argv = ["reconstruct", "--calib", yml, "--left", s.left, "--right", s.right,
+            "--points", s.points, "--out", rec, "-q"]  # fmt: skip
+    assert main([str(a) for a in argv]) == 0
+    summary = json.loads((rec / "summary.json").read_text())
+    assert summary["calibration"]["image_size"] == list(SMALL_SIZE)
+    assert summary["calibration"]["image_size_from"] == "frames"
+    html = (rec / "report.html").read_text()
+    assert "512x384, the frames&#x27; (the calibration file holds none)" in html
+
+
+def test_import_calib_refuses_an_image_size_a_json_calibration_contradicts(
+    small_stereo, tmp_path, capsys
+):
+    out = tmp_path / "calib.json"
+    argv = ["import-calib", small_stereo.calib, "--image-size", "640x480", "--out", out]
+    assert_refused(
+        main, argv, capsys, prog="stereo", inputs=[small_stereo.calib], out=out,
+        fragments=[str(small_stereo.calib), "512x384", "--image-size says 640x480"],
+    )  # fmt: skip
+    assert main([str(a) for a in argv[:3]] + ["512x384", "--out", str(out)]) == 0
