@@ -35,7 +35,9 @@ class Reconstruction:
         units, left-camera frame, NaN where lost; their quality is the
         negative reprojection error (higher is better).
     reproj_error : (T, N) float, RMS reprojection error over the two views, px
-    left, right : (T, N, 2) float, the 2D tracks in each view, px
+    left, right : (T, N, 2) float, the 2D tracks in each view, px, NaN where that
+        view's tracker lost the point (a tracker keeps its last position) and, in
+        the right view, where the point was never matched
     meta : dict
         The tracker and its options, the cross-view match (``match``,
         ``match_quality``: each point's ZNCC between the views, ``epipolar_px``),
@@ -165,7 +167,9 @@ def reconstruct(
     )
     T, N = left_tracks.positions.shape[:2]
     right_positions = np.full((T, N, 2), np.nan)
-    right_positions[:, matched] = right_sub.positions
+    right_positions[:, matched] = np.where(
+        right_sub.visible[..., None], right_sub.positions, np.nan
+    )
     right_visible = np.zeros((T, N), bool)
     right_visible[:, matched] = right_sub.visible
     # a view's tracking quality counts only the points tracked in it: matched
@@ -198,7 +202,7 @@ def reconstruct(
     return Reconstruction(
         tracks=Tracks(X, visible, np.where(np.isfinite(err), -err, -np.inf), meta),
         reproj_error=err,
-        left=left_tracks.positions,
+        left=np.where(left_tracks.visible[..., None], left_tracks.positions, np.nan),
         right=right_positions,
         meta=meta,
         left_quality=np.asarray(left_quality, np.float64),

@@ -169,6 +169,11 @@ def test_tracking_quality_counts_only_points_tracked_in_that_view(small_stereo):
         assert np.isnan(q[:, ~matched]).all()
         assert (q[np.isfinite(q)] > 0.5).all()  # no lost point's 0
     assert np.isfinite(rec.left_quality[:, rec.visible.any(axis=0)]).all()
+    # the 2D tracks (tracks_left.csv, tracks_right.csv) hold no lost point at a stale place
+    tracked = {side: np.isfinite(getattr(rec, side)).all(axis=2) for side in ("left", "right")}
+    assert not tracked["left"][1].all()
+    assert (np.isfinite(rec.left_quality) == tracked["left"] & matched).all()
+    assert (np.isfinite(rec.right_quality) == tracked["right"]).all()
     per_frame = frame_quality(rec)
     for side in ("left", "right"):
         assert (per_frame[f"quality_{side}_median"] > 0.99).all(), side  # was 0 on the left
