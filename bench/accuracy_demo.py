@@ -7,7 +7,9 @@ tables quote:
 
 * mpm3d: fold wavelength, median and max fold height, orientation (from each
   ``metrics.json``), the height map's RMS error and the surface mesh's RMS
-  distance to the true surface (from ``heightmap.tif`` and ``surface.vtp``).
+  distance to the true surface (from ``heightmap.tif`` and ``surface.vtp``);
+  the quality each report shows (coverage, separability, mesh holes, mesh vs
+  height map, height ranges) and the comparison's alignment.
 * stereo: calibration RMS and baseline error, matching and tracking errors,
   reprojection RMS, 3D RMSE (raw and after one rigid alignment) and the
   membrane strain RMSE (principal strains) against the analytic field.
@@ -59,6 +61,23 @@ def mpm3d_accuracy(demo: Path) -> None:
             f"height map RMS {hm_rms:.2f} um, mesh RMS distance "
             f"{np.sqrt(np.mean(dist[inner] ** 2)):.2f} um"
         )
+        q = m["quality"]
+        mesh_q, diff = q["mesh"], q["mesh_vs_heightmap_um"]
+        lo, hi = m["height_range_um"]
+        print(
+            f"    quality: coverage {100 * q['surface_coverage']:.2f} %, separability "
+            f"{q['otsu_separability']:.3f}, mesh {mesh_q['triangles']} triangles, "
+            f"{mesh_q['holes']} holes, area ratio {mesh_q['developed_area_ratio']:.3f} "
+            f"(1 + Sdr {1 + m['Sdr_percent'] / 100:.3f}), mesh vs height map median "
+            f"{diff['median_abs']:.2f} / p95 {diff['p95_abs']:.2f} / max {diff['max_abs']:.1f} "
+            f"um, heights {lo:.1f}-{hi:.1f} um, colour range "
+            f"{m['height_colour_range_um'][0]:.1f}-{m['height_colour_range_um'][1]:.1f} um"
+        )
+    align = json.loads((demo / "mpm3d_compare" / "compare.json").read_text())["alignment"]
+    print(
+        f"  compare: correlation {align['overlap_correlation']:.2f}, residual RMS "
+        f"{align['residual_rms_um']:.0f} um over {100 * align['overlap_fraction']:.1f} % overlap"
+    )
 
 
 def _kabsch_rmse(A: np.ndarray, B: np.ndarray) -> tuple[float, float]:
