@@ -383,7 +383,7 @@ def run_outputs(
         "with a valid strain (top); the tracker's own quality over the tracked points, median "
         "and 5th percentile, and its measured uncertainty where it has one (bottom).",
     )
-    quality_summary = _quality_summary(quality, field, sigma, noise, times, unit)
+    quality_summary = _quality_summary(quality, sigma, noise, unit)
     flags = _run_flags(quality_summary, ep, field, values, noise)
 
     table = {}
@@ -426,11 +426,9 @@ def _worst(values, lowest: bool = True) -> tuple[float | None, int | None]:
     return float(a[k]), k
 
 
-def _quality_summary(quality: dict, field: StrainField, sigma, noise, times, unit) -> dict:
+def _quality_summary(quality: dict, sigma, noise, unit) -> dict:
     """The quality of a run for ``summary.json``: worst frames, mesh, noise; per-frame lists."""
-    from surface_strain import triangle_quality
-
-    ratio = triangle_quality(field.reference, field.triangles)
+    mesh = quality["mesh"]
     vis, k_vis = _worst(quality["visible_pct"])
     cov, k_cov = _worst(quality["coverage_pct"])
     q, k_q = _worst(quality["quality_median"])
@@ -444,12 +442,12 @@ def _quality_summary(quality: dict, field: StrainField, sigma, noise, times, uni
         "median_uncertainty_px": sigma,
         "principal_direction_noise_floor": noise,
         "mesh": {
-            "n_triangles": int(field.n_triangles),
-            "radius_ratio_min": float(ratio.min()) if ratio.size else None,
-            "radius_ratio_median": float(np.median(ratio)) if ratio.size else None,
-            "slivers": int((ratio < 0.1).sum()),
+            "n_triangles": mesh["n_triangles"],
+            "radius_ratio_min": mesh["quality_min"],
+            "radius_ratio_median": mesh["quality_median"],
+            "slivers": mesh["slivers"],
         },
-        "per_frame": quality,
+        "per_frame": {k: v for k, v in quality.items() if k != "mesh"},
         "time_unit": unit,
     }
 

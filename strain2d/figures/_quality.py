@@ -15,23 +15,24 @@ __all__ = ["plot_run_quality", "run_quality"]
 def run_quality(tracks, field) -> dict:
     """Per-frame quality of a run: lists of T values, JSON-ready.
 
-    ``visible_pct`` of the points tracked; ``coverage_pct`` of the reference
-    mesh area whose triangles have a valid strain; ``quality_median`` and
-    ``quality_p5``, the tracker's quality (dic, gdic: ZNCC; klt: forward-backward
-    agreement, 1 = exact) over the visible points; ``uncertainty_median_px``
-    where the tracker measures its uncertainty (else None).
+    ``visible_pct`` of the points tracked and ``coverage_pct`` of the
+    reference mesh area whose triangles have a valid strain, with ``mesh``
+    (triangle count, radius ratios, slivers), all from
+    :func:`surface_strain.measurement_quality`; ``quality_median`` and
+    ``quality_p5``, the tracker's quality (dic, gdic: ZNCC; klt:
+    forward-backward agreement, 1 = exact) over the visible points;
+    ``uncertainty_median_px`` where the tracker measures its uncertainty
+    (else None).
     """
+    from surface_strain import measurement_quality
+
+    measured = measurement_quality(field)
     vis = np.asarray(tracks.visible, bool)
-    T = vis.shape[0]
-    ref = field.reference[field.triangles]
-    d1, d2 = ref[:, 1] - ref[:, 0], ref[:, 2] - ref[:, 0]
-    area = 0.5 * np.abs(d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
-    total = area.sum()
-    coverage = (field.element_valid * area).sum(axis=1) / total if total > 0 else np.zeros(T)
     q = np.where(vis, np.asarray(tracks.quality, float), np.nan)
     out = {
-        "visible_pct": [float(v) for v in 100 * vis.mean(axis=1)],
-        "coverage_pct": [float(c) for c in 100 * coverage],
+        "visible_pct": [100 * v for v in measured["visible_fraction"]],
+        "coverage_pct": [100 * c for c in measured["surface_coverage"]],
+        "mesh": measured["mesh"],
         "quality_median": [],
         "quality_p5": [],
         "uncertainty_median_px": None,
