@@ -394,14 +394,14 @@ def _tracker_flags(p: argparse.ArgumentParser) -> None:
     from stereo.report import WARP_NOISE_NOTE
     from strain2d import add_tracker_arguments
 
-    add_tracker_arguments(p, _frame_trackers(), defaults=_TRACKER_DEFAULTS)
     # the trade-off of reconstruct's own default warp, told where the warp is chosen
-    for action in p._actions:
-        if "--shape-function" in action.option_strings:
-            action.help += (
-                f". For dic, reconstruct defaults to quadratic: {WARP_NOISE_NOTE}; give "
-                "--shape-function affine for flat specimens"
-            ).replace("%", "%%")
+    note = (
+        f"For dic, reconstruct defaults to quadratic: {WARP_NOISE_NOTE}; give "
+        "--shape-function affine for flat specimens"
+    )
+    add_tracker_arguments(
+        p, _frame_trackers(), defaults=_TRACKER_DEFAULTS, notes={"--shape-function": note}
+    )
 
 
 #: reconstruct's own tracker defaults: curved surfaces seen in perspective need dic's

@@ -210,6 +210,7 @@ def add_tracker_arguments(
     trackers: Sequence[str] | None = None,
     *,
     defaults: dict[str, dict] | None = None,
+    notes: dict[str, str] | None = None,
 ) -> None:
     """Add the command-line flags that the trackers declare (default: every tracker).
 
@@ -217,7 +218,8 @@ def add_tracker_arguments(
     it does for each; values stay text until :func:`tracker_options` turns
     them into the chosen tracker's.  ``defaults`` ({tracker: {option: value}})
     are a command's own defaults, shown in the help; pass the same to
-    :func:`tracker_options`.
+    :func:`tracker_options`.  ``notes`` ({flag: text}) add a command's own
+    advice to a flag's help (e.g. why its default differs).
     """
     specs = available_trackers()
     if trackers is not None:
@@ -234,6 +236,8 @@ def add_tracker_arguments(
         text = "; ".join(
             f"{tracker}: {_help(specs[tracker], option, defaults)}" for tracker, option in offered
         )
+        if notes and flag in notes:
+            text += f". {notes[flag]}"
         text = text.replace("%", "%%")
         if first.switch is not None:
             target.add_argument(
