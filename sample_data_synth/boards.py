@@ -291,8 +291,11 @@ class CircleGrid:
             "diameter_mm": self.diameter,
             "margin_mm": self.margin,
             "origin": "first dot's centre; object points row-major as cv2.findCirclesGrid: "
-            + ("((2 j + i % 2) * spacing, i * spacing, 0)" if self.asymmetric else "")
-            + ("" if self.asymmetric else "(j * spacing, i * spacing, 0)"),
+            + (
+                "((2 j + i % 2) * spacing, i * spacing, 0)"
+                if self.asymmetric
+                else "(j * spacing, i * spacing, 0)"
+            ),
         }
 
     def _texture(self, per_square: int) -> _Raster:
