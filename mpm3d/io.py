@@ -50,12 +50,12 @@ import warnings
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Literal, get_args
 
 import numpy as np
 
 from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
+from tissue_core.tiff_units import resolution, to_um, um_per_unit
 
 __all__ = ["SpacingSource", "Stack", "parse_spacing", "read_stack", "select_channel"]
 
@@ -65,42 +65,6 @@ logger = logging.getLogger(__name__)
 SpacingSource = Literal["imagej", "ome", "tiff-resolution", "user", "none"]
 
 Spacing = tuple[float, float, float]
-
-#: micrometres per unit, exact, keyed by lower-case unit text as written by
-#: ImageJ (including its escaped ``\\u00B5m``), OME and other software
-_UM_PER_UNIT: dict[str, Fraction] = {
-    **dict.fromkeys(
-        (
-            "um",
-            "µm",  # MICRO SIGN, U+00B5
-            "μm",  # GREEK SMALL LETTER MU, U+03BC
-            "\\u00b5m",  # ImageJ's escape for the micro sign
-            "micron",
-            "microns",
-            "micrometer",
-            "micrometre",
-            "micrometers",
-            "micrometres",
-        ),
-        Fraction(1),
-    ),
-    "nm": Fraction(1, 1000),
-    "å": Fraction(1, 10_000),
-    "mm": Fraction(1000),
-    "cm": Fraction(10_000),
-    "m": Fraction(1_000_000),
-    "inch": Fraction(25_400),
-    "in": Fraction(25_400),
-}
-
-#: micrometres per TIFF ``ResolutionUnit`` (2 INCH, 3 CENTIMETER, and
-#: tifffile's non-standard 4 MILLIMETER and 5 MICROMETER); 1 NONE is absent
-_UM_PER_RESUNIT: dict[int, Fraction] = {
-    2: Fraction(25_400),
-    3: Fraction(10_000),
-    4: Fraction(1000),
-    5: Fraction(1),
-}
 
 #: axes tifffile gives to a run of pages it knows nothing more about
 _PAGE_AXES = ("Q", "I")
@@ -631,43 +595,13 @@ def _metadata(tif, axes: str, shape: tuple[int, ...]):
         spacing, names, found = _ome_metadata(tif.ome_metadata)
         return spacing, "ome", names, found
     page = tif.pages[0]
-    pixel, resunit = _resolution(page)
+    pixel, resunit = resolution(page)
     if tif.is_imagej and tif.imagej_metadata is not None:
         return _imagej_metadata(tif.imagej_metadata, pixel, resunit, axes, shape)
     if pixel is not None and resunit is not None:
         dy, dx = (float(p * resunit) for p in pixel)
         return None, "none", None, f"a pixel size of {dy:g} x {dx:g} um but no Z step"
     return None, "none", None, ""
-
-
-def _resolution(page) -> tuple[tuple[Fraction, Fraction] | None, Fraction | None]:
-    """Pixel size ``(dy, dx)`` in resolution units, and micrometres per such unit."""
-    try:
-        pixel = tuple(
-            Fraction(*page.tags[tag].value[::-1]) for tag in ("YResolution", "XResolution")
-        )
-    except (KeyError, TypeError, ValueError, ZeroDivisionError):
-        pixel = None
-    tag = page.tags.get("ResolutionUnit")
-    resunit = _UM_PER_RESUNIT.get(int(tag.value)) if tag is not None else None
-    return pixel, resunit
-
-
-def _um_per_unit(unit) -> Fraction | None:
-    if not isinstance(unit, str):
-        return None
-    return _UM_PER_UNIT.get(unit.strip().lower())
-
-
-def _to_um(value, per_unit: Fraction | None) -> float | None:
-    """``value`` (number or Fraction) in micrometres; None if unknown or not positive."""
-    if per_unit is None or value is None:
-        return None
-    try:
-        um = float(Fraction(value) * per_unit)
-    except (TypeError, ValueError, OverflowError):
-        return None
-    return um if math.isfinite(um) and um > 0 else None
 
 
 def _imagej_metadata(md: Mapping, pixel, resunit, axes: str, shape: tuple[int, ...]):
@@ -677,11 +611,11 @@ def _imagej_metadata(md: Mapping, pixel, resunit, axes: str, shape: tuple[int, .
         per_x = per_y = per_z = resunit
         source = "tiff-resolution"
     else:
-        per_x = _um_per_unit(unit)
-        per_y = _um_per_unit(md.get("yunit", unit))
-        per_z = _um_per_unit(md.get("zunit", unit))
-    dz = _to_um(md.get("spacing"), per_z)
-    dy, dx = (None, None) if pixel is None else (_to_um(pixel[0], per_y), _to_um(pixel[1], per_x))
+        per_x = um_per_unit(unit)
+        per_y = um_per_unit(md.get("yunit", unit))
+        per_z = um_per_unit(md.get("zunit", unit))
+    dz = to_um(md.get("spacing"), per_z)
+    dy, dx = (None, None) if pixel is None else (to_um(pixel[0], per_y), to_um(pixel[1], per_x))
     names = _imagej_channel_names(md.get("Labels"), axes, shape)
     if None in (dz, dy, dx):
         found = ""
@@ -726,9 +660,9 @@ def _ome_metadata(xml: str):
     sizes = []
     for axis in "ZYX":
         value = pixels.get(f"PhysicalSize{axis}")
-        per_unit = _um_per_unit(pixels.get(f"PhysicalSize{axis}Unit", "µm"))
+        per_unit = um_per_unit(pixels.get(f"PhysicalSize{axis}Unit", "µm"))
         try:
-            sizes.append(_to_um(None if value is None else float(value), per_unit))
+            sizes.append(to_um(None if value is None else float(value), per_unit))
         except ValueError:
             sizes.append(None)
     names = tuple(

@@ -143,34 +143,22 @@ def scale_from_ruler(text: str, image_shape: tuple[int, int] | None = None) -> P
     )
 
 
-#: unit names that TIFF writers use (ImageJ writes "micron" or an escaped "µm")
-_TIFF_UNITS = {
-    "nm": "nm", "nanometer": "nm", "nanometre": "nm",
-    "um": "um", "µm": "um", "micron": "um", "microns": "um",
-    "micrometer": "um", "micrometre": "um",
-    "mm": "mm", "millimeter": "mm", "millimetre": "mm",
-    "cm": "cm", "centimeter": "cm", "centimetre": "cm",
-    "m": "m", "meter": "m", "metre": "m",
-}  # fmt: skip
-
-
-def _ratio(value) -> float | None:
-    try:
-        num, den = value
-        return float(num) / float(den) if den else None
-    except (TypeError, ValueError):
-        return None
+def _in_length_unit(um: float) -> tuple[float, str]:
+    """A size in micrometres in mm from 1 um up (12 um: 0.012 mm), else in um or nm."""
+    if um >= 1:
+        return um / 1000, "mm"
+    return (um, "um") if um >= 0.001 else (um * 1000, "nm")
 
 
 def scale_from_file(path) -> PixelScale:
     """The pixel size a TIFF records (``--scale auto``), or InputError saying why there is none.
 
-    Read, in order: ImageJ/Fiji's calibration (``unit`` in its metadata and
-    the X resolution in pixels per unit), OME-TIFF's ``PhysicalSizeX`` and
-    its unit, and a TIFF resolution in centimetres.  Square pixels are
-    assumed; a file whose X and Y resolutions differ is refused.  A
-    resolution in inches is a print setting (72 dpi...), not a pixel size,
-    and is refused too.
+    Read by :func:`tissue_core.tiff_units.lateral_pixel_size_um` (the reader
+    mpm3d's stacks use): OME's ``PhysicalSizeX``, ImageJ/Fiji's calibration,
+    or a resolution in cm, mm or um.  Square pixels are assumed; a file whose
+    X and Y sizes differ is refused, and so is a resolution in inches (a
+    print setting, 72 dpi and the like, not a pixel size).  A folder of
+    frames is read from its first TIFF.
     """
     import os
 
@@ -185,43 +173,19 @@ def scale_from_file(path) -> PixelScale:
         )
     import tifffile
 
+    from tissue_core.tiff_units import lateral_pixel_size_um
+
     try:
         with tifffile.TiffFile(name) as tif:
-            page = tif.pages[0]
-            tags = page.tags
-            xres = _ratio(tags["XResolution"].value) if "XResolution" in tags else None
-            yres = _ratio(tags["YResolution"].value) if "YResolution" in tags else None
-            res_unit = int(tags["ResolutionUnit"].value) if "ResolutionUnit" in tags else 1
-            ij = tif.imagej_metadata or {}
-            ome = tif.ome_metadata if tif.is_ome else None
+            found = lateral_pixel_size_um(tif)
     except Exception as exc:  # tifffile raises many types on damaged files
         raise InputError(f"{name}: cannot read its TIFF tags ({exc})") from None
-    if xres and yres and abs(xres - yres) > 1e-6 * max(xres, yres):
+    if isinstance(found, str):
+        raise InputError(f"{name} records no pixel size ({found}): give --scale or --scale-ruler")
+    dy, dx, source = found
+    if abs(dy - dx) > 1e-6 * max(dy, dx):
         raise InputError(
-            f"{name}: its pixels are not square ({1 / xres:.6g} x {1 / yres:.6g} per pixel); "
-            "give --scale"
+            f"{name}: its pixels are not square ({dx:.6g} x {dy:.6g} um); give --scale"
         )
-    raw_unit = str(ij.get("unit", "")).strip()
-    unit = _TIFF_UNITS.get(raw_unit.lower().replace("\\u00b5", "µ"))
-    if unit and xres:
-        return PixelScale(1.0 / xres, unit, f"{name}: ImageJ calibration, {1 / xres:.6g} {unit}/px")
-    if ome:
-        import re as _re
-
-        size = _re.search(r'PhysicalSizeX="([^"]+)"', ome)
-        size_unit = _re.search(r'PhysicalSizeXUnit="([^"]+)"', ome)
-        ome_unit = _TIFF_UNITS.get((size_unit.group(1) if size_unit else "µm").lower())
-        if size and ome_unit:
-            value = float(size.group(1))
-            return PixelScale(value, ome_unit, f"{name}: OME PhysicalSizeX {value:g} {ome_unit}")
-    if res_unit == 3 and xres:  # pixels per centimetre
-        return PixelScale(10.0 / xres, "mm", f"{name}: TIFF resolution {xres:g} px/cm")
-    if res_unit == 2 and xres:
-        raise InputError(
-            f"{name} records {xres:g} pixels per inch, a print setting rather than the "
-            "pixel size on the specimen: give --scale or --scale-ruler"
-        )
-    raise InputError(
-        f"{name} records no pixel size (no ImageJ calibration, OME PhysicalSizeX or "
-        "resolution in cm): give --scale or --scale-ruler"
-    )
+    size, unit = _in_length_unit(dx)
+    return PixelScale(size, unit, f"{name}: {source}, {size:.6g} {unit}/px")
