@@ -23,13 +23,14 @@ True
 from __future__ import annotations
 
 import base64
-import hashlib
 import html
 import json
 import math
 import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+
+from tissue_core.outputs import sha256_of
 
 __all__ = ["HtmlReport", "format_value", "input_records", "sequence_record"]
 
@@ -90,17 +91,6 @@ def _size_text(n) -> str:
     return ""
 
 
-def _digest_files(paths: Sequence[Path]) -> tuple[str, int]:
-    digest = hashlib.sha256()
-    total = 0
-    for path in paths:
-        with open(path, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                digest.update(block)
-                total += len(block)
-    return digest.hexdigest(), total
-
-
 def input_records(paths: Iterable[str | os.PathLike]) -> list[dict]:
     """``[{"path", "bytes", "sha256", "files"}]`` for each input, for summaries and reports.
 
@@ -116,10 +106,10 @@ def input_records(paths: Iterable[str | os.PathLike]) -> list[dict]:
                 files = sorted(
                     p for p in path.iterdir() if p.is_file() and not p.name.startswith(".")
                 )
-                sha, size = _digest_files(files)
+                sha, size = sha256_of(files)
                 out.append({"path": str(raw), "bytes": size, "sha256": sha, "files": len(files)})
             else:
-                sha, size = _digest_files([path])
+                sha, size = sha256_of([path])
                 out.append({"path": str(raw), "bytes": size, "sha256": sha, "files": 1})
         except OSError:
             out.append({"path": str(raw), "bytes": None, "sha256": None, "files": 0})
@@ -138,7 +128,7 @@ def sequence_record(paths: Sequence[str | os.PathLike]) -> dict:
         return input_records(paths)[0]
     name = f"{paths[0]} ... {paths[-1].name}"
     try:
-        sha, size = _digest_files(paths)
+        sha, size = sha256_of(paths)
     except OSError:
         return {"path": name, "bytes": None, "sha256": None, "files": len(paths)}
     return {"path": name, "bytes": size, "sha256": sha, "files": len(paths)}

@@ -49,6 +49,7 @@ __all__ = [
     "read_marker",
     "recorded_command",
     "replaced_on_success",
+    "sha256_of",
 ]
 
 log = logging.getLogger(__name__)
@@ -81,12 +82,20 @@ def _umask() -> int:
 # --------------------------------------------------------------------------- records
 
 
-def _sha256(path: Path) -> str:
+def sha256_of(paths) -> tuple[str, int]:
+    """SHA-256 of the files ``paths`` read in order as one stream, and its length in bytes."""
     digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    total = 0
+    for path in paths:
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+                total += len(block)
+    return digest.hexdigest(), total
+
+
+def _sha256(path: Path) -> str:
+    return sha256_of([path])[0]
 
 
 def _record(path: Path) -> dict:
