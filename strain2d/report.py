@@ -167,15 +167,6 @@ def _deformation_kind(mean: np.ndarray, components: Sequence[str]) -> str:
     return "deformation"
 
 
-def _median_uncertainty(tracks: Tracks, frame: int) -> float | None:
-    """The median tracking uncertainty (px) of the visible points on ``frame``, if measured."""
-    if tracks.uncertainty is None:
-        return None
-    u = tracks.uncertainty[frame][tracks.visible[frame]]
-    u = u[np.isfinite(u)]
-    return float(np.median(u)) if u.size else None
-
-
 class _FigureLog:
     """The ``figures/`` folder of a run or study and the list of what went into it."""
 
@@ -315,7 +306,9 @@ def run_outputs(
             + (f", the {what}" if what else "")
             + "; the colour scale is the same at every frame.",
         )
-    sigma = _median_uncertainty(tracks, k_end)
+    quality = fg.run_quality(tracks, field)
+    unc = quality["uncertainty_median_px"]
+    sigma = None if unc is None else unc[k_end]  # the median over the endpoint's points
     noise = fg.principal_noise_floor(field, sigma, frame=k_end) if sigma is not None else 0.0
     noise = noise if np.isfinite(noise) else 0.0
     fig = fg.plot_principal_crosses(
@@ -373,7 +366,6 @@ def run_outputs(
         "independent).",
     )
 
-    quality = fg.run_quality(tracks, field)
     fig = fg.plot_run_quality(
         quality, times, time_unit=unit, tracker=str(tracks.meta.get("tracker", "")), length=length
     )
