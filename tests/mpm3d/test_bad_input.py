@@ -460,21 +460,29 @@ import mpm3d._kernels as kernels
 name = sys.argv[1]
 real = getattr(kernels, name)
 def started(*args):
-    start = time.perf_counter()
-    try:  # the Ctrl-C is sent inside the try, so the line below is printed on a busy machine too
-        threading.Timer(0.001, os.kill, (os.getpid(), signal.SIGINT)).start()
+    sent = threading.Event()
+    def ctrl_c():
+        os.kill(os.getpid(), signal.SIGINT)
+        sent.set()
+    threading.Timer(0.001, ctrl_c).start()
+    waited = time.perf_counter()
+    calls = 0  # calls begun after the Ctrl-C was sent
+    try:  # on a busy machine the timer's thread may start late: the kernel is called until it has
         while True:
+            after_ctrl_c = sent.is_set()
             result = real(*args)
-            if time.perf_counter() - start > 0.2:
+            calls += after_ctrl_c
+            if calls > 2 or time.perf_counter() - waited > 60:
+                print(f"[kernel {name} not interrupted: {calls} calls]", file=sys.stderr)
                 return result
-    finally:
-        print(f"[kernel {name} ran {time.perf_counter() - start:.4f} s]", file=sys.stderr)
+    except KeyboardInterrupt:
+        print(f"[kernel {name} interrupted: {calls} calls after the Ctrl-C]", file=sys.stderr)
+        raise
 setattr(kernels, name, started)
 sys.argv = ["mpm3d", *sys.argv[2:]]
 import runpy
 runpy.run_module("mpm3d", run_name="__main__", alter_sys=True)  # as python -m mpm3d
 """
-
 #: Ctrl-C at a stage of a real run: ``after`` seconds after the step ``when`` was printed
 #: (or after the start: the imports), so that it lands there on any machine
 STAGES = [
@@ -536,8 +544,7 @@ def test_interrupt(command, after, kernel, extra, when, mpm_pair, tmp_path):
     status, err = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
     if kernel is not None:
         assert status == 130 and not out.exists(), err
-        ran = float(err.split(f"[kernel {kernel} ran ")[1].split(" s]")[0])
-        assert ran < 0.2, err  # Ctrl-C ended the kernel calls
+        assert f"[kernel {kernel} interrupted: " in err, err  # Ctrl-C ended the kernel calls
     elif status == 0:
         assert (out / ("metrics.json" if command == "analyze" else "compare.json")).is_file()
 
