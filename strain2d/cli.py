@@ -23,6 +23,10 @@ def _add_source_args(p: argparse.ArgumentParser) -> None:
         help="video file, multi-page TIFF, folder of images, or image files in order; "
         "the first frame is the reference",
     )
+    _add_frame_range_args(p)
+
+
+def _add_frame_range_args(p) -> None:
     p.add_argument("--start", type=int, default=0, help="first frame to use (default 0)")
     p.add_argument("--stop", type=int, default=None, help="frame to stop before (default: end)")
     p.add_argument("--step", type=int, default=1, help="use every STEP-th frame (default 1)")
@@ -55,28 +59,8 @@ def _add_points_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
 
 
-def _build_parser():
-    from tissue_core.cli import CommandLine
-
-    cli = CommandLine(
-        "strain2d", "Track virtual grid points in a video and compute the strain field."
-    )
-    p = cli.command(
-        "track", _cmd_track, later=_tracker_flags, help="track points and write TRACKS.csv"
-    )
-    _add_source_args(p)
-    _add_points_args(p)
-    _add_tracker_args(p)
-    p.add_argument("--out", required=True, help="output CSV: frame,point,x,y,visible,quality")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-
-    p = cli.command(
-        "analyze",
-        _cmd_analyze,
-        later=_tracker_flags,
-        help="track a grid and write strain tables, figures, VTK",
-    )
-    _add_source_args(p)
+def _add_analyze_options(p) -> None:
+    """``analyze``'s options but the source and the output (shared with ``batch``)."""
     _add_points_args(p)
     _add_tracker_args(p)
     p.add_argument(
@@ -142,6 +126,31 @@ def _build_parser():
         help="comma-separated figure formats among png, svg, pdf (default png; png is "
         "always written, the report embeds it)",
     )
+
+
+def _build_parser():
+    from tissue_core.cli import CommandLine
+
+    cli = CommandLine(
+        "strain2d", "Track virtual grid points in a video and compute the strain field."
+    )
+    p = cli.command(
+        "track", _cmd_track, later=_tracker_flags, help="track points and write TRACKS.csv"
+    )
+    _add_source_args(p)
+    _add_points_args(p)
+    _add_tracker_args(p)
+    p.add_argument("--out", required=True, help="output CSV: frame,point,x,y,visible,quality")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+
+    p = cli.command(
+        "analyze",
+        _cmd_analyze,
+        later=_tracker_flags,
+        help="track a grid and write strain tables, figures, VTK",
+    )
+    _add_source_args(p)
+    _add_analyze_options(p)
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
 
@@ -174,6 +183,33 @@ def _build_parser():
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
 
     p = cli.command(
+        "batch",
+        _cmd_batch,
+        later=lambda p: _tracker_flags(_batch_run_options(p)),
+        help="analyze the videos of a manifest as a batch (on a Dask cluster), then the study",
+        description="Analyze every video of a manifest CSV (columns video, specimen, group, "
+        "and any analyze option by name, e.g. grid, roi, fps) into OUT/runs/SPECIMEN, each as "
+        "one task on a local Dask cluster or a running scheduler, then combine the runs in "
+        "OUT/study. A failing video is reported and the others go on; a rerun keeps the runs "
+        "that are complete with the same parameters and makes the rest. Analyze options "
+        "given here apply to every run; a manifest column of the same name wins.",
+        allow_abbrev=False,
+    )
+    p.add_argument("manifest", metavar="MANIFEST", help="CSV: one row per specimen")
+    p.add_argument("--out", required=True, help="batch folder: runs/, study/, batch.log")
+    from tissue_core.batch import add_batch_arguments
+
+    add_batch_arguments(p, what="runs")
+    g = p.add_argument_group("the study")
+    g.add_argument("--no-study", action="store_true", help="analyze only; no study")
+    g.add_argument("--compare", default="Exx,Eyy", metavar="A,B", help="as for study (Exx,Eyy)")
+    g.add_argument("--alpha", type=float, default=0.05, help="as for study (default 0.05)")
+    options = _batch_run_options(p)
+    _add_frame_range_args(options)
+    _add_analyze_options(options)
+    p.set_defaults(run_options=options)
+
+    p = cli.command(
         "benchmark", _cmd_benchmark, help="reproduce the paper's Table 1 on synthetic videos"
     )
     p.add_argument("--quick", action="store_true", help="400x400 px, 11 frames (for tests)")
@@ -194,6 +230,67 @@ def _build_parser():
     p.add_argument("--out", required=True, help="output folder (benchmark.json, benchmark.md)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     return cli
+
+
+_RUN_OPTIONS: dict[int, object] = {}
+
+
+def _batch_run_options(p):
+    """The batch parser's record of the analyze options it passes on (one per parser)."""
+    from tissue_core.batch import RunOptions
+
+    if id(p) not in _RUN_OPTIONS:
+        _RUN_OPTIONS[id(p)] = RunOptions(p, "analyze options, for every run")
+    return _RUN_OPTIONS[id(p)]
+
+
+def _cmd_batch(args) -> int:
+    from strain2d.batch import analyze_jobs, run_study, study_job, write_study_manifest
+    from tissue_core.batch import batch_folder, check_workers, run_batch
+
+    options = args.run_options
+    say = _progress(args)
+    if not args.no_study:
+        from strain2d.report import parse_formats
+
+        parse_formats(getattr(args, "figure_format", None) or "png")
+        if not 0 < args.alpha < 1:
+            raise InputError(f"--alpha must lie between 0 and 1, got {args.alpha}")
+        if len([c for c in args.compare.split(",") if c.strip()]) != 2:
+            raise InputError(f"--compare takes two components A,B, got {args.compare!r}")
+    # the manifest is read whole and checked before the folder is made or anything runs
+    from pathlib import Path
+
+    out = Path(args.out).resolve()
+    jobs, rows, unused = analyze_jobs(args.manifest, out, options, args)
+    workers = check_workers(args.workers, args.scheduler, len(jobs))
+    folder = batch_folder(args.out)
+    if unused:
+        from tissue_core.batch import LOG_FILE
+
+        say(f"manifest columns not used: {', '.join(unused)} (see {Path(args.out) / LOG_FILE})")
+    outcomes = run_batch(
+        jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
+    )
+    ok = {o.name for o in outcomes if o.status != "failed"}
+    failed = [o for o in outcomes if o.status == "failed"]
+    changed = any(o.status == "done" for o in outcomes)
+    if not args.no_study and ok:
+        changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
+        job = study_job(out, args)
+        say(f"study of {len(ok)} specimens")
+        study = run_study(job, changed)
+        if study is not None and study.status == "failed":
+            raise InputError(f"the study failed: {study.reason}")
+    if failed:
+        first = failed[0]
+        more = f"; {len(failed) - 1} more" if len(failed) > 1 else ""
+        raise InputError(
+            f"{len(failed)} of {len(jobs)} runs failed, the others are in {args.out}: "
+            f"{first.name}: {first.reason}{more} (see {Path(args.out) / 'batch.log'})"
+        )
+    say(f"results in {args.out}")
+    return 0
 
 
 def _progress(args):

@@ -1,0 +1,110 @@
+"""``strain2d batch``: a manifest of videos analyzed as a batch, then combined in a study.
+
+The manifest is a CSV with one row per specimen:
+
+* ``video`` (or ``source``): the video, TIFF, or image folder, relative to the
+  manifest's folder or absolute (required);
+* ``specimen``: the run's name (default: the video's name without suffix);
+* ``group``: the specimen's group in the study (optional);
+* any option of ``strain2d analyze`` by its long name (``grid``, ``roi``,
+  ``tracker``, ``fps``, ``scale``, ``endpoint``, ``min_triangle_quality``...):
+  that row's value, which wins over the one given to the batch.
+
+Other columns (notes, ground truth) are kept in the manifest and not used; the
+log names them.  Each specimen is analyzed into ``OUT/runs/SPECIMEN`` as
+``strain2d analyze`` would, as one task of the batch (see
+:mod:`tissue_core.batch`); the runs that succeeded are then combined into
+``OUT/study`` (``strain2d study``), whose manifest ``OUT/study_manifest.csv``
+can be edited and used again.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+from pathlib import Path
+
+from strain2d.errors import InputError
+from tissue_core.batch import Job, RunOptions, job_state, manifest_rows, run_job
+
+__all__ = ["analyze_jobs", "study_job", "write_study_manifest"]
+
+_SOURCE_COLUMNS = ("video", "source")
+_OWN_COLUMNS = frozenset({*_SOURCE_COLUMNS, "specimen", "group", "run", "_line"})
+
+
+def analyze_jobs(
+    manifest: str,
+    out: Path,
+    options: RunOptions,
+    args: argparse.Namespace,
+) -> tuple[list[Job], list[dict], list[str]]:
+    """The batch's runs, one per manifest row: ``(jobs, rows, unused_columns)``."""
+    rows = manifest_rows(manifest, required=())
+    first = rows[0]
+    source_column = next((c for c in _SOURCE_COLUMNS if c in first), None)
+    if source_column is None:
+        raise InputError(
+            f"manifest {manifest} needs a 'video' column (the video, TIFF or image folder of "
+            "each specimen, one row per specimen)"
+        )
+    base = Path(manifest).resolve().parent
+    run_columns = set(options.columns(first))
+    unused = [c for c in first if c not in _OWN_COLUMNS and c not in run_columns]
+    jobs = []
+    for row in rows:
+        where = f"manifest {manifest}, line {row['_line']}"
+        text = row.get(source_column, "")
+        if not text:
+            raise InputError(f"{where}: the {source_column} column is empty")
+        source = Path(text) if Path(text).is_absolute() else base / text
+        specimen = row.get("specimen") or source.stem
+        if specimen in {".", ".."} or "/" in specimen or "\\" in specimen:
+            raise InputError(f"{where}: specimen {specimen!r} cannot name a folder")
+        run = out / "runs" / specimen
+        run_options = options.argv(args, {c: row[c] for c in run_columns}, where=where)
+        argv = ("analyze", str(source), *run_options, "--out", str(run))
+        jobs.append(Job(specimen, "strain2d.cli", argv, str(run), inputs=(str(source),)))
+        row["specimen"] = specimen
+    return jobs, rows, unused
+
+
+def write_study_manifest(path: Path, jobs: list[Job], rows: list[dict], done: set[str]) -> bool:
+    """The study's manifest (runs relative to it): the runs in ``done``; whether it changed."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(["run", "specimen", "group"])
+    for job, row in zip(jobs, rows, strict=True):
+        if job.name in done:
+            writer.writerow([Path(job.out).relative_to(path.parent).as_posix(), job.name,
+                             row.get("group", "")])  # fmt: skip
+    text = buffer.getvalue()
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return False
+    except OSError:
+        pass
+    from tissue_core.outputs import replaced_on_success
+
+    with replaced_on_success(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return True
+
+
+def study_job(out: Path, args: argparse.Namespace) -> Job:
+    """``strain2d study`` on the batch's study manifest, into ``OUT/study``."""
+    argv = ["study", "--manifest", str(out / "study_manifest.csv")]
+    argv += ["--compare", args.compare, "--alpha", str(args.alpha)]
+    if getattr(args, "figure_format", None):
+        argv += ["--figure-format", args.figure_format]
+    argv += ["--out", str(out / "study")]
+    return Job("study", "strain2d.cli", tuple(argv), str(out / "study"))
+
+
+def run_study(job: Job, changed: bool):
+    """Build the study when a run changed or it is not complete; None when it was kept."""
+    state = job_state(job)
+    if state == "complete" and not changed:
+        return None
+    return run_job(job, overwrite=state != "missing")

@@ -1,0 +1,697 @@
+"""Batches: many runs of a command line, in this process or on a Dask cluster.
+
+A batch is a list of :class:`Job` s, each one run of a toolkit command
+(``strain2d analyze``, ``mpm3d analyze``, ``stereo reconstruct``) into its own
+result folder.  :func:`run_batch` runs them
+
+* in this process, one after the other (``workers=1``),
+* on a local Dask cluster of ``workers`` processes started for the batch, or
+* on an existing Dask cluster (``scheduler="tcp://host:8786"``; its workers
+  must see the input and output paths, as on a cluster's shared file system).
+
+Each job runs the command's own ``main(argv)``, so a run in a batch is the run
+the command line makes: checked the same way, written atomically (a crash or a
+killed worker never leaves half a run), and carrying its parameters.  Faults
+stay local to one run:
+
+* an input the command refuses (a corrupt video, a bad option in the
+  manifest) fails that run with the command's one-line reason, and the others
+  go on;
+* a worker that dies (killed, out of memory) has its run started again on
+  another worker by the scheduler; a run whose workers died three times is
+  reported as failed;
+* a rerun skips every run that is complete with the same parameters: its
+  folder carries the result marker, holds exactly what was written, was made
+  by the same command line, and its inputs are unchanged since (size, and
+  SHA-256 when the modification time is newer than the run).  Everything else
+  is run again.
+
+Progress goes to the terminal and, with timestamps, to the batch's log
+(``batch.log``); ``batch.json`` records every run's outcome and is rewritten
+atomically after each.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import io
+import json
+import os
+import shutil
+import socket
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+from tissue_core.errors import InputError
+from tissue_core.jsonio import write_json
+from tissue_core.outputs import (
+    foreign_content,
+    read_marker,
+    recorded_command,
+    replaced_on_success,
+    sha256_of,
+    written,
+)
+
+__all__ = [
+    "BATCH_FILE",
+    "LOG_FILE",
+    "Job",
+    "RunOptions",
+    "add_batch_arguments",
+    "batch_folder",
+    "check_workers",
+    "differences",
+    "job_state",
+    "manifest_rows",
+    "run_batch",
+    "run_job",
+]
+
+#: the batch's record of every run, in the batch folder
+BATCH_FILE = "batch.json"
+#: the batch's log, appended to by every batch run in the folder
+LOG_FILE = "batch.log"
+_KIND = "tissue-strain batch"
+#: command-line flags that do not change a run's result
+_NEUTRAL_FLAGS = frozenset({"--overwrite", "-q", "--quiet", "-v", "--verbose"})
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a batch: a command line of the toolkit writing one result folder.
+
+    Attributes
+    ----------
+    name : str
+        The run's name (a specimen, a stack), unique in the batch.
+    module : str
+        The command line's module, whose ``main(argv)`` runs it (``"strain2d.cli"``).
+    argv : tuple of str
+        The command's arguments, ``--out`` included, without ``--overwrite``.
+    out : str
+        The result folder.
+    inputs : tuple of str
+        The files the run reads, checked for changes on a rerun.
+    summary : str
+        The JSON file in ``out`` that records the inputs' checksums (``input_files``).
+    """
+
+    name: str
+    module: str
+    argv: tuple[str, ...]
+    out: str
+    inputs: tuple[str, ...] = ()
+    summary: str = "summary.json"
+
+    @property
+    def command(self) -> list[str]:
+        """The command line as a user would type it (the program's name first)."""
+        return [self.module.split(".")[0], *self.argv]
+
+
+@dataclass
+class Outcome:
+    """What became of one job: ``done``, ``skipped`` (complete already) or ``failed``."""
+
+    name: str
+    status: str
+    out: str
+    reason: str = ""
+    seconds: float = 0.0
+    worker: str = ""
+    worker_deaths: int = 0
+    messages: list[str] = field(default_factory=list)
+
+
+def _parameters(argv: Iterable[str]) -> list[str]:
+    """The arguments that make a run's result: without ``--overwrite`` and the verbosity."""
+    return [a for a in argv if a not in _NEUTRAL_FLAGS]
+
+
+def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
+    """Whether every input recorded in the run's summary is the file it was."""
+    try:
+        summary = json.loads((out / job.summary).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    records = {str(r.get("path")): r for r in summary.get("input_files") or []}
+    for path in job.inputs:
+        record = records.get(str(path))
+        if record is None:
+            return False
+        p = Path(path)
+        try:
+            if p.is_dir():
+                files = sorted(x for x in p.iterdir() if x.is_file() and not x.name.startswith("."))
+            else:
+                files = [p]
+            size = sum(f.stat().st_size for f in files)
+            if size != record.get("bytes"):
+                return False
+            if max((f.stat().st_mtime for f in files), default=0.0) < created:
+                continue  # not touched since the run: no need to read it again
+            if sha256_of(files)[0] != record.get("sha256"):
+                return False
+        except OSError:
+            return False
+    return True
+
+
+def job_state(job: Job) -> str:
+    """``"missing"``, ``"complete"`` (same parameters, intact, inputs unchanged), or why not.
+
+    Anything else than ``"missing"`` and ``"complete"`` is a sentence saying
+    why the folder must be made again (``--overwrite`` replaces it).
+    """
+    out = Path(job.out)
+    if not out.exists():
+        return "missing"
+    if out.is_dir() and not any(out.iterdir()):
+        return "missing"
+    marker = read_marker(out)
+    if marker is None:
+        return f"{out} exists and is not a result of the toolkit"
+    if foreign_content(out) is not None:
+        return f"{out} was changed since it was written"
+    if _parameters((marker.get("command") or [])[1:]) != _parameters(job.argv):
+        return f"{out} was made with other parameters"
+    try:
+        created = datetime.fromisoformat(marker["created"]).timestamp()
+    except (KeyError, TypeError, ValueError):
+        created = float("inf")  # unknown: read every input again
+    if not _inputs_unchanged(job, out, created):
+        return f"{out} was made from inputs that have changed since"
+    return "complete"
+
+
+def _error_line(text: str) -> str:
+    """The command's one-line error, without its ``PROG COMMAND: error:`` prefix."""
+    lines = [line for line in text.splitlines() if line.strip()]
+    for line in reversed(lines):
+        if ": error: " in line:
+            return line.split(": error: ", 1)[1]
+    return lines[-1] if lines else ""
+
+
+def run_job(job: Job, overwrite: bool = False) -> Outcome:
+    """Run one job here (in a worker, or in the batch's own process) and say how it went.
+
+    The command's messages (warnings, its error line) are captured, not printed;
+    an error the command does not expect (a defect) fails the job with its
+    traceback in the messages rather than ending the batch.
+    """
+    import importlib
+
+    start = time.perf_counter()
+    argv = [*job.argv, "-q", *(["--overwrite"] if overwrite else [])]
+    stderr = io.StringIO()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    try:
+        with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
+            try:
+                status = importlib.import_module(job.module).main(argv)
+            except SystemExit as exc:  # a usage error: argparse exits
+                status = exc.code if isinstance(exc.code, int) else 2
+    except Exception as exc:  # a defect: the batch goes on, the log keeps the traceback
+        messages = [*stderr.getvalue().splitlines(), *traceback.format_exc().splitlines()]
+        return Outcome(
+            job.name,
+            "failed",
+            job.out,
+            f"unexpected {type(exc).__name__}: {exc}",
+            time.perf_counter() - start,
+            worker,
+            messages=messages,
+        )
+    text = stderr.getvalue()
+    seconds = time.perf_counter() - start
+    if status == 0:
+        return Outcome(job.name, "done", job.out, "", seconds, worker, messages=text.splitlines())
+    if status == 130:
+        reason = "interrupted"
+    else:
+        reason = _error_line(text) or f"exit status {status}"
+    return Outcome(job.name, "failed", job.out, reason, seconds, worker, messages=text.splitlines())
+
+
+_TRUE = frozenset({"1", "yes", "true", "y", "x", "on"})
+_FALSE = frozenset({"", "0", "no", "false", "n", "off"})
+
+
+class RunOptions:
+    """The options of a command that a batch passes on to each of its runs.
+
+    Built on the batch command's parser like the command's own options (the
+    same builder functions), through this object, which remembers each one.
+    Their defaults are the command's; a value given to the batch applies to
+    every run, a manifest column of the same name (``grid``, ``min_triangle_quality``)
+    to its row only, and wins.
+
+    Examples
+    --------
+    >>> parser = argparse.ArgumentParser()
+    >>> options = RunOptions(parser, "options of each run")
+    >>> _ = options.add_argument("--grid", default="7x7")
+    >>> _ = options.add_argument("--fast", action="store_true")
+    >>> args = parser.parse_args(["--fast"])
+    >>> options.argv(args, {"grid": "9x9"}, where="line 2")
+    ['--grid', '9x9', '--fast']
+    >>> options.argv(args, {}, where="line 3")
+    ['--fast']
+    """
+
+    def __init__(self, parser, title: str | None = None, *, _shared=None, _exclusive=None) -> None:
+        self._target = parser.add_argument_group(title) if title else parser
+        self._parser = parser
+        self._actions: list[argparse.Action] = [] if _shared is None else _shared
+        self._exclusive = _exclusive  # the actions of a mutually exclusive group, or None
+        self._groups: list[list[argparse.Action]] = []  # shared with its groups once made
+
+    def add_argument(self, *names, **kwargs) -> argparse.Action:
+        action = self._target.add_argument(*names, **kwargs)
+        action.default = argparse.SUPPRESS  # only what is given is passed on
+        self._actions.append(action)
+        if self._exclusive is not None:
+            self._exclusive.append(action)
+        return action
+
+    def add_argument_group(self, title: str | None = None, **kwargs) -> RunOptions:
+        group = RunOptions(self._parser, None, _shared=self._actions, _exclusive=self._exclusive)
+        group._target = self._parser.add_argument_group(title, **kwargs)
+        group._groups = self._groups
+        return group
+
+    def add_mutually_exclusive_group(self, **kwargs) -> RunOptions:
+        members: list[argparse.Action] = []
+        self._groups.append(members)
+        group = RunOptions(self._parser, None, _shared=self._actions, _exclusive=members)
+        group._target = self._target.add_mutually_exclusive_group(**kwargs)
+        group._groups = self._groups
+        return group
+
+    def _by_column(self) -> dict[str, argparse.Action]:
+        out = {}
+        for action in self._actions:
+            for flag in action.option_strings:
+                if flag.startswith("--"):
+                    out[flag[2:].replace("-", "_")] = action
+        return out
+
+    def columns(self, row: dict[str, str]) -> list[str]:
+        """The manifest columns of ``row`` that are options of the runs."""
+        known = self._by_column()
+        return [c for c in row if c.replace("-", "_") in known]
+
+    def argv(self, args: argparse.Namespace, row: dict[str, str], *, where: str) -> list[str]:
+        """The options of one run: the batch's, with the row's non-empty columns instead."""
+        known = self._by_column()
+        given: dict[argparse.Action, object] = {
+            a: getattr(args, a.dest) for a in self._actions if hasattr(args, a.dest)
+        }
+        for column, text in row.items():
+            action = known.get(column.replace("-", "_"))
+            if action is None or text == "":
+                continue
+            for group in self._groups:  # the row's --scale-ruler replaces the batch's --scale
+                if action in group:
+                    for other in group:
+                        given.pop(other, None)
+            given[action] = self._value(action, column, text, where)
+        argv: list[str] = []
+        for action in self._actions:  # in the parser's order, so the recorded command is stable
+            if action not in given:
+                continue
+            flag = max(action.option_strings, key=len)
+            if action.nargs == 0:
+                if given[action] is not None:
+                    argv.append(flag)
+            else:
+                argv += [flag, str(given[action])]
+        return argv
+
+    @staticmethod
+    def _value(action: argparse.Action, column: str, text: str, where: str):
+        if action.nargs == 0:  # a switch: yes or no
+            if text.lower() in _TRUE:
+                return True
+            if text.lower() in _FALSE:
+                return None
+            raise InputError(f"{where}: column {column} is a switch: yes or no, got {text!r}")
+        if action.choices is not None and text not in action.choices:
+            choices = ", ".join(map(str, action.choices))
+            raise InputError(f"{where}: column {column} must be one of {choices}, got {text!r}")
+        if callable(action.type):
+            try:
+                action.type(text)
+            except (TypeError, ValueError):
+                name = getattr(action.type, "__name__", "value")
+                raise InputError(f"{where}: column {column} takes a {name}, got {text!r}") from None
+        return text
+
+
+def check_workers(workers: int | None, scheduler: str | None, n_jobs: int) -> int:
+    """The number of local workers to start (0 with a scheduler), checked."""
+    if scheduler is not None:
+        if workers is not None:
+            raise InputError("give --workers (a local cluster) or --scheduler, not both")
+        if not scheduler.strip():
+            raise InputError("--scheduler needs an address, e.g. tcp://10.0.0.5:8786")
+        return 0
+    if workers is None:
+        workers = min(os.cpu_count() or 1, max(n_jobs, 1))
+    if workers < 1:
+        raise InputError(f"--workers must be 1 or more, got {workers}")
+    return workers
+
+
+def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
+    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command."""
+    g = p.add_argument_group("where the runs go")
+    g.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help=f"run the {what} on a local Dask cluster of N worker processes (default: one per "
+        "core, at most one per run); 1 runs them one after the other in this process",
+    )
+    g.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help=f"send the {what} to a running Dask scheduler, e.g. tcp://10.0.0.5:8786 "
+        "(started with 'dask scheduler' and 'dask worker', or dask-jobqueue); its workers "
+        "must see the same paths",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace runs made with other parameters or from changed inputs (runs complete "
+        "with the same parameters are always kept)",
+    )
+
+
+def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[dict[str, str]]:
+    """A manifest CSV's rows: header names lower-cased and stripped, values stripped.
+
+    Each row gets ``_line`` (its line number in the file) for messages.
+    """
+    path = Path(path)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            rows = list(csv.DictReader(f))
+    except FileNotFoundError:
+        raise InputError(f"manifest {path} does not exist") from None
+    except IsADirectoryError:
+        raise InputError(f"manifest {path} is a folder; give the CSV file") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"manifest {path} cannot be read: {exc}") from None
+    out = []
+    for i, row in enumerate(rows, start=2):
+        clean = {(k or "").strip().lower(): (v or "").strip() for k, v in row.items()}
+        clean["_line"] = str(i)
+        out.append(clean)
+    if not out:
+        raise InputError(f"manifest {path} has no rows; one row per run is needed")
+    missing = [c for c in required if c not in out[0]]
+    if missing:
+        raise InputError(
+            f"manifest {path} needs a column {missing[0]!r} (columns: {', '.join(required)}, "
+            "one row per run)"
+        )
+    for row in out:
+        for c in required:
+            if not row[c]:
+                raise InputError(f"manifest {path}, line {row['_line']}: the {c} column is empty")
+    return out
+
+
+def batch_folder(path: str | os.PathLike) -> Path:
+    """The batch's output folder, made if needed; one that is not a batch's is refused."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"--out {path} is a file; give a folder for the batch")
+    if path.is_dir() and any(path.iterdir()):
+        record = path / BATCH_FILE
+        try:
+            kind = json.loads(record.read_text(encoding="utf-8")).get("kind")
+        except (OSError, ValueError, AttributeError):
+            kind = None
+        if kind != _KIND:
+            raise InputError(
+                f"--out {path} exists and is not a batch folder (no {BATCH_FILE}); give a new "
+                "or empty folder"
+            )
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _remove_scratch(job: Job) -> None:
+    """Scratch folders a killed run left beside its result (``.NAME.tmp-*``)."""
+    out = Path(job.out)
+    if not out.parent.is_dir():
+        return
+    for scratch in out.parent.glob(f".{out.name}.tmp-*"):
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+class _Log:
+    """The batch's log file: timestamped lines, appended and flushed one at a time."""
+
+    def __init__(self, path: Path, say: Callable[[str], None]) -> None:
+        self.path = path
+        self.say = say
+
+    def __call__(self, message: str, *, show: bool = True, details: Sequence[str] = ()) -> None:
+        stamp = datetime.now(UTC).isoformat(timespec="seconds")
+        with open(self.path, "a", encoding="utf-8") as f:
+            f.write(f"{stamp} {message}\n")
+            for line in details:
+                f.write(f"{stamp}   | {line}\n")
+        if show:
+            self.say(message)
+
+
+def _write_record(folder: Path, command: list[str] | None, where: str, outcomes: list[Outcome]):
+    from tissue_core import __version__
+
+    record = {
+        "kind": _KIND,
+        "software": {"name": "tissue-strain", "version": __version__},
+        "command": command,
+        "updated": datetime.now(UTC).isoformat(timespec="seconds"),
+        "where": where,
+        "runs": [
+            {k: v for k, v in asdict(o).items() if k != "messages"}
+            for o in sorted(outcomes, key=lambda o: o.name)
+        ],
+    }
+    with replaced_on_success(folder / BATCH_FILE) as tmp:
+        write_json(tmp, record)
+
+
+#: what differs between two runs of the same command on the same inputs: when and how long
+_PROVENANCE_KEYS = frozenset({"created", "updated", "command", "runtime_s", "out"})
+
+
+def _without_provenance(value):
+    if isinstance(value, dict):
+        return {k: _without_provenance(v) for k, v in value.items() if k not in _PROVENANCE_KEYS}
+    if isinstance(value, list):
+        return [_without_provenance(v) for v in value]
+    return value
+
+
+#: files of a folder that record how results were made, not results
+_NOT_RESULTS = frozenset({".tissue-strain-result.json", "report.html", BATCH_FILE, LOG_FILE})
+
+
+def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
+    """The files that differ between two result folders, beyond their provenance.
+
+    Every file is compared byte for byte, except: the result marker, the
+    batch's record and log (how and where the runs were made); JSON
+    files, compared without their time stamps, command lines and run times;
+    and ``report.html``, which shows those.  Where a file names its own
+    folder (a study lists its runs), the two folders' paths count as equal.
+    An empty list means the two folders hold the same results.
+    """
+    a, b = Path(a).resolve(), Path(b).resolve()
+
+    def files(root: Path) -> set[str]:
+        return {
+            p.relative_to(root).as_posix()
+            for p in root.rglob("*")
+            if p.is_file() and p.name not in _NOT_RESULTS
+        }
+
+    fa, fb = files(a), files(b)
+    out = [f"{name}: only in {a}" for name in sorted(fa - fb)]
+    out += [f"{name}: only in {b}" for name in sorted(fb - fa)]
+    for name in sorted(fa & fb):
+        x = (a / name).read_bytes().replace(str(a).encode(), b"<folder>")
+        y = (b / name).read_bytes().replace(str(b).encode(), b"<folder>")
+        if x == y:
+            continue
+        if name.endswith(".json"):
+            try:
+                if _without_provenance(json.loads(x)) == _without_provenance(json.loads(y)):
+                    continue
+            except ValueError:
+                pass
+        out.append(f"{name}: differs")
+    return out
+
+
+def _worker_deaths(dask_scheduler, key: str) -> int:  # runs on the scheduler
+    ts = dask_scheduler.tasks.get(key)
+    return 0 if ts is None else int(ts.suspicious)
+
+
+def run_batch(
+    jobs: Sequence[Job],
+    folder: str | os.PathLike,
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    overwrite: bool = False,
+    say: Callable[[str], None] = lambda message: None,
+) -> list[Outcome]:
+    """Run every job that is not complete already; return every job's outcome, in order.
+
+    Parameters
+    ----------
+    jobs : sequence of Job
+        Names must be unique.
+    folder : path
+        The batch folder (see :func:`batch_folder`): ``batch.log`` and ``batch.json``.
+    workers : int
+        Local worker processes (1: in this process, one run after the other).
+    scheduler : str, optional
+        The address of a running Dask scheduler; ``workers`` is then ignored.
+    overwrite : bool
+        Replace runs made with other parameters or from changed inputs; without
+        it the batch is refused before any run starts.
+    say : callable
+        Progress lines (the command line's :class:`~tissue_core.progress.Progress`).
+    """
+    folder = Path(folder)
+    names = [j.name for j in jobs]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"run names must be unique in a batch; repeated: {', '.join(dup)}")
+    log = _Log(folder / LOG_FILE, say)
+    command = recorded_command.get()
+    outcomes: dict[str, Outcome] = {}
+    todo: list[tuple[Job, bool]] = []
+    stale = []
+    for job in jobs:
+        state = job_state(job)
+        if state == "complete":
+            outcomes[job.name] = Outcome(job.name, "skipped", job.out, "complete already")
+        elif state == "missing":
+            todo.append((job, False))
+        else:
+            stale.append((job, state))
+    if stale and not overwrite:
+        job, state = stale[0]
+        more = f" (and {len(stale) - 1} more)" if len(stale) > 1 else ""
+        raise InputError(f"run {job.name}: {state}{more}; --overwrite makes them again")
+    todo += [(job, True) for job, _ in stale]
+    where = (
+        f"the Dask scheduler at {scheduler}"
+        if scheduler
+        else ("this process" if workers == 1 else f"a local Dask cluster of {workers} workers")
+    )
+    log(
+        f"batch of {len(jobs)} runs: {len(outcomes)} complete already, {len(todo)} to run on "
+        f"{where}"
+    )
+    if command:
+        log("command: " + " ".join(command), show=False)
+    for job, _ in todo:
+        Path(job.out).parent.mkdir(parents=True, exist_ok=True)
+        _remove_scratch(job)
+
+    def finished(outcome: Outcome) -> None:
+        outcomes[outcome.name] = outcome
+        done = sum(o.status != "skipped" for o in outcomes.values())
+        count = f"[{done}/{len(todo)}]"
+        deaths = outcome.worker_deaths
+        retried = f" (started again: its worker died {deaths}x)" if deaths else ""
+        if outcome.status == "done":
+            written.append(outcome.out)
+            what = f"done in {outcome.seconds:.1f} s on {outcome.worker}"
+        else:
+            what = f"failed: {outcome.reason}"
+        log(f"{count} {outcome.name}: {what}{retried}", details=outcome.messages)
+        _write_record(folder, command, where, list(outcomes.values()))
+
+    _write_record(folder, command, where, list(outcomes.values()))
+    if todo and workers == 1 and scheduler is None:
+        for job, replace in todo:
+            log(f"{job.name}: started", show=False)
+            finished(run_job(job, replace))
+    elif todo:
+        _run_on_dask(todo, workers, scheduler, log, finished)
+    return [outcomes[j.name] for j in jobs]
+
+
+def _has_dashboard(client) -> bool:
+    try:
+        return "dashboard" in client.scheduler_info().get("services", {})
+    except Exception:  # an old scheduler: no matter
+        return False
+
+
+def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
+    import logging
+
+    from dask.base import tokenize
+    from distributed import Client, LocalCluster, as_completed
+
+    with contextlib.ExitStack() as stack:
+        quiet = logging.getLogger().getEffectiveLevel() > logging.INFO
+        for name in ("distributed", "dask", "bokeh", "tornado") if quiet else ():
+            logger = logging.getLogger(name)
+            stack.callback(logger.setLevel, logger.level)
+            logger.setLevel(logging.ERROR)  # the cluster's own chatter; -v shows it
+        if scheduler:
+            try:
+                client = stack.enter_context(Client(scheduler, timeout="20s"))
+            except (OSError, TimeoutError) as exc:
+                raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
+        else:
+            cluster = stack.enter_context(
+                LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,  # a run is one task; its libraries' threads are its own
+                    processes=True,
+                    dashboard_address=":0",  # a free port: batches may run side by side
+                    silence_logs=logging.ERROR,
+                )
+            )
+            client = stack.enter_context(Client(cluster))
+        n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
+        link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"
+        log(f"{n} workers; Dask dashboard: {link}", show=bool(scheduler) or n > 1)
+        futures = {}
+        for job, replace in todo:
+            key = f"run-{job.name}-{tokenize(job, replace, time.time())}"
+            futures[client.submit(run_job, job, replace, key=key, pure=False)] = job
+        for future in as_completed(futures):
+            job = futures[future]
+            try:
+                outcome = future.result()
+            except Exception as exc:  # KilledWorker: its workers died again and again
+                outcome = Outcome(job.name, "failed", job.out, f"{type(exc).__name__}: {exc}")
+            try:
+                outcome.worker_deaths = client.run_on_scheduler(_worker_deaths, key=future.key)
+            except Exception:  # the scheduler is gone: the count is not essential
+                pass
+            finished(outcome)
