@@ -451,9 +451,9 @@ def batch_folder(path: str | os.PathLike) -> Path:
     return path
 
 
-def _remove_scratch(job: Job) -> None:
+def _remove_scratch(out: str) -> None:
     """Scratch folders a killed run left beside its result (``.NAME.tmp-*``)."""
-    out = Path(job.out)
+    out = Path(out)
     if not out.parent.is_dir():
         return
     for scratch in out.parent.glob(f".{out.name}.tmp-*"):
@@ -616,10 +616,11 @@ def run_batch(
         log("command: " + " ".join(command), show=False)
     for job, _ in todo:
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
-        _remove_scratch(job)
+        _remove_scratch(job.out)
 
     def finished(outcome: Outcome) -> None:
         outcomes[outcome.name] = outcome
+        _remove_scratch(outcome.out)  # left by an attempt whose worker was killed
         done = sum(o.status != "skipped" for o in outcomes.values())
         count = f"[{done}/{len(todo)}]"
         deaths = outcome.worker_deaths
