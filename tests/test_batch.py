@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from tissue_core.batch import Job, differences, job_state
+from tissue_core.outputs import foreign_content, read_marker
 
 #: the module's tests share its batches: one xdist worker runs them all (make test: loadgroup)
 pytestmark = pytest.mark.xdist_group("batch")
@@ -289,3 +290,24 @@ def test_a_run_made_with_other_parameters_is_kept_without_overwrite(sequential, 
     assert "run S01: " in done.stderr and "made with other parameters (and 3 more)" in done.stderr
     assert "--overwrite makes them again" in done.stderr
     assert (seq / "runs" / "S01" / ".tissue-strain-result.json").read_bytes() == before
+
+
+def test_ctrl_c_stops_a_batch_on_a_local_cluster_and_leaves_whole_runs_only(study_data, tmp_path):
+    out = tmp_path / "b"
+    batch = subprocess.Popen(
+        [sys.executable, "-m", "strain2d", "batch", str(study_data / "manifest.csv"),
+         "--workers", "2", "--out", str(out), "--no-study", *RUN_OPTIONS],
+        stderr=subprocess.PIPE, text=True, errors="replace",
+    )  # fmt: skip
+    runs = out / "runs"
+    _wait_for(
+        lambda: batch.poll() is None and any(runs.glob(".S0*.tmp-*")), "a run in progress", 120
+    )
+    batch.send_signal(signal.SIGINT)
+    _, stderr = batch.communicate(timeout=120)
+    assert batch.returncode == 130, stderr
+    assert stderr.strip().splitlines()[-1].startswith("strain2d batch: interrupted"), stderr
+    assert not list(runs.glob(".*")), "scratch of an interrupted run left behind"
+    for run in runs.iterdir():  # whole runs only, each with its marker
+        assert read_marker(run) is not None and foreign_content(run) is None, run
+    assert "interrupted: " in (out / "batch.log").read_text()

@@ -634,12 +634,22 @@ def run_batch(
         _write_record(folder, command, where, list(outcomes.values()))
 
     _write_record(folder, command, where, list(outcomes.values()))
-    if todo and workers == 1 and scheduler is None:
-        for job, replace in todo:
-            log(f"{job.name}: started", show=False)
-            finished(run_job(job, replace))
-    elif todo:
-        _run_on_dask(todo, workers, scheduler, log, finished)
+    try:
+        if todo and workers == 1 and scheduler is None:
+            for job, replace in todo:
+                log(f"{job.name}: started", show=False)
+                finished(run_job(job, replace))
+        elif todo:
+            try:
+                _run_on_dask(todo, workers, scheduler, log, finished)
+            finally:
+                if scheduler is None:  # the local workers are gone, and with them their runs
+                    for job, _ in todo:
+                        _remove_scratch(job.out)
+    except KeyboardInterrupt:
+        made = sum(o.status == "done" for o in outcomes.values())
+        log(f"interrupted: {made} of {len(todo)} runs made; a rerun makes the others", show=False)
+        raise
     return [outcomes[j.name] for j in jobs]
 
 
