@@ -25,49 +25,26 @@ import csv
 import io
 from pathlib import Path
 
-from strain2d.errors import InputError
-from tissue_core.batch import Job, RunOptions, job_state, manifest_rows, run_job
+from tissue_core.batch import Job, RunOptions, job_state, manifest_jobs, run_job
 
 __all__ = ["analyze_jobs", "study_job", "write_study_manifest"]
 
-_SOURCE_COLUMNS = ("video", "source")
-_OWN_COLUMNS = frozenset({*_SOURCE_COLUMNS, "specimen", "group", "run", "_line"})
-
 
 def analyze_jobs(
-    manifest: str,
-    out: Path,
-    options: RunOptions,
-    args: argparse.Namespace,
+    manifest: str, out: Path, options: RunOptions, args: argparse.Namespace
 ) -> tuple[list[Job], list[dict], list[str]]:
     """The batch's runs, one per manifest row: ``(jobs, rows, unused_columns)``."""
-    rows = manifest_rows(manifest, required=())
-    first = rows[0]
-    source_column = next((c for c in _SOURCE_COLUMNS if c in first), None)
-    if source_column is None:
-        raise InputError(
-            f"manifest {manifest} needs a 'video' column (the video, TIFF or image folder of "
-            "each specimen, one row per specimen)"
-        )
-    base = Path(manifest).resolve().parent
-    run_columns = set(options.columns(first))
-    unused = [c for c in first if c not in _OWN_COLUMNS and c not in run_columns]
-    jobs = []
-    for row in rows:
-        where = f"manifest {manifest}, line {row['_line']}"
-        text = row.get(source_column, "")
-        if not text:
-            raise InputError(f"{where}: the {source_column} column is empty")
-        source = Path(text) if Path(text).is_absolute() else base / text
-        specimen = row.get("specimen") or source.stem
-        if specimen in {".", ".."} or "/" in specimen or "\\" in specimen:
-            raise InputError(f"{where}: specimen {specimen!r} cannot name a folder")
-        run = out / "runs" / specimen
-        run_options = options.argv(args, {c: row[c] for c in run_columns}, where=where)
-        argv = ("analyze", str(source), *run_options, "--out", str(run))
-        jobs.append(Job(specimen, "strain2d.cli", argv, str(run), inputs=(str(source),)))
-        row["specimen"] = specimen
-    return jobs, rows, unused
+    return manifest_jobs(
+        manifest,
+        out,
+        options,
+        args,
+        module="strain2d.cli",
+        command="analyze",
+        sources=[("video", None)],
+        aliases={"source": "video"},
+        own_columns=("group", "run"),
+    )
 
 
 def write_study_manifest(path: Path, jobs: list[Job], rows: list[dict], done: set[str]) -> bool:

@@ -254,7 +254,7 @@ def test_bad_manifests_end_in_one_line_before_anything_runs(study_data, tmp_path
 
     video = study_data / "S01.avi"
     cases = [
-        ("specimen,group\nA,x\n", "needs a 'video' column"),
+        ("specimen,group\nA,x\n", "needs a column 'video', one row per run"),
         (f"video,grid\n{video},7by7\n", None),  # analyze says what is wrong with it: a run fails
         (f"video,animation\n{video},avi\n", "line 2: column animation must be one of"),
         (f"video,fps\n{video},fast\n", "line 2: column fps takes a float, got 'fast'"),

@@ -69,6 +69,7 @@ __all__ = [
     "check_workers",
     "differences",
     "job_state",
+    "manifest_jobs",
     "manifest_rows",
     "run_batch",
     "run_job",
@@ -143,9 +144,7 @@ def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
         return False
     records = {str(r.get("path")): r for r in summary.get("input_files") or []}
     for path in job.inputs:
-        record = records.get(str(path))
-        if record is None:
-            return False
+        record = records.get(str(path), {})  # not recorded: unchanged if not touched since
         p = Path(path)
         try:
             if p.is_dir():
@@ -153,11 +152,11 @@ def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
             else:
                 files = [p]
             size = sum(f.stat().st_size for f in files)
-            if size != record.get("bytes"):
+            if record and size != record.get("bytes"):
                 return False
             if max((f.stat().st_mtime for f in files), default=0.0) < created:
                 continue  # not touched since the run: no need to read it again
-            if sha256_of(files)[0] != record.get("sha256"):
+            if not record or sha256_of(files)[0] != record.get("sha256"):
                 return False
         except OSError:
             return False
@@ -309,8 +308,19 @@ class RunOptions:
         known = self._by_column()
         return [c for c in row if c.replace("-", "_") in known]
 
-    def argv(self, args: argparse.Namespace, row: dict[str, str], *, where: str) -> list[str]:
-        """The options of one run: the batch's, with the row's non-empty columns instead."""
+    def argv(
+        self,
+        args: argparse.Namespace,
+        row: dict[str, str],
+        *,
+        where: str,
+        base: Path | None = None,
+    ) -> list[str]:
+        """The options of one run: the batch's, with the row's non-empty columns instead.
+
+        A column naming a file or folder (``points``, ``tracks_file``) is taken
+        relative to ``base`` (the manifest's folder) when it is there.
+        """
         known = self._by_column()
         given: dict[argparse.Action, object] = {
             a: getattr(args, a.dest) for a in self._actions if hasattr(args, a.dest)
@@ -323,17 +333,24 @@ class RunOptions:
                 if action in group:
                     for other in group:
                         given.pop(other, None)
-            given[action] = self._value(action, column, text, where)
+            value = self._value(action, column, text, where)
+            if base is not None and isinstance(value, str) and not Path(value).is_absolute():
+                if (base / value).exists():
+                    value = str(base / value)
+            given[action] = value
         argv: list[str] = []
         for action in self._actions:  # in the parser's order, so the recorded command is stable
             if action not in given:
                 continue
             flag = max(action.option_strings, key=len)
+            value = given[action]
             if action.nargs == 0:
-                if given[action] is not None:
+                if value is not None:
                     argv.append(flag)
+            elif isinstance(value, list):  # nargs="+": the batch's list
+                argv += [flag, *map(str, value)]
             else:
-                argv += [flag, str(given[action])]
+                argv += [flag, str(value)]
         return argv
 
     @staticmethod
@@ -429,6 +446,79 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
             if not row[c]:
                 raise InputError(f"manifest {path}, line {row['_line']}: the {c} column is empty")
     return out
+
+
+def manifest_jobs(
+    manifest: str | os.PathLike,
+    out: Path,
+    options: RunOptions,
+    args: argparse.Namespace,
+    *,
+    module: str,
+    command: str,
+    sources: Sequence[tuple[str, str | None]],
+    aliases: dict[str, str] | None = None,
+    name_column: str = "specimen",
+    own_columns: Sequence[str] = (),
+    summary: str = "summary.json",
+) -> tuple[list[Job], list[dict[str, str]], list[str]]:
+    """The jobs of a manifest, one per row, each writing ``out/runs/NAME``.
+
+    Parameters
+    ----------
+    sources : sequence of (column, flag)
+        The input columns (relative to the manifest's folder or absolute) and
+        the command's flag for each (``None``: a positional argument).
+    aliases : dict, optional
+        Other names of columns (``{"source": "video"}``).
+    name_column : str
+        The run's name (default: the first input's name without suffix).
+    own_columns : sequence of str
+        Columns the batch command itself uses (``group``).
+
+    Returns
+    -------
+    jobs, rows, unused
+        The rows (with the run's name in ``name_column``) and the columns
+        neither the batch nor the command uses.
+    """
+    rows = manifest_rows(manifest, required=())
+    aliases = aliases or {}
+    for row in rows:
+        for alias, column in aliases.items():
+            if alias in row and column not in row:
+                row[column] = row.pop(alias)
+    first = rows[0]
+    for column, _ in sources:
+        if column not in first:
+            raise InputError(f"manifest {manifest} needs a column {column!r}, one row per run")
+    base = Path(manifest).resolve().parent
+    run_columns = set(options.columns(first)) - {c for c, _ in sources}
+    mine = {c for c, _ in sources} | {name_column, "_line", *own_columns}
+    unused = [c for c in first if c not in mine and c not in run_columns]
+    jobs = []
+    for row in rows:
+        where = f"manifest {manifest}, line {row['_line']}"
+        argv: list[str] = [command]
+        inputs = []
+        for column, flag in sources:
+            text = row.get(column, "")
+            if not text:
+                raise InputError(f"{where}: the {column} column is empty")
+            path = Path(text) if Path(text).is_absolute() else base / text
+            inputs.append(str(path))
+            argv += [str(path)] if flag is None else [flag, str(path)]
+        name = row.get(name_column) or Path(inputs[0]).stem
+        if name in {".", ".."} or "/" in name or "\\" in name:
+            raise InputError(f"{where}: {name_column} {name!r} cannot name a folder")
+        run = out / "runs" / name
+        run_argv = options.argv(args, {c: row[c] for c in run_columns}, where=where, base=base)
+        # files named by options (points, calibrations) are inputs too
+        inputs += [a for a in run_argv if not a.startswith("-") and Path(a).is_file()]
+        argv += [*run_argv, "--out", str(run)]
+        jobs.append(Job(name, module, tuple(argv), str(run), tuple(inputs), summary))
+        row[name_column] = name
+    return jobs, rows, unused
 
 
 def batch_folder(path: str | os.PathLike) -> Path:
