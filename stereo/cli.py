@@ -193,6 +193,54 @@ def _build_parser() -> CommandLine:
     p.add_argument("--calib", nargs="+", required=True, help=_CALIB_HELP)
     p.add_argument("--left", nargs="+", required=True, help="left video, TIFF, folder or images")
     p.add_argument("--right", nargs="+", required=True, help="right video, TIFF, folder or images")
+    _add_reconstruct_options(p)
+    p.add_argument("--out", required=True, help="output folder")
+    _common(p)
+
+    p = cli.command(
+        "batch",
+        _cmd_batch,
+        later=lambda p: _tracker_flags(_batch_run_options(p)),
+        help="reconstruct the specimens of a manifest as a batch (on a Dask cluster)",
+        description="Reconstruct every specimen of a manifest CSV (columns left, right, "
+        "optionally calib, specimen, and any reconstruct option by name, e.g. grid, roi, fps) "
+        "into OUT/runs/SPECIMEN, each as one task on a local Dask cluster or a running "
+        "scheduler. A failing specimen is reported and the others go on; a rerun keeps the "
+        "runs that are complete with the same parameters and makes the rest. Options given "
+        "here apply to every run; a manifest column of the same name wins.",
+        allow_abbrev=False,
+    )
+    p.add_argument("manifest", metavar="MANIFEST", help="CSV: one row per specimen")
+    p.add_argument("--out", required=True, help="batch folder: runs/, batch.log, batch.json")
+    from tissue_core.batch import add_batch_arguments
+
+    add_batch_arguments(p, what="reconstructions")
+    options = _batch_run_options(p)
+    options.add_argument(
+        "--calib",
+        nargs="+",
+        help="the calibration of every specimen (a manifest column calib names one file "
+        "per specimen instead)",
+    )
+    _add_reconstruct_options(options)
+    p.set_defaults(run_options=options)
+    return cli
+
+
+_RUN_OPTIONS: dict[int, object] = {}
+
+
+def _batch_run_options(p):
+    """The batch parser's record of the reconstruct options it passes on (one per parser)."""
+    from tissue_core.batch import RunOptions
+
+    if id(p) not in _RUN_OPTIONS:
+        _RUN_OPTIONS[id(p)] = RunOptions(p, "reconstruct options, for every run")
+    return _RUN_OPTIONS[id(p)]
+
+
+def _add_reconstruct_options(p) -> None:
+    """``reconstruct``'s options but the inputs and the output (shared with ``batch``)."""
     p.add_argument("--grid", help=f"grid COLSxROWS (default {_DEFAULT_GRID})")
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in left-image pixels")
     p.add_argument("--points", help="CSV with columns x,y instead of a grid (--grid, --roi)")
@@ -221,9 +269,49 @@ def _build_parser() -> CommandLine:
         "default xy)",
     )
     _match_args(p)
-    p.add_argument("--out", required=True, help="output folder")
-    _common(p)
-    return cli
+
+
+def _cmd_batch(args) -> int:
+    from tissue_core.batch import (
+        batch_folder,
+        check_workers,
+        manifest_jobs,
+        manifest_rows,
+        run_batch,
+    )
+
+    first = manifest_rows(args.manifest, required=("left", "right"))[0]
+    if "calib" not in first and not getattr(args, "calib", None):
+        raise InputError(
+            "give the calibration: --calib for every specimen, or a calib column in the manifest"
+        )
+    out = Path(args.out).resolve()
+    jobs, _, unused = manifest_jobs(
+        args.manifest,
+        out,
+        args.run_options,
+        args,
+        module="stereo.cli",
+        command="reconstruct",
+        sources=[("left", "--left"), ("right", "--right")],
+    )
+    workers = check_workers(args.workers, args.scheduler, len(jobs))
+    folder = batch_folder(args.out)
+    say = _say(args)
+    if unused:
+        say(f"manifest columns not used: {', '.join(unused)}")
+    outcomes = run_batch(
+        jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
+    )
+    failed = [o for o in outcomes if o.status == "failed"]
+    if failed:
+        more = f"; {len(failed) - 1} more" if len(failed) > 1 else ""
+        raise InputError(
+            f"{len(failed)} of {len(jobs)} runs failed, the others are in {args.out}: "
+            f"{failed[0].name}: {failed[0].reason}{more} (see {Path(args.out) / 'batch.log'})"
+        )
+    say(f"results in {args.out}")
+    return 0
 
 
 def _match_args(p: argparse.ArgumentParser) -> None:
