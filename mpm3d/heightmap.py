@@ -148,8 +148,20 @@ def surface_levels(
         ``background`` is the median of the voxels below the threshold and
         ``noise`` their robust standard deviation (1.4826 x MAD).
     """
-    step = max(1, round((volume.size / sample) ** (1 / 3)))
-    sub = np.asarray(volume[::step, ::step, ::step], dtype=np.float32).ravel()
+    step = sample_step(volume.size, sample)
+    return levels_of_sample(volume[::step, ::step, ::step], threshold=threshold)
+
+
+def sample_step(size: int, sample: int = 2_000_000) -> int:
+    """The stride along each axis of the subsample :func:`surface_levels` takes."""
+    return max(1, round((size / sample) ** (1 / 3)))
+
+
+def levels_of_sample(
+    sub: np.ndarray, *, threshold: float | None = None
+) -> tuple[float, float, float]:
+    """:func:`surface_levels` of a subsample already taken (``volume[::s, ::s, ::s]``)."""
+    sub = np.asarray(sub, dtype=np.float32).ravel()
     finite = np.isfinite(sub)
     if not finite.any():
         raise InputError("every voxel is NaN or infinite: there is no surface to find")
@@ -286,15 +298,62 @@ def height_map(
     >>> bool(np.abs(hm.depth_um - 2.0 * true_depth[0]).max() < 0.1)
     True
     """
-    from scipy import ndimage
-
     from mpm3d._kernels import first_crossing
 
     volume = np.asarray(volume) if not isinstance(volume, np.memmap) else volume
     if volume.ndim != 3:
         raise InputError(f"volume must be (Z, Y, X), got shape {volume.shape}")
-    dz, dy, dx = (float(s) for s in spacing)
     nz, ny, nx = volume.shape
+    window, sigma_um = check_options(
+        volume.shape,
+        spacing=spacing,
+        peak_window_um=peak_window_um,
+        smooth_um=smooth_um,
+        min_cnr=min_cnr,
+    )
+    threshold_given = threshold is not None
+    threshold, background, noise = surface_levels(volume, threshold=threshold)
+    step = sample_step(volume.size)  # surface_levels' sample
+    separability = otsu_separability(volume[::step, ::step, ::step], threshold)
+    depth = np.empty((ny, nx), np.float64)
+    peak = np.empty((ny, nx), np.float64)
+    log.info("height map: threshold %g, background %g, noise %g", threshold, background, noise)
+    first_crossing(volume, float(threshold), float(background), int(window), depth, peak)
+    return from_crossings(
+        depth,
+        peak,
+        spacing=spacing,
+        n_slices=nz,
+        levels=(threshold, background, noise),
+        threshold_given=threshold_given,
+        separability=separability,
+        peak_window_um=peak_window_um,
+        smooth_um=sigma_um,
+        min_cnr=min_cnr,
+        outlier_um=outlier_um,
+        min_coverage=min_coverage,
+    )
+
+
+def check_options(
+    shape: Sequence[int],
+    *,
+    spacing: Sequence[float],
+    peak_window_um: float,
+    smooth_um: float | None,
+    min_cnr: float,
+) -> tuple[int, float]:
+    """Check :func:`height_map`'s options for a ``(Z, Y, X)`` stack of ``shape``.
+
+    Returns
+    -------
+    window : int
+        ``peak_window_um`` in slices (at least 1, at most the stack).
+    sigma_um : float
+        The smoothing to apply (``smooth_um``, by default one pixel).
+    """
+    dz, dy, dx = (float(s) for s in spacing)
+    nz, ny, nx = shape
     if nz < 3:
         raise InputError(f"a z-stack needs at least 3 slices, got {nz}")
     for name, value in (("peak_window_um", peak_window_um), ("min_cnr", min_cnr)):
@@ -308,16 +367,46 @@ def height_map(
             f"a smoothing of {sigma_um:g} um (--smooth) is wider than the field of view "
             f"({ny * dy:g} x {nx * dx:g} um)"
         )
-    threshold_given = threshold is not None
-    threshold, background, noise = surface_levels(volume, threshold=threshold)
-    step = max(1, round((volume.size / 2_000_000) ** (1 / 3)))  # surface_levels' sample
-    separability = otsu_separability(volume[::step, ::step, ::step], threshold)
     window = max(1, math.ceil(min(peak_window_um / dz, nz)))  # slices, at most the stack
-    depth = np.empty((ny, nx), np.float64)
-    peak = np.empty((ny, nx), np.float64)
-    log.info("height map: threshold %g, background %g, noise %g", threshold, background, noise)
-    first_crossing(volume, float(threshold), float(background), int(window), depth, peak)
+    return window, sigma_um
 
+
+def from_crossings(
+    depth: np.ndarray,
+    peak: np.ndarray,
+    *,
+    spacing: Sequence[float],
+    n_slices: int,
+    levels: tuple[float, float, float],
+    threshold_given: bool,
+    separability: float,
+    peak_window_um: float,
+    smooth_um: float,
+    min_cnr: float,
+    outlier_um: float | None,
+    min_coverage: float,
+) -> HeightMap:
+    """The height map from each column's first crossing: drop-outs, gap filling, smoothing.
+
+    Everything after :func:`mpm3d._kernels.first_crossing` in :func:`height_map`,
+    on ``(Y, X)`` maps only, so a stack read in tiles
+    (:func:`mpm3d.tiled.tiled_height_map`) ends in the same map.
+
+    Parameters
+    ----------
+    depth, peak : (Y, X) float64
+        The crossing depth in slices and the layer's peak grey value (see
+        :func:`mpm3d._kernels.first_crossing`).
+    levels : (threshold, background, noise)
+        From :func:`surface_levels`.
+    smooth_um : float
+        The smoothing sigma to apply (from :func:`check_options`).
+    """
+    from scipy import ndimage
+
+    threshold, background, noise = levels
+    dz, dy, dx = (float(s) for s in spacing)
+    sigma_um = float(smooth_um)
     cut = depth < 0  # bright from slice 0 on: the surface lies above the stack
     found = np.isfinite(depth) & ~cut
     cut_fraction = float(cut.mean())
@@ -356,7 +445,7 @@ def height_map(
                 f"the surface lies above the first slice in {100 * cut_fraction:.1f} % of the "
                 "columns (cut off by the stack); they are left out and filled in"
             ),
-            stacklevel=2,
+            stacklevel=3,
         )
     depth_um = fill_gaps(depth_um, valid)
     if sigma_um > 0:
@@ -377,7 +466,7 @@ def height_map(
         valid=valid,
         cnr=cnr,
         spacing=(dz, dy, dx),
-        n_slices=nz,
+        n_slices=int(n_slices),
         threshold=threshold,
         background=background,
         level=float(level),

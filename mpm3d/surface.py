@@ -12,14 +12,20 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from mpm3d.errors import InputError
 
 __all__ = [
+    "IsoPlan",
     "add_height",
+    "column_work",
+    "contour_rows",
+    "finish_isosurface",
     "heightmap_mesh",
+    "iso_plan",
     "isosurface",
     "largest_component",
     "mesh_quality",
@@ -211,13 +217,84 @@ def isosurface(
     Schroeder, Maynard, Geveci, Flying edges: a high-performance scalable
     isocontouring algorithm, IEEE LDAV 2015, doi:10.1109/LDAV.2015.7348069.
     """
-    pv = _pyvista()
-    from mpm3d._kernels import bin_lateral
-
     if volume.ndim != 3:
         raise InputError(f"volume must be (Z, Y, X), got shape {volume.shape}")
+    plan = iso_plan(
+        volume.shape,
+        volume.dtype,
+        spacing=spacing,
+        level=level,
+        depth_um=depth_um,
+        band_um=band_um,
+        column_scale=column_scale,
+        bin=bin,
+        decimate=decimate,
+    )
+    work = column_work(volume, plan, 0)
+    piece = contour_rows(work, plan, 0)
+    del work
+    return finish_isosurface(
+        [piece], plan, smooth_iterations=smooth_iterations, pass_band=pass_band
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class IsoPlan:
+    """What :func:`isosurface` does to every column, decided once for the whole stack.
+
+    The per-column work (:func:`column_work`) and the contouring
+    (:func:`contour_rows`) of any band of rows then give exactly the
+    triangles and points the whole stack gives in that band.
+
+    Attributes
+    ----------
+    shape : (Z, Y, X)
+    spacing : (dz, dy, dx) um
+    bin : int
+        Lateral binning.
+    level : float
+        The contour level (nudged off integers for integer data without
+        ``column_scale``).
+    background : float or None
+        ``column_scale``'s background.
+    scale : (Y // bin, X // bin) float32 or None
+        ``1 / (peak - background)`` per binned column.
+    top, bottom : (Y // bin, X // bin) int64
+        The band contoured from the data, in slices.
+    decimate : float
+    """
+
+    shape: tuple[int, int, int]
+    spacing: tuple[float, float, float]
+    bin: int
+    level: float
+    background: float | None
+    scale: np.ndarray | None
+    top: np.ndarray
+    bottom: np.ndarray
+    decimate: float
+
+    @property
+    def binned(self) -> tuple[int, int]:
+        """``(Y // bin, X // bin)``: the rows and columns of the contoured grid."""
+        return self.top.shape
+
+
+def iso_plan(
+    shape: Sequence[int],
+    dtype,
+    *,
+    spacing: Sequence[float],
+    level: float,
+    depth_um: np.ndarray | None = None,
+    band_um: float = 100.0,
+    column_scale: tuple[float, np.ndarray] | None = None,
+    bin: int | None = None,
+    decimate: float = 0.0,
+) -> IsoPlan:
+    """Check :func:`isosurface`'s options for a ``(Z, Y, X)`` stack and plan its columns."""
     dz, dy, dx = (float(s) for s in spacing)
-    nz, ny, nx = volume.shape
+    nz, ny, nx = (int(n) for n in shape)
     if bin is None:
         bin = int(min(4, max(1, round(dz / max(dx, dy)))))
     if bin < 1:
@@ -229,7 +306,7 @@ def isosurface(
         )
     if not 0 <= decimate < 1:
         raise InputError(f"decimate must be in [0, 1), got {decimate}")
-    integer = np.issubdtype(volume.dtype, np.integer)
+    integer = np.issubdtype(dtype, np.integer)
     if column_scale is None and integer and float(level).is_integer():
         level = float(level) + 0.5
     by, bx = ny // bin, nx // bin
@@ -240,22 +317,13 @@ def isosurface(
             raise InputError(f"{name} must be {(ny, nx)}, got {a.shape}")
         return a[: by * bin, : bx * bin].reshape(by, bin, bx, bin).mean(axis=(1, 3))
 
-    if bin > 1:
-        work = np.empty((nz, by, bx), np.float32)
-        bin_lateral(volume, bin, work)
-    elif column_scale is not None:
-        work = np.asarray(volume, dtype=np.float32).copy()
-    else:
-        work = np.array(volume)  # a copy in the stack's own type: the band writes into it
+    background = scale = None
     if column_scale is not None:
         background, peak = column_scale
-        span = blocks(peak, "the peak map") - float(background)
+        background = float(background)
+        span = blocks(peak, "the peak map") - background
         with np.errstate(divide="ignore", invalid="ignore"):
             scale = np.where(np.isfinite(span) & (span > 0), 1.0 / span, 0.0).astype(np.float32)
-        np.subtract(work, np.float32(background), out=work)
-        np.multiply(work, scale[None], out=work)
-    if np.issubdtype(work.dtype, np.floating):
-        np.nan_to_num(work, copy=False, nan=float(level) - 1.0, posinf=float(level) + 1.0)
     if depth_um is not None:
         d = blocks(depth_um, "depth_um")
         top = np.clip(np.floor((d - band_um) / dz), 0, nz).astype(np.int64)
@@ -263,25 +331,126 @@ def isosurface(
     else:
         top = np.zeros((by, bx), np.int64)
         bottom = np.full((by, bx), nz, np.int64)
-    _fill_tissue(work, float(level), top, bottom)
-    grid = pv.ImageData(
-        dimensions=(bx, by, nz),
-        spacing=(dx * bin, dy * bin, dz),
-        origin=((bin - 1) * dx / 2, (bin - 1) * dy / 2, 0.0),
+    return IsoPlan(
+        shape=(nz, ny, nx),
+        spacing=(dz, dy, dx),
+        bin=int(bin),
+        level=float(level),
+        background=background,
+        scale=scale,
+        top=top,
+        bottom=bottom,
+        decimate=float(decimate),
     )
+
+
+def column_work(volume: np.ndarray, plan: IsoPlan, row0: int) -> np.ndarray:
+    """The grid contoured for binned rows ``row0 ..``: binned, scaled, tissue filled.
+
+    Parameters
+    ----------
+    volume : (Z, R * bin (+ up to bin - 1), X) array
+        The stack's rows ``row0 * bin`` onwards (the whole stack for
+        ``row0 = 0``); rows past the last whole bin are left out, as are
+        the columns past ``(X // bin) * bin``.
+    plan : IsoPlan
+    row0 : int
+        The first binned row of ``volume``.
+
+    Returns
+    -------
+    (Z, R, X // bin) array
+        float32 (the stack's type for ``bin = 1`` without ``column_scale``).
+    """
+    from mpm3d._kernels import bin_lateral
+
+    nz = volume.shape[0]
+    b = plan.bin
+    rows = min(volume.shape[1] // b, plan.binned[0] - row0)
+    bx = plan.binned[1]
+    if b > 1:
+        work = np.empty((nz, rows, bx), np.float32)
+        bin_lateral(volume, b, work)
+    elif plan.scale is not None:
+        work = np.asarray(volume[:, :rows, :bx], dtype=np.float32).copy()
+    else:
+        work = np.array(volume[:, :rows, :bx])  # a copy in the stack's own type: filled below
+    level = plan.level
+    if plan.scale is not None:
+        np.subtract(work, np.float32(plan.background), out=work)
+        np.multiply(work, plan.scale[None, row0 : row0 + rows], out=work)
+    if np.issubdtype(work.dtype, np.floating):
+        np.nan_to_num(work, copy=False, nan=level - 1.0, posinf=level + 1.0)
+    rows_of = slice(row0, row0 + rows)
+    _fill_tissue(work, level, plan.top[rows_of], plan.bottom[rows_of])
+    return work
+
+
+def contour_rows(work: np.ndarray, plan: IsoPlan, row0: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flying-edges triangles of :func:`column_work`'s grid for binned rows ``row0 ..``.
+
+    The grid keeps the whole stack's origin and spacing and is placed at its
+    rows by its VTK extent, so every point is computed exactly as on the
+    whole grid: bands that share their boundary row give bit-identical
+    points there (merged by :func:`finish_isosurface`).
+
+    Returns
+    -------
+    points : (P, 3) float32
+        ``(x, y, depth)`` um.
+    triangles : (T, 3) int64
+    """
+    pv = _pyvista()
+    dz, dy, dx = plan.spacing
+    b = plan.bin
+    nz, rows, bx = work.shape
+    grid = pv.ImageData(
+        dimensions=(bx, rows, nz),
+        spacing=(dx * b, dy * b, dz),
+        origin=((b - 1) * dx / 2, (b - 1) * dy / 2, 0.0),
+    )
+    grid.extent = (0, bx - 1, row0, row0 + rows - 1, 0, nz - 1)
     grid.point_data["v"] = work.reshape(-1)
     mesh = grid.contour(
-        [float(level)],
+        [plan.level],
         scalars="v",
         method="flying_edges",
         compute_normals=False,
         compute_gradients=False,
         compute_scalars=False,
     )
-    del grid, work
+    del grid
     if mesh.n_cells == 0:
-        raise InputError(f"no isosurface at grey level {level:g}")
-    mesh = largest_component(mesh.triangulate())
+        return np.empty((0, 3), np.float32), np.empty((0, 3), np.int64)
+    mesh = mesh.triangulate()
+    return np.asarray(mesh.points), np.asarray(mesh.regular_faces, np.int64)
+
+
+def finish_isosurface(
+    pieces: Sequence[tuple[np.ndarray, np.ndarray]],
+    plan: IsoPlan,
+    *,
+    smooth_iterations: int = 40,
+    pass_band: float = 0.02,
+):
+    """One mesh from the contoured bands: merged, its largest piece, smoothed, oriented.
+
+    Points shared by two bands (bit-identical, see :func:`contour_rows`)
+    are merged; points and triangles are put in one canonical order (points
+    sorted by their coordinates, triangles by their points), so the mesh,
+    and everything measured on it, is the same whatever the bands.
+    """
+    pv = _pyvista()
+    points = np.concatenate([p for p, _ in pieces]) if pieces else np.empty((0, 3), np.float32)
+    offsets = np.cumsum([0] + [len(p) for p, _ in pieces[:-1]])
+    tris = [t + o for (_, t), o in zip(pieces, offsets, strict=True)]
+    tris = np.concatenate(tris) if tris else np.empty((0, 3), np.int64)
+    if len(tris) == 0:
+        raise InputError(f"no isosurface at grey level {plan.level:g}")
+    points, tris = _canonical(points, tris)
+    mesh = pv.PolyData(points, np.column_stack([np.full(len(tris), 3), tris]).ravel())
+    del points, tris
+    mesh = largest_component(mesh)
     if smooth_iterations > 0:
         mesh = mesh.smooth_taubin(
             n_iter=int(smooth_iterations),
@@ -290,14 +459,25 @@ def isosurface(
             non_manifold_smoothing=True,
             normalize_coordinates=True,
         )
-    if decimate > 0:
-        mesh = mesh.decimate(float(decimate))
+    if plan.decimate > 0:
+        mesh = mesh.decimate(plan.decimate)
     mesh = orient_outward(mesh)
+    dz, dy, dx = plan.spacing
     mesh.point_data["depth_um"] = mesh.points[:, 2].copy()
-    mesh.field_data["level"] = np.array([float(level)])
+    mesh.field_data["level"] = np.array([plan.level])
     mesh.field_data["spacing_um"] = np.array([dz, dy, dx])
-    mesh.field_data["lateral_bin"] = np.array([int(bin)])
+    mesh.field_data["lateral_bin"] = np.array([plan.bin])
     return mesh
+
+
+def _canonical(points: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Equal points merged, points sorted, each triangle from its least point, sorted."""
+    points, inverse = np.unique(points, axis=0, return_inverse=True)
+    tris = inverse.reshape(-1)[tris]
+    first = np.argmin(tris, axis=1)
+    tris = np.take_along_axis(tris, (first[:, None] + np.arange(3)) % 3, axis=1)  # same winding
+    tris = tris[np.lexsort(tris.T[::-1])]
+    return points, tris
 
 
 def _fill_tissue(work: np.ndarray, level: float, top: np.ndarray, bottom: np.ndarray) -> None:
