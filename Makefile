@@ -62,14 +62,9 @@ demo: setup
 	    --grid 13x13 --roi 525,318,664,456 --strain --out $(DEMO)/stereo_dome --overwrite
 	@echo "demo results in $(DEMO)/stereo_calib.json and $(DEMO)/stereo_dome (report.html, points3d.csv, strain/, figures/)"
 	$(BIN)/python -m sample_data_synth study --out $(DEMO)/study_data --overwrite -q
-	roi=$$($(BIN)/python -c "import csv,sys; print(next(csv.DictReader(open(sys.argv[1])))['roi'])" \
-	    $(DEMO)/study_data/manifest.csv) && \
-	for video in $(DEMO)/study_data/S*.avi; do \
-	  $(BIN)/python -m strain2d -q analyze $$video --grid 7x7 --roi $$roi --fps 10 \
-	      --out $(DEMO)/study_data/runs/$$(basename $$video .avi) --overwrite || exit 1; done
-	$(BIN)/python -m strain2d study --manifest $(DEMO)/study_data/manifest.csv \
-	    --out $(DEMO)/study --overwrite
-	@echo "demo results in $(DEMO)/study_data/runs/S*/report.html and $(DEMO)/study/report.html"
+	$(BIN)/python -m strain2d batch $(DEMO)/study_data/manifest.csv --grid 7x7 --fps 10 \
+	    --out $(DEMO)/study_batch --overwrite
+	@echo "demo results in $(DEMO)/study_batch: runs/S*/report.html, study/report.html, batch.log"
 
 test: setup
 	$(BIN)/ruff check .

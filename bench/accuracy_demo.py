@@ -150,7 +150,7 @@ def stereo_accuracy(demo: Path) -> None:
 
 def study_accuracy(demo: Path) -> None:
     truth = json.loads((demo / "study_data" / "study_truth.json").read_text())
-    stats = json.loads((demo / "study" / "statistics.json").read_text())
+    stats = json.loads((demo / "study_batch" / "study" / "statistics.json").read_text())
     exact = {s["specimen"]: s for s in truth["specimens"]}
     print("study (demo, 8 synthetic specimens):")
     hits, errors = 0, []

@@ -154,8 +154,8 @@ def report_figures() -> None:
     """The demo study's figures: one specimen's run figures and the study's, shrunk."""
     from PIL import Image
 
-    run = ROOT / "demo_output" / "study_data" / "runs" / "S01" / "figures"
-    study = ROOT / "demo_output" / "study" / "figures"
+    run = ROOT / "demo_output" / "study_batch" / "runs" / "S01" / "figures"
+    study = ROOT / "demo_output" / "study_batch" / "study" / "figures"
     files = {
         "run_maps_endpoint.png": next(iter(sorted(run.glob("strain_frame*.png"))), None),
         "run_crosses.png": next(iter(sorted(run.glob("principal_directions_frame*.png"))), None),
@@ -200,7 +200,7 @@ def report_screenshots() -> None:
     demo = ROOT / "demo_output"
     reports = {
         "report_strain2d.png": demo / "equibiaxial" / "report.html",
-        "report_study.png": demo / "study" / "report.html",
+        "report_study.png": demo / "study_batch" / "study" / "report.html",
         "report_mpm3d.png": demo / "mpm3d_after" / "report.html",
         "report_mpm3d_compare.png": demo / "mpm3d_compare" / "report.html",
         "report_stereo.png": demo / "stereo_dome" / "report.html",

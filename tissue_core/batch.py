@@ -142,7 +142,8 @@ def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
         summary = json.loads((out / job.summary).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
-    records = {str(r.get("path")): r for r in summary.get("input_files") or []}
+    listed = summary.get("input_files") or summary.get("inputs") or []
+    records = {str(r.get("path")): r for r in listed if isinstance(r, dict)}
     for path in job.inputs:
         record = records.get(str(path), {})  # not recorded: unchanged if not touched since
         p = Path(path)
@@ -449,7 +450,7 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
 
 
 def manifest_jobs(
-    manifest: str | os.PathLike,
+    manifest: str | os.PathLike | list[dict[str, str]],
     out: Path,
     options: RunOptions,
     args: argparse.Namespace,
@@ -466,6 +467,9 @@ def manifest_jobs(
 
     Parameters
     ----------
+    manifest : path, or list of dict
+        The manifest CSV, or rows already made (each with ``_line``, how
+        messages name it; their paths relative to the current folder).
     sources : sequence of (column, flag)
         The input columns (relative to the manifest's folder or absolute) and
         the command's flag for each (``None``: a positional argument).
@@ -482,7 +486,7 @@ def manifest_jobs(
         The rows (with the run's name in ``name_column``) and the columns
         neither the batch nor the command uses.
     """
-    rows = manifest_rows(manifest, required=())
+    rows = manifest if isinstance(manifest, list) else manifest_rows(manifest, required=())
     aliases = aliases or {}
     for row in rows:
         for alias, column in aliases.items():
@@ -492,13 +496,17 @@ def manifest_jobs(
     for column, _ in sources:
         if column not in first:
             raise InputError(f"manifest {manifest} needs a column {column!r}, one row per run")
-    base = Path(manifest).resolve().parent
+    base = Path.cwd() if isinstance(manifest, list) else Path(manifest).resolve().parent
     run_columns = set(options.columns(first)) - {c for c, _ in sources}
     mine = {c for c, _ in sources} | {name_column, "_line", *own_columns}
     unused = [c for c in first if c not in mine and c not in run_columns]
     jobs = []
     for row in rows:
-        where = f"manifest {manifest}, line {row['_line']}"
+        where = (
+            row["_line"]
+            if isinstance(manifest, list)
+            else f"manifest {manifest}, line {row['_line']}"
+        )
         argv: list[str] = [command]
         inputs = []
         for column, flag in sources:
