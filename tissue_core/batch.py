@@ -205,14 +205,18 @@ def run_job(job: Job, overwrite: bool = False) -> Outcome:
 
     The command's messages (warnings, its error line) are captured, not printed;
     an error the command does not expect (a defect) fails the job with its
-    traceback in the messages rather than ending the batch.
+    traceback in the messages rather than ending the batch.  A job found
+    complete is not run again: the scheduler starts a job again when the
+    worker that made it died before handing its outcome back.
     """
     import importlib
 
     start = time.perf_counter()
+    worker = f"{socket.gethostname()}:{os.getpid()}"
+    if job_state(job) == "complete":  # made by an earlier attempt whose worker died after it
+        return Outcome(job.name, "done", job.out, "", 0.0, worker, messages=["complete already"])
     argv = [*job.argv, "-q", *(["--overwrite"] if overwrite else [])]
     stderr = io.StringIO()
-    worker = f"{socket.gethostname()}:{os.getpid()}"
     try:
         with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
             try:
@@ -667,7 +671,8 @@ def run_batch(
     jobs : sequence of Job
         Names must be unique.
     folder : path
-        The batch folder (see :func:`batch_folder`): ``batch.log`` and ``batch.json``.
+        The batch folder, made if needed (see :func:`batch_folder`): ``batch.log``
+        and ``batch.json``.
     workers : int
         Local worker processes (1: in this process, one run after the other).
     scheduler : str, optional
@@ -678,7 +683,7 @@ def run_batch(
     say : callable
         Progress lines (the command line's :class:`~tissue_core.progress.Progress`).
     """
-    folder = Path(folder)
+    folder = batch_folder(folder)
     names = [j.name for j in jobs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -761,6 +766,7 @@ def _has_dashboard(client) -> bool:
 def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
     import logging
 
+    import dask
     from dask.base import tokenize
     from distributed import Client, LocalCluster, as_completed
 
@@ -770,6 +776,8 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
             logger = logging.getLogger(name)
             stack.callback(logger.setLevel, logger.level)
             logger.setLevel(logging.ERROR)  # the cluster's own chatter; -v shows it
+        # one run at a time on each worker: a worker that dies takes no queued run with it
+        stack.enter_context(dask.config.set({"distributed.scheduler.worker-saturation": 1.0}))
         if scheduler:
             try:
                 client = stack.enter_context(Client(scheduler, timeout="20s"))
@@ -783,6 +791,8 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
                     processes=True,
                     dashboard_address=":0",  # a free port: batches may run side by side
                     silence_logs=logging.ERROR,
+                    # the cores shared out: a run's compiled kernels use its worker's share
+                    env={"NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers))},
                 )
             )
             client = stack.enter_context(Client(cluster))
@@ -798,7 +808,13 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
             try:
                 outcome = future.result()
             except Exception as exc:  # KilledWorker: its workers died again and again
-                outcome = Outcome(job.name, "failed", job.out, f"{type(exc).__name__}: {exc}")
+                reason = f"{type(exc).__name__}: {exc}"
+                if type(exc).__name__ == "KilledWorker":
+                    reason = (
+                        "every worker that ran it died (out of memory? a crash?); the Dask "
+                        "setting distributed.scheduler.allowed-failures says how many may"
+                    )
+                outcome = Outcome(job.name, "failed", job.out, reason)
             try:
                 outcome.worker_deaths = client.run_on_scheduler(_worker_deaths, key=future.key)
             except Exception:  # the scheduler is gone: the count is not essential

@@ -1,0 +1,52 @@
+"""tissue_core.batch on a local Dask cluster with a stand-in command (tests/batch_jobs.py): a run
+whose worker dies is made again, one whose workers keep dying is reported, an error is one line,
+a defect does not end the batch, the others complete."""
+
+import json
+
+import dask
+
+from tissue_core.batch import Job, run_batch
+
+
+def _job(name: str, out, *flags: str) -> Job:
+    run = out / "runs" / name
+    return Job(name, "tests.batch_jobs", ("job", name, *flags, "--out", str(run)), str(run))
+
+
+def test_a_local_cluster_restarts_a_killed_run_reports_errors_and_finishes_the_rest(tmp_path):
+    jobs = [
+        _job("good", tmp_path),
+        _job("killed", tmp_path, "--crash-once", str(tmp_path / "killed-once")),
+        _job("fail", tmp_path, "--fail"),
+        _job("bug", tmp_path, "--bug"),
+    ]
+    outcomes = run_batch(jobs, tmp_path, workers=2)
+    by_name = {o.name: o for o in outcomes}
+    assert [o.name for o in outcomes] == ["good", "killed", "fail", "bug"]
+    for name in ("good", "killed"):
+        assert by_name[name].status == "done", by_name[name]
+        assert (tmp_path / "runs" / name / "summary.json").is_file()
+    assert by_name["killed"].worker_deaths >= 1  # its first worker died; another made it
+    assert by_name["fail"].reason == "fail: this input cannot be read"
+    assert by_name["bug"].reason == "unexpected ZeroDivisionError: a defect"
+    assert any("Traceback" in line for line in by_name["bug"].messages)
+    record = json.loads((tmp_path / "batch.json").read_text())
+    assert {r["name"]: r["status"] for r in record["runs"]} == {
+        "bug": "failed", "fail": "failed", "good": "done", "killed": "done",
+    }  # fmt: skip
+    log = (tmp_path / "batch.log").read_text()
+    assert "killed: done in" in log and "started again: its worker died" in log
+    assert "ZeroDivisionError: a defect" in log  # the defect's traceback is kept
+    assert not list((tmp_path / "runs").glob(".*"))
+    # in one process the outcomes are the same
+    again = run_batch(jobs[2:], tmp_path / "again", workers=1)
+    assert [o.reason for o in again] == [by_name["fail"].reason, by_name["bug"].reason]
+
+
+def test_a_run_whose_workers_keep_dying_is_reported(tmp_path):
+    with dask.config.set({"distributed.scheduler.allowed-failures": 1}):
+        (outcome,) = run_batch([_job("crash", tmp_path, "--crash")], tmp_path, workers=2)
+    assert outcome.status == "failed" and "every worker that ran it died" in outcome.reason
+    assert outcome.worker_deaths == 2  # the first run and its one retry
+    assert not (tmp_path / "runs" / "crash").exists()
