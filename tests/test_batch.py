@@ -114,7 +114,8 @@ def test_a_batch_on_a_scheduler_with_a_killed_worker_equals_the_sequential_one(
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     procs = []
-    env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES": "3"}
+    # as the README starts a scheduler: one run at a time on each worker
+    env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__WORKER_SATURATION": "1.0"}
     try:
         scheduler = subprocess.Popen(
             [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port",
