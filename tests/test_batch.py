@@ -114,8 +114,7 @@ def test_a_batch_on_a_scheduler_with_a_killed_worker_equals_the_sequential_one(
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
     procs = []
-    # as the README starts a scheduler: one run at a time on each worker
-    env = {**os.environ, "DASK_DISTRIBUTED__SCHEDULER__WORKER_SATURATION": "1.0"}
+    env = dict(os.environ)
     try:
         scheduler = subprocess.Popen(
             [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port",

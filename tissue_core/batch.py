@@ -763,12 +763,54 @@ def _has_dashboard(client) -> bool:
         return False
 
 
+#: seconds between the lines that say what a batch on Dask is doing while no run ends
+HEARTBEAT_S = 60.0
+
+
+def _threads(client) -> int:
+    """How many runs the cluster can make at once now (its workers' threads; at least 1)."""
+    try:
+        workers = client.scheduler_info(n_workers=-1).get("workers", {})
+    except Exception:  # the scheduler does not answer now: one at a time until it does
+        return 1
+    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+
+
+def _in_turn(client, todo, submit, log, interval: float | None = None):
+    """Submit the runs as the cluster has room (one per worker thread), and yield each
+    ``(future, job)`` as it finishes; while none does, a line every ``interval`` seconds
+    naming the runs in progress.
+
+    Held back here rather than queued on the scheduler, so that a worker that dies
+    takes no waiting run with it, and the runs in progress are known.
+    """
+    from distributed import wait
+
+    interval = HEARTBEAT_S if interval is None else interval
+    waiting = list(todo)
+    running: dict = {}
+    while waiting or running:
+        room = _threads(client) - len(running)
+        while waiting and room > 0:
+            job, replace = waiting.pop(0)
+            running[submit(job, replace)] = job
+            room -= 1
+        try:
+            done, _ = wait(list(running), timeout=interval, return_when="FIRST_COMPLETED")
+        except TimeoutError:  # no run ended in the interval
+            done = set()
+        if not done:
+            names = ", ".join(sorted(job.name for job in running.values()))
+            log(f"{len(running)} running ({names}), {len(waiting)} waiting")
+        for future in done:
+            yield future, running.pop(future)
+
+
 def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
     import logging
 
-    import dask
     from dask.base import tokenize
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, LocalCluster
 
     with contextlib.ExitStack() as stack:
         quiet = logging.getLogger().getEffectiveLevel() > logging.INFO
@@ -776,16 +818,14 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
             logger = logging.getLogger(name)
             stack.callback(logger.setLevel, logger.level)
             logger.setLevel(logging.ERROR)  # the cluster's own chatter; -v shows it
-        # one run at a time on each worker: a worker that dies takes no queued run with it
-        stack.enter_context(dask.config.set({"distributed.scheduler.worker-saturation": 1.0}))
         if scheduler:
             try:
                 client = stack.enter_context(Client(scheduler, timeout="20s"))
             except (OSError, TimeoutError) as exc:
                 raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
         else:
-            cluster = stack.enter_context(
-                LocalCluster(
+            try:
+                cluster = LocalCluster(
                     n_workers=workers,
                     threads_per_worker=1,  # a run is one task; its libraries' threads are its own
                     processes=True,
@@ -794,17 +834,22 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
                     # the cores shared out: a run's compiled kernels use its worker's share
                     env={"NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers))},
                 )
-            )
+            except (RuntimeError, OSError, TimeoutError) as exc:
+                raise InputError(
+                    f"a local Dask cluster of {workers} workers could not start: {exc} "
+                    "(--workers 1 runs the batch without one)"
+                ) from None
+            stack.enter_context(cluster)
             client = stack.enter_context(Client(cluster))
         n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"
         log(f"{n} workers; Dask dashboard: {link}", show=bool(scheduler) or n > 1)
-        futures = {}
-        for job, replace in todo:
+
+        def submit(job: Job, replace: bool):
             key = f"run-{job.name}-{tokenize(job, replace, time.time())}"
-            futures[client.submit(run_job, job, replace, key=key, pure=False)] = job
-        for future in as_completed(futures):
-            job = futures[future]
+            return client.submit(run_job, job, replace, key=key, pure=False)
+
+        for future, job in _in_turn(client, todo, submit, log):
             try:
                 outcome = future.result()
             except Exception as exc:  # KilledWorker: its workers died again and again
