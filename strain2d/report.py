@@ -11,8 +11,11 @@ folder and its ``summary.json`` into a self-contained ``report.html``.
 
 from __future__ import annotations
 
+import base64
 import math
 import os
+import tempfile
+import uuid
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
@@ -489,7 +492,16 @@ def _embeddable(folder: Path, files: list[str]) -> Path | None:
     return None
 
 
-def _embed_figures(doc: HtmlReport, folder: Path, figures: list[dict]) -> None:
+def _embed_figures(
+    doc: HtmlReport, folder: Path, figures: list[dict], streamed: dict[str, Path], tmp: Path
+) -> None:
+    """Embed the figures; videos as stand-ins whose data :func:`_write_report` streams in.
+
+    A video is as long as the run (an MP4 of 3,000 frames is some 80 MB, over
+    100 MB as base64), so it is never held in memory: a stand-in file of the
+    same name, whose base64 is a unique token, is embedded in its place, and
+    ``streamed`` maps the token to the video.
+    """
     if figures:
         doc.heading("Figures")
     for item in figures:
@@ -497,7 +509,27 @@ def _embed_figures(doc: HtmlReport, folder: Path, figures: list[dict]) -> None:
         if path is not None:
             also = [f for f in item["files"] if folder / f != path]
             caption = item["caption"] + (f" Also: {', '.join(also)}." if also else "")
+            if path.suffix.lower() == ".mp4":
+                token = f"streamedvideo{uuid.uuid4().hex}{len(streamed):03d}"  # 48 base64 chars
+                stand_in = tmp / str(len(streamed)) / path.name
+                stand_in.parent.mkdir()
+                stand_in.write_bytes(base64.b64decode(token))
+                streamed[token] = path
+                path = stand_in
             doc.media(path, caption)
+
+
+def _write_report(doc: HtmlReport, out: Path, streamed: dict[str, Path]) -> None:
+    """``doc.write(out)``, with the base64 of each streamed video written in blocks."""
+    text = doc.html()
+    with open(out, "w", encoding="utf-8") as f:
+        for token, path in streamed.items():  # in the document's order
+            before, text = text.split(token, 1)
+            f.write(before)
+            with open(path, "rb") as video:
+                for block in iter(lambda: video.read(3 << 18), b""):  # 768 KiB -> 1 MiB
+                    f.write(base64.b64encode(block).decode("ascii"))
+        f.write(text)
 
 
 def _p(p) -> str:
@@ -662,10 +694,12 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
         )
         if paired:
             doc.paragraph(paired.get("note", ""), css="note")
-    _embed_figures(doc, folder, summary.get("figures") or [])
-    doc.provenance({k: v for k, v in summary.items() if k not in ("figures", "statistics")})
     out = folder / "report.html"
-    doc.write(out)
+    with tempfile.TemporaryDirectory() as tmp:
+        streamed: dict[str, Path] = {}
+        _embed_figures(doc, folder, summary.get("figures") or [], streamed, Path(tmp))
+        doc.provenance({k: v for k, v in summary.items() if k not in ("figures", "statistics")})
+        _write_report(doc, out, streamed)
     return out
 
 
