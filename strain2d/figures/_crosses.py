@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Literal
 
@@ -23,6 +24,20 @@ from surface_strain import (
 )
 
 __all__ = ["plot_principal_crosses", "principal_noise_floor"]
+
+
+def _one_frame(field: StrainField, k: int) -> StrainField:
+    """Frame ``k`` of ``field`` as a field of one frame (per-frame quantities are per frame)."""
+    one = slice(k, k + 1)
+    return dataclasses.replace(
+        field,
+        points=field.points[one],
+        F=field.F[one],
+        E=field.E[one],
+        visible=field.visible[one],
+        element_valid=field.element_valid[one],
+        nodal_E=field.nodal_E[one],
+    )
 
 
 def _nice_value(x: float) -> float:
@@ -171,18 +186,19 @@ def plot_principal_crosses(
         raise InputError(f"key_value must be a positive strain, got {key_value}")
     if not (np.isfinite(noise) and noise >= 0):
         raise InputError(f"noise must be a strain >= 0, got {noise}")
+    one = _one_frame(field, k)  # directions of this frame only, not of every frame
     if at == "nodes":
-        s = nodal_scalars(field)
-        d = nodal_principal_directions(field)
+        s = nodal_scalars(one)
+        d = nodal_principal_directions(one)
         centres = field.points[k]
         ok = field.visible[k].copy()
     else:
-        s = element_scalars(field)
-        d = element_principal_directions(field)
+        s = element_scalars(one)
+        d = element_principal_directions(one)
         centres = field.points[k][field.triangles].mean(axis=1)
         ok = field.element_valid[k].copy()
-    e1, e2 = s["E1"][k], s["E2"][k]
-    u1, u2 = d.dir1_cur[k], d.dir2_cur[k]
+    e1, e2 = s["E1"][0], s["E2"][0]
+    u1, u2 = d.dir1_cur[0], d.dir2_cur[0]
     ok &= np.isfinite(e1) & np.isfinite(e2) & np.all(np.isfinite(centres), axis=1)
     ok &= np.all(np.isfinite(u1), axis=1) & np.all(np.isfinite(u2), axis=1)
     iso = ok & np.isfinite(e1) & np.isfinite(e2) & (np.abs(e1 - e2) <= noise)
