@@ -152,6 +152,8 @@ class Stack:
         z, c, y, x = self.data.shape
         dz, dy, dx = self.spacing
         how = "memory-mapped" if self.memmapped else "in memory"
+        if not isinstance(self.data, np.ndarray):
+            how = "read lazily"
         return "\n".join(
             (
                 "<mpm3d Stack>",
@@ -292,27 +294,7 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
     if names is None or len(names) != data.shape[1]:
         names = tuple(str(i) for i in range(data.shape[1]))
 
-    if user_spacing is not None:
-        if meta_spacing is not None and not np.allclose(meta_spacing, user_spacing):
-            logger.info(
-                "%s: spacing %s um from %s metadata overridden by %s um",
-                name,
-                meta_spacing,
-                source,
-                user_spacing,
-            )
-        meta_spacing, source = user_spacing, "user"
-    elif meta_spacing is None:
-        detail = f" (found {found})" if found else ""
-        warnings.warn(
-            MissingSpacingWarning(
-                f"{name}: no voxel spacing in metadata{detail}; assuming 1 um voxels; "
-                "pass --spacing Z,Y,X"
-            ),
-            stacklevel=2,
-        )
-        meta_spacing, source = (1.0, 1.0, 1.0), "none"
-
+    meta_spacing, source = _resolve_spacing(name, user_spacing, meta_spacing, source, found)
     return Stack(
         data=data,
         spacing=meta_spacing,
@@ -322,6 +304,31 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
         axes=axes,
         memmapped=memmapped,
     )
+
+
+def _resolve_spacing(name: str, user_spacing, meta_spacing, source: str, found: str):
+    """The spacing and its source: the user's, else the metadata's, else 1 um with a warning."""
+    if user_spacing is not None:
+        if meta_spacing is not None and not np.allclose(meta_spacing, user_spacing):
+            logger.info(
+                "%s: spacing %s um from %s metadata overridden by %s um",
+                name,
+                meta_spacing,
+                source,
+                user_spacing,
+            )
+        return user_spacing, "user"
+    if meta_spacing is None:
+        detail = f" (found {found})" if found else ""
+        warnings.warn(
+            MissingSpacingWarning(
+                f"{name}: no voxel spacing in metadata{detail}; assuming 1 um voxels; "
+                "pass --spacing Z,Y,X"
+            ),
+            stacklevel=3,
+        )
+        return (1.0, 1.0, 1.0), "none"
+    return meta_spacing, source
 
 
 def select_channel(stack: Stack, channel: int | str | None = None) -> tuple[np.ndarray, str]:
@@ -399,6 +406,23 @@ def _channel_index(channel: int | str, names: tuple[str, ...]) -> int:
 
 def _combine_channels(data: np.ndarray) -> np.ndarray:
     """Voxelwise maximum of robustly normalised channels, ``(Z, C, Y, X)`` -> uint16."""
+    z, _, y, x = data.shape
+    lo, hi = channel_ranges(data)
+
+    from mpm3d._kernels import combine_channels
+
+    out = np.empty((z, y, x), dtype=np.uint16)
+    combine_channels(data, lo, hi, out)  # compiled, parallel over slices
+    return out
+
+
+def channel_ranges(data) -> tuple[np.ndarray, np.ndarray]:
+    """Each channel's 0.1th and 99.9th percentile, on a strided subsample of ``data``.
+
+    ``data`` is ``(Z, C, Y, X)``: an array, or any object indexed like one
+    (a stack read lazily, :class:`mpm3d.lazyio.TiffRows`).  Returns ``(lo,
+    hi)``, (C,) float64 each, for :func:`mpm3d._kernels.combine_channels`.
+    """
     z, c, y, x = data.shape
     step = max(1, math.ceil((z * y * x / _RANGE_SAMPLE_VOXELS) ** (1 / 3)))
     ranges = []
@@ -414,14 +438,9 @@ def _combine_channels(data: np.ndarray) -> np.ndarray:
     if all(r is None for r in ranges):
         raise InputError("every voxel is NaN or infinite: there is no surface to find")
     ranges = [(0.0, 0.0) if r is None else r for r in ranges]
-
-    from mpm3d._kernels import combine_channels
-
     lo = np.array([r[0] for r in ranges], np.float64)
     hi = np.array([r[1] for r in ranges], np.float64)
-    out = np.empty((z, y, x), dtype=np.uint16)
-    combine_channels(data, lo, hi, out)  # compiled, parallel over slices
-    return out
+    return lo, hi
 
 
 def _check_spacing(spacing: Sequence[float], argument: str) -> Spacing:
