@@ -107,6 +107,9 @@ def analyze_stack(
     iso_bin: int | None = None,
     band_um: float = 100.0,
     decimate: float = 0.0,
+    memory_limit: int | str | None = None,
+    lazy: bool = False,
+    tile_rows: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Analysis:
     """Measure the lumen surface and its folds in one z-stack.
@@ -125,8 +128,21 @@ def analyze_stack(
     surface : bool
         Also build the isosurface mesh.
     iso_bin, band_um, decimate : see :func:`mpm3d.surface.isosurface`
+    memory_limit : int or str, optional
+        Bytes (or text such as ``"1.5GiB"``, see :func:`mpm3d.tiled.parse_memory`)
+        the analysis may use; by default half the memory available now.  A
+        stack whose in-memory working set would exceed it is read and
+        analysed in bands of rows (:mod:`mpm3d.tiled`), with the same
+        results.  Not used for a ``source`` already read.
+    lazy : bool
+        Read the stack in bands even when it would fit.
+    tile_rows : int, optional
+        Rows of pixels per band of the height map (the isosurface's bands
+        are as many pixels, in binned rows); implies ``lazy``.  By default
+        as many as the memory limit allows.
     progress : callable, optional
-        Called with a short message before each step.
+        Called with a short message before each step.  A
+        :class:`tissue_core.progress.Progress` also counts the bands.
 
     Returns
     -------
@@ -149,6 +165,9 @@ def analyze_stack(
                 iso_bin=iso_bin,
                 band_um=band_um,
                 decimate=decimate,
+                memory_limit=memory_limit,
+                lazy=lazy,
+                tile_rows=tile_rows,
                 progress=progress,
             )
     finally:  # raised again, even when the analysis failed: callers see them as before
@@ -171,15 +190,48 @@ def _analyze(
     iso_bin,
     band_um,
     decimate,
+    memory_limit,
+    lazy,
+    tile_rows,
     progress,
 ) -> Analysis:
     say = progress or (lambda message: None)
-    stack = source if isinstance(source, Stack) else read_stack(source, spacing=spacing)
-    with _about(stack.path):  # the problem is this stack's: say which it is
-        say("choosing the channel")
-        volume, channel_label = select_channel(stack, channel)
-        say("finding the surface")
-        hm = height_map(volume, spacing=stack.spacing, threshold=threshold, smooth_um=smooth_um)
+    if isinstance(source, Stack):
+        stack, plan = source, None
+    else:
+        stack, plan = _open(
+            source,
+            spacing=spacing,
+            channel=channel,
+            surface=surface,
+            iso_bin=iso_bin,
+            memory_limit=memory_limit,
+            lazy=lazy or tile_rows is not None,
+            tile_rows=tile_rows,
+        )
+    tiled = plan is not None and plan.path == "tiled"
+    with _about(stack.path), contextlib.ExitStack() as cleanup:  # the problem is this stack's
+        if tiled:
+            from mpm3d.tiled import StackBands, tiled_height_map
+
+            cleanup.callback(stack.data.close)
+            say("choosing the channel")
+            index, channel_label = _lazy_channel(stack, channel)
+            volume = StackBands(stack.data, index)
+            say("finding the surface")
+            hm = tiled_height_map(
+                volume,
+                spacing=stack.spacing,
+                tile_rows=plan.tile_rows,
+                threshold=threshold,
+                smooth_um=smooth_um,
+                progress=progress,
+            )
+        else:
+            say("choosing the channel")
+            volume, channel_label = select_channel(stack, channel)
+            say("finding the surface")
+            hm = height_map(volume, spacing=stack.spacing, threshold=threshold, smooth_um=smooth_um)
         say("measuring the folds")
         metrics, spectrum, folds = fold_metrics(
             hm.height_um,
@@ -193,16 +245,23 @@ def _analyze(
             from mpm3d.surface import add_height, isosurface
 
             say("building the isosurface")
-            mesh = isosurface(
-                volume,
-                spacing=stack.spacing,
-                level=0.5,
-                column_scale=(hm.background, hm.peak),
-                depth_um=hm.depth_um,
-                bin=iso_bin,
-                band_um=band_um,
-                decimate=decimate,
-            )
+            options = {
+                "spacing": stack.spacing,
+                "level": 0.5,
+                "column_scale": (hm.background, hm.peak),
+                "depth_um": hm.depth_um,
+                "bin": iso_bin,
+                "band_um": band_um,
+                "decimate": decimate,
+            }
+            if tiled:
+                from mpm3d.tiled import tiled_isosurface
+
+                mesh = tiled_isosurface(
+                    volume, tile_rows=plan.surface_tile_rows, progress=progress, **options
+                )
+            else:
+                mesh = isosurface(volume, **options)
             add_height(mesh, hm.datum_depth_um, datum=_datum_text(hm))
     del volume
     params = {
@@ -214,6 +273,7 @@ def _analyze(
         "iso_bin": iso_bin,
         "band_um": band_um,
         "decimate": decimate,
+        "memory": plan.record() if plan is not None else {"path": "in-memory", "given": "Stack"},
     }
     height = hm.height_um
     height_range = [float(height.min()), float(height.max())]
@@ -276,6 +336,69 @@ def _analyze(
     return Analysis(
         metrics=record, heightmap=hm, spectrum=spectrum, folds=folds, surface=mesh, params=params
     )
+
+
+def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, tile_rows):
+    """The stack, read in memory or opened for reading in bands, and the plan that chose.
+
+    The file's metadata are read first (:func:`mpm3d.lazyio.open_stack_lazily`);
+    the stack is read whole only when :func:`mpm3d.tiled.plan_memory` says
+    it fits.
+    """
+    from mpm3d.lazyio import open_stack_lazily
+    from mpm3d.tiled import default_memory_limit, parse_memory, plan_memory
+
+    if memory_limit is None:
+        limit = default_memory_limit()
+    elif isinstance(memory_limit, str):
+        limit = parse_memory(memory_limit)
+    else:
+        limit = int(memory_limit)
+        if limit < 1:
+            raise InputError(f"memory_limit must be a positive number of bytes, got {memory_limit}")
+    if tile_rows is not None and (isinstance(tile_rows, bool) or int(tile_rows) != tile_rows):
+        raise InputError(f"tile_rows must be a whole number, got {tile_rows!r}")
+    with warnings.catch_warnings(record=True) as held:  # raised by the reading that follows
+        warnings.simplefilter("always")
+        stack = open_stack_lazily(source, spacing=spacing)
+    try:
+        nc = stack.shape[1]
+        dz, dy, dx = stack.spacing
+        combined = channel is None and nc > 1
+        plan = plan_memory(
+            stack.shape,
+            stack.data.dtype.itemsize,
+            limit=limit,
+            combined=combined,
+            channels_read=nc if combined else 1,
+            surface=surface,
+            bin=iso_bin if iso_bin is not None else int(min(4, max(1, round(dz / max(dx, dy))))),
+            lazy=lazy,
+            tile_rows=tile_rows,
+        )
+    except BaseException:
+        stack.data.close()
+        raise
+    if plan.path == "in-memory":
+        stack.data.close()
+        return read_stack(source, spacing=spacing), plan
+    for record in held:
+        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+    log.info("%s: analysed in bands (%s)", stack.path, plan)
+    return stack, plan
+
+
+def _lazy_channel(stack: Stack, channel) -> tuple[int | None, str]:
+    """:func:`mpm3d.io.select_channel`'s choice for a stack read in bands: (index, label)."""
+    from mpm3d.io import _channel_index
+
+    names = stack.channel_names
+    if channel is None:
+        if len(names) == 1:
+            return 0, names[0]
+        return None, "max of " + ", ".join(names)
+    index = _channel_index(channel, names)
+    return index, names[index]
 
 
 def _datum_text(hm: HeightMap) -> str:

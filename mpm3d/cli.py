@@ -1,7 +1,8 @@
 """Command line: ``python -m mpm3d {analyze,compare}``.
 
 ``analyze STACK.tif --out DIR`` measures one stack (see
-:mod:`mpm3d.analyze` for the files it writes); ``compare BEFORE.tif
+:mod:`mpm3d.analyze` for the files it writes; ``--memory-limit 1.5GiB``
+bounds its memory: a larger stack is read in bands, see :mod:`mpm3d.tiled`); ``compare BEFORE.tif
 AFTER.tif --out DIR`` measures two and reports the change of every metric
 (see :mod:`mpm3d.compare`).  Errors a user can cause end with one line on
 stderr and exit status 2.
@@ -34,6 +35,15 @@ def _spacing(text: str):
         return parse_spacing(text)
     except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _memory(text: str) -> int:
+    from mpm3d.tiled import parse_memory
+
+    try:
+        return parse_memory(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc).removeprefix("--memory-limit ")) from None
 
 
 def _channel(text: str) -> int | str:
@@ -87,6 +97,23 @@ def _build_parser() -> CommandLine:
     )
     p.add_argument("stack", help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF")
     _common(p)
+    p.add_argument(
+        "--memory-limit",
+        type=_memory,
+        metavar="SIZE",
+        help="memory the analysis may use, e.g. 1.5GiB, 800MB (default: half the memory "
+        "available); a stack that would need more is read and analysed in bands of rows, "
+        "with the same results",
+    )
+    p.add_argument(
+        "--lazy", action="store_true", help="read and analyse the stack in bands even if it fits"
+    )
+    p.add_argument(
+        "--tile-rows",
+        type=int,
+        metavar="N",
+        help="rows of pixels per band (implies --lazy; default: as many as the limit allows)",
+    )
     p = cli.command("compare", _cmd_compare, help="compare two stacks (before / after)")
     p.add_argument("before", help="the first stack (e.g. before contraction)")
     p.add_argument("after", help="the second stack")
@@ -125,6 +152,12 @@ def _options(args) -> dict:
     }
 
 
+def _memory_options(args) -> dict:
+    if args.tile_rows is not None and args.tile_rows < 1:
+        raise InputError(f"--tile-rows must be >= 1, got {args.tile_rows}")
+    return {"memory_limit": args.memory_limit, "lazy": args.lazy, "tile_rows": args.tile_rows}
+
+
 def _progress(args):
     from tissue_core.progress import Progress
 
@@ -151,7 +184,9 @@ def _cmd_analyze(args) -> int:
 
     say = _progress(args)
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.stack]) as tmp:
-        analysis = analyze_stack(args.stack, progress=say, **_options(args))
+        analysis = analyze_stack(
+            args.stack, progress=say, **_options(args), **_memory_options(args)
+        )
         say("writing results")
         write_analysis(analysis, tmp, figures=not args.no_figures)
     say(f"{args.stack}: {_summary(analysis.metrics)}")

@@ -1,0 +1,454 @@
+"""Stacks larger than memory: the height map and the isosurface in bands of rows.
+
+:func:`mpm3d.analyze.analyze_stack` takes this path when the stack's
+in-memory working set (:func:`plan_memory`) would exceed its memory limit,
+or when asked to (``lazy=True``, ``--lazy``).  The stack is read a band of
+rows at a time (:mod:`mpm3d.lazyio`), every slice of the band at once, and
+only ``(Y, X)`` maps and the mesh are ever whole:
+
+* the detection threshold, background and noise come from the same strided
+  subsample of the stack as in memory (:func:`mpm3d.heightmap.surface_levels`),
+  read plane by plane;
+* each column's first crossing (:func:`mpm3d._kernels.first_crossing`)
+  depends on the column and its 3 x 3 lateral neighbours only: bands
+  overlap by one row on each side and give every column the value the
+  whole stack gives;
+* the gap filling, the outlier test and the smoothing run on the whole
+  ``(Y, X)`` map as in memory (:func:`mpm3d.heightmap.from_crossings`);
+* the isosurface's grid (lateral binning, per-column scaling and tissue
+  filling) is per column too; each band of binned rows is contoured on the
+  whole grid's coordinates (:func:`mpm3d.surface.contour_rows`), bands
+  sharing their boundary row, and the pieces are merged and smoothed whole
+  (:func:`mpm3d.surface.finish_isosurface`).
+
+So the height map, every metric and the mesh are the same, bit for bit, as
+the in-memory path's.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import re
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from mpm3d.errors import InputError
+
+__all__ = [
+    "MemoryPlan",
+    "StackBands",
+    "default_memory_limit",
+    "format_bytes",
+    "parse_memory",
+    "plan_memory",
+    "tiled_height_map",
+    "tiled_isosurface",
+]
+
+#: resident memory of the process before any stack: Python, NumPy, SciPy,
+#: numba, VTK and matplotlib loaded, the figures drawn
+BASE_BYTES = 450 * 2**20
+#: bytes per column (Y x X) of the maps, their filling and smoothing, the
+#: metrics and the figures
+MAP_BYTES_PER_COLUMN = 200
+#: bytes per binned column of the isosurface: the mesh (about two triangles
+#: each) while it is merged, put in order, smoothed, measured and written
+MESH_BYTES_PER_COLUMN = 1200
+#: the default memory limit: this fraction of the memory available now
+DEFAULT_FRACTION = 0.5
+
+_UNITS = {
+    "b": 1,
+    "kb": 10**3,
+    "mb": 10**6,
+    "gb": 10**9,
+    "tb": 10**12,
+    "kib": 2**10,
+    "mib": 2**20,
+    "gib": 2**30,
+    "tib": 2**40,
+}
+
+
+def parse_memory(text: str) -> int:
+    """A memory size in bytes from text such as ``"1.5GiB"``, ``"800 MB"``, ``"512MiB"``.
+
+    Units: B, kB, MB, GB, TB (powers of 1000) and KiB, MiB, GiB, TiB (powers
+    of 1024), case-insensitive.
+
+    Examples
+    --------
+    >>> parse_memory("1.5GiB"), parse_memory("800 MB")
+    (1610612736, 800000000)
+    """
+    match = re.fullmatch(r"\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([A-Za-z]+)\s*", str(text))
+    unit = match and _UNITS.get(match.group(2).lower())
+    if not unit:
+        raise InputError(f"--memory-limit must be a size such as 1.5GiB or 800MB, got {text!r}")
+    value = float(match.group(1)) * unit
+    if not (math.isfinite(value) and value >= 1):
+        raise InputError(f"--memory-limit must be a positive size, got {text!r}")
+    return int(value)
+
+
+def format_bytes(n: float) -> str:
+    """``n`` bytes in GiB or MiB, rounded up (``"1.50 GiB"``, ``"620 MiB"``)."""
+    if n >= 2**30:
+        return f"{math.ceil(n / 2**30 * 100) / 100:.2f}GiB"
+    return f"{math.ceil(n / 2**20):d}MiB"
+
+
+def available_memory() -> int:
+    """Memory available to a new process now, bytes (psutil, else /proc/meminfo, else sysconf)."""
+    try:
+        import psutil
+
+        return int(psutil.virtual_memory().available)
+    except ImportError:
+        pass
+    with contextlib.suppress(OSError, ValueError):
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    import os
+
+    return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+
+
+def default_memory_limit() -> int:
+    """The limit when none is given: half the memory available now."""
+    return int(DEFAULT_FRACTION * available_memory())
+
+
+@dataclass(frozen=True)
+class MemoryPlan:
+    """How a stack is analysed within a memory limit.
+
+    Attributes
+    ----------
+    path : {"in-memory", "tiled"}
+    limit_bytes : int
+    in_memory_bytes : int
+        The estimated peak of the in-memory path.
+    tile_rows : int or None
+        Rows of pixels per band of the height map (tiled path).
+    surface_tile_rows : int or None
+        Binned rows per band of the isosurface (tiled path).
+    tiled_bytes : int or None
+        The estimated peak of the tiled path with these bands.
+    smallest_limit_bytes : int
+        The least limit the tiled path works within (bands of one row).
+    """
+
+    path: str
+    limit_bytes: int
+    in_memory_bytes: int
+    tile_rows: int | None = None
+    surface_tile_rows: int | None = None
+    tiled_bytes: int | None = None
+    smallest_limit_bytes: int = 0
+
+    def record(self, **extra) -> dict:
+        """For ``metrics.json``: the path, the limit and the bands."""
+        out = {
+            "path": self.path,
+            "memory_limit_bytes": self.limit_bytes,
+            "memory_limit": format_bytes(self.limit_bytes),
+            "estimated_in_memory_bytes": self.in_memory_bytes,
+        }
+        if self.path == "tiled":
+            out.update(
+                tile_rows=self.tile_rows,
+                surface_tile_rows=self.surface_tile_rows,
+                estimated_peak_bytes=self.tiled_bytes,
+            )
+        out.update(extra)
+        return out
+
+
+def plan_memory(
+    shape: Sequence[int],
+    itemsize: int,
+    *,
+    limit: int,
+    combined: bool,
+    channels_read: int,
+    surface: bool,
+    bin: int,
+    lazy: bool = False,
+    tile_rows: int | None = None,
+) -> MemoryPlan:
+    """In memory or in bands, and how many rows a band, within ``limit`` bytes.
+
+    A model of the peak resident memory of each path, from the stack's
+    shape: a fixed part (:data:`BASE_BYTES`, the ``(Y, X)`` maps and the
+    mesh, which both paths hold whole) and the part that grows with the
+    stack (the whole stack in memory, or one band of every slice).
+
+    Parameters
+    ----------
+    shape : (Z, C, Y, X)
+    itemsize : int
+        Bytes per voxel as read (4 for float16 files, read as float32).
+    limit : int
+        Bytes.
+    combined : bool
+        The channels are combined into one (a uint16 volume).
+    channels_read : int
+        Channels read for each band: all of them when ``combined``, else 1.
+    surface : bool
+        The isosurface is built.
+    bin : int
+        Its lateral binning.
+    lazy : bool
+        Take the tiled path even when the stack fits.
+    tile_rows : int, optional
+        Rows per band; by default as many as the limit allows.
+
+    Raises
+    ------
+    InputError
+        When the tiled path is needed but even bands of one row exceed the
+        limit (the message gives the least limit that works).
+    """
+    nz, nc, ny, nx = (int(n) for n in shape)
+    by, bx = max(1, ny // bin), max(1, nx // bin)
+    fixed = BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx
+    if surface:
+        fixed += MESH_BYTES_PER_COLUMN * by * bx
+    voxels = nz * ny * nx
+    grid = nz * by * bx if surface else 0
+    # the stack as read, the combined channels, the isosurface's float32 grid
+    # and VTK's one byte per grid point of flying-edges bookkeeping
+    in_memory = fixed + voxels * nc * itemsize + (2 * voxels if combined else 0) + 5 * grid
+    # one band of rows, every slice: as read, combined, and its grid
+    per_row = nz * nx * (channels_read * itemsize + (2 if combined else 0))
+    per_grid_row = 5 * nz * bx
+    height_rows = lambda rows: per_row * (rows + 2)  # noqa: E731 - one halo row each side
+    surface_rows = lambda rows: per_row * bin * (rows + 1) + per_grid_row * (rows + 1)  # noqa: E731
+
+    def peak(rows: int, grid_rows: int) -> int:
+        band = height_rows(rows)
+        if surface:
+            band = max(band, surface_rows(grid_rows))
+        return fixed + band
+
+    smallest = peak(1, 1)
+    if not lazy and tile_rows is None and in_memory <= limit:
+        return MemoryPlan("in-memory", limit, in_memory, smallest_limit_bytes=smallest)
+    if tile_rows is not None:
+        if tile_rows < 1:
+            raise InputError(f"--tile-rows must be >= 1, got {tile_rows}")
+        rows = min(int(tile_rows), ny)
+        grid_rows = max(1, min(by - 1, rows // bin))
+    else:
+        if smallest > limit:
+            raise InputError(
+                f"a memory limit of {format_bytes(limit)} is too small for this "
+                f"{nz} x {nc} x {ny} x {nx} stack: even one row at a time needs "
+                f"{format_bytes(smallest)}; use --memory-limit {format_bytes(smallest)} or more"
+            )
+        room = limit - fixed
+        rows = max(1, min(ny, room // per_row - 2))
+        grid_rows = 1
+        if surface:
+            grid_rows = max(1, min(by - 1, (room // (per_row * bin + per_grid_row)) - 1))
+    return MemoryPlan(
+        "tiled",
+        limit,
+        in_memory,
+        tile_rows=int(rows),
+        surface_tile_rows=int(grid_rows) if surface else None,
+        tiled_bytes=peak(rows, grid_rows),
+        smallest_limit_bytes=smallest,
+    )
+
+
+class StackBands:
+    """One channel of a lazily read stack (or all combined), a band of rows at a time.
+
+    Parameters
+    ----------
+    data : (Z, C, Y, X) TiffRows (or array)
+    channel : int or None
+        The channel read; None combines every channel as
+        :func:`mpm3d.io.select_channel` does (each scaled to its 0.1th..99.9th
+        percentiles on the same subsample, voxelwise maximum, uint16).
+    """
+
+    def __init__(self, data, channel: int | None) -> None:
+        self.data = data
+        self.channel = channel
+        nz, _, ny, nx = data.shape
+        self.shape = (nz, ny, nx)
+        self.size = nz * ny * nx
+        if channel is None:
+            from mpm3d.io import channel_ranges
+
+            self.lo, self.hi = channel_ranges(data)
+            self.dtype = np.dtype(np.uint16)
+        else:
+            self.dtype = np.dtype(data.dtype)
+
+    def _combine(self, block: np.ndarray) -> np.ndarray:
+        from mpm3d._kernels import combine_channels
+
+        z, _, y, x = block.shape
+        out = np.empty((z, y, x), np.uint16)
+        combine_channels(block, self.lo, self.hi, out)
+        return out
+
+    def rows(self, y0: int, y1: int) -> np.ndarray:
+        """``volume[:, y0:y1, :]``: (Z, y1 - y0, X), read now."""
+        if self.channel is None:
+            return self._combine(self.data[:, :, y0:y1, :])
+        return self.data[:, self.channel, y0:y1, :]
+
+    def sample(self, step: int) -> np.ndarray:
+        """``volume[::step, ::step, ::step]``, read now."""
+        if self.channel is None:
+            return self._combine(self.data[::step, :, ::step, ::step])
+        return self.data[::step, self.channel, ::step, ::step]
+
+
+@contextlib.contextmanager
+def _counter(progress, description: str) -> Iterator[Callable[[int, int], None]]:
+    """``tick(done, total)``: a counter of tissue_core.progress, else a line per band."""
+    task = getattr(progress, "task", None)
+    if task is not None:
+        with task(description, unit="band") as counter:
+            yield counter
+        return
+
+    def tick(done: int, total: int) -> None:
+        if progress is not None:
+            progress(f"{description}: {done}/{total} bands")
+
+    yield tick
+
+
+def tiled_height_map(
+    volume: StackBands,
+    *,
+    spacing: Sequence[float],
+    tile_rows: int,
+    threshold: float | None = None,
+    peak_window_um: float = 20.0,
+    smooth_um: float | None = None,
+    min_cnr: float = 5.0,
+    outlier_um: float | None = None,
+    min_coverage: float = 0.05,
+    progress=None,
+):
+    """:func:`mpm3d.heightmap.height_map` of a stack read ``tile_rows`` rows at a time.
+
+    Returns the same :class:`~mpm3d.heightmap.HeightMap` as the whole
+    stack in memory (see the module's notes).
+    """
+    from mpm3d._kernels import first_crossing
+    from mpm3d.heightmap import (
+        check_options,
+        from_crossings,
+        levels_of_sample,
+        otsu_separability,
+        sample_step,
+    )
+
+    nz, ny, nx = volume.shape
+    window, sigma_um = check_options(
+        volume.shape,
+        spacing=spacing,
+        peak_window_um=peak_window_um,
+        smooth_um=smooth_um,
+        min_cnr=min_cnr,
+    )
+    threshold_given = threshold is not None
+    sub = volume.sample(sample_step(volume.size))
+    threshold, background, noise = levels_of_sample(sub, threshold=threshold)
+    separability = otsu_separability(sub, threshold)
+    del sub
+    depth = np.empty((ny, nx), np.float64)
+    peak = np.empty((ny, nx), np.float64)
+    rows = max(1, int(tile_rows))
+    starts = range(0, ny, rows)
+    with _counter(progress, "finding the surface") as tick:
+        tick(0, len(starts))
+        for k, y0 in enumerate(starts):
+            y1 = min(ny, y0 + rows)
+            a, b = max(0, y0 - 1), min(ny, y1 + 1)  # a halo row each side: the 3 x 3 mean
+            band = volume.rows(a, b)
+            d = np.empty((b - a, nx), np.float64)
+            p = np.empty((b - a, nx), np.float64)
+            first_crossing(band, float(threshold), float(background), int(window), d, p)
+            del band
+            depth[y0:y1] = d[y0 - a : y1 - a]
+            peak[y0:y1] = p[y0 - a : y1 - a]
+            tick(k + 1, len(starts))
+    return from_crossings(
+        depth,
+        peak,
+        spacing=spacing,
+        n_slices=nz,
+        levels=(threshold, background, noise),
+        threshold_given=threshold_given,
+        separability=separability,
+        peak_window_um=peak_window_um,
+        smooth_um=sigma_um,
+        min_cnr=min_cnr,
+        outlier_um=outlier_um,
+        min_coverage=min_coverage,
+    )
+
+
+def tiled_isosurface(
+    volume: StackBands,
+    *,
+    spacing: Sequence[float],
+    tile_rows: int,
+    level: float,
+    depth_um: np.ndarray | None = None,
+    band_um: float = 100.0,
+    column_scale: tuple[float, np.ndarray] | None = None,
+    bin: int | None = None,
+    decimate: float = 0.0,
+    progress=None,
+):
+    """:func:`mpm3d.surface.isosurface` of a stack read ``tile_rows`` binned rows at a time.
+
+    Each band of binned rows ``r0 .. r0 + tile_rows`` shares its last row
+    with the next band; the mesh is the same as the whole stack's (see the
+    module's notes).
+    """
+    from mpm3d.surface import column_work, contour_rows, finish_isosurface, iso_plan
+
+    plan = iso_plan(
+        volume.shape,
+        volume.dtype,
+        spacing=spacing,
+        level=level,
+        depth_um=depth_um,
+        band_um=band_um,
+        column_scale=column_scale,
+        bin=bin,
+        decimate=decimate,
+    )
+    by = plan.binned[0]
+    b = plan.bin
+    rows = max(1, int(tile_rows))
+    starts = range(0, by - 1, rows)
+    pieces = []
+    with _counter(progress, "building the isosurface") as tick:
+        tick(0, len(starts))
+        for k, r0 in enumerate(starts):
+            r1 = min(by - 1, r0 + rows)  # the last row, shared with the next band
+            raw = volume.rows(r0 * b, (r1 + 1) * b)
+            work = column_work(raw, plan, r0)
+            del raw
+            pieces.append(contour_rows(work, plan, r0))
+            del work
+            tick(k + 1, len(starts))
+    return finish_isosurface(pieces, plan)
