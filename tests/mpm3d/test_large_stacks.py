@@ -1,0 +1,200 @@
+"""Stacks larger than memory: read in bands of rows, the same results as in memory.
+
+Small stacks forced through many bands (``tile_rows``, a memory limit just
+above the smallest that works) must give the in-memory path's height map,
+mesh and metrics.json bit for bit: the bands overlap by what each step's
+support needs (see :mod:`mpm3d.tiled`), and the whole-map steps are shared.
+bench/bench_mpm3d_memory.py shows the peak memory on a stack 4x the limit.
+"""
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+import tifffile
+
+from mpm3d.analyze import analyze_stack
+from mpm3d.cli import main
+from mpm3d.errors import InputError
+from mpm3d.io import read_stack
+from mpm3d.lazyio import open_stack_lazily
+from mpm3d.tiled import format_bytes, parse_memory, plan_memory
+from sample_data_synth import make_stack_case, write_stack
+from tests.badinput import assert_refused, interrupt
+from tests.mpm3d.helpers import cli
+
+#: the part of metrics.json that records the path taken: the only part allowed to differ
+PATH_RECORD = "memory"
+
+
+def _comparable(metrics: dict) -> str:
+    """metrics.json as text, without the record of the path (NaN compared as text)."""
+    out = dict(metrics)
+    out["parameters"] = {k: v for k, v in out["parameters"].items() if k != PATH_RECORD}
+    return json.dumps(out, sort_keys=True, default=str)
+
+
+@pytest.fixture(scope="module")
+def in_memory(mpm_small):
+    """The in-memory analyses the banded ones are compared with, by options."""
+    path, _ = mpm_small
+    cache = {}
+
+    def get(**options):
+        key = tuple(sorted(options.items()))
+        if key not in cache:
+            cache[key] = analyze_stack(path, **options)
+            assert cache[key].metrics["parameters"]["memory"]["path"] == "in-memory"
+        return cache[key]
+
+    return get
+
+
+@pytest.mark.parametrize(
+    ("options", "tile_rows"),
+    [
+        pytest.param({}, 7, id="channels-combined-7-rows"),
+        pytest.param({"channel": "1", "iso_bin": 2}, 5, id="one-channel-binned-5-rows"),
+    ],
+)
+def test_bands_equal_in_memory(options, tile_rows, mpm_small, in_memory):
+    path, _ = mpm_small
+    whole = in_memory(**options)
+    banded = analyze_stack(path, tile_rows=tile_rows, **options)
+    record = banded.metrics["parameters"]["memory"]
+    assert record["path"] == "tiled" and record["tile_rows"] == tile_rows
+    ny = whole.heightmap.depth_um.shape[0]
+    assert math.ceil(ny / tile_rows) >= 10  # many bands, the last one shorter
+    for name in ("depth_um", "valid", "cnr", "peak"):
+        assert np.array_equal(getattr(banded.heightmap, name), getattr(whole.heightmap, name))
+    a, b = whole.surface, banded.surface
+    assert a.n_points == b.n_points and a.n_cells == b.n_cells
+    assert np.array_equal(a.points, b.points)
+    assert np.array_equal(a.regular_faces, b.regular_faces)
+    assert np.array_equal(a.point_data["height_um"], b.point_data["height_um"])
+    assert _comparable(banded.metrics) == _comparable(whole.metrics)
+
+
+def test_memory_limit_picks_the_path_and_the_smallest_limit_works(
+    mpm_small, in_memory, tmp_path, capsys
+):
+    """A limit below the stack's working set reads it in bands; the limit an error names works."""
+    path, _ = mpm_small
+    out = tmp_path / "out"
+    error = assert_refused(
+        main,
+        ["analyze", path, "--out", out, "--memory-limit", "100MB"],
+        capsys,
+        prog="mpm3d",
+        fragments=["memory limit of 96MiB is too small", "--memory-limit"],
+        inputs=[path],
+        out=out,
+    )
+    smallest = error.split("--memory-limit ")[-1].split()[0]
+    assert cli("analyze", path, "--out", out, "--memory-limit", smallest, "--no-figures") == 0
+    metrics = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
+    record = metrics["parameters"]["memory"]
+    assert record["path"] == "tiled"
+    assert record["memory_limit_bytes"] == parse_memory(smallest)
+    assert record["tile_rows"] >= 1 and record["estimated_peak_bytes"] <= parse_memory(smallest)
+    whole = in_memory().metrics
+    for key in ("fold_wavelength_um", "fold_height_um", "Sq_um", "n_surface_triangles"):
+        assert metrics[key] == whole[key]
+    assert metrics["quality"]["mesh"] == json.loads(json.dumps(whole["quality"]["mesh"]))
+    assert "finding the surface" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("1.5GiB", 3 * 2**29),
+        ("1.5 GB", 1_500_000_000),
+        ("512MiB", 2**29),
+        ("800mb", 800_000_000),
+        ("2gib", 2**31),
+    ],
+)
+def test_parse_memory(text, expected):
+    assert parse_memory(text) == expected
+
+
+@pytest.mark.parametrize("text", ["1.5", "GiB", "1.5 GX", "-1GiB", "0MB", "1,5GiB", ""])
+def test_bad_memory_limit_is_one_line(text, mpm_small, tmp_path, capsys):
+    path, _ = mpm_small
+    out = tmp_path / "out"
+    argv = ["analyze", path, "--out", out, "--memory-limit", text]
+    assert_refused(main, argv, capsys, prog="mpm3d", fragments=["--memory-limit"], out=out)
+
+
+def test_bad_tile_rows_is_one_line(mpm_small, tmp_path, capsys):
+    path, _ = mpm_small
+    out = tmp_path / "out"
+    argv = ["analyze", path, "--out", out, "--tile-rows", "0"]
+    assert_refused(main, argv, capsys, prog="mpm3d", fragments=["--tile-rows"], out=out)
+
+
+def test_plan_memory():
+    shape = (100, 2, 1000, 1000)  # 400 MB of uint16
+    kw = {"combined": True, "channels_read": 2, "surface": True, "bin": 2}
+    fits = plan_memory(shape, 2, limit=8 * 2**30, **kw)
+    assert fits.path == "in-memory" and fits.tile_rows is None
+    big = plan_memory(shape, 2, limit=fits.in_memory_bytes - 1, **kw)
+    smaller = plan_memory(
+        shape, 2, limit=(big.smallest_limit_bytes + fits.in_memory_bytes) // 2, **kw
+    )
+    assert big.path == smaller.path == "tiled"
+    assert 1 <= smaller.tile_rows < big.tile_rows <= 1000
+    assert big.tiled_bytes <= big.limit_bytes and smaller.tiled_bytes <= smaller.limit_bytes
+    forced = plan_memory(shape, 2, limit=8 * 2**30, lazy=True, **kw)
+    assert forced.path == "tiled" and forced.tile_rows == 1000
+    with pytest.raises(InputError, match=r"too small .* use --memory-limit (\S+) or more"):
+        plan_memory(shape, 2, limit=big.smallest_limit_bytes - 1, **kw)
+    assert parse_memory(format_bytes(big.smallest_limit_bytes)) >= big.smallest_limit_bytes
+
+
+def _formats(folder, mpm_small):
+    """Stacks as files of every layout the reader handles, beside read_stack's arrays."""
+    case = make_stack_case("before", size=24, spacing=(4.0, 5.0, 5.0), rng=2)
+    ome = folder / "ome.ome.tif"
+    write_stack(ome, case, format="ome")
+    plane = case.stack[:, 1]
+    files = {"imagej": mpm_small[0], "ome": ome}
+    for name, data, kw in (
+        ("big-endian", plane, {"byteorder": ">"}),
+        ("zlib", plane, {"compression": "zlib"}),
+        ("float16", plane.astype(np.float16), {}),
+        ("bool", plane > 1000, {}),
+    ):
+        files[name] = folder / f"{name}.tif"
+        tifffile.imwrite(files[name], data, **kw)
+    return files
+
+
+def test_lazy_reader_equals_read_stack(mpm_small, tmp_path):
+    keys = [
+        (slice(None), 0, slice(5, 17), slice(None)),
+        (slice(None, None, 3), slice(None), slice(None, None, 3), slice(None, None, 3)),
+        (2,),
+        (slice(None), slice(None), slice(-4, None), slice(3, 9)),
+    ]
+    for name, path in _formats(tmp_path, mpm_small).items():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # plain TIFFs carry no z step
+            whole = read_stack(path, spacing=(4, 5, 5))
+            lazy = open_stack_lazily(path, spacing=(4, 5, 5))
+        with lazy.data as rows:
+            assert lazy.shape == whole.shape and lazy.channel_names == whole.channel_names
+            assert lazy.spacing == whole.spacing
+            for key in keys:
+                got, want = rows[key], np.asarray(whole.data[key])
+                assert got.dtype == want.dtype and np.array_equal(got, want), (name, key)
+
+
+def test_interrupt_while_banded_leaves_no_output(mpm_small, tmp_path):
+    path, _ = mpm_small
+    out = tmp_path / "out"
+    argv = ["-m", "mpm3d", "analyze", path, "--out", out, "--tile-rows", "1", "--no-figures"]
+    status, err = interrupt(argv, after=0.05, when="finding the surface", out=out, inputs=[path])
+    assert status == 130 and not out.exists(), err
