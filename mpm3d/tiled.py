@@ -95,7 +95,7 @@ def parse_memory(text: str) -> int:
 
 
 def format_bytes(n: float) -> str:
-    """``n`` bytes in GiB or MiB, rounded up (``"1.50 GiB"``, ``"620 MiB"``)."""
+    """``n`` bytes in GiB or MiB, rounded up, as --memory-limit takes them: ``"1.50GiB"``."""
     if n >= 2**30:
         return f"{math.ceil(n / 2**30 * 100) / 100:.2f}GiB"
     return f"{math.ceil(n / 2**20):d}MiB"
