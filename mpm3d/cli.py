@@ -52,6 +52,12 @@ def _channel(text: str) -> int | str:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", required=True, help="output folder (must not exist, see --overwrite)")
+    _stack_options(p)
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+
+
+def _stack_options(p) -> None:
+    """The options of analyze and compare but the inputs and the output (shared with batch)."""
     p.add_argument(
         "--channel",
         type=_channel,
@@ -87,16 +93,10 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--no-surface", action="store_true", help="skip the isosurface mesh")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
 
 
-def _build_parser() -> CommandLine:
-    cli = CommandLine("mpm3d", "Multiphoton z-stacks to the lumen surface and its folds.")
-    p = cli.command(
-        "analyze", _cmd_analyze, help="measure the lumen surface and folds of one stack"
-    )
-    p.add_argument("stack", help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF")
-    _common(p)
+def _memory_args(p) -> None:
+    """How analyze may use memory (its results do not depend on it)."""
     p.add_argument(
         "--memory-limit",
         type=_memory,
@@ -114,6 +114,16 @@ def _build_parser() -> CommandLine:
         metavar="N",
         help="rows of pixels per band (implies --lazy; default: as many as the limit allows)",
     )
+
+
+def _build_parser() -> CommandLine:
+    cli = CommandLine("mpm3d", "Multiphoton z-stacks to the lumen surface and its folds.")
+    p = cli.command(
+        "analyze", _cmd_analyze, help="measure the lumen surface and folds of one stack"
+    )
+    p.add_argument("stack", help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF")
+    _common(p)
+    _memory_args(p)
     p = cli.command("compare", _cmd_compare, help="compare two stacks (before / after)")
     p.add_argument("before", help="the first stack (e.g. before contraction)")
     p.add_argument("after", help="the second stack")
@@ -124,7 +134,81 @@ def _build_parser() -> CommandLine:
         help="refine the alignment by ICP with open3d (auto: when installed)",
     )
     _common(p)
+
+    p = cli.command(
+        "batch",
+        _cmd_batch,
+        help="analyze many stacks as a batch (on a Dask cluster), with a table of their metrics",
+        description="Analyze every stack named (or listed in a manifest CSV with a column "
+        "stack, optionally name, and any analyze option by name, e.g. channel, spacing) into "
+        "OUT/runs/NAME, each as one task on a local Dask cluster or a running scheduler, and "
+        "list the headline metrics of every stack in OUT/metrics.csv. A failing stack is "
+        "reported and the others go on; a rerun keeps the runs that are complete with the "
+        "same parameters and makes the rest. Options given here apply to every run; a "
+        "manifest column of the same name wins.",
+        allow_abbrev=False,
+    )
+    p.add_argument("inputs", nargs="+", metavar="STACK", help="the stacks, or one manifest CSV")
+    p.add_argument("--out", required=True, help="batch folder: runs/, metrics.csv, batch.log")
+    from tissue_core.batch import RunOptions, add_batch_arguments
+
+    add_batch_arguments(p, what="analyses")
+    options = RunOptions(p, "analyze options, for every run")
+    _stack_options(options)
+    _memory_args(options)
+    p.set_defaults(run_options=options)
     return cli
+
+
+#: analyze's options that change how much memory it uses, never its results
+_HOW_NOT_WHAT = ("--memory-limit=", "--lazy", "--tile-rows=")
+
+
+def _cmd_batch(args) -> int:
+    from pathlib import Path
+
+    from mpm3d.batch import stack_rows, write_metrics_table
+    from tissue_core.batch import (
+        batch_folder,
+        check_workers,
+        manifest_jobs,
+        raise_if_failed,
+        run_batch,
+    )
+
+    rows = stack_rows(args.inputs)
+    out = Path(args.out).resolve()
+    jobs, _, unused = manifest_jobs(
+        rows,
+        out,
+        args.run_options,
+        args,
+        module="mpm3d.cli",
+        command="analyze",
+        sources=[("stack", None)],
+        name_column="name",
+        summary="metrics.json",
+        neutral=_HOW_NOT_WHAT,
+    )
+    workers = check_workers(args.workers, args.scheduler, len(jobs))
+    if args.scheduler is None and workers > 1 and getattr(args, "memory_limit", None) is None:
+        # analyze's default (half the memory available) is for one run on the machine
+        from mpm3d.tiled import available_memory, format_bytes
+
+        share = format_bytes(int(available_memory() * 0.8 / workers))
+        jobs = [job.with_options("--memory-limit", share) for job in jobs]
+    folder = batch_folder(args.out)
+    say = _progress(args)
+    if unused:
+        say(f"manifest columns not used: {', '.join(unused)}")
+    outcomes = run_batch(
+        jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
+    )
+    n = write_metrics_table(out / "metrics.csv", outcomes)
+    say(f"metrics of {n} stacks in {Path(args.out) / 'metrics.csv'}")
+    raise_if_failed(outcomes, args.out)
+    say(f"results in {args.out}")
+    return 0
 
 
 def _options(args) -> dict:

@@ -277,6 +277,7 @@ def _cmd_batch(args) -> int:
         check_workers,
         manifest_jobs,
         manifest_rows,
+        raise_if_failed,
         run_batch,
     )
 
@@ -303,13 +304,7 @@ def _cmd_batch(args) -> int:
     outcomes = run_batch(
         jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
     )
-    failed = [o for o in outcomes if o.status == "failed"]
-    if failed:
-        more = f"; {len(failed) - 1} more" if len(failed) > 1 else ""
-        raise InputError(
-            f"{len(failed)} of {len(jobs)} runs failed, the others are in {args.out}: "
-            f"{failed[0].name}: {failed[0].reason}{more} (see {Path(args.out) / 'batch.log'})"
-        )
+    raise_if_failed(outcomes, args.out)
     say(f"results in {args.out}")
     return 0
 

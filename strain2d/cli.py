@@ -246,7 +246,7 @@ def _batch_run_options(p):
 
 def _cmd_batch(args) -> int:
     from strain2d.batch import analyze_jobs, run_study, study_job, write_study_manifest
-    from tissue_core.batch import batch_folder, check_workers, run_batch
+    from tissue_core.batch import batch_folder, check_workers, raise_if_failed, run_batch
 
     options = args.run_options
     say = _progress(args)
@@ -273,7 +273,6 @@ def _cmd_batch(args) -> int:
         jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
     )
     ok = {o.name for o in outcomes if o.status != "failed"}
-    failed = [o for o in outcomes if o.status == "failed"]
     changed = any(o.status == "done" for o in outcomes)
     if not args.no_study and ok:
         changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
@@ -282,13 +281,7 @@ def _cmd_batch(args) -> int:
         study = run_study(job, changed)
         if study is not None and study.status == "failed":
             raise InputError(f"the study failed: {study.reason}")
-    if failed:
-        first = failed[0]
-        more = f"; {len(failed) - 1} more" if len(failed) > 1 else ""
-        raise InputError(
-            f"{len(failed)} of {len(jobs)} runs failed, the others are in {args.out}: "
-            f"{first.name}: {first.reason}{more} (see {Path(args.out) / 'batch.log'})"
-        )
+    raise_if_failed(outcomes, args.out)
     say(f"results in {args.out}")
     return 0
 

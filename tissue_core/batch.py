@@ -44,7 +44,7 @@ import socket
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -71,6 +71,7 @@ __all__ = [
     "job_state",
     "manifest_jobs",
     "manifest_rows",
+    "raise_if_failed",
     "run_batch",
     "run_job",
 ]
@@ -102,6 +103,11 @@ class Job:
         The files the run reads, checked for changes on a rerun.
     summary : str
         The JSON file in ``out`` that records the inputs' checksums (``input_files``).
+    neutral : tuple of str
+        The command's options that change how a run is made (how much memory it
+        may use), never its result: a run made with other values of them counts
+        as made with the same parameters.  A flag that takes a value ends with
+        ``=`` (``"--memory-limit="``), a switch does not (``"--lazy"``).
     """
 
     name: str
@@ -110,6 +116,11 @@ class Job:
     out: str
     inputs: tuple[str, ...] = ()
     summary: str = "summary.json"
+    neutral: tuple[str, ...] = ()
+
+    def with_options(self, *options: str) -> Job:
+        """The same job with ``options`` added to its command line."""
+        return replace(self, argv=(*self.argv, *options))
 
     @property
     def command(self) -> list[str]:
@@ -131,9 +142,22 @@ class Outcome:
     messages: list[str] = field(default_factory=list)
 
 
-def _parameters(argv: Iterable[str]) -> list[str]:
-    """The arguments that make a run's result: without ``--overwrite`` and the verbosity."""
-    return [a for a in argv if a not in _NEUTRAL_FLAGS]
+def _parameters(argv: Iterable[str], neutral: Iterable[str] = ()) -> list[str]:
+    """The arguments that make a run's result: without ``--overwrite``, the verbosity and
+    the ``neutral`` options (see :class:`Job`)."""
+    switches = {n for n in neutral if not n.endswith("=")}
+    valued = {n[:-1] for n in neutral if n.endswith("=")}
+    out, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+        elif a in _NEUTRAL_FLAGS or a in switches or (a.split("=", 1)[0] in valued and "=" in a):
+            continue
+        elif a in valued:
+            skip = True  # and its value
+        else:
+            out.append(a)
+    return out
 
 
 def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
@@ -180,7 +204,8 @@ def job_state(job: Job) -> str:
         return f"{out} exists and is not a result of the toolkit"
     if foreign_content(out) is not None:
         return f"{out} was changed since it was written"
-    if _parameters((marker.get("command") or [])[1:]) != _parameters(job.argv):
+    recorded = (marker.get("command") or [])[1:]
+    if _parameters(recorded, job.neutral) != _parameters(job.argv, job.neutral):
         return f"{out} was made with other parameters"
     try:
         created = datetime.fromisoformat(marker["created"]).timestamp()
@@ -466,6 +491,7 @@ def manifest_jobs(
     name_column: str = "specimen",
     own_columns: Sequence[str] = (),
     summary: str = "summary.json",
+    neutral: Sequence[str] = (),
 ) -> tuple[list[Job], list[dict[str, str]], list[str]]:
     """The jobs of a manifest, one per row, each writing ``out/runs/NAME``.
 
@@ -528,7 +554,9 @@ def manifest_jobs(
         # files named by options (points, calibrations) are inputs too
         inputs += [a for a in run_argv if not a.startswith("-") and Path(a).is_file()]
         argv += [*run_argv, "--out", str(run)]
-        jobs.append(Job(name, module, tuple(argv), str(run), tuple(inputs), summary))
+        jobs.append(
+            Job(name, module, tuple(argv), str(run), tuple(inputs), summary, tuple(neutral))
+        )
         row[name_column] = name
     return jobs, rows, unused
 
@@ -579,6 +607,17 @@ class _Log:
             self.say(message)
 
 
+def raise_if_failed(outcomes: Sequence[Outcome], folder: str | os.PathLike) -> None:
+    """End the batch command with one line when runs failed: how many, the first and why."""
+    failed = [o for o in outcomes if o.status == "failed"]
+    if failed:
+        more = f"; {len(failed) - 1} more" if len(failed) > 1 else ""
+        raise InputError(
+            f"{len(failed)} of {len(outcomes)} runs failed, the others are in {folder}: "
+            f"{failed[0].name}: {failed[0].reason}{more} (see {Path(folder) / LOG_FILE})"
+        )
+
+
 def _write_record(folder: Path, command: list[str] | None, where: str, outcomes: list[Outcome]):
     from tissue_core import __version__
 
@@ -597,8 +636,9 @@ def _write_record(folder: Path, command: list[str] | None, where: str, outcomes:
         write_json(tmp, record)
 
 
-#: what differs between two runs of the same command on the same inputs: when and how long
-_PROVENANCE_KEYS = frozenset({"created", "updated", "command", "runtime_s", "out"})
+#: what differs between two runs of the same command on the same inputs: when, how long, and
+#: how much memory they were allowed (mpm3d's parameters.memory: the results do not depend on it)
+_PROVENANCE_KEYS = frozenset({"created", "updated", "command", "runtime_s", "out", "memory"})
 
 
 def _without_provenance(value):

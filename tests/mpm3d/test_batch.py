@@ -1,0 +1,56 @@
+"""``mpm3d batch``: stacks analyzed as a batch, each run the one analyze makes, a table of their
+metrics, a damaged stack reported in one line, a rerun that keeps what is complete (whatever
+memory limit it was made under: the results do not depend on it)."""
+
+import csv
+import json
+import shutil
+
+from mpm3d.batch import METRIC_COLUMNS
+from mpm3d.cli import main
+from tissue_core.batch import differences
+
+
+def test_a_batch_of_stacks_makes_analyze_runs_and_a_table_of_their_metrics(
+    mpm_small, tmp_path, capsys
+):
+    stack = mpm_small[0]
+    first = tmp_path / "first.tif"
+    shutil.copy(stack, first)
+    broken = tmp_path / "broken.tif"
+    broken.write_bytes(stack.read_bytes()[:20000])
+    manifest = tmp_path / "stacks.csv"
+    manifest.write_text(f"stack,name,channel\n{first},A,\n{broken},B,\n{first},C,0\n")
+    out = tmp_path / "batch"
+    assert main(["batch", str(manifest), "--no-figures", "--workers", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    line = err.strip().splitlines()[-1]
+    assert line.startswith("mpm3d batch: error: 1 of 3 runs failed") and "B: " in line, err
+    assert "truncated or damaged" in line
+    # each run is the one analyze makes
+    alone = tmp_path / "alone"
+    assert main(["analyze", str(first), "--no-figures", "--out", str(alone), "-q"]) == 0
+    assert differences(alone, out / "runs" / "A") == []
+    # the table: one row per stack made, the values of its metrics.json
+    with open(out / "metrics.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["name"] for r in rows] == ["A", "C"]
+    metrics = json.loads((out / "runs" / "C" / "metrics.json").read_text())
+    assert metrics["parameters"]["channel"] == 0
+    for column in METRIC_COLUMNS:
+        value = metrics[column]
+        assert rows[1][column] == ("" if value is None else str(value)), column
+    # a rerun under another memory limit keeps A and C, and tries B again
+    before = (out / "runs" / "A" / ".tissue-strain-result.json").read_bytes()
+    argv = ["batch", str(manifest), "--no-figures", "--memory-limit", "3GiB", "--workers", "1"]
+    assert main([*argv, "--out", str(out)]) == 2
+    log = (out / "batch.log").read_text()
+    assert "batch of 3 runs: 2 complete already, 1 to run" in log
+    assert (out / "runs" / "A" / ".tissue-strain-result.json").read_bytes() == before
+    # stacks named on the command line, without a manifest
+    capsys.readouterr()
+    assert (
+        main(["batch", str(first), "--no-figures", "--workers", "1", "--out", str(tmp_path / "b2")])
+        == 0
+    )
+    assert (tmp_path / "b2" / "runs" / "first" / "metrics.json").is_file()
