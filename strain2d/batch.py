@@ -14,8 +14,9 @@ Other columns (notes, ground truth) are kept in the manifest and not used; the
 log names them.  Each specimen is analyzed into ``OUT/runs/SPECIMEN`` as
 ``strain2d analyze`` would, as one task of the batch (see
 :mod:`tissue_core.batch`); the runs that succeeded are then combined into
-``OUT/study`` (``strain2d study``), whose manifest ``OUT/study_manifest.csv``
-can be edited and used again.
+``OUT/study`` (``strain2d study``).  Its manifest, ``OUT/study_manifest.csv``,
+is written again by every batch; copy it to edit it (groups, endpoints) and give
+the copy to ``strain2d study``.
 """
 
 from __future__ import annotations

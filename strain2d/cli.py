@@ -276,9 +276,9 @@ def _cmd_batch(args) -> int:
     changed = any(o.status == "done" for o in outcomes)
     if not args.no_study and ok:
         changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
-        job = study_job(out, args)
-        say(f"study of {len(ok)} specimens")
-        study = run_study(job, changed)
+        study = run_study(study_job(out, args), changed)
+        if study is not None:
+            say(f"study of {len(ok)} specimens")
         if study is not None and study.status == "failed":
             raise InputError(f"the study failed: {study.reason}")
     raise_if_failed(outcomes, args.out)

@@ -9,6 +9,7 @@ user can fix (one line, exit status 2), ``--bug`` an error nobody expected.
 from __future__ import annotations
 
 import os
+import time
 
 from tissue_core.cli import CommandLine, run_command
 from tissue_core.errors import InputError
@@ -22,6 +23,8 @@ def _job(args) -> int:
     if args.crash_once and not os.path.exists(args.crash_once):
         open(args.crash_once, "w").close()
         os._exit(9)
+    if args.sleep:
+        time.sleep(args.sleep)
     if args.fail:
         raise InputError(f"{args.name}: this input cannot be read")
     if args.bug:
@@ -40,5 +43,6 @@ def main(argv=None) -> int:
     p.add_argument("--crash-once", metavar="FILE", help="crash unless FILE exists (makes it)")
     p.add_argument("--fail", action="store_true")
     p.add_argument("--bug", action="store_true")
+    p.add_argument("--sleep", type=float, default=0.0, help="seconds before the rest")
     p.add_argument("--overwrite", action="store_true")
     return run_command("batchjobs", cli, argv)

@@ -260,7 +260,11 @@ def test_bad_manifests_end_in_one_line_before_anything_runs(study_data, tmp_path
         (f"video,fps\n{video},fast\n", "line 2: column fps takes a float, got 'fast'"),
         (f"video,specimen\n{video},A\n{video},A\n", "run names must be unique"),
         ("video\n", "has no rows"),
-        (f"video,specimen\n{video},../x\n", "cannot name a folder"),
+        (f"video,specimen\n{video},x/y\n", "cannot name a folder (it holds /)"),
+        (f"video,specimen\n{video},.A.tmp-x\n", "line 2: specimen '.A.tmp-x' starts with '.'"),
+        (f"video,specimen\n{video},S0?\n", "cannot name a folder (it holds ?)"),
+        (f"video,specimen\n{video},A,extra\n", "line 2: more cells than the header has"),
+        (f"video,specimen\n{video},a\n{video},A\n", "run names must be unique"),
     ]
     for text, message in cases:
         done = batch(text, "--workers", "1", "--no-study", *RUN_OPTIONS)
@@ -269,9 +273,10 @@ def test_bad_manifests_end_in_one_line_before_anything_runs(study_data, tmp_path
         line = done.stderr.strip().splitlines()[-1]
         if message is None:
             assert "1 of 1 runs failed" in line and "7by7" in line, line
+            shutil.rmtree(tmp_path / "b")
         else:
             assert message in line, (text, line)
-        shutil.rmtree(tmp_path / "b", ignore_errors=True)
+            assert not (tmp_path / "b").exists(), text  # refused before anything was made
     # a folder that is not a batch's is never used
     folder = tmp_path / "mine"
     folder.mkdir()
@@ -311,3 +316,25 @@ def test_ctrl_c_stops_a_batch_on_a_local_cluster_and_leaves_whole_runs_only(stud
     for run in runs.iterdir():  # whole runs only, each with its marker
         assert read_marker(run) is not None and foreign_content(run) is None, run
     assert "interrupted: " in (out / "batch.log").read_text()
+
+
+def test_ctrl_c_stops_a_batch_in_one_process_after_the_run_it_was_making(study_data, tmp_path):
+    out = tmp_path / "b"
+    batch = subprocess.Popen(
+        [sys.executable, "-m", "strain2d", "batch", str(study_data / "manifest.csv"),
+         "--workers", "1", "--out", str(out), *RUN_OPTIONS],
+        stderr=subprocess.PIPE, text=True, errors="replace",
+    )  # fmt: skip
+    runs = out / "runs"
+    _wait_for(lambda: batch.poll() is None and (runs / "S01").is_dir(), "the first run", 120)
+    _wait_for(lambda: batch.poll() is None and any(runs.glob(".S02.tmp-*")), "the second", 120)
+    batch.send_signal(signal.SIGINT)
+    _, stderr = batch.communicate(timeout=120)
+    assert batch.returncode == 130, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last == f"strain2d batch: interrupted after the results were written to {runs / 'S01'}"
+    assert sorted(p.name for p in runs.iterdir()) == ["S01"]  # no scratch, no other run
+    record = json.loads((out / "batch.json").read_text())
+    assert [(r["name"], r["status"]) for r in record["runs"]] == [("S01", "done")]
+    assert "interrupted: 1 of 5 runs made" in (out / "batch.log").read_text()
+    assert not (out / "study").exists()

@@ -36,19 +36,23 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import glob
 import io
 import json
 import os
 import shutil
 import socket
+import sys
+import threading
 import time
 import traceback
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
 from tissue_core.errors import InputError
+from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
     foreign_content,
@@ -225,6 +229,56 @@ def _error_line(text: str) -> str:
     return lines[-1] if lines else ""
 
 
+class _ThreadStreams(io.TextIOBase):
+    """``sys.stderr`` or ``sys.stdout`` while runs are made: each thread that set a stream of
+    its own writes there, every other thread to the stream it replaced.  A worker with
+    several threads makes several runs at once, and each run's messages are its own."""
+
+    def __init__(self, fallback) -> None:
+        self.fallback = fallback
+        self.local = threading.local()
+        self.users = 0
+
+    def _target(self):
+        return getattr(self.local, "stream", None) or self.fallback
+
+    def write(self, text: str) -> int:
+        return self._target().write(text)
+
+    def flush(self) -> None:
+        self._target().flush()
+
+    def isatty(self) -> bool:
+        return self._target().isatty()
+
+    def __getattr__(self, name: str):  # encoding, fileno, ...: the stream's own
+        return getattr(self._target(), name)
+
+
+_STREAMS_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _captured(name: str) -> Iterator[io.StringIO]:
+    """This thread's writes to ``sys.<name>`` go to the buffer yielded; other threads' do not."""
+    with _STREAMS_LOCK:
+        streams = getattr(sys, name)
+        if not isinstance(streams, _ThreadStreams):
+            streams = _ThreadStreams(streams)
+            setattr(sys, name, streams)
+        streams.users += 1
+    buffer = io.StringIO()
+    streams.local.stream = buffer
+    try:
+        yield buffer
+    finally:
+        streams.local.stream = None
+        with _STREAMS_LOCK:
+            streams.users -= 1
+            if streams.users == 0 and getattr(sys, name) is streams:
+                setattr(sys, name, streams.fallback)
+
+
 def run_job(job: Job, overwrite: bool = False) -> Outcome:
     """Run one job here (in a worker, or in the batch's own process) and say how it went.
 
@@ -241,9 +295,8 @@ def run_job(job: Job, overwrite: bool = False) -> Outcome:
     if job_state(job) == "complete":  # made by an earlier attempt whose worker died after it
         return Outcome(job.name, "done", job.out, "", 0.0, worker, messages=["complete already"])
     argv = [*job.argv, "-q", *(["--overwrite"] if overwrite else [])]
-    stderr = io.StringIO()
     try:
-        with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
+        with _captured("stderr") as stderr, _captured("stdout"):
             try:
                 status = importlib.import_module(job.module).main(argv)
             except SystemExit as exc:  # a usage error: argparse exits
@@ -272,6 +325,28 @@ def run_job(job: Job, overwrite: bool = False) -> Outcome:
 
 _TRUE = frozenset({"1", "yes", "true", "y", "x", "on"})
 _FALSE = frozenset({"", "0", "no", "false", "n", "off"})
+
+
+def _absolute(value):
+    """A value given to the batch that names a file or folder here, as an absolute path (the
+    runs may run elsewhere, and are compared by their command lines)."""
+    if isinstance(value, list):
+        return [_absolute(v) for v in value]
+    if isinstance(value, str) and not value.startswith("-") and Path(value).exists():
+        return str(Path(value).resolve())
+    return value
+
+
+def _as_typed(convert):
+    """An argparse type that checks a value with ``convert`` and keeps the text as typed, so
+    that ``--fps 30`` given to a batch passes on ``30`` as a manifest cell would."""
+
+    def check(text: str) -> str:
+        convert(text)
+        return text
+
+    check.__name__ = getattr(convert, "__name__", "value")
+    return check
 
 
 class RunOptions:
@@ -304,6 +379,9 @@ class RunOptions:
         self._groups: list[list[argparse.Action]] = []  # shared with its groups once made
 
     def add_argument(self, *names, **kwargs) -> argparse.Action:
+        convert = kwargs.get("type")
+        if callable(convert):  # checked as the command checks it, passed on as typed
+            kwargs["type"] = _as_typed(convert)
         action = self._target.add_argument(*names, **kwargs)
         action.default = argparse.SUPPRESS  # only what is given is passed on
         self._actions.append(action)
@@ -353,7 +431,7 @@ class RunOptions:
         """
         known = self._by_column()
         given: dict[argparse.Action, object] = {
-            a: getattr(args, a.dest) for a in self._actions if hasattr(args, a.dest)
+            a: _absolute(getattr(args, a.dest)) for a in self._actions if hasattr(args, a.dest)
         }
         for column, text in row.items():
             action = known.get(column.replace("-", "_"))
@@ -366,7 +444,7 @@ class RunOptions:
             value = self._value(action, column, text, where)
             if base is not None and isinstance(value, str) and not Path(value).is_absolute():
                 if (base / value).exists():
-                    value = str(base / value)
+                    value = str((base / value).resolve())
             given[action] = value
         argv: list[str] = []
         for action in self._actions:  # in the parser's order, so the recorded command is stable
@@ -460,7 +538,11 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
     out = []
     for i, row in enumerate(rows, start=2):
+        if None in row:  # more cells than the header has names
+            raise InputError(f"manifest {path}, line {i}: more cells than the header has columns")
         clean = {(k or "").strip().lower(): (v or "").strip() for k, v in row.items()}
+        if not any(clean.values()):
+            continue  # an empty row (a spreadsheet's trailing commas)
         clean["_line"] = str(i)
         out.append(clean)
     if not out:
@@ -547,8 +629,9 @@ def manifest_jobs(
             inputs.append(str(path))
             argv += [str(path)] if flag is None else [flag, str(path)]
         name = row.get(name_column) or Path(inputs[0]).stem
-        if name in {".", ".."} or "/" in name or "\\" in name:
-            raise InputError(f"{where}: {name_column} {name!r} cannot name a folder")
+        problem = _bad_name(name)
+        if problem:
+            raise InputError(f"{where}: {name_column} {name!r} {problem}")
         run = out / "runs" / name
         run_argv = options.argv(args, {c: row[c] for c in run_columns}, where=where, base=base)
         # files named by options (points, calibrations) are inputs too
@@ -558,7 +641,33 @@ def manifest_jobs(
             Job(name, module, tuple(argv), str(run), tuple(inputs), summary, tuple(neutral))
         )
         row[name_column] = name
+    _check_unique(jobs)
     return jobs, rows, unused
+
+
+#: characters no run name may hold: path separators, shell patterns, and what Windows refuses
+_BAD_CHARACTERS = frozenset('/\\*?[]<>:"|')
+
+
+def _bad_name(name: str) -> str:
+    """Why ``name`` cannot name a run's folder, or ``""``."""
+    if not name.strip():
+        return "is empty"
+    if name.startswith("."):
+        return "starts with '.' (hidden; the toolkit's scratch folders start so)"
+    bad = sorted(set(name) & _BAD_CHARACTERS)
+    if bad:
+        return f"cannot name a folder (it holds {' '.join(bad)})"
+    if any(ord(c) < 32 for c in name):
+        return "holds a control character"
+    return ""
+
+
+def _check_unique(jobs: Sequence[Job]) -> None:
+    names = [j.name.lower() for j in jobs]  # folders of names differing in case collide on
+    dup = sorted({j.name for j in jobs if names.count(j.name.lower()) > 1})  # macOS, Windows
+    if dup:
+        raise InputError(f"run names must be unique in a batch; repeated: {', '.join(dup)}")
 
 
 def batch_folder(path: str | os.PathLike) -> Path:
@@ -572,7 +681,7 @@ def batch_folder(path: str | os.PathLike) -> Path:
             kind = json.loads(record.read_text(encoding="utf-8")).get("kind")
         except (OSError, ValueError, AttributeError):
             kind = None
-        if kind != _KIND:
+        if kind != _KIND and not (path / LOCK_FILE).exists():
             raise InputError(
                 f"--out {path} exists and is not a batch folder (no {BATCH_FILE}); give a new "
                 "or empty folder"
@@ -586,7 +695,7 @@ def _remove_scratch(out: str) -> None:
     out = Path(out)
     if not out.parent.is_dir():
         return
-    for scratch in out.parent.glob(f".{out.name}.tmp-*"):
+    for scratch in out.parent.glob(f".{glob.escape(out.name)}.tmp-*"):
         shutil.rmtree(scratch, ignore_errors=True)
 
 
@@ -650,7 +759,9 @@ def _without_provenance(value):
 
 
 #: files of a folder that record how results were made, not results
-_NOT_RESULTS = frozenset({".tissue-strain-result.json", "report.html", BATCH_FILE, LOG_FILE})
+_NOT_RESULTS = frozenset(
+    {".tissue-strain-result.json", "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
+)
 
 
 def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
@@ -723,11 +834,61 @@ def run_batch(
     say : callable
         Progress lines (the command line's :class:`~tissue_core.progress.Progress`).
     """
+    _check_unique(jobs)
     folder = batch_folder(folder)
-    names = [j.name for j in jobs]
-    dup = sorted({n for n in names if names.count(n) > 1})
-    if dup:
-        raise InputError(f"run names must be unique in a batch; repeated: {', '.join(dup)}")
+    with _lock(folder):
+        return _run_batch(jobs, folder, workers, scheduler, overwrite, say)
+
+
+#: the file that marks a batch folder as in use by a running batch
+LOCK_FILE = ".batch.lock"
+
+
+@contextlib.contextmanager
+def _lock(folder: Path) -> Iterator[None]:
+    """One batch at a time in a folder: two would remove each other's scratch."""
+    path = folder / LOCK_FILE
+    me = {"host": socket.gethostname(), "pid": os.getpid(), "started": _now()}
+    for _ in range(2):
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            try:
+                other = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                other = {}
+            if other.get("host") == me["host"] and not _alive(other.get("pid")):
+                path.unlink(missing_ok=True)  # left by a batch that was killed
+                continue
+            raise InputError(
+                f"another batch (process {other.get('pid')} on {other.get('host')}, started "
+                f"{other.get('started')}) is using {folder}; wait for it, or remove "
+                f"{path} if it is gone"
+            ) from None
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(me, f)
+        break
+    try:
+        yield
+    finally:
+        path.unlink(missing_ok=True)
+
+
+def _alive(pid) -> bool:
+    try:
+        os.kill(int(pid), 0)
+    except (TypeError, ValueError, ProcessLookupError):
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
+def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say) -> list[Outcome]:
     log = _Log(folder / LOG_FILE, say)
     command = recorded_command.get()
     outcomes: dict[str, Outcome] = {}
@@ -781,7 +942,12 @@ def run_batch(
         if todo and workers == 1 and scheduler is None:
             for job, replace in todo:
                 log(f"{job.name}: started", show=False)
-                finished(run_job(job, replace))
+                made = list(written)  # the run's own command clears the list
+                outcome = run_job(job, replace)
+                written[:] = made
+                if outcome.reason == "interrupted" or was_interrupted():
+                    raise KeyboardInterrupt  # Ctrl-C ended the run: it ends the batch
+                finished(outcome)
         elif todo:
             try:
                 _run_on_dask(todo, workers, scheduler, log, finished)
@@ -808,12 +974,16 @@ HEARTBEAT_S = 60.0
 
 
 def _threads(client) -> int:
-    """How many runs the cluster can make at once now (its workers' threads; at least 1)."""
+    """How many runs the cluster can make at once now: its workers' threads (0: none)."""
     try:
         workers = client.scheduler_info(n_workers=-1).get("workers", {})
     except Exception:  # the scheduler does not answer now: one at a time until it does
         return 1
-    return max(1, sum(int(w.get("nthreads", 1)) for w in workers.values()))
+    return sum(int(w.get("nthreads", 1)) for w in workers.values())
+
+
+#: seconds a batch waits for a cluster without workers before it gives up
+NO_WORKERS_S = 600.0
 
 
 def _in_turn(client, todo, submit, log, interval: float | None = None):
@@ -829,8 +999,19 @@ def _in_turn(client, todo, submit, log, interval: float | None = None):
     interval = HEARTBEAT_S if interval is None else interval
     waiting = list(todo)
     running: dict = {}
+    alone_since = None  # when the cluster was last seen without workers
     while waiting or running:
-        room = _threads(client) - len(running)
+        threads = _threads(client)
+        if threads:
+            alone_since = None
+        else:
+            alone_since = alone_since or time.monotonic()
+            if time.monotonic() - alone_since > NO_WORKERS_S:
+                raise InputError(
+                    f"the cluster has had no workers for {NO_WORKERS_S / 60:.0f} minutes: "
+                    f"{len(running) + len(waiting)} runs not made (a rerun makes them)"
+                )
+        room = max(threads, 1) - len(running)  # one run asks an adaptive cluster for a worker
         while waiting and room > 0:
             job, replace = waiting.pop(0)
             running[submit(job, replace)] = job
@@ -839,7 +1020,9 @@ def _in_turn(client, todo, submit, log, interval: float | None = None):
             done, _ = wait(list(running), timeout=interval, return_when="FIRST_COMPLETED")
         except TimeoutError:  # no run ended in the interval
             done = set()
-        if not done:
+        if not done and not threads:
+            log(f"no workers: {len(running) + len(waiting)} runs wait for the cluster")
+        elif not done:
             names = ", ".join(sorted(job.name for job in running.values()))
             log(f"{len(running)} running ({names}), {len(waiting)} waiting")
         for future in done:
@@ -861,7 +1044,7 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
         if scheduler:
             try:
                 client = stack.enter_context(Client(scheduler, timeout="20s"))
-            except (OSError, TimeoutError) as exc:
+            except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
         else:
             try:

@@ -28,6 +28,8 @@ def test_a_local_cluster_restarts_a_killed_run_reports_errors_and_finishes_the_r
         assert by_name[name].status == "done", by_name[name]
         assert (tmp_path / "runs" / name / "summary.json").is_file()
     assert by_name["killed"].worker_deaths >= 1  # its first worker died; another made it
+    for name in ("good", "fail", "bug"):  # one run at a time on a worker: none died with it
+        assert by_name[name].worker_deaths == 0, by_name[name]
     assert by_name["fail"].reason == "fail: this input cannot be read"
     assert by_name["bug"].reason == "unexpected ZeroDivisionError: a defect"
     assert any("Traceback" in line for line in by_name["bug"].messages)
@@ -50,3 +52,62 @@ def test_a_run_whose_workers_keep_dying_is_reported(tmp_path):
     assert outcome.status == "failed" and "every worker that ran it died" in outcome.reason
     assert outcome.worker_deaths == 2  # the first run and its one retry
     assert not (tmp_path / "runs" / "crash").exists()
+
+
+def test_while_no_run_ends_a_line_names_the_runs_in_progress(tmp_path, monkeypatch):
+    import tissue_core.batch
+
+    monkeypatch.setattr(tissue_core.batch, "HEARTBEAT_S", 0.3)
+    lines = []
+    jobs = [_job(name, tmp_path, "--sleep", "1.5") for name in ("a", "b", "c")]
+    outcomes = run_batch(jobs, tmp_path, workers=2, say=lines.append)
+    assert [o.status for o in outcomes] == ["done"] * 3
+    progress = [line for line in lines if " running (" in line]
+    assert "2 running (a, b), 1 waiting" in progress, lines  # one run per worker, c held back
+    assert any(line.startswith("1 running (c), 0 waiting") for line in progress), lines
+
+
+def test_one_batch_at_a_time_in_a_folder(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from tissue_core.batch import LOCK_FILE
+    from tissue_core.errors import InputError
+
+    folder = tmp_path / "b"
+    folder.mkdir()
+    lock = folder / LOCK_FILE
+    alive = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    try:
+        lock.write_text(json.dumps({"host": os.uname().nodename, "pid": alive.pid}))
+        try:
+            run_batch([_job("a", folder)], folder, workers=1)
+        except InputError as exc:
+            assert f"another batch (process {alive.pid} on" in str(exc)
+        else:
+            raise AssertionError("a second batch ran in a folder in use")
+        assert not (folder / "runs").exists()
+    finally:
+        alive.kill()
+        alive.wait()
+    # the lock of a batch that was killed is taken over
+    (outcome,) = run_batch([_job("a", folder)], folder, workers=1)
+    assert outcome.status == "done" and not lock.exists()
+
+
+def test_options_given_to_a_batch_pass_on_as_typed_with_paths_made_absolute(tmp_path, monkeypatch):
+    import argparse
+
+    from tissue_core.batch import RunOptions
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "pts.csv").write_text("x,y\n1,2\n")
+    parser = argparse.ArgumentParser()
+    options = RunOptions(parser, "options")
+    options.add_argument("--points")
+    options.add_argument("--fps", type=float)
+    args = parser.parse_args(["--points", "pts.csv", "--fps", "30"])
+    argv = options.argv(args, {}, where="line 2")
+    assert argv == ["--points", str(tmp_path / "pts.csv"), "--fps", "30"]
+    assert options.argv(args, {"fps": "30"}, where="line 2") == argv  # a cell: the same run
