@@ -11,9 +11,9 @@ peak resident memory (the child's own, from ``os.wait4``), the ratio of the
 3,000-frame run to the 300-frame one, and wall times.  The target of issue 17
 is a ratio of at most 1 (within a few MiB of noise).
 
-The default (klt, 7x7 grid, every output) takes about 10 minutes on 2 cores,
+The default (klt, 7x7 grid, every output) takes 10-17 minutes on 2 cores,
 most of it drawing the 3,000-frame animation; ``--trackers gdic,klt --grids
-7x7,15x15`` is the whole matrix (about an hour), ``--animation none`` leaves
+7x7,15x15`` is the whole matrix (over an hour), ``--animation none`` leaves
 the animation out of a sweep.
 
     python bench/bench_long_video.py [--quick] [--frames 300,3000]
@@ -90,7 +90,7 @@ def main() -> None:
     )
     parser.add_argument("--size", type=int, default=512, help="frame side in px (512)")
     parser.add_argument(
-        "--quick", action="store_true", help="200 and 1,000 frames (3 minutes on 2 cores)"
+        "--quick", action="store_true", help="200 and 1,000 frames (about 4 minutes on 2 cores)"
     )
     args = parser.parse_args()
     if args.quick:
