@@ -279,6 +279,20 @@ def _captured(name: str) -> Iterator[io.StringIO]:
                 setattr(sys, name, streams.fallback)
 
 
+#: the threads a run may use on a worker of a local cluster (its share of the cores)
+_THREADS_ENV = "TISSUE_STRAIN_RUN_THREADS"
+
+
+def _share_the_cores() -> None:
+    """On a local cluster's worker: OpenCV's thread pool to the worker's share of the cores
+    (NumPy's BLAS is at one thread on Dask's workers, numba at NUMBA_NUM_THREADS)."""
+    threads = os.environ.get(_THREADS_ENV)
+    if threads:
+        import cv2
+
+        cv2.setNumThreads(int(threads))
+
+
 def run_job(job: Job, overwrite: bool = False) -> Outcome:
     """Run one job here (in a worker, or in the batch's own process) and say how it went.
 
@@ -290,6 +304,7 @@ def run_job(job: Job, overwrite: bool = False) -> Outcome:
     """
     import importlib
 
+    _share_the_cores()
     start = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
     if job_state(job) == "complete":  # made by an earlier attempt whose worker died after it
@@ -1055,7 +1070,10 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
                     dashboard_address=":0",  # a free port: batches may run side by side
                     silence_logs=logging.ERROR,
                     # the cores shared out: a run's compiled kernels use its worker's share
-                    env={"NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers))},
+                    env={
+                        "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
+                        _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
+                    },
                 )
             except (RuntimeError, OSError, TimeoutError) as exc:
                 raise InputError(
