@@ -63,7 +63,9 @@ def main() -> None:
                                  "--out", str(out)])  # fmt: skip
         diff = differences(root / "sequential", root / "cluster")
         cores = os.cpu_count()
-        print(f"{len(rows)} specimens (sample_data_synth study: 352x352 px, 25 frames), {cores} cores")
+        print(
+            f"{len(rows)} specimens (sample_data_synth study: 352x352 px, 25 frames), {cores} cores"
+        )
         print()
         print("| batch | workers | wall (s) | speedup |")
         print("|---|---|---|---|")
