@@ -464,10 +464,10 @@ def started(*args):
     def ctrl_c():
         os.kill(os.getpid(), signal.SIGINT)
         sent.set()
-    threading.Timer(0.001, ctrl_c).start()
     waited = time.perf_counter()
     calls = 0  # calls begun after the Ctrl-C was sent
     try:  # on a busy machine the timer's thread may start late: the kernel is called until it has
+        threading.Timer(0.001, ctrl_c).start()  # inside the try: the Ctrl-C may land at once
         while True:
             after_ctrl_c = sent.is_set()
             result = real(*args)

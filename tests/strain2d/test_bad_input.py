@@ -358,24 +358,27 @@ def long_video(tmp_path_factory):
     return folder / "rotation.avi"
 
 
-#: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start)
+#: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start), on a
+#: run of a dense grid where it must land in tracking, of a coarse one (quicker) after tracking
 STAGES = [
-    (None, 0.3, "imports"),
-    ("frames of", 0.02, "reading"),
-    ("tracking 1600 points (gdic)", 0.3, "tracking"),  # the global fit, or the IC-GN kernel
-    ("tracking 1600 points (gdic)", 1.5, "tracking-later"),
-    ("strain on", 0.02, "tables"),
-    ("figures and animation", 0.5, "figures"),
+    (None, 0.3, "40x40", "imports"),
+    ("frames of", 0.02, "40x40", "reading"),
+    ("tracking 1600 points (gdic)", 0.3, "40x40", "tracking"),  # the global fit, or IC-GN
+    ("tracking 1600 points (gdic)", 1.5, "40x40", "tracking-later"),
+    ("strain on", 0.02, "12x12", "tables"),
+    ("figures and animation", 0.5, "12x12", "figures"),
 ]
 
 
 @pytest.mark.parametrize(
-    ("when", "after"), [s[:2] for s in STAGES], ids=[f"analyze-interrupt-{s[2]}" for s in STAGES]
+    ("when", "after", "grid"),
+    [s[:3] for s in STAGES],
+    ids=[f"analyze-interrupt-{s[3]}" for s in STAGES],
 )
-def test_interrupt(long_video, tmp_path, when, after):
+def test_interrupt(long_video, tmp_path, when, after, grid):
     out = tmp_path / "run"
     status, _ = interrupt(
-        ["-m", "strain2d", "analyze", long_video, "--grid", "40x40", "--animation", "mp4",
+        ["-m", "strain2d", "analyze", long_video, "--grid", grid, "--animation", "mp4",
          "--out", out],
         after=after, when=when, out=out, inputs=[long_video.parent],
     )  # fmt: skip
