@@ -1044,6 +1044,42 @@ def _in_turn(client, todo, submit, log, interval: float | None = None):
             yield future, running.pop(future)
 
 
+def _trimming(client) -> bool:
+    """Whether any worker of the cluster started with MALLOC_TRIM_THRESHOLD_ set."""
+    try:
+        found = client.run(os.environ.get, _TRIM)
+    except Exception:  # a worker that cannot answer: nothing to advise
+        return False
+    return any(value is not None for value in found.values())
+
+
+_TRIM = "MALLOC_TRIM_THRESHOLD_"
+#: the Dask setting that gives a nanny's workers the malloc variable
+_TRIM_SETTING = f"distributed.nanny.pre-spawn-environ.{_TRIM}"
+
+
+@contextlib.contextmanager
+def _without_malloc_trimming() -> Iterator[None]:
+    """Workers started in here (a local cluster's, restarted ones too) run without
+    MALLOC_TRIM_THRESHOLD_.
+
+    Dask's nannies set it in their workers, which turns glibc's adaptive mmap
+    threshold off: every array over 128 KiB is then mapped afresh and its pages
+    faulted in.  The same runs in two plain processes took 8.7-9.6 s with it and
+    6.8-7.4 s without (2 cores).  A nanny also leaves it in its own process's
+    environment, which later workers would inherit: it is taken out of this one.
+    """
+    import dask
+
+    inherited = os.environ.pop(_TRIM, None)
+    try:
+        with dask.config.set({_TRIM_SETTING: None}):
+            yield
+    finally:
+        if inherited is not None:
+            os.environ[_TRIM] = inherited
+
+
 def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
     import logging
 
@@ -1063,6 +1099,7 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
                 raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
         else:
             try:
+                stack.enter_context(_without_malloc_trimming())
                 cluster = LocalCluster(
                     n_workers=workers,
                     threads_per_worker=1,  # a run is one task; its libraries' threads are its own
@@ -1085,6 +1122,12 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
         n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"
         log(f"{n} workers; Dask dashboard: {link}", show=bool(scheduler) or n > 1)
+        if scheduler and _trimming(client):
+            log(
+                "note: these workers run with MALLOC_TRIM_THRESHOLD_ set (Dask's nanny sets it), "
+                "which made runs about a quarter slower in our measurements; the README's "
+                "'Batches on a cluster' says how to unset it"
+            )
 
         def submit(job: Job, replace: bool):
             key = f"run-{job.name}-{tokenize(job, replace, time.time())}"

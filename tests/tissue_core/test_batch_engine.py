@@ -3,6 +3,7 @@ whose worker dies is made again, one whose workers keep dying is reported, an er
 a defect does not end the batch, the others complete."""
 
 import json
+import os
 
 import dask
 
@@ -28,6 +29,9 @@ def test_a_local_cluster_restarts_a_killed_run_reports_errors_and_finishes_the_r
         assert by_name[name].status == "done", by_name[name]
         assert (tmp_path / "runs" / name / "summary.json").is_file()
     assert by_name["killed"].worker_deaths >= 1  # its first worker died; another made it
+    for name in ("good", "killed"):  # Dask's nannies set it; it slowed real runs by a third
+        summary = json.loads((tmp_path / "runs" / name / "summary.json").read_text())
+        assert summary["trim"] is None, "the workers started with MALLOC_TRIM_THRESHOLD_ set"
     for name in ("good", "fail", "bug"):  # one run at a time on a worker: none died with it
         assert by_name[name].worker_deaths == 0, by_name[name]
     assert by_name["fail"].reason == "fail: this input cannot be read"
@@ -111,3 +115,22 @@ def test_options_given_to_a_batch_pass_on_as_typed_with_paths_made_absolute(tmp_
     argv = options.argv(args, {}, where="line 2")
     assert argv == ["--points", str(tmp_path / "pts.csv"), "--fps", "30"]
     assert options.argv(args, {"fps": "30"}, where="line 2") == argv  # a cell: the same run
+
+
+def test_the_malloc_variable_dasks_nannies_set_is_found_and_unset_for_local_clusters(monkeypatch):
+    from distributed import Client, LocalCluster
+
+    from tissue_core.batch import _TRIM, _trimming, _without_malloc_trimming
+
+    monkeypatch.delenv(_TRIM, raising=False)  # the nanny leaves it in this process's environment
+
+    def found() -> bool:
+        with LocalCluster(n_workers=1, threads_per_worker=1, dashboard_address=None) as cluster:
+            with Client(cluster) as client:
+                return _trimming(client)
+
+    assert found()  # Dask's default
+    assert os.environ.get(_TRIM) is not None  # left behind by the nanny
+    with _without_malloc_trimming():
+        assert not found()
+    assert os.environ.get(_TRIM) is not None  # given back
