@@ -8,8 +8,12 @@ at (0, 0).
 
 from __future__ import annotations
 
+import logging
 import os
 import re
+import sys
+import tempfile
+import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -26,17 +30,41 @@ TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".jp2", ".webp"})
 
 
-def _video_capture(path: Path):
-    """An OpenCV capture whose FFmpeg backend keeps quiet on stderr.
+#: one thread at a time points the process's stderr elsewhere
+_STDERR_LOCK = threading.Lock()
 
-    FFmpeg prints its own lines about damaged files ("Slice pointer chain
-    broken"); the toolkit reports the problem itself, in one line.  Set
-    ``OPENCV_FFMPEG_LOGLEVEL`` (e.g. 24) to see them.
+
+def _video_capture(path: Path):
+    """An OpenCV capture whose messages on opening do not reach the terminal.
+
+    OpenCV's AVI reader prints what it finds wrong in a damaged header straight
+    to the process's stderr ("Unexpected element. Expected: LIST. Got: ..."),
+    and its FFmpeg backend logs a codec it cannot open ("[ERROR:0@0.022] ...");
+    FFmpeg itself prints lines about damaged frames ("Slice pointer chain
+    broken").  The toolkit reports the problem itself, in one line: what OpenCV
+    printed while opening goes to the log (``-v`` shows it); set
+    ``OPENCV_FFMPEG_LOGLEVEL`` (e.g. 24) to see FFmpeg's.
     """
     import cv2
 
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    return cv2.VideoCapture(str(path))
+    with _STDERR_LOCK, tempfile.TemporaryFile() as caught:
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError, AttributeError):  # no stderr to keep quiet
+            return cv2.VideoCapture(str(path))
+        try:
+            os.dup2(caught.fileno(), 2)
+            cap = cv2.VideoCapture(str(path))
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        caught.seek(0)
+        said = caught.read().decode("utf-8", "replace").strip()
+    if said:
+        logging.getLogger(__name__).info("OpenCV on opening %s: %s", path, said)
+    return cap
 
 
 def _natural_key(path: Path) -> list:

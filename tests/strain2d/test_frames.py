@@ -165,3 +165,34 @@ def test_videos_of_other_encoders_are_read_whole(tmp_path, name, codec, params):
     assert len(source) == read.shape[0] == 9
     means = read.reshape(9, -1).mean(axis=1)
     assert np.all(np.diff(means) > 5)  # the frames come back in their order
+
+
+@pytest.mark.parametrize(
+    ("where", "printed"),
+    [(12, "Unexpected element"), (24, "Unexpected element"), (216, "Failed to initialize")],
+)
+def test_a_damaged_video_header_is_one_line_on_the_terminal(tmp_path, where, printed):
+    """OpenCV prints what it finds wrong in an AVI header straight to the process's stderr;
+    the user sees the toolkit's one line, and -v shows what OpenCV said."""
+    import subprocess
+    import sys
+
+    frames = np.random.default_rng(0).integers(0, 255, (3, 64, 64), dtype=np.uint8)
+    good = tmp_path / "good.avi"
+    write_video(frames, good)
+    data = bytearray(good.read_bytes())
+    data[where : where + 8] = bytes(range(200, 208))  # the LIST, avih or codec record damaged
+    video = tmp_path / "damaged.avi"
+    video.write_bytes(bytes(data))
+    runs = {}
+    for flag in ("-q", "-v"):
+        argv = ["analyze", str(video), "--grid", "3x3", "--out", str(tmp_path / "out"), flag]
+        runs[flag] = subprocess.run(
+            [sys.executable, "-m", "strain2d", *argv], capture_output=True, text=True,
+            errors="replace",
+        )  # fmt: skip
+    quiet, verbose = runs["-q"], runs["-v"]
+    assert quiet.returncode == 2
+    assert quiet.stderr.splitlines() == [f"strain2d analyze: error: cannot read video {video}"]
+    assert printed in verbose.stderr  # OpenCV's own words, in the log
+    assert not (tmp_path / "out").exists()
