@@ -928,8 +928,8 @@ def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say) -> list[O
         else ("this process" if workers == 1 else f"a local Dask cluster of {workers} workers")
     )
     log(
-        f"batch of {len(jobs)} runs: {len(outcomes)} complete already, {len(todo)} to run on "
-        f"{where}"
+        f"batch of {len(jobs)} runs: {len(outcomes)} complete already, "
+        + (f"{len(todo)} to run on {where}" if todo else "nothing to run")
     )
     if command:
         log("command: " + " ".join(command), show=False)

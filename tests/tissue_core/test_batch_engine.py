@@ -134,3 +134,13 @@ def test_the_malloc_variable_dasks_nannies_set_is_found_and_unset_for_local_clus
     with _without_malloc_trimming():
         assert not found()
     assert os.environ.get(_TRIM) is not None  # given back
+
+
+def test_a_batch_with_every_run_complete_says_nothing_runs_and_starts_no_cluster(tmp_path):
+    jobs = [_job("a", tmp_path), _job("b", tmp_path)]
+    assert [o.status for o in run_batch(jobs, tmp_path, workers=1)] == ["done", "done"]
+    lines = []
+    again = run_batch(jobs, tmp_path, workers=2, say=lines.append)
+    assert [o.status for o in again] == ["skipped", "skipped"]
+    assert lines[0].endswith("batch of 2 runs: 2 complete already, nothing to run"), lines
+    assert not any("workers" in line for line in lines), lines  # no cluster was started
