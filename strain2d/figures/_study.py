@@ -455,7 +455,10 @@ def plot_specimen_means(
     )
     lines = _specimen_lines(tests)
     title = f"specimen-level: specimen means of {_label(a)} and {_label(b)}"
-    title += f" (n = {len(table)} specimen{'s' if len(table) != 1 else ''})"
+    used = sum(np.isfinite(mean_of(r, a, i)) and np.isfinite(mean_of(r, b, i))
+               for i, r in enumerate(table))  # fmt: skip
+    left_out = f"; {len(table) - used} without a mean left out" if used < len(table) else ""
+    title += f" (n = {used} specimen{'s' if used != 1 else ''}{left_out})"
     ax.set_title(_wrap([title, *lines], fig.get_figwidth() - 0.4, 9), fontsize=9)
     _place_labels(fig, ax, labelled)
     return fig

@@ -469,6 +469,10 @@ def test_study_figures(tmp_path):
     assert len(ax.get_lines()) == len(table) + 2 + 1  # specimens, group means, zero
     assert "aniso: paired t-test p = 0.030" in ax.get_title()
     assert "specimen mean" in ax.get_ylabel() and "(-)" in ax.get_ylabel()
+    assert f"(n = {len(table)} specimens)" in ax.get_title()
+    lost = [*table[:2], {**table[2], "Exx": float("nan")}]  # a specimen without a mean
+    title = plot_specimen_means(lost).axes[0].get_title()
+    assert "(n = 2 specimens; 1 without a mean left out)" in title.replace("\n", " ")
     nested = [{"name": r["name"], "mean": {"Exx": r["Exx"], "Eyy": r["Eyy"]}} for r in table]
     save_figure(plot_specimen_means(nested), tmp_path / "means.png", dpi=50)
     _assert_image(tmp_path / "means.png")
