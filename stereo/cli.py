@@ -311,7 +311,11 @@ def _cmd_batch(args) -> int:
 
 def _match_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
-        "--match-subset", type=int, default=41, help="subset side for the cross-view match (41)"
+        "--match-subset",
+        type=int,
+        default=41,
+        help="subset side for the cross-view match (41); that match always uses the quadratic "
+        "warp, which follows the perspective between the views",
     )
     p.add_argument(
         "--max-epipolar",
