@@ -10,7 +10,14 @@ from __future__ import annotations
 
 from tissue_core.errors import InputError, SourceError
 
-__all__ = ["InputError", "MissingSpacingWarning", "SourceError", "SurfaceOutsideWarning"]
+__all__ = [
+    "InputError",
+    "MissingSpacingWarning",
+    "NoDataWarning",
+    "SourceError",
+    "SurfaceOutsideWarning",
+    "warn_no_data",
+]
 
 
 class MissingSpacingWarning(UserWarning):
@@ -19,3 +26,26 @@ class MissingSpacingWarning(UserWarning):
 
 class SurfaceOutsideWarning(UserWarning):
     """Part of the surface lies above the first slice: the stack does not contain it."""
+
+
+class NoDataWarning(UserWarning):
+    """Some voxels are NaN (no data): they count as lumen."""
+
+
+def warn_no_data(missing: float, *, stacklevel: int = 3) -> None:
+    """Say, when ``missing`` (the share of NaN voxels in a subsample) is above 0, how NaN is
+    taken: as lumen, so that NaN within the tissue leaves its surface unmeasured there and
+    walls the mesh at its edge."""
+    import warnings
+
+    if missing <= 0:
+        return
+    share = f"{100 * missing:.2g} %" if missing >= 1e-4 else "under 0.01 %"
+    warnings.warn(
+        NoDataWarning(
+            f"about {share} of the voxels are NaN (no data; estimated on a subsample): they "
+            "count as lumen, so where they lie within the tissue its surface is not measured "
+            "and the mesh has a wall at their edge"
+        ),
+        stacklevel=stacklevel,
+    )

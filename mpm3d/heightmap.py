@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mpm3d.errors import InputError, SurfaceOutsideWarning
+from mpm3d.errors import InputError, SurfaceOutsideWarning, warn_no_data
 
 __all__ = [
     "HEIGHT_DATUM",
@@ -165,6 +165,7 @@ def levels_of_sample(
     finite = np.isfinite(sub)
     if not finite.any():
         raise InputError("every voxel is NaN or infinite: there is no surface to find")
+    warn_no_data(float(np.isnan(sub).mean()))
     sub = sub[finite]
     if sub.min() == sub.max():
         raise InputError("the stack is uniform: there is no surface to find")

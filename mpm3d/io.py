@@ -54,7 +54,7 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
+from mpm3d.errors import InputError, MissingSpacingWarning, SourceError, warn_no_data
 from tissue_core.tiff_units import resolution, to_um, um_per_unit
 
 __all__ = ["SpacingSource", "Stack", "parse_spacing", "read_stack", "select_channel"]
@@ -426,8 +426,10 @@ def channel_ranges(data) -> tuple[np.ndarray, np.ndarray]:
     z, c, y, x = data.shape
     step = max(1, math.ceil((z * y * x / _RANGE_SAMPLE_VOXELS) ** (1 / 3)))
     ranges = []
+    missing = 0.0
     for k in range(c):
         sample = np.asarray(data[::step, k, ::step, ::step], dtype=np.float64).ravel()
+        missing = max(missing, float(np.isnan(sample).mean()))
         sample = sample[np.isfinite(sample)]
         if sample.size == 0:
             ranges.append(None)
@@ -437,6 +439,7 @@ def channel_ranges(data) -> tuple[np.ndarray, np.ndarray]:
 
     if all(r is None for r in ranges):
         raise InputError("every voxel is NaN or infinite: there is no surface to find")
+    warn_no_data(missing)  # the channels are combined into integers: NaN is seen only here
     ranges = [(0.0, 0.0) if r is None else r for r in ranges]
     lo = np.array([r[0] for r in ranges], np.float64)
     hi = np.array([r[1] for r in ranges], np.float64)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from mpm3d.analyze import analyze_stack
-from mpm3d.errors import InputError, SurfaceOutsideWarning
+from mpm3d.errors import InputError, NoDataWarning, SurfaceOutsideWarning
 from mpm3d.io import Stack
 
 DZ = 4.0
@@ -60,7 +60,8 @@ def test_nan_voxels_do_not_reach_the_mesh():
     _, x = np.mgrid[0:64, 0:64] * 2.5
     vol = _slab(80.0 + 20 * np.sin(2 * np.pi * x / 60.0), 50)
     vol[10:30, 20:30, 20:30] = np.nan
-    a = analyze_stack(_stack(vol), iso_bin=1)
+    with pytest.warns(NoDataWarning, match="count as lumen"):
+        a = analyze_stack(_stack(vol), iso_bin=1)
     assert np.isfinite(a.surface.points).all()
     assert a.surface.n_cells > 1000
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
+from mpm3d.errors import InputError, MissingSpacingWarning, NoDataWarning, SourceError
 from mpm3d.io import Stack, parse_spacing, read_stack, select_channel
 from tests.tolerances import EXACT
 
@@ -299,7 +299,8 @@ def test_combined_channels_ignore_a_constant_channel():
     data[:, 0] = np.arange(18).reshape(2, 3, 3)
     data[0, 0, 0, 0] = np.nan
     stack = Stack(data, (1.0, 1.0, 1.0), "user", ("a", "b"), "mem", "ZCYX")
-    volume, _ = select_channel(stack)
+    with pytest.warns(NoDataWarning, match="NaN"):
+        volume, _ = select_channel(stack)
     assert volume[0, 0, 0] == 0
     assert volume[-1, -1, -1] == 65535
 

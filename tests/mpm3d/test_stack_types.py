@@ -153,6 +153,11 @@ def test_float_stack_with_nan_voxels(grey, tmp_path):
     for key in ("fold_height_um", "max_fold_height_um", "Sq_um"):
         assert m[key] == pytest.approx(ref[key], rel=1e-3), key
     assert m["n_folds"] == ref["n_folds"]
+    # NaN counts as lumen: said, and flagged in the report (a NaN band through the tissue
+    # leaves the surface unmeasured there and walls the mesh)
+    (said,) = [w for w in m["warnings"] if "NaN (no data" in w]
+    assert said.startswith("about 0.") and "count as lumen" in said, said
+    assert "count as lumen" in (tmp_path / "out" / "report.html").read_text()
 
 
 def test_bool_stack(grey, tmp_path):
