@@ -199,10 +199,15 @@ def _cmd_batch(args) -> int:
         jobs = [job.with_options("--memory-limit", share) for job in jobs]
     folder = batch_folder(args.out)
     say = _progress(args)
-    if unused:
-        say(f"manifest columns not used: {', '.join(unused)}")
+    notes = [f"manifest columns not used: {', '.join(unused)}"] if unused else []
     outcomes = run_batch(
-        jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
+        jobs,
+        folder,
+        workers=workers,
+        scheduler=args.scheduler,
+        overwrite=args.overwrite,
+        say=say,
+        notes=notes,
     )
     n = write_metrics_table(out / "metrics.csv", outcomes)
     say(f"metrics of {n} stacks in {Path(args.out) / 'metrics.csv'}")

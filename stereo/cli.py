@@ -299,10 +299,15 @@ def _cmd_batch(args) -> int:
     workers = check_workers(args.workers, args.scheduler, len(jobs))
     folder = batch_folder(args.out)
     say = _say(args)
-    if unused:
-        say(f"manifest columns not used: {', '.join(unused)}")
+    notes = [f"manifest columns not used: {', '.join(unused)}"] if unused else []
     outcomes = run_batch(
-        jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
+        jobs,
+        folder,
+        workers=workers,
+        scheduler=args.scheduler,
+        overwrite=args.overwrite,
+        say=say,
+        notes=notes,
     )
     raise_if_failed(outcomes, args.out)
     say(f"results in {args.out}")

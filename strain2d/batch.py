@@ -85,4 +85,4 @@ def run_study(job: Job, changed: bool):
     state = job_state(job)
     if state == "complete" and not changed:
         return None
-    return run_job(job, overwrite=state != "missing")
+    return run_job(job, overwrite=state != "missing", remake=changed)

@@ -265,12 +265,15 @@ def _cmd_batch(args) -> int:
     jobs, rows, unused = analyze_jobs(args.manifest, out, options, args)
     workers = check_workers(args.workers, args.scheduler, len(jobs))
     folder = batch_folder(args.out)
-    if unused:
-        from tissue_core.batch import LOG_FILE
-
-        say(f"manifest columns not used: {', '.join(unused)} (see {Path(args.out) / LOG_FILE})")
+    notes = [f"manifest columns not used: {', '.join(unused)}"] if unused else []
     outcomes = run_batch(
-        jobs, folder, workers=workers, scheduler=args.scheduler, overwrite=args.overwrite, say=say
+        jobs,
+        folder,
+        workers=workers,
+        scheduler=args.scheduler,
+        overwrite=args.overwrite,
+        say=say,
+        notes=notes,
     )
     ok = {o.name for o in outcomes if o.status != "failed"}
     changed = any(o.status == "done" for o in outcomes)

@@ -164,6 +164,7 @@ def test_a_batch_on_a_scheduler_with_a_killed_worker_equals_the_sequential_one(
 
     # a rerun makes only what is missing: a removed run and the failing one
     before = {p.name: (p / ".tissue-strain-result.json").read_bytes() for p in runs.iterdir()}
+    study_made = (out / "study" / "summary.json").stat().st_mtime_ns
     shutil.rmtree(runs / "S02")
     rerun = _cli("strain2d", "batch", str(study_data / "manifest.csv"), "--workers", "1",
                  "--out", str(out), *RUN_OPTIONS)  # fmt: skip
@@ -175,6 +176,8 @@ def test_a_batch_on_a_scheduler_with_a_killed_worker_equals_the_sequential_one(
     assert len(redone) == 1 and " S02: done in " in redone[0], log[start:]
     for name in ("S01", "S03", "S04"):  # untouched
         assert (runs / name / ".tissue-strain-result.json").read_bytes() == before[name]
+    # a run was made again: the study is too (its manifest is the same)
+    assert (out / "study" / "summary.json").stat().st_mtime_ns != study_made
     assert differences(seq / "runs", runs) == []
 
 
@@ -298,23 +301,31 @@ def test_a_run_made_with_other_parameters_is_kept_without_overwrite(sequential, 
 
 
 def test_ctrl_c_stops_a_batch_on_a_local_cluster_and_leaves_whole_runs_only(study_data, tmp_path):
+    """Ctrl-C at a terminal reaches every process of the batch (its process group): the workers
+    leave it to the batch, which stops them and names the runs there are, in one line."""
     out = tmp_path / "b"
     batch = subprocess.Popen(
         [sys.executable, "-m", "strain2d", "batch", str(study_data / "manifest.csv"),
          "--workers", "2", "--out", str(out), "--no-study", *RUN_OPTIONS],
-        stderr=subprocess.PIPE, text=True, errors="replace",
+        stderr=subprocess.PIPE, text=True, errors="replace", start_new_session=True,
     )  # fmt: skip
     runs = out / "runs"
     _wait_for(
         lambda: batch.poll() is None and any(runs.glob(".S0*.tmp-*")), "a run in progress", 120
     )
-    batch.send_signal(signal.SIGINT)
+    os.killpg(batch.pid, signal.SIGINT)  # the whole group, as the terminal sends it
     _, stderr = batch.communicate(timeout=120)
     assert batch.returncode == 130, stderr
-    assert stderr.strip().splitlines()[-1].startswith("strain2d batch: interrupted"), stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    last = stderr.strip().splitlines()[-1]
+    assert last.startswith("strain2d batch: interrupted"), stderr
+    time.sleep(3)  # no worker goes on writing runs after the batch has ended
     assert not list(runs.glob(".*")), "scratch of an interrupted run left behind"
-    for run in runs.iterdir():  # whole runs only, each with its marker
+    made = sorted(runs.iterdir()) if runs.is_dir() else []
+    for run in made:  # whole runs only, each with its marker
         assert read_marker(run) is not None and foreign_content(run) is None, run
+    named = last.split("written to ")[1].split(", ") if "written to" in last else []
+    assert sorted(named) == [str(run) for run in made], (last, made)  # the message is true
     assert "interrupted: " in (out / "batch.log").read_text()
 
 

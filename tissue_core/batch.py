@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import csv
+import difflib
 import glob
 import io
 import json
@@ -46,6 +47,7 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
@@ -293,21 +295,23 @@ def _share_the_cores() -> None:
         cv2.setNumThreads(int(threads))
 
 
-def run_job(job: Job, overwrite: bool = False) -> Outcome:
+def run_job(job: Job, overwrite: bool = False, *, remake: bool = False) -> Outcome:
     """Run one job here (in a worker, or in the batch's own process) and say how it went.
 
     The command's messages (warnings, its error line) are captured, not printed;
     an error the command does not expect (a defect) fails the job with its
     traceback in the messages rather than ending the batch.  A job found
-    complete is not run again: the scheduler starts a job again when the
-    worker that made it died before handing its outcome back.
+    complete is not run again (``remake`` runs it all the same, with
+    ``overwrite``): the scheduler starts a job again when the worker that
+    made it died before handing its outcome back.
     """
     import importlib
 
     _share_the_cores()
     start = time.perf_counter()
     worker = f"{socket.gethostname()}:{os.getpid()}"
-    if job_state(job) == "complete":  # made by an earlier attempt whose worker died after it
+    # made by an earlier attempt whose worker died after it (unless it is to be made again)
+    if not remake and job_state(job) == "complete":
         return Outcome(job.name, "done", job.out, "", 0.0, worker, messages=["complete already"])
     argv = [*job.argv, "-q", *(["--overwrite"] if overwrite else [])]
     try:
@@ -627,6 +631,15 @@ def manifest_jobs(
     run_columns = set(options.columns(first)) - {c for c, _ in sources}
     mine = {c for c, _ in sources} | {name_column, "_line", *own_columns}
     unused = [c for c in first if c not in mine and c not in run_columns]
+    for column in unused:  # a misspelt option would be left out in silence
+        near = _misspelt(column, list(options._by_column()))
+        if near:
+            warnings.warn(
+                f"manifest column {column!r} is not used: no option of {command} has that "
+                f"name (did you mean {near!r}?)",
+                UserWarning,
+                stacklevel=2,
+            )
     jobs = []
     for row in rows:
         where = (
@@ -658,6 +671,18 @@ def manifest_jobs(
         row[name_column] = name
     _check_unique(jobs)
     return jobs, rows, unused
+
+
+def _misspelt(column: str, names: Sequence[str]) -> str | None:
+    """The option ``column`` looks like a misspelling of (letters swapped, one or two typed
+    wrong or missing), or None: ``gird`` -> ``grid``, not ``true_endpoint`` -> ``endpoint``."""
+    for name in names:
+        if abs(len(name) - len(column)) > 2:
+            continue
+        swapped = sorted(name) == sorted(column)
+        if swapped or difflib.SequenceMatcher(None, column, name).ratio() >= 0.8:
+            return name
+    return None
 
 
 #: characters no run name may hold: path separators, shell patterns, and what Windows refuses
@@ -829,6 +854,7 @@ def run_batch(
     scheduler: str | None = None,
     overwrite: bool = False,
     say: Callable[[str], None] = lambda message: None,
+    notes: Sequence[str] = (),
 ) -> list[Outcome]:
     """Run every job that is not complete already; return every job's outcome, in order.
 
@@ -848,11 +874,14 @@ def run_batch(
         it the batch is refused before any run starts.
     say : callable
         Progress lines (the command line's :class:`~tissue_core.progress.Progress`).
+    notes : sequence of str
+        Lines for the log and ``say`` after the batch's first (the manifest's
+        columns not used, say).
     """
     _check_unique(jobs)
     folder = batch_folder(folder)
     with _lock(folder):
-        return _run_batch(jobs, folder, workers, scheduler, overwrite, say)
+        return _run_batch(jobs, folder, workers, scheduler, overwrite, say, notes)
 
 
 #: the file that marks a batch folder as in use by a running batch
@@ -903,7 +932,7 @@ def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
-def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say) -> list[Outcome]:
+def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say, notes=()) -> list[Outcome]:
     log = _Log(folder / LOG_FILE, say)
     command = recorded_command.get()
     outcomes: dict[str, Outcome] = {}
@@ -933,6 +962,8 @@ def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say) -> list[O
     )
     if command:
         log("command: " + " ".join(command), show=False)
+    for note in notes:
+        log(note)
     for job, _ in todo:
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
         _remove_scratch(job.out)
@@ -946,7 +977,11 @@ def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say) -> list[O
         retried = f" (started again: its worker died {deaths}x)" if deaths else ""
         if outcome.status == "done":
             written.append(outcome.out)
-            what = f"done in {outcome.seconds:.1f} s on {outcome.worker}"
+            what = (
+                f"done: {outcome.reason}"
+                if outcome.reason
+                else f"done in {outcome.seconds:.1f} s on {outcome.worker}"
+            )
         else:
             what = f"failed: {outcome.reason}"
         log(f"{count} {outcome.name}: {what}{retried}", details=outcome.messages)
@@ -971,8 +1006,20 @@ def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say) -> list[O
                     for job, _ in todo:
                         _remove_scratch(job.out)
     except KeyboardInterrupt:
+        # a run a worker finished as the cluster closed is whole: it counts as made
+        for job, _ in todo:
+            if job.name not in outcomes and job_state(job) == "complete":
+                finished(
+                    Outcome(
+                        job.name, "done", job.out, "its worker finished it as the batch stopped"
+                    )
+                )
         made = sum(o.status == "done" for o in outcomes.values())
-        log(f"interrupted: {made} of {len(todo)} runs made; a rerun makes the others", show=False)
+        still = " (runs in progress on the cluster may still be made)" if scheduler else ""
+        log(
+            f"interrupted: {made} of {len(todo)} runs made{still}; a rerun makes the others",
+            show=False,
+        )
         raise
     return [outcomes[j.name] for j in jobs]
 
@@ -1053,6 +1100,23 @@ def _trimming(client) -> bool:
     return any(value is not None for value in found.values())
 
 
+@contextlib.contextmanager
+def _sigint_ignored_by_children() -> Iterator[None]:
+    """Processes started in here ignore Ctrl-C from their start (they inherit SIG_IGN, which
+    Python keeps); this process's own handler is back as soon as they are started."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, handler)
+
+
 _TRIM = "MALLOC_TRIM_THRESHOLD_"
 #: the Dask setting that gives a nanny's workers the malloc variable
 _TRIM_SETTING = f"distributed.nanny.pre-spawn-environ.{_TRIM}"
@@ -1100,18 +1164,20 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
         else:
             try:
                 stack.enter_context(_without_malloc_trimming())
-                cluster = LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,  # a run is one task; its libraries' threads are its own
-                    processes=True,
-                    dashboard_address=":0",  # a free port: batches may run side by side
-                    silence_logs=logging.ERROR,
-                    # the cores shared out: a run's compiled kernels use its worker's share
-                    env={
-                        "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
-                        _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
-                    },
-                )
+                with _sigint_ignored_by_children():  # a Ctrl-C here waits for the start
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,  # a run is one task; its libraries' threads: its own
+                        processes=True,
+                        dashboard_address=":0",  # a free port: batches may run side by side
+                        silence_logs=logging.ERROR,
+                        preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
+                        # the cores shared out: a run's compiled kernels use its worker's share
+                        env={
+                            "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
+                            _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
+                        },
+                    )
             except (RuntimeError, OSError, TimeoutError) as exc:
                 raise InputError(
                     f"a local Dask cluster of {workers} workers could not start: {exc} "

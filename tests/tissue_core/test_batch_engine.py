@@ -144,3 +144,30 @@ def test_a_batch_with_every_run_complete_says_nothing_runs_and_starts_no_cluster
     assert [o.status for o in again] == ["skipped", "skipped"]
     assert lines[0].endswith("batch of 2 runs: 2 complete already, nothing to run"), lines
     assert not any("workers" in line for line in lines), lines  # no cluster was started
+
+
+def test_manifest_columns_not_used_are_logged_and_a_misspelt_option_is_warned_of(tmp_path):
+    import argparse
+
+    import pytest
+
+    from tissue_core.batch import RunOptions, manifest_jobs
+
+    parser = argparse.ArgumentParser()
+    options = RunOptions(parser, "options")
+    options.add_argument("--grid")
+    args = parser.parse_args([])
+    (tmp_path / "a.txt").write_text("a")
+    manifest = tmp_path / "m.csv"
+    manifest.write_text("video,gird,notes\na.txt,9x9,left bladder\n")
+    with pytest.warns(UserWarning, match="'gird' is not used: .*did you mean 'grid'"):
+        jobs, _, unused = manifest_jobs(
+            manifest, tmp_path / "b", options, args, module="tests.batch_jobs", command="job",
+            sources=[("video", None)],
+        )  # fmt: skip
+    assert unused == ["gird", "notes"]  # 'notes' is like no option: no warning for it
+    assert "9x9" not in jobs[0].argv
+    note = f"manifest columns not used: {', '.join(unused)}"
+    lines = []
+    run_batch([_job("a", tmp_path)], tmp_path / "b", workers=1, say=lines.append, notes=[note])
+    assert note in lines and note in (tmp_path / "b" / "batch.log").read_text()
