@@ -23,6 +23,7 @@ import json
 from pathlib import Path
 
 from tissue_core.batch import Outcome
+from tissue_core.errors import InputError
 
 __all__ = ["METRIC_COLUMNS", "stack_rows", "write_metrics_table"]
 
@@ -48,6 +49,12 @@ def stack_rows(inputs: list[str]) -> list[dict[str, str]] | str:
     """The batch's rows: a manifest's path (one ``.csv`` given), or one row per stack."""
     if len(inputs) == 1 and inputs[0].lower().endswith(".csv"):
         return inputs[0]
+    manifests = [path for path in inputs if path.lower().endswith(".csv")]
+    if manifests:
+        raise InputError(
+            f"{manifests[0]} is a manifest: give stacks, or one manifest alone "
+            f"({len(inputs)} inputs given)"
+        )
     return [{"stack": path, "_line": f"stack {path}"} for path in inputs]
 
 

@@ -3,8 +3,10 @@
 A Ctrl-C at the terminal reaches every process of the batch.  The batch
 process closes the cluster and says what was made; workers that took the
 signal too printed tracebacks and went on writing runs after that.  They now
-ignore it (workers started again after a crash too: the nanny starts them
-with this preload).
+ignore it once started (workers started again after a crash too: the nanny
+starts them with this preload).  A Ctrl-C while they are still starting (the
+first second or so of a batch) still reaches them: it stops the batch all
+the same, with their tracebacks.
 """
 
 from __future__ import annotations

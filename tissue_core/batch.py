@@ -494,9 +494,14 @@ class RunOptions:
         if callable(action.type):
             try:
                 action.type(text)
+            except argparse.ArgumentTypeError as exc:  # the option's own checker says why
+                raise InputError(f"{where}: column {column}: {exc}") from None
             except (TypeError, ValueError):
                 name = getattr(action.type, "__name__", "value")
-                raise InputError(f"{where}: column {column} takes a {name}, got {text!r}") from None
+                article = "an" if name[:1] in "aeiou" else "a"
+                raise InputError(
+                    f"{where}: column {column} takes {article} {name}, got {text!r}"
+                ) from None
         return text
 
 
@@ -707,7 +712,10 @@ def _check_unique(jobs: Sequence[Job]) -> None:
     names = [j.name.lower() for j in jobs]  # folders of names differing in case collide on
     dup = sorted({j.name for j in jobs if names.count(j.name.lower()) > 1})  # macOS, Windows
     if dup:
-        raise InputError(f"run names must be unique in a batch; repeated: {', '.join(dup)}")
+        raise InputError(
+            f"run names must be unique in a batch; repeated: {', '.join(dup)} (a manifest "
+            "names its runs in a 'specimen' column; by default a run takes its input's name)"
+        )
 
 
 def batch_folder(path: str | os.PathLike) -> Path:
@@ -1100,23 +1108,6 @@ def _trimming(client) -> bool:
     return any(value is not None for value in found.values())
 
 
-@contextlib.contextmanager
-def _sigint_ignored_by_children() -> Iterator[None]:
-    """Processes started in here ignore Ctrl-C from their start (they inherit SIG_IGN, which
-    Python keeps); this process's own handler is back as soon as they are started."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, handler)
-
-
 _TRIM = "MALLOC_TRIM_THRESHOLD_"
 #: the Dask setting that gives a nanny's workers the malloc variable
 _TRIM_SETTING = f"distributed.nanny.pre-spawn-environ.{_TRIM}"
@@ -1164,26 +1155,25 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
         else:
             try:
                 stack.enter_context(_without_malloc_trimming())
-                with _sigint_ignored_by_children():  # a Ctrl-C here waits for the start
-                    cluster = LocalCluster(
-                        n_workers=workers,
-                        threads_per_worker=1,  # a run is one task; its libraries' threads: its own
-                        processes=True,
-                        dashboard_address=":0",  # a free port: batches may run side by side
-                        silence_logs=logging.ERROR,
-                        preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
-                        # the cores shared out: a run's compiled kernels use its worker's share
-                        env={
-                            "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
-                            _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
-                        },
-                    )
+                cluster = LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,  # a run is one task; its libraries' threads: its own
+                    processes=True,
+                    dashboard_address=":0",  # a free port: batches may run side by side
+                    silence_logs=logging.ERROR,
+                    preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
+                    # the cores shared out: a run's compiled kernels use its worker's share
+                    env={
+                        "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
+                        _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
+                    },
+                )
+                stack.enter_context(cluster)
             except (RuntimeError, OSError, TimeoutError) as exc:
                 raise InputError(
                     f"a local Dask cluster of {workers} workers could not start: {exc} "
                     "(--workers 1 runs the batch without one)"
                 ) from None
-            stack.enter_context(cluster)
             client = stack.enter_context(Client(cluster))
         n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"

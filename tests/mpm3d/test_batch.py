@@ -54,3 +54,23 @@ def test_a_batch_of_stacks_makes_analyze_runs_and_a_table_of_their_metrics(
         == 0
     )
     assert (tmp_path / "b2" / "runs" / "first" / "metrics.json").is_file()
+
+
+def test_bad_batches_of_stacks_end_in_one_line_before_anything_runs(mpm_small, tmp_path, capsys):
+    stack = mpm_small[0]
+    manifest = tmp_path / "stacks.csv"
+    cases = [
+        # a cell the option's own checker refuses (it raised argparse's error: a traceback)
+        ("stack,name,spacing\n{s},A,abc\n", [], "line 2: column spacing: --spacing must be"),
+        ("stack,name,threshold\n{s},A,abc\n", [], "line 2: column threshold"),
+        ("stack,name\n{s},A\n", [str(stack)], "is a manifest: give stacks, or one manifest"),
+        ("stack\n{s}\n{s}\n", [], "repeated: "),
+    ]
+    for text, extra, fragment in cases:
+        manifest.write_text(text.format(s=stack))
+        out = tmp_path / "batch"
+        argv = ["batch", str(manifest), *extra, "--workers", "1", "--out", str(out)]
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and fragment in err[0], err
+        assert not out.exists()
