@@ -1146,7 +1146,10 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
         for name in ("distributed", "dask", "bokeh", "tornado") if quiet else ():
             logger = logging.getLogger(name)
             stack.callback(logger.setLevel, logger.level)
-            logger.setLevel(logging.ERROR)  # the cluster's own chatter; -v shows it
+            # the cluster's own chatter, its errors too (a worker busy with a run while the
+            # cluster closes logs a failed heartbeat with a traceback): the batch reports
+            # what happened to each run itself; -v shows them
+            logger.setLevel(logging.CRITICAL)
         if scheduler:
             try:
                 client = stack.enter_context(Client(scheduler, timeout="20s"))
@@ -1160,7 +1163,7 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
                     threads_per_worker=1,  # a run is one task; its libraries' threads: its own
                     processes=True,
                     dashboard_address=":0",  # a free port: batches may run side by side
-                    silence_logs=logging.ERROR,
+                    silence_logs=logging.CRITICAL,  # the workers' too
                     preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
                     # the cores shared out: a run's compiled kernels use its worker's share
                     env={
