@@ -252,13 +252,7 @@ def read_stack(path: str | os.PathLike, *, spacing: Sequence[float] | None = Non
     are taken as Z slices; a stack without a channel axis gets ``C == 1``.
     """
     user_spacing = None if spacing is None else _check_spacing(spacing, "spacing")
-    name = os.fspath(path)
-    if not os.path.exists(name):
-        raise SourceError(f"stack file not found: {name}")
-    if os.path.isdir(name):
-        raise SourceError(f"stack path is a folder, not a TIFF file: {name}")
-    if os.path.getsize(name) == 0:
-        raise SourceError(f"{name} is empty (0 bytes), not a TIFF stack")
+    name = _stack_file(path)
 
     import tifffile
 
@@ -329,6 +323,18 @@ def _resolve_spacing(name: str, user_spacing, meta_spacing, source: str, found: 
         )
         return (1.0, 1.0, 1.0), "none"
     return meta_spacing, source
+
+
+def _stack_file(path: str | os.PathLike) -> str:
+    """The stack's file name, refused in one line if it is missing, a folder or empty."""
+    name = os.fspath(path)
+    if not os.path.exists(name):
+        raise SourceError(f"stack file not found: {name}")
+    if os.path.isdir(name):
+        raise SourceError(f"stack path is a folder, not a TIFF file: {name}")
+    if os.path.getsize(name) == 0:
+        raise SourceError(f"{name} is empty (0 bytes), not a TIFF stack")
+    return name
 
 
 def select_channel(stack: Stack, channel: int | str | None = None) -> tuple[np.ndarray, str]:

@@ -38,6 +38,7 @@ from mpm3d.io import (
     _metadata,
     _reason,
     _resolve_spacing,
+    _stack_file,
     _tifffile_messages,
     _zcyx_order,
 )
@@ -228,13 +229,7 @@ def open_stack_lazily(path: str | os.PathLike, *, spacing: Sequence[float] | Non
     Close ``stack.data`` when done (it holds the file open).
     """
     user_spacing = None if spacing is None else _check_spacing(spacing, "spacing")
-    name = os.fspath(path)
-    if not os.path.exists(name):
-        raise SourceError(f"stack file not found: {name}")
-    if os.path.isdir(name):
-        raise SourceError(f"stack path is a folder, not a TIFF file: {name}")
-    if os.path.getsize(name) == 0:
-        raise SourceError(f"{name} is empty (0 bytes), not a TIFF stack")
+    name = _stack_file(path)
 
     import tifffile
 
