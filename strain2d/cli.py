@@ -418,6 +418,7 @@ def _cmd_analyze(args) -> int:
         tracker=args.tracker,
         grid_shape=point_info.get("grid_shape"),
         min_triangle_quality=args.min_triangle_quality,
+        streamed=True,  # a block of frames at a time: memory does not grow with the video
     )
     t_strain = time.perf_counter()
     say(f"strain on {analysis.field.n_triangles} triangles")

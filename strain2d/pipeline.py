@@ -12,7 +12,7 @@ from strain2d.errors import InputError, PointsLeftOutWarning
 from strain2d.grid import validate_points
 from strain2d.trackers import get_tracker
 from strain2d.tracks import Tracks
-from surface_strain import Mesh, StrainField, choose_mesh, compute_strain
+from surface_strain import Mesh, StrainField, choose_mesh, compute_strain, streamed_strain
 
 __all__ = ["Analysis", "analysis_of", "analyze", "strain_from_tracks", "track"]
 
@@ -128,6 +128,7 @@ def strain_from_tracks(
     triangles: np.ndarray | None = None,
     grid_shape: tuple[int, int] | None = None,
     min_triangle_quality: float = 0.1,
+    streamed: bool = False,
 ) -> StrainField:
     """Mesh the reference positions and compute strain on every frame.
 
@@ -145,12 +146,20 @@ def strain_from_tracks(
         Delaunay meshes (the default without ``triangles`` or ``grid_shape``)
         drop triangles with a smaller radius ratio.
 
+    streamed : bool, keyword-only
+        Compute the strain a block of frames at a time when it is read
+        (:func:`surface_strain.streamed_strain`): the field then holds no
+        more than the tracks, however long the video.  The values are the
+        same.
+
     Points the tracker lost (``visible`` False) leave their triangles out of
     that frame (NaN) and out of the nodal averages.
     """
     reference = validate_points(tracks.reference)
     if triangles is None:
         triangles = choose_mesh(reference, grid=grid_shape, min_quality=min_triangle_quality)[0]
+    if streamed:
+        return streamed_strain(reference, tracks.positions, triangles, visible=tracks.visible)
     return compute_strain(reference, tracks.positions, triangles, visible=tracks.visible)
 
 
@@ -199,13 +208,16 @@ def analysis_of(
     grid_shape: tuple[int, int] | None = None,
     min_triangle_quality: float = 0.1,
     points: np.ndarray | None = None,
+    streamed: bool = False,
 ) -> Analysis:
     """Mesh tracks and compute their strain field (:func:`analyze` once tracked).
 
-    ``points`` are the reference points given to the tracker, if any."""
+    ``points`` are the reference points given to the tracker, if any;
+    ``streamed`` computes the field a block of frames at a time when read
+    (see :func:`strain_from_tracks`), as ``strain2d analyze`` does."""
     mesh = choose_mesh(
         validate_points(tracks.reference), grid=grid_shape, min_quality=min_triangle_quality
     )
-    field = strain_from_tracks(tracks, triangles=mesh.triangles)
+    field = strain_from_tracks(tracks, triangles=mesh.triangles, streamed=streamed)
     points = None if points is None else np.asarray(points, dtype=float)
     return Analysis(tracks, field, tracker, mesh, grid_shape, min_triangle_quality, points)

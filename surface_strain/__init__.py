@@ -58,6 +58,12 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "triangle_quality",
         ],
         "surface_strain.nodal": ["nodal_average", "nodal_axes"],
+        "surface_strain.streamed": [
+            "FrameArray",
+            "StreamedStrainField",
+            "iter_blocks",
+            "streamed_strain",
+        ],
         "surface_strain.report": ["measurement_quality", "write_run_report"],
         "surface_strain.tracks": ["Tracks"],
         "surface_strain.run": [

@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from surface_strain.field import StrainField, element_scalars, nodal_scalars
+from surface_strain.streamed import iter_blocks
 
 __all__ = [
     "ELEMENT_COLUMNS",
@@ -110,30 +111,40 @@ def write_nodes_csv(
     ``length_scale`` (``length_unit`` per point unit, e.g. 0.012 mm per px)
     adds the positions and displacements in ``length_unit``.
     """
-    from tissue_core.tables import write_long_table
+    from tissue_core.tables import PerFrame, write_long_table
 
     _check_length(length_scale, length_unit)
     d = field.points.shape[-1]
     names = node_columns(d)[2:]
-    disp = field.points - field.reference[None]
+    points, reference = field.points, field.reference
+    shape = points.shape[:2]
+
+    # derived columns are computed a block of frames at a time, as the table is written
+    def position(k: int, factor: float = 1.0) -> PerFrame:
+        return PerFrame(shape, lambda a, b: points[a:b, :, k] * factor)
+
+    def displacement(k: int, factor: float = 1.0) -> PerFrame:
+        return PerFrame(shape, lambda a, b: (points[a:b, :, k] - reference[:, k]) * factor)
+
     scalars = nodal_scalars(field)
-    columns = {names[k]: (field.points[..., k], "%.6f") for k in range(d)}
-    columns |= {names[d + k]: (disp[..., k], "%.6f") for k in range(d)}
+    columns = {names[k]: (points[..., k], "%.6f") for k in range(d)}
+    columns |= {names[d + k]: (displacement(k), "%.6f") for k in range(d)}
     if length_scale is not None:
         columns |= {
-            f"{names[k]}_{length_unit}": (field.points[..., k] * length_scale, "%.8g")
-            for k in range(d)
+            f"{names[k]}_{length_unit}": (position(k, length_scale), "%.8g") for k in range(d)
         }
         columns |= {
-            f"{names[d + k]}_{length_unit}": (disp[..., k] * length_scale, "%.8g") for k in range(d)
+            f"{names[d + k]}_{length_unit}": (displacement(k, length_scale), "%.8g")
+            for k in range(d)
         }
     columns["visible"] = (field.visible, "%d")
     columns |= {k: (scalars[k], "%.8g") for k in _scalars(d)}
     if uncertainty is not None:
-        columns["uncertainty_px"] = (np.asarray(uncertainty, float), "%.4g")
+        sigma = np.asarray(uncertainty, float)
+        columns["uncertainty_px"] = (sigma, "%.4g")
         if length_scale is not None:
             columns[f"uncertainty_{length_unit}"] = (
-                np.asarray(uncertainty, float) * length_scale,
+                PerFrame(sigma.shape, lambda a, b: sigma[a:b] * length_scale),
                 "%.4g",
             )
     write_long_table(path, columns)
@@ -215,35 +226,40 @@ def write_pvd(
     sub.mkdir(parents=True, exist_ok=True)
     T = field.n_frames
     times = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
-    node = nodal_scalars(field)
-    elem = element_scalars(field)
-    dirs = _directions(field)
     faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
     factor = 1.0 if length_scale is None else float(length_scale)
     unit = length_unit or ("px" if field.points.shape[-1] == 2 else "input units")
     ref = _xyz(field.reference) * factor
     entries = []
-    for t in range(T):
-        cur = _xyz(field.points[t]) * factor
-        mesh = pv.PolyData(np.where(np.isfinite(cur), cur, ref), faces=faces)
-        mesh.point_data["displacement"] = np.nan_to_num(cur - ref)  # lost: 0, see "visible"
-        for key, values in node.items():
-            mesh.point_data[key] = values[t]
-        mesh.point_data["visible"] = field.visible[t].astype(np.uint8)
-        for key, values in elem.items():
-            mesh.cell_data[key] = values[t]
-        mesh.cell_data["valid"] = field.element_valid[t].astype(np.uint8)
-        for data, pd in ((mesh.point_data, dirs["node"]), (mesh.cell_data, dirs["element"])):
-            # zero vectors where a direction is undefined: NaN vectors give VTK's XML
-            # readers unreadable ranges
-            data["principal_direction_1"] = np.nan_to_num(_xyz(pd.dir1_ref[t]))
-            data["principal_direction_2"] = np.nan_to_num(_xyz(pd.dir2_ref[t]))
-            data["principal_direction_1_current"] = np.nan_to_num(_xyz(pd.dir1_cur[t]))
-            data["principal_direction_2_current"] = np.nan_to_num(_xyz(pd.dir2_cur[t]))
-        _name_units(mesh, unit, time_unit)
-        fname = f"{name}_{t:04d}.vtp"
-        mesh.save(sub / fname, binary=True)
-        entries.append(f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>')
+    # a block of frames at a time (a streamed field's own blocks; an in-memory one whole)
+    for start, block in iter_blocks(field):
+        node = nodal_scalars(block)
+        elem = element_scalars(block)
+        dirs = _directions(block)
+        for i in range(block.n_frames):
+            t = start + i
+            cur = _xyz(block.points[i]) * factor
+            mesh = pv.PolyData(np.where(np.isfinite(cur), cur, ref), faces=faces)
+            mesh.point_data["displacement"] = np.nan_to_num(cur - ref)  # lost: 0, see "visible"
+            for key, values in node.items():
+                mesh.point_data[key] = values[i]
+            mesh.point_data["visible"] = block.visible[i].astype(np.uint8)
+            for key, values in elem.items():
+                mesh.cell_data[key] = values[i]
+            mesh.cell_data["valid"] = block.element_valid[i].astype(np.uint8)
+            for data, pd in ((mesh.point_data, dirs["node"]), (mesh.cell_data, dirs["element"])):
+                # zero vectors where a direction is undefined: NaN vectors give VTK's XML
+                # readers unreadable ranges
+                data["principal_direction_1"] = np.nan_to_num(_xyz(pd.dir1_ref[i]))
+                data["principal_direction_2"] = np.nan_to_num(_xyz(pd.dir2_ref[i]))
+                data["principal_direction_1_current"] = np.nan_to_num(_xyz(pd.dir1_cur[i]))
+                data["principal_direction_2_current"] = np.nan_to_num(_xyz(pd.dir2_cur[i]))
+            _name_units(mesh, unit, time_unit)
+            fname = f"{name}_{t:04d}.vtp"
+            mesh.save(sub / fname, binary=True)
+            entries.append(
+                f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>'
+            )
     pvd = folder / f"{name}.pvd"
     pvd.write_text(
         '<?xml version="1.0"?>\n'

@@ -156,6 +156,43 @@ class StrainField:
             f"{lost} lost triangle-frames)"
         )
 
+    def frames(self, start: int, stop: int) -> StrainField:
+        """Frames ``start`` to ``stop - 1`` as a field of their own (views where possible).
+
+        Per-frame quantities (nodal scalars, principal directions) of the
+        result are computed for those frames only.  ``start`` and ``stop``
+        follow ``range``: ``0 <= start <= stop <= n_frames``.
+        """
+        start, stop = _frame_range(start, stop, self.n_frames)
+        one = slice(start, stop)
+        return StrainField(
+            reference=self.reference,
+            points=self.points[one],
+            triangles=self.triangles,
+            basis=self.basis,
+            F=self.F[one],
+            E=self.E[one],
+            visible=self.visible[one],
+            element_valid=self.element_valid[one],
+            nodal_E=self.nodal_E[one],
+            reference_areas=self.reference_areas,
+            directions=self.directions,
+            frame=self.frame,
+            meta=self.meta,
+        )
+
+    def _element_scalars(self) -> dict[str, FloatArray]:
+        out = scalar_fields(self.E)
+        out["J"] = area_ratio(self.F)
+        return out
+
+
+def _frame_range(start: int, stop: int, n_frames: int) -> tuple[int, int]:
+    start, stop = int(start), int(stop)
+    if not 0 <= start <= stop <= n_frames:
+        raise ValueError(f"frames {start}:{stop} are not within the {n_frames} frames")
+    return start, stop
+
 
 def scalar_fields(E: FloatArray) -> dict[str, FloatArray]:
     """Named scalar fields of a strain tensor array.
@@ -349,6 +386,43 @@ def compute_strain(
     >>> float(field.nodal_E[1, 0, 0, 0])
     0.625
     """
+    setup = _strain_setup(reference, points, triangles, visible, directions, axis, directions_at)
+    F, E, element_valid, nodal_E = _strain_arrays(setup, setup.points, setup.visible)
+    return StrainField(
+        reference=setup.reference,
+        points=setup.points,
+        triangles=setup.triangles,
+        basis=setup.basis,
+        F=F,
+        E=E,
+        visible=setup.visible,
+        element_valid=element_valid,
+        nodal_E=nodal_E,
+        reference_areas=setup.areas,
+        directions=setup.directions,
+        frame=setup.frame,
+        meta=setup.meta,
+    )
+
+
+@dataclass(frozen=True)
+class _StrainSetup:
+    """What every frame's strain needs: the checked inputs and the reference geometry."""
+
+    reference: FloatArray
+    points: FloatArray
+    visible: BoolArray
+    triangles: IntArray
+    basis: FloatArray
+    directions: FloatArray
+    meta: dict
+    frame: FloatArray
+    rotation: FloatArray  # (M, 2, 2): the frame's axes in tangent coordinates
+    areas: FloatArray
+
+
+def _strain_setup(reference, points, triangles, visible, directions, axis, directions_at):
+    """:func:`compute_strain`'s checks and reference geometry (see there)."""
     reference = np.asarray(reference, dtype=float)
     points = np.asarray(points, dtype=float)
     if points.ndim != 3 or points.shape[1:] != reference.shape:
@@ -382,30 +456,23 @@ def compute_strain(
                 "facing Z; pass directions=, e.g. 'cylindrical' or 'spherical' with axis=)"
             ) from None
         raise
+    R = np.einsum("mdi,mdk->mik", basis, frame)  # frame axes in tangent coordinates
+    areas = triangle_areas(reference, triangles)
+    return _StrainSetup(reference, points, visible, triangles, basis, dirs, meta, frame, R, areas)
+
+
+def _strain_arrays(setup: _StrainSetup, points: FloatArray, visible: BoolArray):
+    """F, E, element_valid and nodal_E of some frames ``points (t, N, d)``, ``visible (t, N)``."""
+    reference, triangles = setup.reference, setup.triangles
     safe = np.where(visible[..., None], points, reference)  # finite stand-ins, masked below
     F = deformation_gradient(reference, safe, triangles)
     element_valid = np.all(visible[:, triangles], axis=-1)
     F[~element_valid] = np.nan
     E_local = green_lagrange(F)
-    R = np.einsum("mdi,mdk->mik", basis, frame)  # frame axes in tangent coordinates
+    R = setup.rotation
     E = np.einsum("mki,...mkl,mlj->...mij", R, E_local, R)
-    areas = triangle_areas(reference, triangles)
-    nodal_E = nodal_average(E, triangles, N, weights=areas, axis=1)
-    return StrainField(
-        reference=reference,
-        points=points,
-        triangles=triangles,
-        basis=basis,
-        F=F,
-        E=E,
-        visible=visible,
-        element_valid=element_valid,
-        nodal_E=nodal_E,
-        reference_areas=areas,
-        directions=dirs,
-        frame=frame,
-        meta=meta,
-    )
+    nodal_E = nodal_average(E, triangles, len(reference), weights=setup.areas, axis=1)
+    return F, E, element_valid, nodal_E
 
 
 def element_scalars(field: StrainField) -> dict[str, FloatArray]:
@@ -415,9 +482,7 @@ def element_scalars(field: StrainField) -> dict[str, FloatArray]:
     theta1_deg``) of ``field.E`` plus the area ratio ``J`` (current / reference
     area, :func:`surface_strain.area_ratio`).  NaN on lost triangles.
     """
-    out = scalar_fields(field.E)
-    out["J"] = area_ratio(field.F)
-    return out
+    return field._element_scalars()
 
 
 def nodal_scalars(field: StrainField) -> dict[str, FloatArray]:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from surface_strain.field import StrainField, nodal_scalars
+from surface_strain.streamed import iter_blocks
 
 __all__ = [
     "POINT_QUALITY_COLUMNS",
@@ -111,10 +112,14 @@ def measurement_quality(
 
     M = field.n_triangles
     q = triangle_quality(field.reference, field.triangles) if M else np.zeros(0)
-    valid = field.element_valid & np.isfinite(field.E).all(axis=(2, 3))
     areas = np.asarray(field.reference_areas, dtype=float)
     total = areas.sum()
-    coverage = (valid * areas).sum(axis=1) / total if total > 0 else np.zeros(field.n_frames)
+    coverage, inverted = [], []
+    for _, block in iter_blocks(field):  # a streamed field a block of frames at a time
+        valid = block.element_valid & np.isfinite(block.E).all(axis=(2, 3))
+        covered = (valid * areas).sum(axis=1) / total if total > 0 else np.zeros(block.n_frames)
+        coverage.extend(float(c) for c in covered)
+        inverted.extend(int(n) for n in _inverted(block).sum(axis=1))
     out = {
         "mesh": {
             "n_triangles": M,
@@ -127,8 +132,8 @@ def measurement_quality(
             "reference_area": _float(total),
         },
         "visible_fraction": [float(v) for v in field.visible.mean(axis=1)],
-        "surface_coverage": [float(c) for c in coverage],
-        "inverted_triangles": [int(n) for n in _inverted(field).sum(axis=1)],
+        "surface_coverage": coverage,
+        "inverted_triangles": inverted,
     }
     columns = {}
     for name, values in (point_quality or {}).items():

@@ -209,6 +209,33 @@ def _rows(body: list[str], path: Path, index: list[int]) -> tuple[np.ndarray, np
     return np.array(rows, dtype=float).reshape(-1, len(index)), np.array(lines, dtype=np.int64)
 
 
+class PerFrame:
+    """A ``(T, ...)`` column computed a range of frames at a time: ``function(start, stop)``.
+
+    For :func:`write_long_table`: a column derived from others (a
+    displacement, a position in mm) without holding it for every frame.
+
+    Examples
+    --------
+    >>> x = np.arange(6.0).reshape(3, 2)
+    >>> twice = PerFrame(x.shape, lambda a, b: 2 * x[a:b])
+    >>> twice[1:3].tolist()
+    [[4.0, 6.0], [8.0, 10.0]]
+    """
+
+    def __init__(self, shape: tuple[int, ...], function) -> None:
+        self.shape = tuple(shape)
+        self._function = function
+
+    def __getitem__(self, frames: slice) -> np.ndarray:
+        if not isinstance(frames, slice):
+            raise TypeError("a PerFrame column is read by slices of frames")
+        start, stop, step = frames.indices(self.shape[0])
+        if step != 1:
+            raise TypeError("a PerFrame column is read by contiguous slices of frames")
+        return np.asarray(self._function(start, max(start, stop)))
+
+
 def write_long_table(
     path: str | os.PathLike,
     columns: Mapping[str, tuple[np.ndarray, str]],
@@ -222,7 +249,10 @@ def write_long_table(
     path : path-like
     columns : mapping of name -> ((T, N) array, printf format)
         In the order of the header, e.g. ``{"x": (x, "%.6f")}``; booleans are
-        written as 0/1 with ``"%d"``.
+        written as 0/1 with ``"%d"``.  A column may also be anything with a
+        ``shape`` that gives the arrays of frames ``a:b`` when sliced
+        (:class:`PerFrame`, :class:`surface_strain.FrameArray`): it is read a
+        block of frames at a time, never whole.
     index : str, keyword-only
         Name of the second column (``"point"``, or ``"triangle"``).
 
@@ -236,7 +266,12 @@ def write_long_table(
     0,0,1.0
     0,1,2.0
     """
-    arrays = [np.asarray(values) for values, _ in columns.values()]
+    # columns that compute their frames when sliced (PerFrame, a streamed field's arrays)
+    # are read a block of frames at a time like the arrays
+    arrays = [
+        v if hasattr(v, "shape") and hasattr(v, "__getitem__") else np.asarray(v)
+        for v, _ in columns.values()
+    ]
     T, N = arrays[0].shape[:2]
     line = ",".join(["%d", "%d", *(f for _, f in columns.values())]) + "\n"  # as np.savetxt
     # frames a block at a time: the text and the float table of a block, never of the

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Literal
 
@@ -28,16 +27,7 @@ __all__ = ["plot_principal_crosses", "principal_noise_floor"]
 
 def _one_frame(field: StrainField, k: int) -> StrainField:
     """Frame ``k`` of ``field`` as a field of one frame (per-frame quantities are per frame)."""
-    one = slice(k, k + 1)
-    return dataclasses.replace(
-        field,
-        points=field.points[one],
-        F=field.F[one],
-        E=field.E[one],
-        visible=field.visible[one],
-        element_valid=field.element_valid[one],
-        nodal_E=field.nodal_E[one],
-    )
+    return field.frames(k, k + 1)
 
 
 def _nice_value(x: float) -> float:

@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 from strain2d.errors import InputError
 from strain2d.figures._checks import _frame_index, _scalars
 from strain2d.figures._style import _STRAIN_AXIS, _colour, _label
-from surface_strain import StrainField
+from surface_strain import StrainField, iter_blocks, nodal_scalars
 
 __all__ = ["mean_strain_curves", "plot_strain_curves"]
 
@@ -30,19 +30,27 @@ def mean_strain_curves(
         The ``mean`` and ``sd`` entries are what :func:`plot_study_curves`
         takes per specimen.
     """
-    scalars = _scalars(field, components)
-    out: dict[str, dict[str, np.ndarray]] = {"mean": {}, "sd": {}, "n": {}}
-    for comp in components:
-        v = scalars[comp]
-        ok = np.isfinite(v)
-        n = ok.sum(axis=1)
-        filled = np.where(ok, v, 0.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = filled.sum(axis=1) / n
-            sd = np.sqrt(np.where(ok, (filled - mean[:, None]) ** 2, 0.0).sum(axis=1) / n)
-        out["mean"][comp] = np.where(n > 0, mean, np.nan)
-        out["sd"][comp] = np.where(n > 0, sd, np.nan)
-        out["n"][comp] = n
+    _scalars(field, components)  # the names, checked
+    T = field.n_frames
+    out: dict[str, dict[str, np.ndarray]] = {
+        "mean": {c: np.full(T, np.nan) for c in components},
+        "sd": {c: np.full(T, np.nan) for c in components},
+        "n": {c: np.zeros(T, int) for c in components},
+    }
+    for start, block in iter_blocks(field):  # a streamed field a block of frames at a time
+        scalars = nodal_scalars(block)
+        rows = slice(start, start + block.n_frames)
+        for comp in components:
+            v = scalars[comp]
+            ok = np.isfinite(v)
+            n = ok.sum(axis=1)
+            filled = np.where(ok, v, 0.0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                mean = filled.sum(axis=1) / n
+                sd = np.sqrt(np.where(ok, (filled - mean[:, None]) ** 2, 0.0).sum(axis=1) / n)
+            out["mean"][comp][rows] = np.where(n > 0, mean, np.nan)
+            out["sd"][comp][rows] = np.where(n > 0, sd, np.nan)
+            out["n"][comp][rows] = n
     return out
 
 

@@ -77,6 +77,10 @@ def completed_limits(
     return {**strain_limits(field, missing), **limits} if missing else limits
 
 
+#: the most frames whose values set the colour limits (:func:`strain_limits`)
+LIMIT_FRAMES = 512
+
+
 def strain_limits(
     field: StrainField,
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
@@ -95,7 +99,10 @@ def strain_limits(
     components : sequence of str
         Names from :func:`surface_strain.nodal_scalars`.
     frames : sequence of int, keyword-only
-        Frames whose nodal values set the limits (default: all frames).
+        Frames whose nodal values set the limits (default: every frame of a
+        video of up to :data:`LIMIT_FRAMES` frames; of a longer one,
+        that many frames evenly spread over it, so that memory does not grow
+        with the video's length).
     min_span : float, keyword-only
         Smallest range, widened about its middle, so that a uniform field
         with tracking noise of a few 1e-4 does not fill the whole colour scale.
@@ -136,7 +143,9 @@ def strain_limits(
         raise InputError(f"percentile must be in [0, 50), got {percentile}")
     scalars = _scalars(field, components)
     if frames is None:
-        idx = np.arange(field.n_frames)
+        T = field.n_frames
+        idx = np.arange(T) if T <= LIMIT_FRAMES else np.linspace(0, T - 1, LIMIT_FRAMES).round()
+        idx = idx.astype(int)
     else:
         idx = np.array([_frame_index(field, f, "frames entry") for f in frames], dtype=int)
         if idx.size == 0:

@@ -134,3 +134,54 @@ def test_principal_crosses_work_on_their_frame_only():
     peak_long = _peak(plot_principal_crosses, image, long, 5)
     # directions of every frame: 3,000 x (36 nodes + 50 triangles) x 4 vectors, 16 MB
     assert peak_long < peak_short + (1 << 20)
+
+
+def test_a_run_of_a_streamed_field_equals_the_in_memory_run_file_for_file(
+    films, tmp_path, monkeypatch
+):
+    """``analyze`` computes the strain a block of frames at a time (issue 17): every table,
+    figure, ParaView file and statistic equals the run of the field held whole, and no step
+    reads a whole array of the field (which would hold every frame again)."""
+    import dataclasses
+
+    from strain2d import analyze, make_grid, open_frames, write_run
+    from surface_strain import FrameArray, streamed_strain
+    from tissue_core.outputs import MARKER
+
+    frames = open_frames(films[18])
+    grid = make_grid(frames.shape, shape=(4, 4), roi=(40, 40, 88, 88))
+    whole = analyze(frames, grid, tracker="klt", grid_shape=(4, 4))
+    f = whole.field
+    lazy = streamed_strain(
+        f.reference,
+        whole.tracks.positions,
+        f.triangles,
+        visible=whole.tracks.visible,
+        block_frames=4,  # 18 frames: 5 blocks, the last one short
+    )
+    options = {"fps": 5, "animation": "gif", "scale": "0.01mm/px", "maps_at": [3, 9]}
+    write_run(tmp_path / "whole", whole, frames, **options)
+
+    def whole_array(self, dtype=None, copy=None):
+        raise AssertionError(f"the run read the whole {self._name} of a streamed field")
+
+    monkeypatch.setattr(FrameArray, "__array__", whole_array)
+    write_run(tmp_path / "lazy", dataclasses.replace(whole, field=lazy), frames, **options)
+
+    a, b = tmp_path / "whole", tmp_path / "lazy"
+    files = sorted(p.relative_to(a) for p in a.rglob("*") if p.is_file())
+    assert files == sorted(p.relative_to(b) for p in b.rglob("*") if p.is_file())
+    assert len(files) > 30
+    differ = [
+        str(p)
+        for p in files
+        if p.name not in ("summary.json", "report.html", MARKER)
+        and (a / p).read_bytes() != (b / p).read_bytes()
+    ]
+    assert differ == []
+    volatile = ("created", "runtime_s")
+    sa, sb = (
+        {k: v for k, v in json.loads((d / "summary.json").read_text()).items() if k not in volatile}
+        for d in (a, b)
+    )
+    assert sa == sb

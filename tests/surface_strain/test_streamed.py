@@ -1,0 +1,152 @@
+"""A streamed strain field (computed a block of frames at a time) equals the in-memory one.
+
+Issue 17: ``strain2d analyze`` keeps memory flat on long videos by computing
+the strain when it is read.  Every array, every way of indexing it, the
+derived scalars and the blocks must give exactly what
+:func:`surface_strain.compute_strain` gives.
+"""
+
+import numpy as np
+import pytest
+
+from surface_strain import (
+    FrameArray,
+    StreamedStrainField,
+    compute_strain,
+    delaunay_triangles,
+    element_scalars,
+    iter_blocks,
+    nodal_scalars,
+    streamed_strain,
+)
+
+ARRAYS = ("F", "E", "nodal_E", "element_valid")
+
+
+def _case(d: int, T: int = 50, seed: int = 0):
+    """A jittered 5 x 4 grid stretching over T frames, with points lost at random."""
+    rng = np.random.default_rng(seed)
+    X = np.stack(np.meshgrid(np.arange(5.0), np.arange(4.0)), -1).reshape(-1, 2)
+    tri = delaunay_triangles(X)
+    if d == 3:
+        X = np.column_stack([X, 0.1 * X[:, 0] ** 2])  # a curved sheet
+    stretch = 1 + 0.01 * np.arange(T)
+    P = X[None] * stretch[:, None, None] + rng.normal(0, 0.01, (T, *X.shape))
+    visible = rng.random((T, len(X))) > 0.05
+    visible[0] = True
+    return X, P, tri, visible
+
+
+def _same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("block", [1, 7, 50, 64])
+def test_every_array_and_index_equals_the_in_memory_field(d, block):
+    X, P, tri, visible = _case(d)
+    whole = compute_strain(X, P, tri, visible=visible)
+    lazy = streamed_strain(X, P, tri, visible=visible, block_frames=block)
+    assert isinstance(lazy, StreamedStrainField)
+    for name in ARRAYS:
+        a, b = getattr(whole, name), getattr(lazy, name)
+        assert isinstance(b, FrameArray) and b.shape == a.shape and b.dtype == a.dtype
+        assert len(b) == len(a) and b.ndim == a.ndim
+        for key in [
+            0,
+            49,
+            -1,
+            -50,
+            slice(5, 20),
+            slice(None),
+            slice(3, None, 4),
+            slice(40, 10),
+            (slice(None), 2),
+            (-1, 2),
+            [3, 49, 0, 3],
+            np.arange(50) % 2 == 0,
+            np.array([[1, 2], [3, 4]]),
+        ]:
+            assert _same(a[key], b[key]), (name, key)
+        assert _same(a, np.asarray(b))
+        assert all(_same(x, y) for x, y in zip(a, b, strict=True))
+        with pytest.raises(IndexError):
+            b[50]
+    for scalars in (nodal_scalars, element_scalars):
+        sa, sb = scalars(whole), scalars(lazy)
+        assert sa.keys() == sb.keys()
+        for key in sa:
+            assert _same(sa[key], np.asarray(sb[key])), key
+            assert _same(sa[key][17], sb[key][17]), key
+    assert _same(whole.points, lazy.points) and _same(whole.visible, lazy.visible)
+
+
+@pytest.mark.parametrize("block", [1, 6, 64])
+def test_blocks_cover_every_frame_once_and_frames_cross_blocks(block):
+    X, P, tri, visible = _case(2, T=31)
+    whole = compute_strain(X, P, tri, visible=visible)
+    lazy = streamed_strain(X, P, tri, visible=visible, block_frames=block)
+    for field, size in ((lazy, block), (whole, None)):
+        starts, seen = [], []
+        for start, sub in iter_blocks(field, block_frames=size):
+            starts.append(start)
+            seen.extend(range(start, start + sub.n_frames))
+            assert _same(sub.nodal_E, whole.nodal_E[start : start + sub.n_frames])
+        assert seen == list(range(31))
+    for start, stop in [(0, 31), (5, 20), (30, 31), (7, 7)]:
+        a, b = whole.frames(start, stop), lazy.frames(start, stop)
+        assert b.n_frames == stop - start
+        for name in (*ARRAYS, "points", "visible"):
+            assert _same(getattr(a, name), getattr(b, name)), (name, start, stop)
+    with pytest.raises(ValueError, match="not within"):
+        lazy.frames(3, 40)
+
+
+def test_the_field_computes_only_the_frames_read(monkeypatch):
+    """Reading one frame of a long field computes its block, not the video."""
+    X, P, tri, visible = _case(2, T=400)
+    lazy = streamed_strain(X, P, tri, visible=visible, block_frames=16)
+    computed = []
+    from surface_strain import streamed
+
+    original = streamed._strain_arrays
+
+    def counting(setup, points, visible):
+        computed.append(len(points))
+        return original(setup, points, visible)
+
+    monkeypatch.setattr(streamed, "_strain_arrays", counting)
+    lazy.nodal_E[390]
+    lazy.E[391, 0]
+    nodal_scalars(lazy)["E1"][395]
+    assert computed == [16]  # one block, kept for the next reads
+    lazy.nodal_E[:40]
+    assert computed == [16, 16, 16, 16]  # frames 0-47: three more blocks
+
+
+@pytest.mark.parametrize("bad", [0, -3, 2.5, True, "64"])
+def test_a_bad_block_size_is_refused(bad):
+    X, P, tri, visible = _case(2, T=5)
+    with pytest.raises(ValueError, match="block_frames"):
+        streamed_strain(X, P, tri, visible=visible, block_frames=bad)
+
+
+def test_checks_are_those_of_compute_strain():
+    X, P, tri, _ = _case(2, T=5)
+    with pytest.raises(ValueError, match="points must have shape"):
+        streamed_strain(X, P[:, :3], tri)
+    bad = X.copy()
+    bad[0] = np.nan
+    with pytest.raises(ValueError, match="non-finite"):
+        streamed_strain(bad, P, tri)
+
+
+def test_replacing_arrays_of_a_streamed_field_is_refused():
+    """Its blocks are computed from its own positions: new ones would not match them."""
+    import dataclasses
+
+    X, P, tri, visible = _case(2, T=5)
+    lazy = streamed_strain(X, P, tri, visible=visible)
+    with pytest.raises(ValueError, match="frames"):
+        dataclasses.replace(lazy, points=P[:1], visible=visible[:1])
