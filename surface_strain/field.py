@@ -387,22 +387,7 @@ def compute_strain(
     0.625
     """
     setup = _strain_setup(reference, points, triangles, visible, directions, axis, directions_at)
-    F, E, element_valid, nodal_E = _strain_arrays(setup, setup.points, setup.visible)
-    return StrainField(
-        reference=setup.reference,
-        points=setup.points,
-        triangles=setup.triangles,
-        basis=setup.basis,
-        F=F,
-        E=E,
-        visible=setup.visible,
-        element_valid=element_valid,
-        nodal_E=nodal_E,
-        reference_areas=setup.areas,
-        directions=setup.directions,
-        frame=setup.frame,
-        meta=setup.meta,
-    )
+    return _strain_field(setup, setup.points, setup.visible)
 
 
 @dataclass(frozen=True)
@@ -459,6 +444,26 @@ def _strain_setup(reference, points, triangles, visible, directions, axis, direc
     R = np.einsum("mdi,mdk->mik", basis, frame)  # frame axes in tangent coordinates
     areas = triangle_areas(reference, triangles)
     return _StrainSetup(reference, points, visible, triangles, basis, dirs, meta, frame, R, areas)
+
+
+def _strain_field(setup: _StrainSetup, points: FloatArray, visible: BoolArray) -> StrainField:
+    """The StrainField of some frames ``points (t, N, d)``, ``visible (t, N)`` of a setup."""
+    F, E, element_valid, nodal_E = _strain_arrays(setup, points, visible)
+    return StrainField(
+        reference=setup.reference,
+        points=points,
+        triangles=setup.triangles,
+        basis=setup.basis,
+        F=F,
+        E=E,
+        visible=visible,
+        element_valid=element_valid,
+        nodal_E=nodal_E,
+        reference_areas=setup.areas,
+        directions=setup.directions,
+        frame=setup.frame,
+        meta=setup.meta,
+    )
 
 
 def _strain_arrays(setup: _StrainSetup, points: FloatArray, visible: BoolArray):

@@ -34,7 +34,7 @@ from surface_strain._typing import BoolArray, FloatArray
 from surface_strain.field import (
     StrainField,
     _frame_range,
-    _strain_arrays,
+    _strain_field,
     _strain_setup,
     nodal_scalars,
 )
@@ -60,23 +60,7 @@ class _Blocks:
             return self._cache[b]
         s = self.setup
         start, stop = b * self.size, min((b + 1) * self.size, self.n_frames)
-        points, visible = s.points[start:stop], s.visible[start:stop]
-        F, E, element_valid, nodal_E = _strain_arrays(s, points, visible)
-        one = StrainField(
-            reference=s.reference,
-            points=points,
-            triangles=s.triangles,
-            basis=s.basis,
-            F=F,
-            E=E,
-            visible=visible,
-            element_valid=element_valid,
-            nodal_E=nodal_E,
-            reference_areas=s.areas,
-            directions=s.directions,
-            frame=s.frame,
-            meta=s.meta,
-        )
+        one = _strain_field(s, s.points[start:stop], s.visible[start:stop])
         self._cache[b] = one
         while len(self._cache) > 2:
             self._cache.popitem(last=False)

@@ -110,13 +110,13 @@ def test_the_field_computes_only_the_frames_read(monkeypatch):
     computed = []
     from surface_strain import streamed
 
-    original = streamed._strain_arrays
+    original = streamed._strain_field
 
     def counting(setup, points, visible):
         computed.append(len(points))
         return original(setup, points, visible)
 
-    monkeypatch.setattr(streamed, "_strain_arrays", counting)
+    monkeypatch.setattr(streamed, "_strain_field", counting)
     lazy.nodal_E[390]
     lazy.E[391, 0]
     nodal_scalars(lazy)["E1"][395]
