@@ -24,7 +24,7 @@ import numpy as np
 from strain2d.errors import InputError
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
-from surface_strain import StrainField, iter_blocks, nodal_scalars
+from surface_strain import StrainField, nodal_scalars
 from tissue_core.html import HtmlReport, format_value
 from tissue_core.jsonio import write_json
 
@@ -58,17 +58,11 @@ def parse_formats(text: str | Sequence[str]) -> tuple[str, ...]:
 
 
 def _mean_curves(field: StrainField, components: Sequence[str]) -> np.ndarray:
-    out = np.full((field.n_frames, len(components)), np.nan)
-    for start, block in iter_blocks(field):
-        node = nodal_scalars(block)
-        rows = slice(start, start + block.n_frames)
-        for j, key in enumerate(components):
-            values = node[key]
-            ok = np.isfinite(values)
-            counts = ok.sum(axis=1)
-            sums = np.where(ok, values, 0.0).sum(axis=1)
-            out[rows, j] = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
-    return out
+    """(T, C) mean nodal value of each component per frame (NaN on frames without one)."""
+    from strain2d.figures import mean_strain_curves
+
+    means = mean_strain_curves(field, components)["mean"]
+    return np.column_stack([means[c] for c in components])
 
 
 def endpoint_of(
