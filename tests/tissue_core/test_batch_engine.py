@@ -5,7 +5,11 @@ a defect does not end the batch, the others complete."""
 import json
 import os
 
+# distributed's defaults must be in dask's config before any dask.config.set of a
+# "distributed." key: set() inserts a missing section and deletes it whole on exit, taking
+# with it the defaults that importing distributed added inside the block, for later tests
 import dask
+import distributed  # noqa: F401
 
 from tissue_core.batch import Job, run_batch
 
