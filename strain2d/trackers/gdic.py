@@ -50,6 +50,7 @@ from scipy import ndimage
 from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._lattice import LatticeSolver
+from strain2d.trackers._series import FrameSeries
 from strain2d.trackers.dic import _coefficients, _Correlator, _first_frame, _inside, _Subsets
 from strain2d.tracks import Tracks
 
@@ -543,10 +544,13 @@ def track_gdic(
     last_u, last_grad = np.zeros((n, 2)), np.zeros((n, 2, 2))
     local_last = 0.0  # fraction of points matched locally in the last frame
 
-    positions = [points.copy()]
-    visible = [in_frame0.copy()]
-    quality = [np.where(in_frame0, 1.0, 0.0)]
-    sigma = [np.where(in_frame0, 0.0, np.nan)]
+    done = FrameSeries(
+        total,
+        positions=points,
+        visible=in_frame0,
+        quality=np.where(in_frame0, 1.0, 0.0),
+        sigma=np.where(in_frame0, 0.0, np.nan),
+    )
     local_count = quadratic_count = 0
     state = np.zeros((solver.lattice.n_nodes, 4))
     previous_state = state.copy()
@@ -671,17 +675,19 @@ def track_gdic(
         inside = (pos[:, 0] >= 0) & (pos[:, 0] <= W - 1) & (pos[:, 1] >= 0) & (pos[:, 1] <= H - 1)
         vis = inside & in_frame0 & (ok_loc | solver.seen(points))
         cell_quality = np.clip(solver.cell_zncc(points), 0.0, 1.0)
-        positions.append(pos)
-        visible.append(vis)
-        quality.append(np.where(vis, np.where(ok_loc, np.clip(z_loc, 0, 1), cell_quality), 0.0))
         sigma_g = np.full(n, np.nan)
         need = np.flatnonzero(vis & ~ok_loc)
         if need.size:
             sigma_g[need] = solver.uncertainty(points[need]) * np.sqrt(inflation[need])
-        sigma.append(np.where(vis, np.where(ok_loc, s_loc, sigma_g), np.nan))
+        done.append(
+            positions=pos,
+            visible=vis,
+            quality=np.where(vis, np.where(ok_loc, np.clip(z_loc, 0, 1), cell_quality), 0.0),
+            sigma=np.where(vis, np.where(ok_loc, s_loc, sigma_g), np.nan),
+        )
         if progress:
-            progress(len(positions), total)
-    if len(positions) < 2:
+            progress(len(done), total)
+    if len(done) < 2:
         raise InputError("tracking needs at least 2 frames")
     options = {
         "subset": subset,
@@ -694,11 +700,12 @@ def track_gdic(
         "noise_gray_levels": solver.noise,
         "interpolation": "cubic B-spline",
     }
-    T = len(positions)
+    T = len(done)
+    series = done.arrays()
     return Tracks(
-        np.stack(positions),
-        np.stack(visible),
-        np.stack(quality),
+        series["positions"],
+        series["visible"],
+        series["quality"],
         {
             "tracker": "gdic",
             "options": options,
@@ -706,5 +713,5 @@ def track_gdic(
             "quadratic_fraction": quadratic_count / max(n * (T - 1), 1),
             "subset_sizes": {str(size): int((wanted == size).sum()) for size in groups},
         },
-        np.stack(sigma),
+        series["sigma"],
     )

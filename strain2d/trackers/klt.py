@@ -46,6 +46,7 @@ from scipy.spatial import cKDTree
 from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._convert import to_uint8
+from strain2d.trackers._series import FrameSeries
 from strain2d.tracks import Tracks
 
 
@@ -189,7 +190,9 @@ def track_klt(
     prev = points.copy()
     velocity = np.zeros_like(prev)
     alive = np.ones(len(points), dtype=bool)
-    positions, visible, quality = [points.astype(float)], [alive.copy()], [np.ones(len(points))]
+    rows = FrameSeries(
+        total, positions=points.astype(float), visible=alive, quality=np.ones(len(points))
+    )
     if progress:
         progress(1, total)
     for frame in it:
@@ -219,13 +222,15 @@ def track_klt(
         new = np.where(ok[:, None], nxt, prev)
         velocity = np.where(ok[:, None], new - prev, 0.0).astype(np.float32)
         alive = ok
-        positions.append(new.astype(float))
-        visible.append(alive.copy())
-        quality.append(np.where(alive, np.clip(1.0 - fb / fb_threshold, 0.0, 1.0), 0.0))
+        rows.append(
+            positions=new,
+            visible=alive,
+            quality=np.where(alive, np.clip(1.0 - fb / fb_threshold, 0.0, 1.0), 0.0),
+        )
         prev, prev_img = new.astype(np.float32), img
         if progress:
-            progress(len(positions), total)
-    if len(positions) < 2:
+            progress(len(rows), total)
+    if len(rows) < 2:
         raise InputError("tracking needs at least 2 frames")
     options = {
         "window": window,
@@ -236,9 +241,10 @@ def track_klt(
         "affine_correction": affine_correction,
         "neighbours": neighbours,
     }
+    series = rows.arrays()
     return Tracks(
-        np.stack(positions),
-        np.stack(visible),
-        np.stack(quality),
+        series["positions"],
+        series["visible"],
+        series["quality"],
         {"tracker": "klt", "options": options},
     )
