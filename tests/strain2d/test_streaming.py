@@ -172,3 +172,7 @@ def test_a_run_of_a_streamed_field_equals_the_in_memory_run_file_for_file(
     assert len([p for p in a.rglob("*") if p.is_file()]) > 30
     # every file byte for byte; summary.json and statistics.json without time stamps
     assert differences(a, b) == []
+    # the strain's time is the blocks' (computed as the outputs read them), not the figures'
+    times = json.loads((b / "summary.json").read_text())["runtime_s"]
+    assert times["strain"] == pytest.approx(lazy.seconds_computing) and times["strain"] > 0
+    assert "strain" not in json.loads((a / "summary.json").read_text())["runtime_s"]
