@@ -80,9 +80,13 @@ def study_job(out: Path, args: argparse.Namespace) -> Job:
     return Job("study", "strain2d.cli", tuple(argv), str(out / "study"))
 
 
-def run_study(job: Job, changed: bool):
-    """Build the study when a run changed or it is not complete; None when it was kept."""
+def run_study(job: Job, changed: bool, run=run_job):
+    """Build the study when a run changed or it is not complete; None when it was kept.
+
+    ``run(job, overwrite, remake)`` makes it: here by default, on the batch's workers
+    when :func:`tissue_core.batch.run_batch` passes its own (``then``).
+    """
     state = job_state(job)
     if state == "complete" and not changed:
         return None
-    return run_job(job, overwrite=state != "missing", remake=changed)
+    return run(job, overwrite=state != "missing", remake=changed)

@@ -266,6 +266,15 @@ def _cmd_batch(args) -> int:
     workers = check_workers(args.workers, args.scheduler, len(jobs))
     folder = batch_folder(args.out)
     notes = [f"manifest columns not used: {', '.join(unused)}"] if unused else []
+    studied = []
+
+    def study(outcomes, run) -> None:  # on the batch's workers, before they are let go
+        ok = {o.name for o in outcomes if o.status != "failed"}
+        if ok:
+            changed = any(o.status == "done" for o in outcomes)
+            changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
+            studied.append((len(ok), run_study(study_job(out, args), changed, run)))
+
     outcomes = run_batch(
         jobs,
         folder,
@@ -274,16 +283,13 @@ def _cmd_batch(args) -> int:
         overwrite=args.overwrite,
         say=say,
         notes=notes,
+        then=None if args.no_study else study,
     )
-    ok = {o.name for o in outcomes if o.status != "failed"}
-    changed = any(o.status == "done" for o in outcomes)
-    if not args.no_study and ok:
-        changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
-        study = run_study(study_job(out, args), changed)
-        if study is not None:
-            say(f"study of {len(ok)} specimens")
-        if study is not None and study.status == "failed":
-            raise InputError(f"the study failed: {study.reason}")
+    for specimens, made in studied:
+        if made is not None:
+            say(f"study of {specimens} specimens")
+        if made is not None and made.status == "failed":
+            raise InputError(f"the study failed: {made.reason}")
     raise_if_failed(outcomes, args.out)
     say(f"results in {args.out}")
     return 0

@@ -863,6 +863,7 @@ def run_batch(
     overwrite: bool = False,
     say: Callable[[str], None] = lambda message: None,
     notes: Sequence[str] = (),
+    then: Callable[[list[Outcome], Callable[..., Outcome]], None] | None = None,
 ) -> list[Outcome]:
     """Run every job that is not complete already; return every job's outcome, in order.
 
@@ -885,11 +886,17 @@ def run_batch(
     notes : sequence of str
         Lines for the log and ``say`` after the batch's first (the manifest's
         columns not used, say).
+    then : callable, optional
+        ``then(outcomes, run)``, called once every job has an outcome (``outcomes``
+        in the order of ``jobs``) and before the workers are let go:
+        ``run(job, overwrite=False, remake=False)`` makes one more job where the runs
+        were made and returns its :class:`Outcome`.  ``strain2d batch`` builds its
+        study so, on a worker whose libraries are loaded already.
     """
     _check_unique(jobs)
     folder = batch_folder(folder)
     with _lock(folder):
-        return _run_batch(jobs, folder, workers, scheduler, overwrite, say, notes)
+        return _run_batch(jobs, folder, workers, scheduler, overwrite, say, notes, then)
 
 
 #: the file that marks a batch folder as in use by a running batch
@@ -940,7 +947,9 @@ def _now() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
-def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say, notes=()) -> list[Outcome]:
+def _run_batch(
+    jobs, folder: Path, workers, scheduler, overwrite, say, notes=(), then=None
+) -> list[Outcome]:
     log = _Log(folder / LOG_FILE, say)
     command = recorded_command.get()
     outcomes: dict[str, Outcome] = {}
@@ -996,23 +1005,37 @@ def _run_batch(jobs, folder: Path, workers, scheduler, overwrite, say, notes=())
         _write_record(folder, command, where, list(outcomes.values()))
 
     _write_record(folder, command, where, list(outcomes.values()))
+
+    def after(run) -> None:  # ``then``, given every outcome
+        then([outcomes[j.name] for j in jobs], run)
+
+    def here(job: Job, overwrite: bool = False, remake: bool = False) -> Outcome:
+        made = list(written)  # the job's own command clears the list
+        outcome = run_job(job, overwrite, remake=remake)
+        written[:] = made
+        if outcome.reason == "interrupted" or was_interrupted():
+            raise KeyboardInterrupt  # Ctrl-C ended the job: it ends the batch
+        return outcome
+
     try:
         if todo and workers == 1 and scheduler is None:
             for job, replace in todo:
                 log(f"{job.name}: started", show=False)
-                made = list(written)  # the run's own command clears the list
-                outcome = run_job(job, replace)
-                written[:] = made
-                if outcome.reason == "interrupted" or was_interrupted():
-                    raise KeyboardInterrupt  # Ctrl-C ended the run: it ends the batch
-                finished(outcome)
+                finished(here(job, replace))
+            if then:
+                after(here)
         elif todo:
+            extra: list[Job] = []
             try:
-                _run_on_dask(todo, workers, scheduler, log, finished)
+                _run_on_dask(
+                    todo, workers, scheduler, log, finished, after if then else None, extra
+                )
             finally:
                 if scheduler is None:  # the local workers are gone, and with them their runs
-                    for job, _ in todo:
+                    for job in [*(job for job, _ in todo), *extra]:
                         _remove_scratch(job.out)
+        elif then:  # nothing to run: no workers to start for it
+            after(here)
     except KeyboardInterrupt:
         # a run a worker finished as the cluster closed is whole: it counts as made
         for job, _ in todo:
@@ -1135,7 +1158,9 @@ def _without_malloc_trimming() -> Iterator[None]:
             os.environ[_TRIM] = inherited
 
 
-def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
+def _run_on_dask(todo, workers, scheduler, log, finished, then=None, extra=None) -> None:
+    """The runs on a local cluster or a scheduler's; then ``then(run)`` while the workers
+    are still there (``extra`` lists the jobs it ran)."""
     import logging
 
     from dask.base import tokenize
@@ -1193,18 +1218,33 @@ def _run_on_dask(todo, workers, scheduler, log, finished) -> None:
             return client.submit(run_job, job, replace, key=key, pure=False)
 
         for future, job in _in_turn(client, todo, submit, log):
-            try:
-                outcome = future.result()
-            except Exception as exc:  # KilledWorker: its workers died again and again
-                reason = f"{type(exc).__name__}: {exc}"
-                if type(exc).__name__ == "KilledWorker":
-                    reason = (
-                        "every worker that ran it died (out of memory? a crash?); the Dask "
-                        "setting distributed.scheduler.allowed-failures says how many may"
-                    )
-                outcome = Outcome(job.name, "failed", job.out, reason)
-            try:
-                outcome.worker_deaths = client.run_on_scheduler(_worker_deaths, key=future.key)
-            except Exception:  # the scheduler is gone: the count is not essential
-                pass
+            outcome = _outcome_of(future, job, client)
             finished(outcome)
+        if then is not None:
+
+            def run(job: Job, overwrite: bool = False, remake: bool = False) -> Outcome:
+                extra.append(job)
+                key = f"then-{job.name}-{tokenize(job, overwrite, remake, time.time())}"
+                future = client.submit(run_job, job, overwrite, remake=remake, key=key, pure=False)
+                return _outcome_of(future, job, client)
+
+            then(run)
+
+
+def _outcome_of(future, job: Job, client) -> Outcome:
+    """The outcome of a job's future (waited for), with its workers' deaths counted."""
+    try:
+        outcome = future.result()
+    except Exception as exc:  # KilledWorker: its workers died again and again
+        reason = f"{type(exc).__name__}: {exc}"
+        if type(exc).__name__ == "KilledWorker":
+            reason = (
+                "every worker that ran it died (out of memory? a crash?); the Dask "
+                "setting distributed.scheduler.allowed-failures says how many may"
+            )
+        outcome = Outcome(job.name, "failed", job.out, reason)
+    try:
+        outcome.worker_deaths = client.run_on_scheduler(_worker_deaths, key=future.key)
+    except Exception:  # the scheduler is gone: the count is not essential
+        pass
+    return outcome

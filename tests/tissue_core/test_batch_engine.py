@@ -175,3 +175,30 @@ def test_manifest_columns_not_used_are_logged_and_a_misspelt_option_is_warned_of
     lines = []
     run_batch([_job("a", tmp_path)], tmp_path / "b", workers=1, say=lines.append, notes=[note])
     assert note in lines and note in (tmp_path / "b" / "batch.log").read_text()
+
+
+def test_then_runs_one_more_job_where_the_runs_ran_with_their_outcomes(tmp_path):
+    """``then`` (strain2d batch's study) sees every outcome in order and makes its job on a
+    worker of the cluster before it closes; in one process, and with nothing to run, here."""
+    jobs = [_job("a", tmp_path), _job("fail", tmp_path, "--fail"), _job("b", tmp_path)]
+    seen = []
+
+    def then(outcomes, run):
+        seen.append([(o.name, o.status) for o in outcomes])
+        seen.append(run(_job(f"after{len(seen)}", tmp_path)))
+
+    run_batch(jobs, tmp_path, workers=2, then=then)
+    assert seen[0] == [("a", "done"), ("fail", "failed"), ("b", "done")]
+    on_cluster = seen[1]
+    assert on_cluster.status == "done" and (tmp_path / "runs" / "after1").is_dir()
+    assert on_cluster.worker.rsplit(":", 1)[1] != str(os.getpid())  # a worker made it
+
+    seen.clear()  # all but the failing run complete: it alone runs, in this process
+    run_batch(jobs, tmp_path, workers=1, then=then)
+    assert seen[0] == [("a", "skipped"), ("fail", "failed"), ("b", "skipped")]
+    assert seen[1].status == "done" and seen[1].worker.rsplit(":", 1)[1] == str(os.getpid())
+
+    seen.clear()  # nothing to run at all
+    run_batch(jobs[::2], tmp_path, workers=2, then=then)
+    assert seen[0] == [("a", "skipped"), ("b", "skipped")]
+    assert seen[1].status == "done" and seen[1].worker.rsplit(":", 1)[1] == str(os.getpid())
