@@ -149,12 +149,15 @@ class FrameArray:
         if idx.size and not (-T <= idx.min() and idx.max() < T):
             raise IndexError(f"frame index out of range for {T} frames")
         idx = idx % T if idx.size else idx
-        frames = [self._range(k, k + 1)[0] for k in idx.ravel()]
-        out = (
-            np.stack(frames).reshape(*idx.shape, *self.shape[1:])
-            if frames
-            else np.empty((*idx.shape, *self.shape[1:]), self.dtype)
-        )
+        flat = idx.ravel()
+        out = np.empty((flat.size, *self.shape[1:]), self.dtype)
+        # each block the frames lie in is computed once, and its frames copied out: a view
+        # of a frame would keep its whole block alive
+        size = self._blocks.size
+        for b in np.unique(flat // size):
+            at = np.flatnonzero(flat // size == b)
+            out[at] = self._of(self._blocks.block(int(b)))[flat[at] - b * size]
+        out = out.reshape(*idx.shape, *self.shape[1:])
         return out[(Ellipsis, *rest)] if rest else out
 
     def __iter__(self) -> Iterator[np.ndarray]:

@@ -123,6 +123,10 @@ def test_the_field_computes_only_the_frames_read(monkeypatch):
     assert computed == [16]  # one block, kept for the next reads
     lazy.nodal_E[:40]
     assert computed == [16, 16, 16, 16]  # frames 0-47: three more blocks
+    computed.clear()  # frames spread over the video: each block they lie in once, copied out
+    picked = nodal_scalars(lazy)["Exx"][[200, 5, 210, 7, 390, 201]]  # blocks 12, 0, 13, 24
+    assert computed == [16, 16, 16, 16]
+    assert picked.shape == (6, 20) and (picked.base is None or picked.base.size == picked.size)
 
 
 @pytest.mark.parametrize("bad", [0, -3, 2.5, True, "64"])
