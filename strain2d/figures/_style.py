@@ -151,9 +151,17 @@ def strain_limits(
         if idx.size == 0:
             raise InputError("frames is empty; leave it out to use every frame")
     covered = [_frame_index(field, f, "cover entry") for f in cover]
+    # a streamed field's frames a block at a time, every component's before the next block:
+    # each block is computed once
+    size = getattr(field, "block_frames", None) or field.n_frames
+    picked: dict[str, list[np.ndarray]] = {comp: [] for comp in components}
+    for b in np.unique(idx // size):
+        at = idx[idx // size == b]
+        for comp in components:
+            picked[comp].append(_finite(scalars[comp][at]))
     out = {}
     for comp in components:
-        finite = _finite(scalars[comp][idx])
+        finite = np.concatenate(picked[comp])
         if finite.size == 0:
             lo = hi = 0.0
         elif percentile > 0:
