@@ -1224,8 +1224,15 @@ def _run_on_dask(todo, workers, scheduler, log, finished, then=None, extra=None)
 
             def run(job: Job, overwrite: bool = False, remake: bool = False) -> Outcome:
                 extra.append(job)
-                key = f"then-{job.name}-{tokenize(job, overwrite, remake, time.time())}"
-                future = client.submit(run_job, job, overwrite, remake=remake, key=key, pure=False)
+
+                def submit_it(job: Job, overwrite: bool):
+                    key = f"then-{job.name}-{tokenize(job, overwrite, remake, time.time())}"
+                    return client.submit(
+                        run_job, job, overwrite, remake=remake, key=key, pure=False
+                    )
+
+                # as the runs were: heartbeat lines, and an end when the cluster has no workers
+                ((future, _),) = _in_turn(client, [(job, overwrite)], submit_it, log)
                 return _outcome_of(future, job, client)
 
             then(run)

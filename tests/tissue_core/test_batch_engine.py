@@ -177,21 +177,27 @@ def test_manifest_columns_not_used_are_logged_and_a_misspelt_option_is_warned_of
     assert note in lines and note in (tmp_path / "b" / "batch.log").read_text()
 
 
-def test_then_runs_one_more_job_where_the_runs_ran_with_their_outcomes(tmp_path):
+def test_then_runs_one_more_job_where_the_runs_ran_with_their_outcomes(tmp_path, monkeypatch):
     """``then`` (strain2d batch's study) sees every outcome in order and makes its job on a
-    worker of the cluster before it closes; in one process, and with nothing to run, here."""
+    worker of the cluster before it closes, saying so while it runs; in one process, and
+    with nothing to run, here."""
+    import tissue_core.batch
+
+    monkeypatch.setattr(tissue_core.batch, "HEARTBEAT_S", 0.3)
     jobs = [_job("a", tmp_path), _job("fail", tmp_path, "--fail"), _job("b", tmp_path)]
-    seen = []
+    seen, lines = [], []
 
     def then(outcomes, run):
         seen.append([(o.name, o.status) for o in outcomes])
-        seen.append(run(_job(f"after{len(seen)}", tmp_path)))
+        seen.append(run(_job(f"after{len(seen)}", tmp_path, "--sleep", "1")))
 
-    run_batch(jobs, tmp_path, workers=2, then=then)
+    run_batch(jobs, tmp_path, workers=2, then=then, say=lines.append)
     assert seen[0] == [("a", "done"), ("fail", "failed"), ("b", "done")]
     on_cluster = seen[1]
     assert on_cluster.status == "done" and (tmp_path / "runs" / "after1").is_dir()
     assert on_cluster.worker.rsplit(":", 1)[1] != str(os.getpid())  # a worker made it
+    assert "1 running (after1), 0 waiting" in lines, lines
+    assert not list((tmp_path / "runs").glob(".*"))
 
     seen.clear()  # all but the failing run complete: it alone runs, in this process
     run_batch(jobs, tmp_path, workers=1, then=then)
