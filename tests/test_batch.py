@@ -172,8 +172,9 @@ def test_a_batch_on_a_scheduler_with_a_killed_worker_equals_the_sequential_one(
     log = (out / "batch.log").read_text().splitlines()
     start = max(i for i, line in enumerate(log) if " batch of 5 runs: " in line)
     assert "3 complete already, 2 to run" in log[start], log[start]
-    redone = [line for line in log[start:] if ": done in " in line]
+    redone = [line for line in log[start:] if "] S0" in line and ": done in " in line]
     assert len(redone) == 1 and " S02: done in " in redone[0], log[start:]
+    assert any(" study: done in " in line for line in log[start:]), log[start:]
     for name in ("S01", "S03", "S04"):  # untouched
         assert (runs / name / ".tissue-strain-result.json").read_bytes() == before[name]
     # a run was made again: the study is too (its manifest is the same)

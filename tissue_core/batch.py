@@ -1006,8 +1006,20 @@ def _run_batch(
 
     _write_record(folder, command, where, list(outcomes.values()))
 
-    def after(run) -> None:  # ``then``, given every outcome
-        then([outcomes[j.name] for j in jobs], run)
+    def after(run) -> None:  # ``then``, given every outcome; the log says what it made
+
+        def logged(job: Job, overwrite: bool = False, remake: bool = False) -> Outcome:
+            log(f"{job.name}: started", show=False)
+            outcome = run(job, overwrite, remake)
+            what = (
+                f"done in {outcome.seconds:.1f} s on {outcome.worker}"
+                if outcome.status == "done"
+                else f"failed: {outcome.reason}"
+            )
+            log(f"{job.name}: {what}", show=False, details=outcome.messages)
+            return outcome
+
+        then([outcomes[j.name] for j in jobs], logged)
 
     def here(job: Job, overwrite: bool = False, remake: bool = False) -> Outcome:
         made = list(written)  # the job's own command clears the list

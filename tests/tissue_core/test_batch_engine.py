@@ -197,6 +197,7 @@ def test_then_runs_one_more_job_where_the_runs_ran_with_their_outcomes(tmp_path,
     assert on_cluster.status == "done" and (tmp_path / "runs" / "after1").is_dir()
     assert on_cluster.worker.rsplit(":", 1)[1] != str(os.getpid())  # a worker made it
     assert "1 running (after1), 0 waiting" in lines, lines
+    assert " after1: done in " in (tmp_path / "batch.log").read_text()  # the log says so
     assert not list((tmp_path / "runs").glob(".*"))
 
     seen.clear()  # all but the failing run complete: it alone runs, in this process
