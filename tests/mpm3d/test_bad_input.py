@@ -460,6 +460,10 @@ import mpm3d._kernels as kernels
 name = sys.argv[1]
 real = getattr(kernels, name)
 def started(*args):
+    # the first call in a process loads the compiled kernel, importing numba's modules: a
+    # Ctrl-C there is held until the import ends (the "imports" stage covers that); here it
+    # is to land while compiled code runs
+    result = real(*args)
     sent = threading.Event()
     def ctrl_c():
         os.kill(os.getpid(), signal.SIGINT)
