@@ -951,6 +951,7 @@ def _run_batch(
     jobs, folder: Path, workers, scheduler, overwrite, say, notes=(), then=None
 ) -> list[Outcome]:
     log = _Log(folder / LOG_FILE, say)
+    began = time.time()
     command = recorded_command.get()
     outcomes: dict[str, Outcome] = {}
     todo: list[tuple[Job, bool]] = []
@@ -1029,6 +1030,7 @@ def _run_batch(
             raise KeyboardInterrupt  # Ctrl-C ended the job: it ends the batch
         return outcome
 
+    extra: list[Job] = []  # run by ``then`` on the cluster
     try:
         if todo and workers == 1 and scheduler is None:
             for job, replace in todo:
@@ -1037,7 +1039,6 @@ def _run_batch(
             if then:
                 after(here)
         elif todo:
-            extra: list[Job] = []
             try:
                 _run_on_dask(
                     todo, workers, scheduler, log, finished, after if then else None, extra
@@ -1057,6 +1058,10 @@ def _run_batch(
                         job.name, "done", job.out, "its worker finished it as the batch stopped"
                     )
                 )
+        for job in extra:  # the study, say: made by this batch if its marker is newer
+            if job_state(job) == "complete" and _made_since(job, began):
+                written.append(job.out)
+                log(f"{job.name}: its worker finished it as the batch stopped", show=False)
         made = sum(o.status == "done" for o in outcomes.values())
         still = " (runs in progress on the cluster may still be made)" if scheduler else ""
         log(
@@ -1065,6 +1070,14 @@ def _run_batch(
         )
         raise
     return [outcomes[j.name] for j in jobs]
+
+
+def _made_since(job: Job, when: float) -> bool:
+    """Whether the result in ``job.out`` was renamed into place at ``when`` or later."""
+    try:
+        return os.stat(job.out).st_mtime >= when - 1.0  # a coarse file system's rounding
+    except OSError:
+        return False
 
 
 def _has_dashboard(client) -> bool:

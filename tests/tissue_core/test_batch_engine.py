@@ -209,3 +209,30 @@ def test_then_runs_one_more_job_where_the_runs_ran_with_their_outcomes(tmp_path,
     run_batch(jobs[::2], tmp_path, workers=2, then=then)
     assert seen[0] == [("a", "skipped"), ("b", "skipped")]
     assert seen[1].status == "done" and seen[1].worker.rsplit(":", 1)[1] == str(os.getpid())
+
+
+def test_ctrl_c_after_then_made_its_job_names_it_as_written_and_not_a_stale_one(tmp_path):
+    """A Ctrl-C that ends the batch once ``then``'s job is made (its worker finished it as the
+    cluster closed) counts it among the results written; one left by an earlier batch not."""
+    import pytest
+
+    from tissue_core.outputs import written
+
+    stale = _job("stale", tmp_path / "earlier")
+    run_batch([stale], tmp_path / "earlier", workers=1)  # complete before the batch began
+    old = os.stat(stale.out).st_mtime
+    os.utime(stale.out, (old - 60, old - 60))
+
+    def then(outcomes, run):
+        run(_job("after", tmp_path / "batch"))
+        run(stale)  # complete already: nothing made
+        raise KeyboardInterrupt
+
+    written.clear()
+    with pytest.raises(KeyboardInterrupt):
+        run_batch([_job("a", tmp_path / "batch")], tmp_path / "batch", workers=2, then=then)
+    assert str(tmp_path / "batch" / "runs" / "after") in written
+    assert stale.out not in written
+    log = (tmp_path / "batch" / "batch.log").read_text()
+    assert "after: its worker finished it as the batch stopped" in log
+    assert "stale: its worker" not in log
