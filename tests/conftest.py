@@ -1,5 +1,7 @@
 import os
 
+import pytest
+
 # Never open windows or pick an interactive backend in tests.
 os.environ.setdefault("MPLBACKEND", "Agg")
 
@@ -12,3 +14,19 @@ from hypothesis import settings
 settings.register_profile("repeatable", derandomize=True, print_blob=True)
 settings.register_profile("explore", derandomize=False, max_examples=500, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
+
+
+@pytest.fixture
+def computed_blocks(monkeypatch) -> list[int]:
+    """The frame counts of the blocks streamed strain fields compute from now on, in order."""
+    from surface_strain import streamed
+
+    computed: list[int] = []
+    original = streamed._strain_field
+
+    def counting(setup, points, visible):
+        computed.append(len(points))
+        return original(setup, points, visible)
+
+    monkeypatch.setattr(streamed, "_strain_field", counting)
+    return computed

@@ -178,11 +178,11 @@ def test_a_run_of_a_streamed_field_equals_the_in_memory_run_file_for_file(
     assert "strain" not in json.loads((a / "summary.json").read_text())["runtime_s"]
 
 
-def test_colour_limits_of_a_long_streamed_video_compute_each_block_once(monkeypatch):
+def test_colour_limits_of_a_long_streamed_video_compute_each_block_once(computed_blocks):
     """strain_limits samples 512 frames spread over a long video: every component's values
     come from one computation of each block, and equal those of the field held whole."""
     from strain2d.figures import strain_limits
-    from surface_strain import streamed, streamed_strain
+    from surface_strain import streamed_strain
 
     rng = np.random.default_rng(3)
     X = np.stack(np.meshgrid(np.arange(4.0), np.arange(4.0)), -1).reshape(-1, 2)
@@ -191,14 +191,8 @@ def test_colour_limits_of_a_long_streamed_video_compute_each_block_once(monkeypa
     P = P + rng.normal(0, 0.01, P.shape)
     tri = grid_triangles(4, 4)
     lazy = streamed_strain(X, P, tri, block_frames=16)
-    computed = []
-    original = streamed._strain_field
-
-    def counting(setup, points, visible):
-        computed.append(len(points))
-        return original(setup, points, visible)
-
-    monkeypatch.setattr(streamed, "_strain_field", counting)
     limits = strain_limits(lazy, ("Exx", "Eyy", "Exy"))
-    assert len(computed) == 125  # 512 frames spread over 2,000 touch all 125 blocks, once each
+    assert (
+        len(computed_blocks) == 125
+    )  # 512 frames spread over 2,000 touch all 125 blocks, once each
     assert limits == strain_limits(compute_strain(X, P, tri), ("Exx", "Eyy", "Exy"))

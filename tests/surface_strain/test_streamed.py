@@ -103,20 +103,11 @@ def test_blocks_cover_every_frame_once_and_frames_cross_blocks(block):
         lazy.frames(3, 40)
 
 
-def test_the_field_computes_only_the_frames_read(monkeypatch):
+def test_the_field_computes_only_the_frames_read(computed_blocks):
     """Reading one frame of a long field computes its block, not the video."""
     X, P, tri, visible = _case(2, T=400)
     lazy = streamed_strain(X, P, tri, visible=visible, block_frames=16)
-    computed = []
-    from surface_strain import streamed
-
-    original = streamed._strain_field
-
-    def counting(setup, points, visible):
-        computed.append(len(points))
-        return original(setup, points, visible)
-
-    monkeypatch.setattr(streamed, "_strain_field", counting)
+    computed = computed_blocks
     lazy.nodal_E[390]
     lazy.E[391, 0]
     nodal_scalars(lazy)["E1"][395]
