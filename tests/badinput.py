@@ -42,6 +42,13 @@ FAMILIES = (
     "conflict",  # options that contradict each other
     "output",  # unwritable, foreign, or inside an input folder
     "interrupt",  # Ctrl-C at a random moment
+    "terminate",  # SIGTERM or SIGHUP (kill, timeout, scancel, docker stop) at a random moment
+    "stale",  # scratch folders and files left by an earlier run that was killed (SIGKILL)
+    "formula",  # user text that a spreadsheet would run: =, +, -, @, tab, CR at a cell's start
+    "filename",  # file and folder names that are not UTF-8 (Windows-origin and shared drives)
+    "allocation",  # options that size an allocation beyond the inputs or the memory
+    "nonfinite",  # infinite or NaN pixel values in frames
+    "calibration",  # calibrations that cannot be physical: wrong board, zero baseline, ...
 )
 
 
