@@ -17,12 +17,12 @@ names.
 
 from __future__ import annotations
 
-import csv
 import io
 import json
 from pathlib import Path
 
 from tissue_core.batch import Outcome
+from tissue_core.csvtext import csv_writer
 from tissue_core.errors import InputError
 
 __all__ = ["METRIC_COLUMNS", "stack_rows", "write_metrics_table"]
@@ -63,7 +63,7 @@ def write_metrics_table(path: Path, outcomes: list[Outcome]) -> int:
     from tissue_core.outputs import replaced_on_success
 
     buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
+    writer = csv_writer(buffer, lineterminator="\n")
     writer.writerow(["name", "stack", *METRIC_COLUMNS])
     rows = 0
     for outcome in outcomes:

@@ -22,11 +22,11 @@ the copy to ``strain2d study``.
 from __future__ import annotations
 
 import argparse
-import csv
 import io
 from pathlib import Path
 
 from tissue_core.batch import Job, RunOptions, job_state, manifest_jobs, run_job
+from tissue_core.csvtext import csv_writer
 
 __all__ = ["analyze_jobs", "study_job", "write_study_manifest"]
 
@@ -51,7 +51,7 @@ def analyze_jobs(
 def write_study_manifest(path: Path, jobs: list[Job], rows: list[dict], done: set[str]) -> bool:
     """The study's manifest (runs relative to it): the runs in ``done``; whether it changed."""
     buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
+    writer = csv_writer(buffer, lineterminator="\n")
     writer.writerow(["run", "specimen", "group"])
     for job, row in zip(jobs, rows, strict=True):
         if job.name in done:

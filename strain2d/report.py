@@ -725,9 +725,8 @@ def study_outputs(
     result of :func:`strain2d.study.study_statistics` for them.  Returns the
     ``figures`` list for ``summary.json``.
     """
-    import csv
-
     from strain2d import figures as fg
+    from tissue_core.csvtext import csv_writer
 
     folder = Path(folder)
     a, b = stats["components"]
@@ -793,7 +792,7 @@ def study_outputs(
     ]  # fmt: skip
     node_cols = ["t_p", "wilcoxon_p", "cohens_dz", "morans_i", "morans_p"]
     with open(folder / "specimens.csv", "w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f)
+        writer = csv_writer(f)  # names and groups are the user's text
         writer.writerow(columns + [f"node_{c}" for c in node_cols])
         for r in stats["specimens"]:
             writer.writerow(

@@ -53,6 +53,7 @@ from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
+from tissue_core.csvtext import restore_cell
 from tissue_core.errors import InputError
 from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
@@ -548,7 +549,9 @@ def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
 def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[dict[str, str]]:
     """A manifest CSV's rows: header names lower-cased and stripped, values stripped.
 
-    Each row gets ``_line`` (its line number in the file) for messages.
+    Each row gets ``_line`` (its line number in the file) for messages.  A cell
+    the toolkit wrote inert for spreadsheets (a manifest of ``sample_data_synth
+    study``) is read as it was given (:func:`tissue_core.csvtext.restore_cell`).
     """
     path = Path(path)
     try:
@@ -564,7 +567,7 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
     for i, row in enumerate(rows, start=2):
         if None in row:  # more cells than the header has names
             raise InputError(f"manifest {path}, line {i}: more cells than the header has columns")
-        clean = {(k or "").strip().lower(): (v or "").strip() for k, v in row.items()}
+        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
         if not any(clean.values()):
             continue  # an empty row (a spreadsheet's trailing commas)
         clean["_line"] = str(i)

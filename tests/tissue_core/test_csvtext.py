@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import re
 from pathlib import Path
 
 import numpy as np
@@ -74,3 +75,27 @@ def test_the_writer_quotes_text_cells_and_csv_reads_them_back(tmp_path):
         assert row[0] == row[1] == "'" + name
         assert row[2] == "-0.5"
         assert restore_cell(row[0]) == name
+
+
+def _writes_csv_itself(source: str) -> list[str]:
+    """The lines of ``source`` that make a CSV writer of the csv module directly."""
+    return [
+        line.strip()
+        for line in source.splitlines()
+        if re.search(r"\bcsv\.(writer|DictWriter)\(", line)
+    ]
+
+
+def test_every_csv_the_toolkit_writes_goes_through_the_inert_writer():
+    """A CSV writer made anywhere else would write a hostile name as it is."""
+    found = {}
+    for package in ("tissue_core", "strain2d", "surface_strain", "stereo", "mpm3d",
+                    "sample_data_synth"):  # fmt: skip
+        for path in sorted((REPO / package).rglob("*.py")):
+            if path == REPO / "tissue_core" / "csvtext.py":
+                continue
+            lines = _writes_csv_itself(path.read_text(encoding="utf-8"))
+            if lines:
+                found[str(path.relative_to(REPO))] = lines
+    assert found == {}
+    assert _writes_csv_itself("w = csv.writer(f)\n")  # the check finds what it looks for
