@@ -58,12 +58,14 @@ from tissue_core.errors import InputError
 from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
+    LEDGER,
     foreign_content,
     read_marker,
     recorded_command,
     replaced_on_success,
     sha256_of,
     written,
+    written_here,
 )
 
 __all__ = [
@@ -81,6 +83,7 @@ __all__ = [
     "raise_if_failed",
     "run_batch",
     "run_job",
+    "update_batch_file",
 ]
 
 #: the batch's record of every run, in the batch folder
@@ -767,6 +770,38 @@ class _Log:
             self.say(message)
 
 
+def update_batch_file(path: str | os.PathLike, text: str, *, overwrite: bool) -> str:
+    """Write a file of the batch folder that lists its runs (a study manifest, a table of
+    metrics) when it is the batch's to write; say what became of it.
+
+    The file is the batch's while it holds exactly what a batch wrote there
+    (the folder's ledger records it: :func:`tissue_core.outputs.written_here`):
+    it is then written again whenever ``text`` differs.  A file the user
+    edited, or one no batch wrote, is the user's, and is left as it is unless
+    ``overwrite``.
+
+    Returns
+    -------
+    str
+        ``"written"``, ``"unchanged"`` (it holds ``text`` already), or
+        ``"kept"`` (the user's, left as it is: the caller says so).
+    """
+    path = Path(path)
+    try:
+        current = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        current = None
+    except (OSError, ValueError):  # a folder, or not text: not the batch's
+        current = ""
+    if current == text:
+        return "unchanged"
+    if current is not None and not overwrite and not written_here(path):
+        return "kept"
+    with replaced_on_success(path, record=True) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return "written"
+
+
 def raise_if_failed(outcomes: Sequence[Outcome], folder: str | os.PathLike) -> None:
     """End the batch command with one line when runs failed: how many, the first and why."""
     failed = [o for o in outcomes if o.status == "failed"]
@@ -811,17 +846,17 @@ def _without_provenance(value):
 
 #: files of a folder that record how results were made, not results
 _NOT_RESULTS = frozenset(
-    {".tissue-strain-result.json", "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
+    {".tissue-strain-result.json", LEDGER, "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
 )
 
 
 def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
     """The files that differ between two result folders, beyond their provenance.
 
-    Every file is compared byte for byte, except: the result marker, the
-    batch's record and log (how and where the runs were made); JSON
-    files, compared without their time stamps, command lines and run times;
-    and ``report.html``, which shows those.  Where a file names its own
+    Every file is compared byte for byte, except: the result marker and the
+    ledger of files, the batch's record and log (how and where the runs were
+    made); JSON files, compared without their time stamps, command lines and
+    run times; and ``report.html``, which shows those.  Where a file names its own
     folder (a study lists its runs), the two folders' paths count as equal.
     An empty list means the two folders hold the same results.
     """

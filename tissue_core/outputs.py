@@ -50,6 +50,7 @@ __all__ = [
     "recorded_command",
     "replaced_on_success",
     "sha256_of",
+    "written_here",
 ]
 
 log = logging.getLogger(__name__)
@@ -191,6 +192,19 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
 def _file_written_here(path: Path) -> bool:
     ledger = _read_json(path.parent / LEDGER, _LEDGER_KIND)
     return ledger is not None and _unchanged(path, ledger["files"].get(path.name))
+
+
+def written_here(path: str | os.PathLike) -> bool:
+    """Whether the file ``path`` holds exactly what the toolkit wrote there.
+
+    True when its folder's ledger (:data:`LEDGER`) records it and its content
+    is unchanged since; False for a file the user edited, one the toolkit did
+    not write, or one that is not there.
+    """
+    try:
+        return _file_written_here(Path(path))
+    except OSError:  # there, but it cannot be read: not known to be the toolkit's
+        return False
 
 
 # --------------------------------------------------------------------------- checks
@@ -379,12 +393,15 @@ def _record_in_ledger(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
+def replaced_on_success(path: str | os.PathLike, *, record: bool = False) -> Iterator[Path]:
     """A temporary file beside ``path`` (same suffix) that becomes ``path`` if the block succeeds.
 
     No policy: for library writers that were given ``path`` (a file inside a
     result being written, or a file the caller named); the command lines'
     outputs use :func:`atomic_file`, which also checks what may be replaced.
+    With ``record``, ``path`` is also recorded in its folder's ledger
+    (:data:`LEDGER`), so that :func:`written_here` can tell later whether it
+    still holds what was written (a batch's table in the batch folder).
     """
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
@@ -393,7 +410,12 @@ def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
-        os.replace(tmp, path)
+        if record:
+            with deferred_interrupt():  # Ctrl-C waits until the file and its record are in place
+                os.replace(tmp, path)
+                _record_in_ledger(path)
+        else:
+            os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 
