@@ -272,7 +272,8 @@ def _cmd_batch(args) -> int:
         ok = {o.name for o in outcomes if o.status != "failed"}
         if ok:
             changed = any(o.status == "done" for o in outcomes)
-            changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
+            path = out / "study_manifest.csv"
+            changed |= write_study_manifest(path, jobs, rows, ok, overwrite=args.overwrite)
             studied.append((len(ok), run_study(study_job(out, args), changed, run)))
 
     outcomes = run_batch(

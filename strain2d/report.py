@@ -25,7 +25,7 @@ from strain2d.errors import InputError
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
 from surface_strain import StrainField, nodal_scalars
-from tissue_core.html import HtmlReport, format_value
+from tissue_core.html import HtmlReport, format_value, input_records
 from tissue_core.jsonio import write_json
 
 __all__ = [
@@ -1069,6 +1069,8 @@ def write_study(
     entries = [e if isinstance(e, dict) else {"run": Path(e)} for e in runs]
     inputs = ([str(manifest)] if manifest else []) + [str(e["run"]) for e in entries]
     check_writable(out, overwrite=overwrite, inputs=inputs)
+    # the manifest's checksum: a batch makes its study again once the manifest is edited
+    manifest_files = input_records([manifest]) if manifest else []
     specimens = load_specimens(entries)
     a, b = compare
     stats = study_statistics(specimens, a=a, b=b, alpha=alpha)
@@ -1083,6 +1085,7 @@ def write_study(
                 "manifest": str(manifest) if manifest else None,
                 "runs": [str(e["run"]) for e in entries],
             },
+            "input_files": manifest_files,
             "parameters": {"compare": [a, b], "alpha": alpha, "formats": list(formats)},
             "specimens": [
                 {
