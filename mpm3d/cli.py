@@ -209,8 +209,9 @@ def _cmd_batch(args) -> int:
         say=say,
         notes=notes,
     )
-    n = write_metrics_table(out / "metrics.csv", outcomes)
-    say(f"metrics of {n} stacks in {Path(args.out) / 'metrics.csv'}")
+    n = write_metrics_table(out / "metrics.csv", outcomes, overwrite=args.overwrite)
+    if n is not None:
+        say(f"metrics of {n} stacks in {Path(args.out) / 'metrics.csv'}")
     raise_if_failed(outcomes, args.out)
     say(f"results in {args.out}")
     return 0
