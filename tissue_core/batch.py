@@ -59,7 +59,9 @@ from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
     LEDGER,
+    check_name_lengths,
     foreign_content,
+    name_too_long,
     read_marker,
     recorded_command,
     replaced_on_success,
@@ -671,6 +673,9 @@ def manifest_jobs(
         problem = _bad_name(name)
         if problem:
             raise InputError(f"{where}: {name_column} {name!r} {problem}")
+        problem = name_too_long(name, out)  # a run's folder is made under a temporary name
+        if problem:
+            raise InputError(f"{where}: {name_column} {problem}; give a shorter one")
         run = out / "runs" / name
         run_argv = options.argv(args, {c: row[c] for c in run_columns}, where=where, base=base)
         # files named by options (points, calibrations) are inputs too
@@ -727,6 +732,7 @@ def _check_unique(jobs: Sequence[Job]) -> None:
 def batch_folder(path: str | os.PathLike) -> Path:
     """The batch's output folder, made if needed; one that is not a batch's is refused."""
     path = Path(path)
+    check_name_lengths(path, scratch=False)  # made as it is, not under a temporary name
     if path.exists() and not path.is_dir():
         raise InputError(f"--out {path} is a file; give a folder for the batch")
     if path.is_dir() and any(path.iterdir()):
