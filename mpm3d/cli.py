@@ -152,7 +152,7 @@ def _build_parser() -> CommandLine:
     p.add_argument("--out", required=True, help="batch folder: runs/, metrics.csv, batch.log")
     from tissue_core.batch import RunOptions, add_batch_arguments
 
-    add_batch_arguments(p, what="analyses")
+    add_batch_arguments(p, what="analyses", tables=["metrics.csv"])
     options = RunOptions(p, "analyze options, for every run")
     _stack_options(options)
     _memory_args(options)

@@ -199,7 +199,7 @@ def _build_parser():
     p.add_argument("--out", required=True, help="batch folder: runs/, study/, batch.log")
     from tissue_core.batch import add_batch_arguments
 
-    add_batch_arguments(p, what="runs")
+    add_batch_arguments(p, what="runs", tables=["study_manifest.csv"])
     g = p.add_argument_group("the study")
     g.add_argument("--no-study", action="store_true", help="analyze only; no study")
     g.add_argument("--compare", default="Exx,Eyy", metavar="A,B", help="as for study (Exx,Eyy)")

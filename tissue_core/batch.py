@@ -526,8 +526,14 @@ def check_workers(workers: int | None, scheduler: str | None, n_jobs: int) -> in
     return workers
 
 
-def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
-    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command."""
+def add_batch_arguments(
+    p: argparse.ArgumentParser, *, what: str, tables: Sequence[str] = ()
+) -> None:
+    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command.
+
+    ``tables``: the files of the batch folder that list its runs
+    (:func:`update_batch_file`), which ``--overwrite`` replaces once edited.
+    """
     g = p.add_argument_group("where the runs go")
     g.add_argument(
         "--workers",
@@ -546,8 +552,9 @@ def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace runs made with other parameters or from changed inputs (runs complete "
-        "with the same parameters are always kept)",
+        help="replace runs made with other parameters or from changed inputs"
+        + (f", and {' and '.join(tables)} when edited since the batch wrote it" if tables else "")
+        + " (runs complete with the same parameters are always kept)",
     )
 
 
