@@ -33,7 +33,7 @@ import csv
 from collections.abc import Iterable
 from typing import Any, TextIO
 
-__all__ = ["csv_writer", "inert_cell", "restore_cell"]
+__all__ = ["FORMULA_STARTS", "InertWriter", "csv_writer", "inert_cell", "restore_cell"]
 
 #: what a spreadsheet takes for the start of a formula
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
@@ -89,8 +89,12 @@ def restore_cell(text: str) -> str:
     return text
 
 
-class _InertWriter:
-    """A :func:`csv.writer` whose cells pass through :func:`inert_cell` first."""
+class InertWriter:
+    """A :func:`csv.writer` whose cells pass through :func:`inert_cell` first.
+
+    Made by :func:`csv_writer`; ``writerow`` and ``writerows`` as the csv
+    module's writer has them.
+    """
 
     def __init__(self, writer) -> None:
         self._writer = writer
@@ -107,7 +111,7 @@ class _InertWriter:
             self.writerow(row)
 
 
-def csv_writer(f: TextIO, **fmtparams) -> _InertWriter:
+def csv_writer(f: TextIO, **fmtparams) -> InertWriter:
     """A :func:`csv.writer` on ``f`` that writes every text cell inert (:func:`inert_cell`).
 
     Every CSV file the toolkit writes that holds text goes through it: a cell
@@ -139,4 +143,4 @@ def csv_writer(f: TextIO, **fmtparams) -> _InertWriter:
     specimen,group,mean
     '=1+2,'-2+3,-0.25
     """
-    return _InertWriter(csv.writer(f, **fmtparams))
+    return InertWriter(csv.writer(f, **fmtparams))
