@@ -14,6 +14,8 @@ Small pieces that ``strain2d``, ``surface_strain``, ``stereo``, ``mpm3d`` and
   status 2, exit 130 on Ctrl-C, warnings as one line each;
   :mod:`tissue_core.main` - ``python -m PACKAGE``;
 * :mod:`tissue_core.images` - image files read whole or refused (NumPy, OpenCV);
+* :mod:`tissue_core.filenames` - file and folder names that are not UTF-8:
+  a UTF-8 alias for the libraries that need one, and the names shown in text;
 * :mod:`tissue_core.tiff_units` - the pixel sizes TIFF files record (ImageJ,
   OME, resolution tags);
 * :mod:`tissue_core.html` - the self-contained `report.html` every package

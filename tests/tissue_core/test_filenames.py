@@ -1,0 +1,43 @@
+"""Names that are not UTF-8: read, written, and shown as valid UTF-8 text everywhere."""
+
+import os
+
+from tests.filenames import latin1, shown
+from tissue_core.filenames import exact_name, is_utf8, readable, utf8_alias
+
+VIDEO = latin1("vidéo.avi")
+
+
+def test_a_name_that_is_not_utf8_reads_with_its_bytes_escaped():
+    assert VIDEO == "vid\udce9o.avi" and not is_utf8(VIDEO)
+    assert readable(VIDEO) == "vid\\xe9o.avi" == shown(VIDEO)
+    assert readable(os.fsencode(VIDEO)) == "vid\\xe9o.avi"
+    assert readable("vidéo.avi") == "vidéo.avi" and is_utf8("vidéo.avi")
+    assert readable("a\ud800b") == "a\\ud800b"  # a lone surrogate of another origin
+    assert exact_name(VIDEO) == os.fsencode(VIDEO).hex() and exact_name("vidéo.avi") is None
+    assert bytes.fromhex(exact_name(VIDEO)) == b"vid\xe9o.avi"
+
+
+def test_an_alias_names_the_same_file_and_folder_in_utf8(tmp_path):
+    folder = tmp_path / latin1("Messdatén")
+    folder.mkdir()
+    video = folder / VIDEO
+    video.write_bytes(b"frames")
+    with utf8_alias(video) as alias, utf8_alias(folder) as alias_folder:
+        assert is_utf8(alias) and alias.suffix == ".avi"
+        assert str(alias).encode("utf-8") and alias.read_bytes() == b"frames"
+        (alias_folder / "written.txt").write_text("through the alias")  # writes land in folder
+        made = [alias.parent, alias_folder.parent]
+    assert (folder / "written.txt").read_text() == "through the alias"
+    assert not any(p.exists() for p in made)  # the private links are gone
+    assert video.read_bytes() == b"frames"
+    plain = tmp_path / "plain.avi"
+    with utf8_alias(plain) as same:
+        assert same == plain
+
+
+def test_an_alias_keeps_no_suffix_that_is_not_utf8(tmp_path):
+    odd = tmp_path / latin1("frames.tïf")
+    odd.write_bytes(b"x")
+    with utf8_alias(odd) as alias:
+        assert alias.suffix == "" and alias.read_bytes() == b"x"
