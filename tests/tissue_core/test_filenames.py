@@ -1,9 +1,14 @@
 """Names that are not UTF-8: read, written, and shown as valid UTF-8 text everywhere."""
 
+import io
 import os
 
-from tests.filenames import latin1, shown
+from tests.filenames import latin1, shown, strict_json
+from tissue_core.cli import one_line
 from tissue_core.filenames import exact_name, is_utf8, readable, utf8_alias
+from tissue_core.html import HtmlReport, input_records
+from tissue_core.jsonio import write_json
+from tissue_core.progress import Progress
 
 VIDEO = latin1("vidéo.avi")
 
@@ -41,3 +46,37 @@ def test_an_alias_keeps_no_suffix_that_is_not_utf8(tmp_path):
     odd.write_bytes(b"x")
     with utf8_alias(odd) as alias:
         assert alias.suffix == "" and alias.read_bytes() == b"x"
+
+
+def test_json_results_are_valid_utf8_for_strict_readers(tmp_path):
+    path = tmp_path / "summary.json"
+    write_json(path, {"input": tmp_path / VIDEO, latin1("clé"): [latin1("é")], "µm": "µm"})
+    data = strict_json(path)
+    assert data["input"] == shown(tmp_path / VIDEO)
+    assert data["cl\\xe9"] == ["\\xe9"] and data["µm"] == "µm"
+
+
+def test_html_reports_show_such_names_and_are_valid_utf8(tmp_path):
+    video = tmp_path / VIDEO
+    video.write_bytes(b"frames")
+    doc = HtmlReport(f"Run of {VIDEO}")
+    doc.inputs(input_records([video]))
+    doc.key_values({"source": {"path": str(video)}})
+    doc.provenance({"command": ["strain2d", "analyze", str(video)]})
+    doc.write(tmp_path / "report.html")
+    text = (tmp_path / "report.html").read_bytes().decode("utf-8")
+    assert "vid\\xe9o.avi" in text and "\\udc" not in text
+
+
+def test_messages_show_such_names_readably():
+    assert one_line(f"cannot read {VIDEO}") == "cannot read vid\\xe9o.avi"
+    # Python's own OSError text quotes the name with repr
+    error = FileNotFoundError(2, "No such file or directory", VIDEO)
+    assert one_line(error) == "[Errno 2] No such file or directory: 'vid\\xe9o.avi'"
+    stream = io.StringIO()
+    progress = Progress(stream=stream)
+    progress.say(f"{VIDEO}: 5 frames")
+    with progress.task(f"reading {VIDEO}") as task:
+        task(1, 1)
+    assert "\\udc" not in stream.getvalue() and stream.getvalue().encode("utf-8")
+    assert stream.getvalue().count("vid\\xe9o.avi") == 3
