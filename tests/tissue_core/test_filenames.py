@@ -3,11 +3,22 @@
 import io
 import os
 
+import pytest
+
 from tests.filenames import latin1, shown, strict_json
 from tissue_core.cli import one_line
 from tissue_core.filenames import exact_name, is_utf8, readable, utf8_alias
 from tissue_core.html import HtmlReport, input_records
 from tissue_core.jsonio import write_json
+from tissue_core.outputs import (
+    LEDGER,
+    MARKER,
+    atomic_dir,
+    atomic_file,
+    check_writable,
+    foreign_content,
+    recorded_command,
+)
 from tissue_core.progress import Progress
 
 VIDEO = latin1("vidéo.avi")
@@ -80,3 +91,55 @@ def test_messages_show_such_names_readably():
         task(1, 1)
     assert "\\udc" not in stream.getvalue() and stream.getvalue().encode("utf-8")
     assert stream.getvalue().count("vid\\xe9o.avi") == 3
+
+
+@pytest.fixture
+def command():
+    token = recorded_command.set(["strain2d", "analyze", VIDEO])
+    yield
+    recorded_command.reset(token)
+
+
+def test_a_result_folder_so_named_is_recorded_and_replaced(tmp_path, command):
+    out = tmp_path / latin1("résultats")
+    for overwrite in (False, True):
+        with atomic_dir(out, overwrite=overwrite) as tmp:
+            (tmp / latin1("données")).mkdir()
+            (tmp / latin1("données") / VIDEO).write_bytes(b"x" if overwrite else b"first")
+            (tmp / "summary.json").write_text("{}")
+    assert (out / latin1("données") / VIDEO).read_bytes() == b"x"
+    marker = strict_json(out / MARKER)
+    assert marker["command"] == ["strain2d", "analyze", "vid\\xe9o.avi"]
+    assert marker["folders"] == ["donn\\xe9es"]
+    assert sorted(marker["files"]) == ["donn\\xe9es/vid\\xe9o.avi", "summary.json"]
+    assert bytes.fromhex(marker["exact_names"]["donn\\xe9es/vid\\xe9o.avi"]) == (
+        b"donn\xe9es/vid\xe9o.avi"
+    )
+    assert foreign_content(out) is None
+
+
+def test_a_name_that_only_reads_alike_is_not_the_one_recorded(tmp_path, command):
+    out = tmp_path / "run"
+    with atomic_dir(out) as tmp:
+        (tmp / VIDEO).write_bytes(b"x")
+    (out / VIDEO).rename(out / "vid\\xe9o.avi")  # the user's file, named as the marker shows
+    assert "vid\\xe9o.avi, which the earlier result did not write" in foreign_content(out)
+    with pytest.raises(ValueError, match="nothing was replaced"):
+        check_writable(out, overwrite=True)
+
+
+def test_an_output_file_so_named_is_recorded_in_the_ledger_and_replaced(tmp_path, command):
+    folder = tmp_path / latin1("Messdatén")
+    folder.mkdir()
+    tracks = folder / latin1("trajectoirés.csv")
+    for overwrite, text in ((False, "first\n"), (True, "second\n")):
+        with atomic_file(tracks, overwrite=overwrite) as tmp:
+            tmp.write_text(text)
+    assert tracks.read_text() == "second\n"
+    ledger = strict_json(folder / LEDGER)
+    assert list(ledger["files"]) == ["trajectoir\\xe9s.csv"]
+    assert ledger["exact_names"] == {"trajectoir\\xe9s.csv": exact_name(tracks.name)}
+    alike = folder / "trajectoir\\xe9s.csv"
+    alike.write_text("second\n")  # the same content under the name the ledger shows
+    with pytest.raises(ValueError, match="not a file this toolkit wrote"):
+        check_writable(alike, overwrite=True, kind="file")
