@@ -10,7 +10,8 @@ open them.  Two things still fail on them:
   (OpenCV's ``VideoCapture``, ``VideoWriter`` and ``FileStorage``, VTK's
   readers and writers): they raise ``UnicodeEncodeError``, or crash the
   process.  :func:`utf8_alias` gives them a UTF-8 name for the same file or
-  folder: a symbolic link in a private temporary folder;
+  folder: a symbolic link in a private temporary folder; :func:`utf8_output`
+  a UTF-8 name to write a file under, renamed to the real name when done;
 * text that shows a name (JSON, HTML, CSV, figure titles, messages on a
   terminal) cannot hold a lone surrogate: UTF-8 has no code for it.
   :func:`readable` shows each byte that is not UTF-8 as ``\\xNN``, so the
@@ -32,7 +33,7 @@ from pathlib import Path
 
 from tissue_core.errors import SourceError
 
-__all__ = ["exact_name", "is_utf8", "readable", "utf8_alias"]
+__all__ = ["exact_name", "is_utf8", "readable", "utf8_alias", "utf8_output"]
 
 #: a lone surrogate: an undecodable byte of a name (U+DC80..U+DCFF), or any other
 _SURROGATE = re.compile("[\ud800-\udfff]")
@@ -130,3 +131,36 @@ def utf8_alias(path: str | os.PathLike) -> Iterator[Path]:
         yield link
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def utf8_output(path: str | os.PathLike) -> Iterator[Path]:
+    """A UTF-8 name under which a library writes the file ``path`` (in an existing folder).
+
+    When ``path`` is UTF-8 it is yielded as it is.  Otherwise the library
+    writes a temporary file beside ``path`` (its folder reached through
+    :func:`utf8_alias`), which is renamed to ``path`` when the block succeeds
+    and removed when it fails.
+
+    Raises
+    ------
+    SourceError
+        As :func:`utf8_alias`.
+    """
+    path = Path(path)
+    if is_utf8(path):
+        yield path
+        return
+    with utf8_alias(path.parent) as folder:
+        if is_utf8(path.name):
+            yield folder / path.name
+            return
+        suffix = path.suffix if is_utf8(path.suffix) else ""
+        fd, name = tempfile.mkstemp(prefix=".tissue-strain-output.tmp-", suffix=suffix, dir=folder)
+        os.close(fd)
+        scratch = path.parent / Path(name).name
+        try:
+            yield folder / scratch.name
+            os.replace(scratch, path)
+        finally:
+            scratch.unlink(missing_ok=True)

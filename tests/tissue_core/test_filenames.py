@@ -7,7 +7,7 @@ import pytest
 
 from tests.filenames import latin1, shown, strict_json
 from tissue_core.cli import one_line
-from tissue_core.filenames import exact_name, is_utf8, readable, utf8_alias
+from tissue_core.filenames import exact_name, is_utf8, readable, utf8_alias, utf8_output
 from tissue_core.html import HtmlReport, input_records
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
@@ -143,3 +143,17 @@ def test_an_output_file_so_named_is_recorded_in_the_ledger_and_replaced(tmp_path
     alike.write_text("second\n")  # the same content under the name the ledger shows
     with pytest.raises(ValueError, match="not a file this toolkit wrote"):
         check_writable(alike, overwrite=True, kind="file")
+
+
+def test_a_library_writes_a_file_so_named_under_a_utf8_name(tmp_path):
+    folder = tmp_path / latin1("Messdatén")
+    folder.mkdir()
+    for name in (VIDEO, "video.avi"):  # the file's own name, or only its folder's, not UTF-8
+        with utf8_output(folder / name) as target:
+            assert is_utf8(target) and target.suffix == ".avi"
+            target.write_bytes(b"frames")
+        assert (folder / name).read_bytes() == b"frames"
+    with pytest.raises(RuntimeError), utf8_output(folder / latin1("écrit.avi")) as target:
+        target.write_bytes(b"half")
+        raise RuntimeError("the writer failed")
+    assert sorted(p.name for p in folder.iterdir()) == sorted([VIDEO, "video.avi"])
