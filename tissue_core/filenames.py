@@ -10,8 +10,9 @@ open them.  Two things still fail on them:
   (OpenCV's ``VideoCapture``, ``VideoWriter`` and ``FileStorage``, VTK's
   readers and writers): they raise ``UnicodeEncodeError``, or crash the
   process.  :func:`utf8_alias` gives them a UTF-8 name for the same file or
-  folder: a symbolic link in a private temporary folder; :func:`utf8_output`
-  a UTF-8 name to write a file under, renamed to the real name when done;
+  folder to read: a symbolic link in a private temporary folder;
+  :func:`utf8_output` a UTF-8 name to write a file under, moved to the real
+  name when done;
 * text that shows a name (JSON, HTML, CSV, figure titles, messages on a
   terminal) cannot hold a lone surrogate: UTF-8 has no code for it.
   :func:`readable` shows each byte that is not UTF-8 as ``\\xNN``, so the
@@ -24,6 +25,7 @@ Windows, whose file system stores text.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import re
 import shutil
@@ -87,14 +89,33 @@ def exact_name(name: str | os.PathLike) -> str | None:
     return None if is_utf8(name) else os.fsencode(name).hex()
 
 
+def _private_folder(path: Path) -> str:
+    """A new private temporary folder with a UTF-8 name, for a name stand-in for ``path``."""
+    try:
+        folder = tempfile.mkdtemp(prefix="tissue-strain-name-")
+    except OSError as exc:
+        raise SourceError(
+            f"{readable(path)}: its name is not UTF-8, and no temporary folder for a UTF-8 "
+            f"name could be made ({exc.strerror or exc})"
+        ) from None
+    if not is_utf8(folder):
+        os.rmdir(folder)
+        raise SourceError(
+            f"{readable(path)}: its name is not UTF-8, and neither is the temporary folder "
+            f"{readable(folder)} (set TMPDIR to a folder with a UTF-8 name)"
+        )
+    return folder
+
+
 @contextlib.contextmanager
 def utf8_alias(path: str | os.PathLike) -> Iterator[Path]:
-    """A UTF-8 name for the existing file or folder ``path``, for libraries that need one.
+    """A UTF-8 name for the existing file or folder ``path``, for libraries that read it.
 
     When ``path`` is UTF-8 it is yielded as it is.  Otherwise the name is a
     symbolic link to it in a private temporary folder, removed when the block
-    ends; files written into an aliased folder are written into ``path``.
-    The link keeps the file's suffix (libraries choose formats by it).
+    ends (a library that opened the file keeps it open).  The link keeps the
+    file's suffix: libraries choose formats by it.  Libraries that write use
+    :func:`utf8_output`.
 
     Raises
     ------
@@ -107,20 +128,9 @@ def utf8_alias(path: str | os.PathLike) -> Iterator[Path]:
         yield path
         return
     suffix = path.suffix if is_utf8(path.suffix) else ""
-    try:
-        folder = tempfile.mkdtemp(prefix="tissue-strain-name-")
-    except OSError as exc:
-        raise SourceError(
-            f"{readable(path)}: its name is not UTF-8, and no temporary folder for a UTF-8 "
-            f"name could be made ({exc.strerror or exc})"
-        ) from None
+    folder = _private_folder(path)
     try:
         link = Path(folder) / f"alias{suffix}"
-        if not is_utf8(link):
-            raise SourceError(
-                f"{readable(path)}: its name is not UTF-8, and neither is the temporary "
-                f"folder {readable(folder)} (set TMPDIR to a folder with a UTF-8 name)"
-            )
         try:
             os.symlink(os.path.abspath(path), link, target_is_directory=path.is_dir())
         except OSError as exc:
@@ -138,29 +148,36 @@ def utf8_output(path: str | os.PathLike) -> Iterator[Path]:
     """A UTF-8 name under which a library writes the file ``path`` (in an existing folder).
 
     When ``path`` is UTF-8 it is yielded as it is.  Otherwise the library
-    writes a temporary file beside ``path`` (its folder reached through
-    :func:`utf8_alias`), which is renamed to ``path`` when the block succeeds
-    and removed when it fails.
+    writes a file in a private temporary folder (a link would not do: PyVista
+    resolves links to the name they stand for), which is moved to ``path``
+    when the block succeeds, through a temporary sibling and a rename so
+    that ``path`` appears whole; nothing is left when the block fails.
 
     Raises
     ------
     SourceError
-        As :func:`utf8_alias`.
+        When no temporary folder can be made.
     """
     path = Path(path)
     if is_utf8(path):
         yield path
         return
-    with utf8_alias(path.parent) as folder:
-        if is_utf8(path.name):
-            yield folder / path.name
-            return
-        suffix = path.suffix if is_utf8(path.suffix) else ""
-        fd, name = tempfile.mkstemp(prefix=".tissue-strain-output.tmp-", suffix=suffix, dir=folder)
-        os.close(fd)
-        scratch = path.parent / Path(name).name
+    suffix = path.suffix if is_utf8(path.suffix) else ""
+    folder = _private_folder(path)
+    try:
+        scratch = Path(folder) / f"output{suffix}"
+        yield scratch
         try:
-            yield folder / scratch.name
             os.replace(scratch, path)
-        finally:
-            scratch.unlink(missing_ok=True)
+        except OSError as exc:
+            if exc.errno != errno.EXDEV:
+                raise
+            # another file system: copy, then rename into place
+            partial = path.with_name(f".{path.name}.tmp-{os.urandom(4).hex()}")
+            try:
+                shutil.copyfile(scratch, partial)
+                os.replace(partial, path)
+            finally:
+                partial.unlink(missing_ok=True)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
