@@ -60,6 +60,7 @@ def stack_rows(inputs: list[str]) -> list[dict[str, str]] | str:
 
 def write_metrics_table(path: Path, outcomes: list[Outcome]) -> int:
     """``metrics.csv`` of the runs that exist (made now or before); how many rows it has."""
+    from tissue_core.filenames import readable
     from tissue_core.outputs import replaced_on_success
 
     buffer = io.StringIO()
@@ -71,7 +72,8 @@ def write_metrics_table(path: Path, outcomes: list[Outcome]) -> int:
             continue
         metrics = json.loads((Path(outcome.out) / "metrics.json").read_text(encoding="utf-8"))
         values = ["" if metrics.get(c) is None else metrics[c] for c in METRIC_COLUMNS]
-        writer.writerow([outcome.name, metrics.get("input_path", ""), *values])
+        # a stack's name as text (bytes that are not UTF-8 as \xNN), as metrics.json has it
+        writer.writerow([readable(outcome.name), metrics.get("input_path", ""), *values])
         rows += 1
     with replaced_on_success(path) as tmp:
         tmp.write_text(buffer.getvalue(), encoding="utf-8")
