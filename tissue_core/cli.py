@@ -138,6 +138,13 @@ def one_line(message: object) -> str:
     return text or "unknown error"
 
 
+class _ReadableFormatter(logging.Formatter):
+    """Log lines that show file names whose bytes are not UTF-8 as ``\\xNN``."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return readable(super().format(record))
+
+
 def _show_warning(prefix: str):
     def show(message, category, filename, lineno, file=None, line=None) -> None:
         if issubclass(category, UserWarning):
@@ -184,9 +191,11 @@ def run_command(
     try:
         args = parser.parse_args(argv)
         prefix = f"{prog} {args.command}"
+        log_lines = logging.StreamHandler()
+        log_lines.setFormatter(_ReadableFormatter("%(levelname)s: %(message)s"))
         logging.basicConfig(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
-            format="%(levelname)s: %(message)s",
+            handlers=[log_lines],
         )
         with warnings.catch_warnings(), handling_interrupts():
             warnings.simplefilter("always", UserWarning)

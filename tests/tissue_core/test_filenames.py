@@ -2,9 +2,12 @@
 
 import io
 import os
+import subprocess
+import sys
 
 import pytest
 
+from tests.badinput import REPO
 from tests.filenames import latin1, shown, strict_json
 from tissue_core.cli import one_line
 from tissue_core.filenames import exact_name, is_utf8, readable, utf8_alias, utf8_output
@@ -174,3 +177,17 @@ def test_a_file_written_on_another_file_system_is_copied_into_place(tmp_path, mo
         target.write_bytes(b"frames")
     assert [p.name for p in tmp_path.iterdir()] == [VIDEO]
     assert (tmp_path / VIDEO).read_bytes() == b"frames"
+
+
+def test_log_lines_show_such_names_readably():
+    code = (
+        "import logging, os, sys\n"
+        "from tissue_core.cli import CommandLine, run_command\n"
+        "cli = CommandLine('demo', 'A demonstration.')\n"
+        "name = os.fsdecode(b'vid\\xe9o.avi')\n"
+        "cli.command('go', lambda args: logging.getLogger('demo').warning('read %s', name) or 0)\n"
+        "sys.exit(run_command('demo', cli, ['go']))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, cwd=REPO)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.decode("utf-8") == "WARNING: read vid\\xe9o.avi\n"
