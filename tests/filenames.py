@@ -91,3 +91,17 @@ def assert_ran(argv: Sequence[str | os.PathLike], out: str | os.PathLike, **kwar
     if Path(out).is_dir():
         assert_readable(out)
     return err
+
+
+def assert_refused_process(
+    argv: Sequence[str | os.PathLike], *, fragments: Sequence[str] = (), **kwargs
+) -> str:
+    """``python ARGV...`` exits 2 with one error line holding ``fragments`` (names as the
+    toolkit shows them); returns the line."""
+    status, err = run_process(argv, **kwargs)
+    lines = message_lines(err)
+    assert status == 2, f"exit {status}:\n{err}"
+    assert len(lines) == 1 and ": error: " in lines[0], err
+    for fragment in fragments:
+        assert fragment in lines[0], f"{fragment!r} not in: {lines[0]}"
+    return lines[0]

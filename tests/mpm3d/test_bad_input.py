@@ -27,7 +27,7 @@ from tests.badinput import (
     unwritable_folder,
     write,
 )
-from tests.filenames import assert_ran, latin1, shown, strict_json
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tissue_core.outputs import atomic_dir
 
 COMMANDS = ("analyze", "compare")
@@ -692,7 +692,15 @@ def _names_batch(folder, before, after, reference, tmp):
     assert "2 complete already, nothing to run" in err, err
 
 
+def _names_damaged_stack(folder, before, after, reference, tmp):
+    stack = write(tmp, latin1("abîmé.tif"), "not a stack\n")
+    assert_refused_process(["-m", "mpm3d", "analyze", stack, "--out", tmp / "out"],
+                           fragments=["mpm3d analyze: error:", shown(stack)])  # fmt: skip
+    assert not (tmp / "out").exists()
+
+
 NAME_CASES = {
+    "analyze-filename-damaged-stack": _names_damaged_stack,
     "analyze-filename-stack-and-out": _names_analyze,
     "compare-filename-stacks-and-out": _names_compare,
     "batch-filename-stacks-and-out": _names_batch,

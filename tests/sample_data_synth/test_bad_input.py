@@ -8,8 +8,8 @@ from __future__ import annotations
 import pytest
 
 from sample_data_synth.cli import main
-from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id
-from tests.filenames import assert_ran, latin1
+from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id, write
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown
 
 PROG = "sample_data_synth"
 
@@ -120,6 +120,8 @@ NAME_CASES = [
         ["stereo", "--case", "calibration", "--size", "240x180", "--views", "2"],
     ),
     ("study-filename-out", ["study", "--size", "64", "--frames", "3", "--per-group", "1"]),
+    # a folder of the user's so named is refused, and named readably
+    ("video-filename-users-folder", ["video", "--size", "64", "--frames", "3"]),
 ]
 
 
@@ -134,6 +136,13 @@ class TestNamesNotUtf8:
         assert parse_case_id(case)[:2] == (argv[0], "filename")
         out = tmp_path / latin1("Messdatén") / latin1("donnéés")
         out.parent.mkdir()
+        if case.endswith("-users-folder"):
+            thesis = write(out, latin1("thèse.tex"), "years of work")
+            argv = ["-m", "sample_data_synth", *argv, "--out", out, "--overwrite"]
+            assert_refused_process(argv, fragments=[shown(out), "not a result"])
+            assert [p.name for p in out.iterdir()] == [thesis.name]
+            assert thesis.read_text() == "years of work"
+            return
         assert_ran(["-m", "sample_data_synth", *argv, "--out", out], out)
         plain = tmp_path / "plain"
         assert main([*argv, "-q", "--out", str(plain)]) == 0

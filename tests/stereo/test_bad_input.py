@@ -16,7 +16,7 @@ import pytest
 
 from stereo.cli import main
 from tests.badinput import FAMILIES, assert_refused, interrupt, scratch_left, snapshot, write
-from tests.filenames import assert_ran, latin1, strict_json
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
 from tissue_core.outputs import atomic_dir
 
@@ -1010,7 +1010,16 @@ def _names_batch(s, n, tmp):
     assert "1 complete already, nothing to run" in err, err
 
 
+def _names_damaged_yml(s, n, tmp):
+    yml = write(tmp, latin1("abîmé.yml"), "%YAML:1.0\nM1: [1, 2\n")
+    out = tmp / "calib.json"
+    assert_refused_process(["-m", "stereo", "import-calib", yml, "--out", out],
+                           fragments=["stereo import-calib: error:", shown(yml)])  # fmt: skip
+    assert not out.exists()
+
+
 NAME_CASES = {
+    "import-calib-filename-damaged-yml": _names_damaged_yml,
     "import-calib-filename-yml-and-out": _names_import_calib,
     "calibrate-filename-views-and-out": _names_calibrate,
     "match-filename-images-points-and-out": _names_match,

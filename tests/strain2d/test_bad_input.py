@@ -23,7 +23,14 @@ from tests.badinput import (
     unwritable_folder,
     write,
 )
-from tests.filenames import assert_ran, latin1, run_process, shown, strict_json
+from tests.filenames import (
+    assert_ran,
+    assert_refused_process,
+    latin1,
+    run_process,
+    shown,
+    strict_json,
+)
 
 PROG = "strain2d"
 
@@ -529,7 +536,25 @@ def _names_case_benchmark_out(c, tmp):
     assert strict_json(out / "benchmark.json")
 
 
+def _names_case_analyze_damaged_video(c, tmp):
+    video = write(tmp, latin1("abîmée.avi"), "not a video\n")
+    out = tmp / "run"
+    assert_refused_process(["-m", "strain2d", "analyze", video, "--out", out],
+                           fragments=["strain2d analyze: error:", shown(video)])  # fmt: skip
+    assert not out.exists()
+
+
+def _names_case_track_missing_points(c, tmp):
+    out = tmp / "tracks.csv"
+    missing = tmp / latin1("pöints_perdus.csv")
+    assert_refused_process(["-m", "strain2d", "track", c.video, "--points", missing, "--out", out],
+                           fragments=[shown(missing)])  # fmt: skip
+    assert not out.exists()
+
+
 NAME_CASES = {
+    "analyze-filename-damaged-video": _names_case_analyze_damaged_video,
+    "track-filename-missing-points": _names_case_track_missing_points,
     "analyze-filename-video": _names_case_analyze_video,
     "analyze-filename-image-folder": _names_case_analyze_image_folder,
     "track-filename-tiff": _names_case_track_tiff,

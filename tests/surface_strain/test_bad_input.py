@@ -19,7 +19,7 @@ from tests.badinput import (
     scratch_left,
     snapshot,
 )
-from tests.filenames import assert_ran, latin1, shown, strict_json
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
 
 PROG = "surface_strain"
@@ -230,7 +230,15 @@ class TestNamesNotUtf8:
     """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
     written (``test_bad_input[compute-filename-CASE]``, counted with the refusals)."""
 
-    @pytest.mark.parametrize("case", ["compute-filename-points-triangles-and-out"])
+    @pytest.mark.parametrize(
+        "case", ["compute-filename-points-triangles-and-out", "compute-filename-missing-points"]
+    )
     def test_bad_input(self, tmp_path, case):
         assert parse_case_id(case)[:2] == ("compute", "filename")
-        _names_points_triangles_and_out(tmp_path)
+        if case.endswith("-missing-points"):
+            missing = tmp_path / latin1("pöints_perdus.csv")
+            assert_refused_process(["-m", "surface_strain", "compute", missing, "--out",
+                                    tmp_path / "out"], fragments=[shown(missing)])  # fmt: skip
+            assert list(tmp_path.iterdir()) == []
+        else:
+            _names_points_triangles_and_out(tmp_path)
