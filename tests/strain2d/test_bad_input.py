@@ -520,10 +520,9 @@ def _names_case_batch_manifest_and_out(c, tmp):
     manifest = write(folder, "manifest.csv", "video,group\nS1.avi,a\n")
     out = tmp / latin1("sortie_é")
     argv = ["-m", "strain2d", "batch", manifest, *ROI, "--animation", "none", "--workers", "1",
-            "--out", out]  # fmt: skip
+            "--no-study", "--out", out]  # fmt: skip
     assert_ran(argv, out)
     assert (out / "runs" / "S1" / "tracks.csv").read_bytes() == c.tracks
-    assert (out / "study" / "specimens.csv").exists()
     # a second batch finds the run complete (its marker records the names readably)
     err = assert_ran(argv, out)
     assert "1 complete already, nothing to run" in err, err
