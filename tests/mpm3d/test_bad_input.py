@@ -650,8 +650,7 @@ def latin1_stacks(mpm_small, tmp_path_factory):
     """``(folder, before, after, reference metrics of before)``: the small stack, and a copy
     of it with its rows flipped, named in Latin-1 in a folder so named."""
     plain = tmp_path_factory.mktemp("plain")
-    folder = plain.parent / latin1("Messdatén")
-    folder.mkdir()
+    folder = tmp_path_factory.mktemp(latin1("Messdatén"))
     before, after = folder / latin1("stäck.tif"), folder / latin1("après.tif")
     before.write_bytes(mpm_small[0].read_bytes())
     with tifffile.TiffFile(mpm_small[0]) as tif:

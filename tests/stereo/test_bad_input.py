@@ -929,8 +929,7 @@ def latin1_stereo(small_stereo, tmp_path_factory):
 
     s = small_stereo
     plain = tmp_path_factory.mktemp("plain")
-    d = plain.parent / latin1("Stéréo")
-    d.mkdir()
+    d = tmp_path_factory.mktemp(latin1("Stéréo"))
     n = SimpleNamespace(dir=d)
     n.left, n.right = d / latin1("gauche_é"), d / latin1("droite_é")
     shutil.copytree(s.left, n.left)

@@ -426,8 +426,7 @@ def latin1_names(tmp_path_factory):
     from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
 
     plain = tmp_path_factory.mktemp("plain")
-    d = plain.parent / latin1("Messdatén")
-    d.mkdir()
+    d = tmp_path_factory.mktemp(latin1("Messdatén"))
     rng = np.random.default_rng(0)
     texture = ndimage.gaussian_filter(rng.uniform(0, 255, (128, 140)), 2)
     texture = np.clip((texture - texture.mean()) * 6 + 128, 0, 255)
