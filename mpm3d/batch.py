@@ -28,6 +28,7 @@ from pathlib import Path
 from tissue_core.batch import Outcome, update_batch_file
 from tissue_core.csvtext import csv_writer
 from tissue_core.errors import InputError
+from tissue_core.filenames import readable
 
 __all__ = ["METRIC_COLUMNS", "stack_rows", "write_metrics_table"]
 
@@ -79,7 +80,8 @@ def write_metrics_table(
             continue
         metrics = json.loads((Path(outcome.out) / "metrics.json").read_text(encoding="utf-8"))
         values = ["" if metrics.get(c) is None else metrics[c] for c in METRIC_COLUMNS]
-        writer.writerow([outcome.name, metrics.get("input_path", ""), *values])
+        # a stack's name as text (bytes that are not UTF-8 as \xNN), as metrics.json has it
+        writer.writerow([readable(outcome.name), metrics.get("input_path", ""), *values])
         rows += 1
     if update_batch_file(path, buffer.getvalue(), overwrite=overwrite) == "kept":
         warnings.warn(

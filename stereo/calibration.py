@@ -520,10 +520,13 @@ def _opencv_file(path: Path) -> dict:
     """Values of an OpenCV FileStorage (YAML/XML) file by lower-case name: (name, value)."""
     import cv2
 
+    from tissue_core.filenames import utf8_alias
     from tissue_core.interrupt import is_interrupt
 
     try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+        # OpenCV crashes on a name that is not UTF-8; it reads the whole file on opening
+        with utf8_alias(path) as name:
+            fs = cv2.FileStorage(str(name), cv2.FILE_STORAGE_READ)
         opened = fs.isOpened()
     except (cv2.error, SystemError) as exc:
         if is_interrupt(exc):

@@ -44,19 +44,26 @@ def _video_capture(path: Path):
     broken").  The toolkit reports the problem itself, in one line: what OpenCV
     printed while opening goes to the log (``-v`` shows it); set
     ``OPENCV_FFMPEG_LOGLEVEL`` (e.g. 24) to see FFmpeg's.
+
+    OpenCV converts the name to UTF-8 and crashes the process on one that is not
+    (``vid\\xe9o.avi`` from a Latin-1 drive): such a video is opened through a
+    UTF-8 alias (:func:`tissue_core.filenames.utf8_alias`); the capture keeps
+    the file open once it has opened it.
     """
     import cv2
 
+    from tissue_core.filenames import utf8_alias
+
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    with _STDERR_LOCK, tempfile.TemporaryFile() as caught:
+    with _STDERR_LOCK, tempfile.TemporaryFile() as caught, utf8_alias(path) as name:
         try:
             sys.stderr.flush()
             saved = os.dup(2)
         except (OSError, ValueError, AttributeError):  # no stderr to keep quiet
-            return cv2.VideoCapture(str(path))
+            return cv2.VideoCapture(str(name))
         try:
             os.dup2(caught.fileno(), 2)
-            cap = cv2.VideoCapture(str(path))
+            cap = cv2.VideoCapture(str(name))
         finally:
             os.dup2(saved, 2)
             os.close(saved)

@@ -50,6 +50,7 @@ from strain2d.errors import InputError
 from strain2d.run import COMPONENTS, Run, load_run
 from strain2d.stats import paired_node_tests
 from tissue_core.csvtext import restore_cell
+from tissue_core.filenames import readable
 
 __all__ = [
     "Specimen",
@@ -144,7 +145,7 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
         entries.append(
             {
                 "run": run_path,
-                "specimen": (row.get("specimen") or "").strip() or run_path.name,
+                "specimen": (row.get("specimen") or "").strip() or readable(run_path.name),
                 "group": group,
                 "endpoint": endpoint if endpoint != "" else None,
             }
@@ -163,7 +164,8 @@ def load_specimens(entries: list[dict]) -> list[Specimen]:
     specimens = []
     for e in entries:
         run = load_run(e["run"])
-        name = e.get("specimen") or Path(e["run"]).name
+        # a folder's name as text: bytes that are not UTF-8 as \xNN (tables, figures, reports)
+        name = e.get("specimen") or readable(Path(e["run"]).name)
         endpoint, source = run.endpoint, run.endpoint_source
         if e.get("endpoint") is not None:
             endpoint, source = int(e["endpoint"]), "given in the manifest"
@@ -395,7 +397,7 @@ def study_statistics(
         row = {
             "specimen": s.name,
             "group": s.group,
-            "run": str(s.run.path),
+            "run": readable(s.run.path),
             "endpoint": s.endpoint,
             "endpoint_source": s.endpoint_source,
             "endpoint_time": float(s.run.times[s.endpoint]),

@@ -16,6 +16,8 @@ Small pieces that ``strain2d``, ``surface_strain``, ``stereo``, ``mpm3d`` and
 * :mod:`tissue_core.csvtext` - CSV files written with every text cell inert
   in a spreadsheet (no formula from a name), and read back as they were;
 * :mod:`tissue_core.images` - image files read whole or refused (NumPy, OpenCV);
+* :mod:`tissue_core.filenames` - file and folder names that are not UTF-8:
+  a UTF-8 alias for the libraries that need one, and the names shown in text;
 * :mod:`tissue_core.tiff_units` - the pixel sizes TIFF files record (ImageJ,
   OME, resolution tags);
 * :mod:`tissue_core.html` - the self-contained `report.html` every package

@@ -55,6 +55,7 @@ from pathlib import Path
 
 from tissue_core.csvtext import restore_cell
 from tissue_core.errors import InputError
+from tissue_core.filenames import readable
 from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
@@ -181,7 +182,8 @@ def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
     listed = summary.get("input_files") or summary.get("inputs") or []
     records = {str(r.get("path")): r for r in listed if isinstance(r, dict)}
     for path in job.inputs:
-        record = records.get(str(path), {})  # not recorded: unchanged if not touched since
+        # (names as the summary shows them: valid UTF-8, see tissue_core.filenames)
+        record = records.get(readable(path), {})  # not recorded: unchanged if not touched since
         p = Path(path)
         try:
             if p.is_dir():
@@ -217,7 +219,8 @@ def job_state(job: Job) -> str:
     if foreign_content(out) is not None:
         return f"{out} was changed since it was written"
     recorded = (marker.get("command") or [])[1:]
-    if _parameters(recorded, job.neutral) != _parameters(job.argv, job.neutral):
+    argv = [readable(a) for a in job.argv]  # as the marker records it
+    if _parameters(recorded, job.neutral) != _parameters(argv, job.neutral):
         return f"{out} was made with other parameters"
     try:
         created = datetime.fromisoformat(marker["created"]).timestamp()
@@ -775,10 +778,10 @@ class _Log:
 
     def __call__(self, message: str, *, show: bool = True, details: Sequence[str] = ()) -> None:
         stamp = datetime.now(UTC).isoformat(timespec="seconds")
-        with open(self.path, "a", encoding="utf-8") as f:
-            f.write(f"{stamp} {message}\n")
+        with open(self.path, "a", encoding="utf-8") as f:  # names as text: tissue_core.filenames
+            f.write(f"{stamp} {readable(message)}\n")
             for line in details:
-                f.write(f"{stamp}   | {line}\n")
+                f.write(f"{stamp}   | {readable(line)}\n")
         if show:
             self.say(message)
 
@@ -886,8 +889,8 @@ def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
     out = [f"{name}: only in {a}" for name in sorted(fa - fb)]
     out += [f"{name}: only in {b}" for name in sorted(fb - fa)]
     for name in sorted(fa & fb):
-        x = (a / name).read_bytes().replace(str(a).encode(), b"<folder>")
-        y = (b / name).read_bytes().replace(str(b).encode(), b"<folder>")
+        x = (a / name).read_bytes().replace(readable(a).encode(), b"<folder>")
+        y = (b / name).read_bytes().replace(readable(b).encode(), b"<folder>")
         if x == y:
             continue
         if name.endswith(".json"):

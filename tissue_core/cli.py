@@ -24,10 +24,12 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import sys
 import warnings
 
 from tissue_core.errors import InputError, SourceError
+from tissue_core.filenames import readable
 from tissue_core.interrupt import (
     handling_interrupts,
     is_interrupt,
@@ -122,10 +124,25 @@ class CommandLine:
         g.add_argument("-v", "--verbose", action="store_true", default=default, help="log details")
 
 
+#: an undecodable byte of a file name as ``repr`` shows it (``'vid\\udce9o.avi'``)
+_REPR_BYTE = re.compile(r"\\udc([89a-f][0-9a-f])")
+
+
 def one_line(message: object) -> str:
-    """A message folded onto one line (a file's own error text may hold newlines)."""
-    text = " ".join(str(message).split())
+    """A message folded onto one line (a file's own error text may hold newlines).
+
+    Bytes of file names that are not UTF-8 are shown as ``\\xNN``, also where
+    the message quotes a name with ``repr`` (Python's own ``OSError`` text).
+    """
+    text = _REPR_BYTE.sub(r"\\x\1", readable(" ".join(str(message).split())))
     return text or "unknown error"
+
+
+class _ReadableFormatter(logging.Formatter):
+    """Log lines that show file names whose bytes are not UTF-8 as ``\\xNN``."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return readable(super().format(record))
 
 
 def _show_warning(prefix: str):
@@ -174,9 +191,11 @@ def run_command(
     try:
         args = parser.parse_args(argv)
         prefix = f"{prog} {args.command}"
+        log_lines = logging.StreamHandler()
+        log_lines.setFormatter(_ReadableFormatter("%(levelname)s: %(message)s"))
         logging.basicConfig(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
-            format="%(levelname)s: %(message)s",
+            handlers=[log_lines],
         )
         with warnings.catch_warnings(), handling_interrupts():
             warnings.simplefilter("always", UserWarning)
@@ -246,7 +265,7 @@ def _interrupted(prefix: str) -> int:
     # on a terminal, ^C was echoed on the open line
     newline = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
     what = (
-        f"interrupted after the results were written to {', '.join(written)}"
+        f"interrupted after the results were written to {readable(', '.join(written))}"
         if written
         else "interrupted; no output written"
     )

@@ -22,6 +22,10 @@ folder, or be the working directory or one of its parents.  A name longer than
 the file system allows (255 bytes on most; an output's own name needs room for
 its temporary name, :data:`SCRATCH_BYTES` more) is refused before anything is
 made (:func:`name_too_long`).
+
+Both records are valid UTF-8 JSON.  A name that is not UTF-8 is listed as
+:func:`~tissue_core.filenames.readable` shows it, and its exact bytes under
+``exact_names``, so that ``--overwrite`` recognises exactly the files listed.
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from pathlib import Path
 from typing import Literal
 
 from tissue_core.errors import InputError
+from tissue_core.filenames import exact_name, readable
 from tissue_core.interrupt import deferred_interrupt, raise_if_interrupted
 
 __all__ = [
@@ -140,7 +145,22 @@ def _read_json(path: Path, kind: str) -> dict | None:
         isinstance(k, str) and isinstance(v, dict) for k, v in files.items()
     ):
         return None
+    exact = data.setdefault("exact_names", {})
+    if not isinstance(exact, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in exact.items()
+    ):
+        return None
     return data
+
+
+def _listed(record: dict, entry: str) -> str | None:
+    """The key under which a marker or ledger lists ``entry`` (a relative name), or None.
+
+    A name that is not UTF-8 is listed as it reads, with its exact bytes in
+    ``exact_names``: a name that only reads alike is not the one listed.
+    """
+    key = readable(entry)
+    return key if record["exact_names"].get(key) == exact_name(entry) else None
 
 
 def read_marker(folder: str | os.PathLike) -> dict | None:
@@ -166,6 +186,10 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
         return f"no {MARKER}"
     files, folders = marker["files"], set(marker.get("folders", []))
 
+    def listed(entry: str, among) -> str | None:
+        key = _listed(marker, entry)
+        return key if key in among else None
+
     def cannot_list(error: OSError) -> None:
         raise error
 
@@ -178,7 +202,7 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
                 dirnames.remove(name)
                 if full.is_symlink():
                     return f"{entry}, a link the earlier result did not make"
-                if entry in folders:
+                if listed(entry, folders) is not None:
                     dirnames.append(name)  # descend: its content must be listed too
                 elif read_marker(full) is not None:
                     inner = foreign_content(full)
@@ -190,9 +214,10 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
                 entry = (rel / name).as_posix()
                 if entry == MARKER or name in _BROWSER_FILES:
                     continue
-                if entry not in files:
+                key = listed(entry, files)
+                if key is None:
                     return f"{entry}, which the earlier result did not write"
-                if not _unchanged(Path(dirpath) / name, files[entry]):
+                if not _unchanged(Path(dirpath) / name, files[key]):
                     return f"{entry}, which was changed after the toolkit wrote it"
     except OSError as exc:
         return f"{exc.filename or 'a subfolder'}, which cannot be read ({exc.strerror or exc})"
@@ -201,7 +226,10 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
 
 def _file_written_here(path: Path) -> bool:
     ledger = _read_json(path.parent / LEDGER, _LEDGER_KIND)
-    return ledger is not None and _unchanged(path, ledger["files"].get(path.name))
+    if ledger is None:
+        return False
+    key = _listed(ledger, path.name)
+    return key is not None and _unchanged(path, ledger["files"].get(key))
 
 
 def written_here(path: str | os.PathLike) -> bool:
@@ -418,21 +446,23 @@ def _provenance() -> dict:
 
     return {
         "software": {"name": "tissue-strain", "version": __version__},
-        "command": recorded_command.get(),
+        "command": [readable(a) for a in recorded_command.get() or []] or None,
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
     }
 
 
 def _write_marker(folder: Path) -> None:
-    files, folders = {}, []
+    files, folders, exact = {}, [], {}
     for p in sorted(folder.rglob("*")):
         rel = p.relative_to(folder).as_posix()
         if rel == MARKER:
             continue
+        if exact_name(rel) is not None:
+            exact[readable(rel)] = exact_name(rel)
         if p.is_dir() and not p.is_symlink():
-            folders.append(rel)
+            folders.append(readable(rel))
         else:
-            files[rel] = _record(p)
+            files[readable(rel)] = _record(p)
     marker = {
         "kind": _MARKER_KIND,
         "note": "written by the tissue-strain toolkit; --overwrite may replace this folder "
@@ -440,6 +470,7 @@ def _write_marker(folder: Path) -> None:
         **_provenance(),
         "folders": folders,
         "files": files,
+        "exact_names": exact,
     }
     (folder / MARKER).write_text(json.dumps(marker, indent=1) + "\n", encoding="utf-8")
 
@@ -452,8 +483,13 @@ def _record_in_ledger(path: Path) -> None:
         "note": "files the tissue-strain toolkit wrote here; --overwrite replaces only these, "
         "and only while their content is unchanged",
         "files": {},
+        "exact_names": {},
     }
-    ledger["files"][path.name] = {**_record(path), **_provenance()}
+    key = readable(path.name)
+    ledger["files"][key] = {**_record(path), **_provenance()}
+    ledger["exact_names"].pop(key, None)
+    if exact_name(path.name) is not None:
+        ledger["exact_names"][key] = exact_name(path.name)
     try:
         fd, name = tempfile.mkstemp(prefix=f"{LEDGER}.tmp-", dir=path.parent)
         with os.fdopen(fd, "w", encoding="utf-8") as f:

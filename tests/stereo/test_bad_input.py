@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from stereo.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, write
+from tests.badinput import FAMILIES, assert_refused, interrupt, scratch_left, snapshot, write
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
 from tissue_core.outputs import atomic_dir
 
@@ -907,3 +908,135 @@ def test_interrupt(when, after, small_stereo, tmp_path):
             "--right", s.right, "--points", s.points, "--strain", "--out", out]  # fmt: skip
     status, _ = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
     assert status == 130
+
+
+# --------------------------------------------------------------------------- names
+
+
+# Names that are not UTF-8 (Windows-origin and shared drives) are read and written.  Each case
+# is a real process given its names as bytes (OpenCV crashed the process on an OpenCV YAML file
+# or a video so named): exit 0, the results of plainly named inputs, and every text file
+# valid UTF-8 (names shown as \xNN).
+
+RECONSTRUCT = ["--grid", "5x4", "--roi", "280,150,400,240", "--tracker", "klt"]
+
+
+@pytest.fixture(scope="module")
+def latin1_stereo(small_stereo, tmp_path_factory):
+    """The small stereo inputs copied under Latin-1 names into a folder so named, with the
+    points that ``reconstruct`` makes of the plainly named ones."""
+    from types import SimpleNamespace
+
+    s = small_stereo
+    plain = tmp_path_factory.mktemp("plain")
+    d = tmp_path_factory.mktemp(latin1("Stéréo"))
+    n = SimpleNamespace(dir=d)
+    n.left, n.right = d / latin1("gauche_é"), d / latin1("droite_é")
+    shutil.copytree(s.left, n.left)
+    shutil.copytree(s.right, n.right)
+    n.left_video, n.right_video = d / latin1("gauche_é.avi"), d / latin1("droite_é.avi")
+    shutil.copy(s.left_video, n.left_video)
+    shutil.copy(s.right_video, n.right_video)
+    n.calib, n.yml = d / latin1("calib_é.json"), d / latin1("stéréo.yml")
+    shutil.copy(s.calib, n.calib)
+    shutil.copy(s.yml, n.yml)
+    n.points = d / latin1("pöints.csv")
+    shutil.copy(s.points, n.points)
+    n.views_left, n.views_right = d / latin1("vues_g_é"), d / latin1("vues_d_é")
+    shutil.copytree(s.views_left, n.views_left)
+    shutil.copytree(s.views_right, n.views_right)
+    argv = ["reconstruct", "--calib", str(s.calib), "--left", str(s.left), "--right",
+            str(s.right), *RECONSTRUCT, "--out", str(plain / "rec"), "-q"]  # fmt: skip
+    assert main(argv) == 0
+    n.points3d = (plain / "rec" / "points3d.csv").read_bytes()
+    n.plain = plain
+    return n
+
+
+def _names_import_calib(s, n, tmp):
+    out = tmp / latin1("calibration_é.json")
+    assert_ran(["-m", "stereo", "import-calib", n.yml, "--out", out], out)
+    assert main(["import-calib", str(s.yml), "--out", str(tmp / "plain.json"), "-q"]) == 0
+    ours, theirs = strict_json(out), strict_json(tmp / "plain.json")
+    assert ours.pop("imported_from") == ["st\\xe9r\\xe9o.yml"]
+    assert theirs.pop("imported_from") == ["stereo.yml"]
+    assert ours == theirs
+
+
+def _names_calibrate(s, n, tmp):
+    out = tmp / latin1("calibration_é.json")
+    assert_ran(["-m", "stereo", "calibrate", "--left", n.views_left, "--right", n.views_right,
+                "--board", "checkerboard:9x6:10", "--out", out], out)  # fmt: skip
+    calib = strict_json(out)
+    assert abs(calib["rms_px"]) < 1.0, calib.get("rms_px")
+
+
+def _names_match(s, n, tmp):
+    out = tmp / latin1("appariés.csv")
+    left0, right0 = n.left / "frame_000.png", n.right / "frame_000.png"
+    assert_ran(["-m", "stereo", "match", left0, right0, "--points", n.points, "--calib",
+                n.calib, "--out", out], out)  # fmt: skip
+    plain = tmp / "plain.csv"
+    assert main(["match", str(s.left0), str(s.right0), "--points", str(s.points), "--calib",
+                 str(s.calib), "--out", str(plain), "-q"]) == 0  # fmt: skip
+    assert out.read_bytes() == plain.read_bytes()
+
+
+def _names_reconstruct_folders(s, n, tmp):
+    out = tmp / latin1("résultats")
+    assert_ran(["-m", "stereo", "reconstruct", "--calib", n.calib, "--left", n.left, "--right",
+                n.right, *RECONSTRUCT, "--strain", "--out", out], out)  # fmt: skip
+    assert (out / "points3d.csv").read_bytes() == n.points3d
+    assert len(list((out / "strain" / "strain").glob("*.vtp"))) == 2
+
+
+def _names_reconstruct_videos(s, n, tmp):
+    out = tmp / latin1("résultats")
+    assert_ran(["-m", "stereo", "reconstruct", "--calib", n.calib, "--left", n.left_video,
+                "--right", n.right_video, *RECONSTRUCT, "--out", out], out)  # fmt: skip
+    assert (out / "points3d.csv").read_bytes() == n.points3d
+
+
+def _names_batch(s, n, tmp):
+    manifest = write(n.plain / latin1("lot_é"), "manifest.csv", "specimen,left,right\n"
+                     f"feuille,{s.left},{s.right}\n")  # fmt: skip
+    out = tmp / latin1("lot_é")
+    argv = ["-m", "stereo", "batch", manifest, "--calib", n.calib, *RECONSTRUCT, "--workers",
+            "1", "--out", out]  # fmt: skip
+    assert_ran(argv, out)
+    assert (out / "runs" / "feuille" / "points3d.csv").read_bytes() == n.points3d
+    err = assert_ran(argv, out)  # the run's marker names the calibration readably
+    assert "1 complete already, nothing to run" in err, err
+
+
+def _names_damaged_yml(s, n, tmp):
+    yml = write(tmp, latin1("abîmé.yml"), "%YAML:1.0\nM1: [1, 2\n")
+    out = tmp / "calib.json"
+    assert_refused_process(["-m", "stereo", "import-calib", yml, "--out", out],
+                           fragments=["stereo import-calib: error:", shown(yml)])  # fmt: skip
+    assert not out.exists()
+
+
+NAME_CASES = {
+    "import-calib-filename-damaged-yml": _names_damaged_yml,
+    "import-calib-filename-yml-and-out": _names_import_calib,
+    "calibrate-filename-views-and-out": _names_calibrate,
+    "match-filename-images-points-and-out": _names_match,
+    "reconstruct-filename-folders-and-out": _names_reconstruct_folders,
+    "reconstruct-filename-videos": _names_reconstruct_videos,
+    "batch-filename-manifest-and-out": _names_batch,
+}
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize("case", list(NAME_CASES), ids=list(NAME_CASES))
+    def test_bad_input(self, small_stereo, latin1_stereo, tmp_path, case):
+        tmp = tmp_path / latin1("dossier_é")
+        tmp.mkdir()
+        before = snapshot(latin1_stereo.dir)
+        NAME_CASES[case](small_stereo, latin1_stereo, tmp)
+        assert snapshot(latin1_stereo.dir) == before  # inputs untouched
+        assert scratch_left(tmp) == []

@@ -19,8 +19,18 @@ from tests.badinput import (
     assert_refused,
     interrupt,
     parse_case_id,
+    scratch_left,
     snapshot,
     unwritable_folder,
+    write,
+)
+from tests.filenames import (
+    assert_ran,
+    assert_refused_process,
+    latin1,
+    run_process,
+    shown,
+    strict_json,
 )
 
 PROG = "strain2d"
@@ -438,3 +448,177 @@ def test_a_foreign_folder_survives_an_overwrite_attempt_untouched(inputs, capsys
         assert "is not a result of this toolkit" in capsys.readouterr().err
     assert snapshot(inputs.mine) == before
     assert Path(inputs.mine / "chapter1.tex").read_text() == "years of work"
+
+
+# ---- names that are not UTF-8 (Windows-origin and shared drives) ---------------------------
+# Each case is a real process given its names as bytes: OpenCV crashed the process on such a
+# name (exit 139, nothing said).  Every command reads and writes them: exit 0, the same tracks
+# as from plainly named files, every text file it wrote valid UTF-8 (names shown as \xNN).
+
+ROI = ["--grid", "3x3", "--roi", "40,40,88,88", "--tracker", "klt"]
+
+
+@pytest.fixture(scope="module")
+def latin1_names(tmp_path_factory):
+    """A folder named in Latin-1 with a video, a TIFF, a folder of images, points and run
+    folders so named; and the tracks that the same frames give under plain names."""
+    import cv2
+    from scipy import ndimage
+
+    from sample_data_synth import write_video
+    from surface_strain.cli import main as surface_main
+    from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
+
+    plain = tmp_path_factory.mktemp("plain")
+    d = tmp_path_factory.mktemp(latin1("Messdatén"))
+    rng = np.random.default_rng(0)
+    texture = ndimage.gaussian_filter(rng.uniform(0, 255, (128, 140)), 2)
+    texture = np.clip((texture - texture.mean()) * 6 + 128, 0, 255)
+    frames = np.stack([texture[:, 8 - 2 * k : 136 - 2 * k] for k in range(4)]).astype(np.uint8)
+    c = SimpleNamespace(dir=d, frames=frames)
+    write_video(frames, plain / "video.avi")
+    c.video, c.tif, c.images = (
+        d / latin1("vidéo.avi"),
+        d / latin1("stäck.tif"),
+        d / latin1("imagés"),
+    )
+    shutil.copy(plain / "video.avi", c.video)
+    write_video(frames, c.tif)
+    c.images.mkdir()
+    for k, frame in enumerate(frames):
+        (c.images / latin1(f"trame_é_{k}.png")).write_bytes(cv2.imencode(".png", frame)[1])
+    c.points = write(d, latin1("pöints.csv"), "x,y\n40,40\n88,40\n64,88\n88,88\n")
+    assert main(["-q", "track", str(plain / "video.avi"), *ROI, "--out",
+                 str(plain / "tracks.csv")]) == 0  # fmt: skip
+    c.tracks = (plain / "tracks.csv").read_bytes()
+    # two run folders so named, for the study (3D runs: made without figures, quickly)
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    _write(plain / "points3d.csv", points)
+    assert surface_main(["-q", "compute", str(plain / "points3d.csv"), "--grid", "5x5",
+                         "--no-figures", "--out", str(plain / "run")]) == 0  # fmt: skip
+    c.runs = [d / latin1(f"spécimen_{k}") for k in "AB"]
+    for run in c.runs:
+        shutil.copytree(plain / "run", run)
+    return c
+
+
+def _analyze_names(c, source, tmp):
+    out = tmp / latin1("résultats")
+    return ["analyze", source, *ROI, "--animation", "mp4", "--out", out], out
+
+
+def _names_case_analyze_video(c, tmp):
+    argv, out = _analyze_names(c, c.video, tmp)
+    assert_ran(["-m", "strain2d", *argv], out)
+    assert (out / "tracks.csv").read_bytes() == c.tracks
+    summary = strict_json(out / "summary.json")
+    assert shown(c.video) in summary["command"]
+    assert (out / "figures" / "strain_animation.mp4").stat().st_size > 0
+    assert shown(c.video) in (out / "report.html").read_text(encoding="utf-8")
+
+
+def _names_case_track_tiff(c, tmp):
+    out = tmp / latin1("träcks.csv")
+    assert_ran(["-m", "strain2d", "track", c.tif, *ROI, "--out", out], out)
+    assert out.read_bytes() == c.tracks
+
+
+def _names_case_analyze_image_folder(c, tmp):
+    argv, out = _analyze_names(c, c.images, tmp)
+    assert_ran(["-m", "strain2d", *argv[:-3], "gif", "--out", out], out)
+    assert (out / "tracks.csv").read_bytes() == c.tracks
+    assert (out / "figures" / "strain_animation.gif").stat().st_size > 0
+
+
+def _names_case_track_points_and_out(c, tmp):
+    out = tmp / latin1("träcks.csv")
+    argv = ["-m", "strain2d", "track", c.video, "--points", c.points, "--tracker", "klt"]
+    assert_ran([*argv, "--out", out], out)
+    first = out.read_text(encoding="utf-8")
+    assert first.startswith("frame,point,x,y,visible,quality\n0,0,40.0")
+    ledger = strict_json(tmp / ".tissue-strain-files.json")
+    assert list(ledger["files"]) == [shown(out.name)]
+    # the ledger finds the file again: --overwrite replaces it, without it the file is kept
+    status, err = run_process([*argv, "--out", out])
+    assert status == 2 and "pass --overwrite" in err and shown(out) in err
+    assert_ran([*argv, "--out", out, "--overwrite"], out)
+    # and the tracks are read back from a file so named
+    again = tmp / "again.csv"
+    assert main(["-q", "track", "--tracker", "imported", str(c.video), "--tracks-file", str(out),
+                 "--out", str(again)]) == 0  # fmt: skip
+    assert again.read_text(encoding="utf-8") == first
+
+
+def _names_case_study_runs(c, tmp):
+    out = tmp / latin1("étude")
+    assert_ran(["-m", "strain2d", "study", *c.runs, "--out", out], out)
+    specimens = (out / "specimens.csv").read_text(encoding="utf-8")
+    assert "sp\\xe9cimen_A," in specimens and "sp\\xe9cimen_B," in specimens
+
+
+def _names_case_batch_manifest_and_out(c, tmp):
+    folder = tmp / latin1("lot_é")
+    folder.mkdir()
+    shutil.copy(c.video, folder / "S1.avi")
+    manifest = write(folder, "manifest.csv", "video,group\nS1.avi,a\n")
+    out = tmp / latin1("sortie_é")
+    argv = ["-m", "strain2d", "batch", manifest, *ROI, "--animation", "none", "--workers", "1",
+            "--no-study", "--out", out]  # fmt: skip
+    assert_ran(argv, out)
+    assert (out / "runs" / "S1" / "tracks.csv").read_bytes() == c.tracks
+    # a second batch finds the run complete (its marker records the names readably)
+    err = assert_ran(argv, out)
+    assert "1 complete already, nothing to run" in err, err
+
+
+def _names_case_benchmark_out(c, tmp):
+    out = tmp / latin1("bänch")
+    assert_ran(["-m", "strain2d", "benchmark", "--quick", "--cases", "rotation", "--trackers",
+                "klt", "--no-figures", "--out", out], out)  # fmt: skip
+    assert strict_json(out / "benchmark.json")
+
+
+def _names_case_analyze_damaged_video(c, tmp):
+    video = write(tmp, latin1("abîmée.avi"), "not a video\n")
+    out = tmp / "run"
+    assert_refused_process(["-m", "strain2d", "analyze", video, "--out", out],
+                           fragments=["strain2d analyze: error:", shown(video)])  # fmt: skip
+    assert not out.exists()
+
+
+def _names_case_track_missing_points(c, tmp):
+    out = tmp / "tracks.csv"
+    missing = tmp / latin1("pöints_perdus.csv")
+    assert_refused_process(["-m", "strain2d", "track", c.video, "--points", missing, "--out", out],
+                           fragments=[shown(missing)])  # fmt: skip
+    assert not out.exists()
+
+
+NAME_CASES = {
+    "analyze-filename-damaged-video": _names_case_analyze_damaged_video,
+    "track-filename-missing-points": _names_case_track_missing_points,
+    "analyze-filename-video": _names_case_analyze_video,
+    "analyze-filename-image-folder": _names_case_analyze_image_folder,
+    "track-filename-tiff": _names_case_track_tiff,
+    "track-filename-points-and-out": _names_case_track_points_and_out,
+    "study-filename-runs": _names_case_study_runs,
+    "batch-filename-manifest-and-out": _names_case_batch_manifest_and_out,
+    "benchmark-filename-out": _names_case_benchmark_out,
+}
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize("case", list(NAME_CASES), ids=list(NAME_CASES))
+    def test_bad_input(self, latin1_names, tmp_path, case):
+        command, family, _ = parse_case_id(case)
+        assert family == "filename" and command in ("analyze", "track", "study", "batch",
+                                                    "benchmark")  # fmt: skip
+        tmp = tmp_path / latin1("dossier_é")
+        tmp.mkdir()
+        before = snapshot(latin1_names.dir)
+        NAME_CASES[case](latin1_names, tmp)
+        assert snapshot(latin1_names.dir) == before  # inputs untouched
+        assert scratch_left(tmp) == []

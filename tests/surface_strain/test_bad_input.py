@@ -11,7 +11,15 @@ import numpy as np
 import pytest
 
 from surface_strain.cli import main
-from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id
+from tests.badinput import (
+    assert_refused,
+    interrupt,
+    message_lines,
+    parse_case_id,
+    scratch_left,
+    snapshot,
+)
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
 
 PROG = "surface_strain"
@@ -182,3 +190,56 @@ def test_interrupt(tmp_path, when, after):
                             when=when, out=out, inputs=[src])  # fmt: skip
     assert status == 130  # before the command is parsed the line names the program only
     assert message_lines(err)[-1].startswith("surface_strain")
+
+
+# ---- names that are not UTF-8 (Windows-origin and shared drives) ---------------------------
+# Read and written, in a real process given its names as bytes (VTK raised on them): exit 0,
+# the tables of plainly named files, every text file valid UTF-8 (names shown as \xNN).
+
+
+def _names_points_triangles_and_out(tmp):
+    plain = tmp / "plain"
+    plain.mkdir()
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    _write(plain / "points3d.csv", points)
+    (plain / "triangles.csv").write_text("p0,p1,p2\n0,1,5\n1,6,5\n1,2,6\n")
+    folder = tmp / latin1("Messdatén")
+    folder.mkdir()
+    src, tri = folder / latin1("pöints3d.csv"), folder / latin1("triängles.csv")
+    src.write_bytes((plain / "points3d.csv").read_bytes())
+    tri.write_bytes((plain / "triangles.csv").read_bytes())
+    before = snapshot(folder)
+    # the figures (VTK's screenshots, titles) once; the given triangles without them
+    for name, extra in (("grid", []), ("given", ["--triangles", tri, "--no-figures"])):
+        ref = plain / name
+        plain_extra = ["--triangles", str(plain / "triangles.csv")] if extra else []
+        assert main(["compute", "-q", str(plain / "points3d.csv"), "--no-figures", "--out",
+                     str(ref), *plain_extra]) == 0  # fmt: skip
+        out = tmp / latin1(f"résultats_{name}")
+        assert_ran(["-m", "surface_strain", "compute", src, *extra, "--out", out], out)
+        for table in ("strain_nodes.csv", "strain_elements.csv"):
+            assert (out / table).read_bytes() == (ref / table).read_bytes()
+        assert len(list((out / "strain").glob("*.vtp"))) == 3
+        assert (out / "figures").is_dir() == (not extra)
+        summary = strict_json(out / "summary.json")
+        assert summary["input_files"][0]["path"] == shown(src)
+    assert snapshot(folder) == before
+    assert scratch_left(tmp) == []
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[compute-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize(
+        "case", ["compute-filename-points-triangles-and-out", "compute-filename-missing-points"]
+    )
+    def test_bad_input(self, tmp_path, case):
+        assert parse_case_id(case)[:2] == ("compute", "filename")
+        if case.endswith("-missing-points"):
+            missing = tmp_path / latin1("pöints_perdus.csv")
+            assert_refused_process(["-m", "surface_strain", "compute", missing, "--out",
+                                    tmp_path / "out"], fragments=[shown(missing)])  # fmt: skip
+            assert list(tmp_path.iterdir()) == []
+        else:
+            _names_points_triangles_and_out(tmp_path)
