@@ -57,7 +57,7 @@ from scipy import linalg, ndimage, sparse
 
 from strain2d.trackers.dic import _coefficients, _sample
 
-__all__ = ["Lattice", "LatticeSolver", "noise_sigma"]
+__all__ = ["Frame", "Lattice", "LatticeSolver", "noise_sigma"]
 
 
 def noise_sigma(image: np.ndarray) -> float:
@@ -260,6 +260,33 @@ def _shape_functions(h: int, stride: int) -> np.ndarray:
     return np.stack([(1 - xi) * (1 - eta), xi * (1 - eta), (1 - xi) * eta, xi * eta], axis=1)
 
 
+class Frame:
+    """A frame and what the solvers fitted to it compute from it once: the spline
+    coefficients of each blur, the bright blobs for each noise level."""
+
+    def __init__(self, image: np.ndarray) -> None:
+        self.image = np.asarray(image, dtype=np.float64)
+        self._coefficients: dict[float, np.ndarray] = {}
+        self._blobs: dict[float, np.ndarray] = {}
+
+    @classmethod
+    def of(cls, frame) -> Frame:
+        return frame if isinstance(frame, Frame) else cls(frame)
+
+    def coefficients(self, blur: float) -> np.ndarray:
+        if blur not in self._coefficients:
+            g = self.image
+            if blur > 0:
+                g = ndimage.gaussian_filter(g, blur, mode="mirror")
+            self._coefficients[blur] = _coefficients(g)
+        return self._coefficients[blur]
+
+    def blobs(self, noise: float) -> np.ndarray:
+        if noise not in self._blobs:
+            self._blobs[noise] = bright_blobs(self.image, noise)
+        return self._blobs[noise]
+
+
 class _Level:
     """One resolution: the reference blurred by ``blur`` px and sampled every ``stride`` px."""
 
@@ -268,11 +295,17 @@ class _Level:
     ):
         self.lattice, self.blur, self.stride, self.mean = lattice, blur, stride, mean
         h, nx, ny = lattice.h, lattice.nx, lattice.ny
-        f = ndimage.gaussian_filter(reference, blur, mode="mirror") if blur > 0 else reference
+        # the lattice's box with the blur's reach and the gradient's pixel around it
+        H, W = reference.shape
+        reach = int(np.ceil(4 * blur)) + 2
+        y0, x0 = max(lattice.y0 - reach, 0), max(lattice.x0 - reach, 0)
+        y1, x1 = min(lattice.y0 + ny * h + reach, H), min(lattice.x0 + nx * h + reach, W)
+        part = reference[y0:y1, x0:x1]
+        f = ndimage.gaussian_filter(part, blur, mode="mirror") if blur > 0 else part
         gy, gx = np.gradient(f)
         region = (
-            slice(lattice.y0, lattice.y0 + ny * h, stride),
-            slice(lattice.x0, lattice.x0 + nx * h, stride),
+            slice(lattice.y0 - y0, lattice.y0 - y0 + ny * h, stride),
+            slice(lattice.x0 - x0, lattice.x0 - x0 + nx * h, stride),
         )
         m = h // stride
 
@@ -299,12 +332,13 @@ class _Level:
         self.texture = np.mean(self.q[..., 0] ** 2 + self.q[..., 1] ** 2, axis=1)
         self.variance = self.f.var(axis=1)
 
-    def prepare(self, frame: np.ndarray, mask: np.ndarray | None = None):
-        """Spline coefficients of the blurred frame, and of its highlight mask (or None)."""
-        g = ndimage.gaussian_filter(frame, self.blur, mode="mirror") if self.blur > 0 else frame
+    def prepare(self, frame, mask: np.ndarray | None = None):
+        """Spline coefficients of the blurred frame (a :class:`Frame` keeps them for every
+        solver fitted to it), and its highlight mask grown by the blur (or None)."""
+        coefficients = Frame.of(frame).coefficients(self.blur)
         if mask is None or not mask.any():
-            return _coefficients(g), None
-        return _coefficients(g), _grown(mask, self.blur)
+            return coefficients, None
+        return coefficients, _grown(mask, self.blur)
 
 
 class LatticeSolver:
@@ -322,6 +356,8 @@ class LatticeSolver:
         its second derivatives. Smaller is smoother.
     noise : float or None
         Image noise (gray levels); measured on the reference when None.
+    blobs : (H, W) bool or None
+        The reference's bright blobs (:func:`bright_blobs`); found when None.
     """
 
     def __init__(
@@ -332,6 +368,7 @@ class LatticeSolver:
         spacing: int = 16,
         curvature: float = 2e-3,
         noise: float | None = None,
+        blobs: np.ndarray | None = None,
         levels: tuple[tuple[float, int], ...] = ((3.0, 4), (1.2, 2), (0.0, 1)),
         max_iterations: int = 25,
         tolerance: float = 1e-2,
@@ -342,7 +379,7 @@ class LatticeSolver:
         self.cells = self.lattice.cell_nodes()
         self.origins = self.lattice.cell_origins()
         self.noise = max(noise_sigma(reference) if noise is None else float(noise), 0.5)
-        self.reference_blobs = bright_blobs(reference, self.noise)
+        self.reference_blobs = bright_blobs(reference, self.noise) if blobs is None else blobs
         lat = self.lattice
         self.mean = float(
             reference[lat.y0 : lat.y0 + lat.ny * lat.h, lat.x0 : lat.x0 + lat.nx * lat.h].mean()
@@ -535,10 +572,10 @@ class LatticeSolver:
         residual (a cost to compare initial guesses by)."""
         self._anchor = np.array(guess, dtype=float)
         level = self.levels[0]
-        frame = np.asarray(frame, np.float64)
+        frame = Frame.of(frame)
         if self.reference_blobs.any():
             self.reference_highlights, self.frame_highlights = static_highlights(
-                self.reference_blobs, bright_blobs(frame, self.noise), self._motion
+                self.reference_blobs, frame.blobs(self.noise), self._motion
             )
         else:  # nothing on the reference could be a highlight
             self.reference_highlights = self.frame_highlights = np.zeros(self.shape, bool)
@@ -562,7 +599,7 @@ class LatticeSolver:
         """Fit the finer levels from the coarse ``state``, up to ``levels`` levels in all
         (all of them when None; 1 keeps the coarse fit); True if the last level fitted
         converged (or no finer level was asked for)."""
-        frame = np.asarray(frame, dtype=np.float64)
+        frame = Frame.of(frame)
         converged = True
         stop = len(self.levels) if levels is None else min(max(levels, 1), len(self.levels))
         for k in range(1, stop):
