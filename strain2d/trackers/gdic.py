@@ -112,6 +112,8 @@ _LOCAL_FIELDS_UP_TO = 0.1
 #: the quadratic warp is tried where the affine one's bias from the curvature exceeds this
 #: fraction of the match's noise, and the affine residual exceeds the noise by 20 %
 _QUADRATIC_BIAS = 0.5
+
+
 def _gray8(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a, dtype=np.float64)
     lo, hi = np.percentile(a, [0.5, 99.5])
@@ -633,14 +635,20 @@ class _Run:
         x, y = points[:, 0], points[:, 1]
         self.in_frame0 = (x >= 0) & (x <= W - 1) & (y >= 0) & (y <= H - 1)
         self.noise = max(noise_sigma(reference), 0.5)
+        self.auto = subset == "auto"
+        self.candidates = _SUBSETS if self.auto else (int(subset),)
         # bright smooth blobs (specular highlights, which stay where the lamp puts them, or
         # bright tissue) are filled in smoothly for the subsets, on the reference and on
         # every frame: a subset then follows the tissue's texture, never the light
         self.blobs = bright_blobs(reference, self.noise)
+        # only a blob that a subset could hold matters
+        reach = max(self.candidates) // 2 + 2
+        (x0, y0), (x1, y1) = points.min(axis=0) - reach, points.max(axis=0) + reach
+        near = np.zeros(self.shape, bool)
+        near[max(int(y0), 0) : max(int(y1) + 1, 0), max(int(x0), 0) : max(int(x1) + 1, 0)] = True
+        self.blobs &= near
         matched = _filled(reference, self.blobs) if self.blobs.any() else reference
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
-        self.auto = subset == "auto"
-        self.candidates = _SUBSETS if self.auto else (int(subset),)
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
         self.orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
@@ -651,9 +659,7 @@ class _Run:
         # the frame's over offsets spread by the deformation
         frac = points - np.floor(points)
         mean_gain = np.mean(_spline_noise_gain(np.linspace(0, 1, 32, endpoint=False)))
-        self.gain = (
-            _spline_noise_gain(frac[:, 0]) * _spline_noise_gain(frac[:, 1]) + mean_gain**2
-        )
+        self.gain = _spline_noise_gain(frac[:, 0]) * _spline_noise_gain(frac[:, 1]) + mean_gain**2
         self.intensity = _box_mean(reference, points, self.candidates[0])
         # a subset that holds a bright blob may follow the light: the field decides there
         self.risky = _touches(self.blobs, points, self.wanted // 2)
@@ -922,9 +928,7 @@ class _Run:
         return {
             "positions": pos,
             "visible": vis,
-            "quality": np.where(
-                vis, np.where(ok, np.clip(z, 0.0, 1.0), field_quality), 0.0
-            ),
+            "quality": np.where(vis, np.where(ok, np.clip(z, 0.0, 1.0), field_quality), 0.0),
             "sigma": np.where(vis, np.where(ok, sigma, field_sigma), np.nan),
         }
 
@@ -1091,9 +1095,11 @@ def _displacement_at(
 def _filled(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """``image`` with the pixels of ``mask`` replaced by the mean of their surroundings
     (a normalized Gaussian convolution of the other pixels, 10 px): smooth, no texture."""
+    from strain2d.trackers._lattice import _blur
+
     keep = (~mask).astype(float)
-    weight = ndimage.gaussian_filter(keep, 10.0, mode="mirror")
-    smooth = ndimage.gaussian_filter(image * keep, 10.0, mode="mirror")
+    weight = _blur(keep, 10.0)
+    smooth = _blur(image * keep, 10.0)
     fill = smooth / np.maximum(weight, 1e-6)
     far = weight < 1e-6  # a mask wider than the blur's reach: the image's mean
     fill[far] = image[~mask].mean() if (~mask).any() else image.mean()
