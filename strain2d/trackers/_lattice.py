@@ -299,9 +299,7 @@ class Frame:
 
     def coefficients(self, blur: float) -> np.ndarray:
         if blur not in self._coefficients:
-            g = self.image
-            if blur > 0:
-                g = ndimage.gaussian_filter(g, blur, mode="mirror")
+            g = _blur(self.image, blur) if blur > 0 else self.image
             self._coefficients[blur] = _coefficients(g)
         return self._coefficients[blur]
 
@@ -324,8 +322,8 @@ class _Level:
         reach = int(np.ceil(4 * blur)) + 2
         y0, x0 = max(lattice.y0 - reach, 0), max(lattice.x0 - reach, 0)
         y1, x1 = min(lattice.y0 + ny * h + reach, H), min(lattice.x0 + nx * h + reach, W)
-        part = reference[y0:y1, x0:x1]
-        f = ndimage.gaussian_filter(part, blur, mode="mirror") if blur > 0 else part
+        part = np.ascontiguousarray(reference[y0:y1, x0:x1])
+        f = _blur(part, blur) if blur > 0 else part
         gy, gx = np.gradient(f)
         region = (
             slice(lattice.y0 - y0, lattice.y0 - y0 + ny * h, stride),

@@ -1002,6 +1002,7 @@ class _Run:
                 self.points[cover] if cover.any() else self.points,
                 spacing=self.spacing,
                 curvature=self.curvature,
+                noise=self.noise,
                 blobs=self.blobs,
             )
             self.fields[key] = [solver, -1, None]  # the solver, its last frame, the state before
