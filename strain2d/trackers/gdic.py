@@ -89,6 +89,8 @@ _SUBSETS = (31, 41, 51, 61, 81)
 #: noise-limited standard deviation (px, along the subset's weakest direction) that
 #: ``subset="auto"`` asks of a subset before it stops growing
 _SIGMA_TARGET = 0.04
+#: the smaller subsets a point near the frame's edge falls back to (its subset would leave)
+_EDGE_SUBSETS = (15, 21)
 
 #: the same standard deviation (px) beyond which even the largest subset that fits holds
 #: no texture to measure: the point is never reported as measured (a blank background)
@@ -790,6 +792,11 @@ class _Run:
         rows = np.flatnonzero(active)
         step = _last_step(self.before, self.last, self.matched_before & self.matched)
         p0 = self._guess(step)
+        # no larger than fits in the frame where the guess puts the point (a point near the
+        # edge of a stretching frame keeps a subset, a smaller one)
+        if self.auto:
+            edge = (*_EDGE_SUBSETS, *self.candidates)
+            sizes = np.minimum(sizes, _fitting(self.points, p0, self.shape, edge))
 
         # 1. every textured point from the motion guess (affine warp)
         p = np.zeros((n, 6))
@@ -1020,6 +1027,28 @@ class _Run:
         solver.refine(frame, coarse)
         field[1], field[2] = t, (previous if last == t - 1 else None)
         return solver
+
+
+#: px the warped subset keeps from the frame's edge beyond the spline margin (the motion
+#: between the guess and the match)
+_EDGE_ROOM = 3.0
+
+
+def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -> np.ndarray:
+    """Per point, the largest subset side among ``sizes`` (ascending) whose square, warped
+    by ``p`` (affine, ``(N, 6)``), lies in the frame with :data:`_EDGE_ROOM` px to spare;
+    the smallest where none does."""
+    H, W = shape
+    x = points + p[:, :2]
+    F = _gradient(p)
+    reach = np.abs(F).sum(axis=2)  # per axis, how far a corner at (h, h) reaches, per unit h
+    room = np.stack([x[:, 0] - 1, W - 2 - x[:, 0], x[:, 1] - 1, H - 2 - x[:, 1]], axis=1)
+    room = room - _EDGE_ROOM
+    half = np.min(room / np.repeat(np.maximum(reach, 1e-6), 2, axis=1), axis=1)
+    sizes = np.asarray(sizes)
+    fits = (sizes[None, :] // 2) <= np.nan_to_num(half, nan=-1.0)[:, None]
+    best = np.where(fits.any(axis=1), fits.shape[1] - 1 - np.argmax(fits[:, ::-1], axis=1), 0)
+    return sizes[best]
 
 
 def _inconsistent(
