@@ -30,7 +30,7 @@ import numpy as np
 
 from tissue_core.errors import InputError
 
-__all__ = ["LongTable", "read_long_table", "write_long_table"]
+__all__ = ["LongTable", "cell_count_error", "read_long_table", "write_long_table"]
 
 _MISSING = ("", "nan", "none", "null")
 #: rows :func:`write_long_table` formats at a time (whole frames, at least one)
@@ -214,11 +214,35 @@ def _check_cell_counts(body: list[str], path: Path, n_cells: int) -> None:
         found = len(next(csv.reader([row]))) if '"' in row else int(counts[k])
         if found == n_cells:
             continue
-        hint = " (a decimal comma?)" if found > n_cells else ""
-        raise InputError(
-            f"{path}, line {k + 2}: {found} cells where the header has {n_cells}{hint}: "
-            f"{_shown(row)}"
-        )
+        raise cell_count_error(path, k + 2, found, n_cells, row)
+
+
+def cell_count_error(
+    path: str | os.PathLike,
+    line: int,
+    found: int,
+    expected: int,
+    row: str,
+    *,
+    reference: str = "the header",
+    decimals: bool = True,
+) -> InputError:
+    """The error of a CSV row with ``found`` cells where ``reference`` has ``expected``.
+
+    One wording for every CSV reader of the toolkit (long tables, points,
+    triangles, manifests).  In a table of numbers (``decimals``) a cell too
+    many is most often a decimal comma, and the message says so.
+
+    Examples
+    --------
+    >>> print(cell_count_error("p.csv", 3, 3, 2, "10,5,20"))
+    p.csv, line 3: 3 cells where the header has 2 (a decimal comma?): 10,5,20
+    """
+    hint = " (a decimal comma?)" if decimals and found > expected else ""
+    cells = "1 cell" if found == 1 else f"{found} cells"
+    return InputError(
+        f"{path}, line {line}: {cells} where {reference} has {expected}{hint}: {_shown(row)}"
+    )
 
 
 def _rows(body: list[str], path: Path, index: list[int]) -> tuple[np.ndarray, np.ndarray]:
