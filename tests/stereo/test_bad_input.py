@@ -690,7 +690,13 @@ BAD_POINTS = [
     ("header-only", "x,y\n", ["no points"]),
     ("outside-the-image", f"x,y\n300,150\n{W + 5},200\n350,220\n", ["point 1", "outside"]),
     ("negative", "x,y\n300,150\n-3,200\n350,220\n", ["point 1", "outside"]),
-]
+    # a decimal comma (320,5 for 320.5) makes one cell too many; a cell missing
+    ("ragged-decimal-comma", "x,y\n300,150\n320,5,200\n350,220\n",
+     ["line 3: 3 cells where the header has 2 (a decimal comma?): 320,5,200"]),
+    ("ragged-first-row", "x,y\n300,5,150\n320,200\n350,220\n", ["line 2: 3 cells"]),
+    ("ragged-short-row", "x,y\n300,150\n320\n350,220\n",
+     ["line 3: 1 cell where the header has 2"]),
+]  # fmt: skip
 for command in ("match", "reconstruct"):
     for name, text, fragments in BAD_POINTS:
 
