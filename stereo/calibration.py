@@ -252,14 +252,16 @@ _CONTINUES = 0.75
 
 def _find_checkerboard(gray: np.ndarray, size: tuple[int, int]):
     """``cv2.findChessboardCornersSBWithMeta`` allowing a larger board than ``size``, with the
-    exhaustive search for harder images: corners (M, 2) as a grid (rows, cols, 2), or None."""
+    exhaustive search for harder images: (corners (M, 2), their grid (rows, cols, 2) or None
+    when their layout is unclear), or None when nothing is found."""
     import cv2
 
     flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_LARGER
     for extra in (0, cv2.CALIB_CB_EXHAUSTIVE):
         found, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, size, flags | extra)
         if found:
-            return _as_grid(corners.reshape(-1, 2).astype(np.float64), meta.shape[:2])
+            points = corners.reshape(-1, 2).astype(np.float64)
+            return points, _as_grid(points, meta.shape[:2])
     return None
 
 
@@ -285,19 +287,22 @@ def _detect_checkerboard(gray: np.ndarray, board: Board):
     import cv2
 
     size = (board.cols, board.rows)
-    grid = _find_checkerboard(gray, size)
-    if grid is None:
+    found = _find_checkerboard(gray, size)
+    if found is None:
         return None
-    rows, cols = _board_grid(gray, grid).shape[:2]
-    if rows * cols > board.cols * board.rows:
-        raise BoardSizeError(board, _as_given(board, (cols, rows)))
-    if grid.shape[:2] == (board.rows, board.cols):
-        pts = grid.reshape(-1, 2)
-    else:  # found the other way round, or with false corners: read it as given
-        ok, corners = cv2.findChessboardCornersSB(
-            gray, size, flags=cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
-        )
-        if not ok:
+    pts, grid = found
+    if grid is not None:
+        rows, cols = _board_grid(gray, grid).shape[:2]
+        if rows * cols > board.cols * board.rows:
+            raise BoardSizeError(board, _as_given(board, (cols, rows)))
+    if grid is None or grid.shape[:2] != (board.rows, board.cols):
+        # found the other way round, with false corners, or unclearly: read it as given
+        flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
+        for extra in (0, cv2.CALIB_CB_EXHAUSTIVE):
+            ok, corners = cv2.findChessboardCornersSB(gray, size, flags=flags | extra)
+            if ok:
+                break
+        else:
             return None
         pts = corners.reshape(-1, 2).astype(np.float64)
     return pts, np.arange(len(pts))
@@ -486,10 +491,10 @@ def board_size_in(image: np.ndarray, board: Board) -> tuple[int, int] | None:
     """
     gray = _gray_uint8(image)
     if board.kind == "checkerboard":
-        grid = _find_checkerboard(gray, (3, 3))
-        if grid is None:
+        found = _find_checkerboard(gray, (3, 3))
+        if found is None or found[1] is None:
             return None
-        rows, cols = _board_grid(gray, grid).shape[:2]
+        rows, cols = _board_grid(gray, found[1]).shape[:2]
         return _as_given(board, (cols, rows))
     if board.kind == "circles":
         found = _find_circles(gray, _resized(board, (3, 3)))
@@ -890,8 +895,11 @@ def _read_json_calibration(path: Path, *, unit: str | None = None) -> Calibratio
         raise InputError(
             f"{path}: a calibration JSON must hold an object, not {type(data).__name__}"
         )
+    own = data.get("unit", "mm")
+    if unit is not None and isinstance(own, str) and own.strip():  # a malformed one is named
+        data = {**data, "unit": unit}
     try:
-        return Calibration.from_dict(data if unit is None else {**data, "unit": unit})
+        return Calibration.from_dict(data)
     except InputError as exc:
         raise InputError(f"{path}: {exc}") from None
 
