@@ -25,7 +25,6 @@ share one colour scale.
 from __future__ import annotations
 
 import contextlib
-import csv
 import logging
 import os
 import warnings
@@ -40,6 +39,7 @@ from mpm3d.errors import InputError
 from mpm3d.heightmap import HEIGHT_DATUM, HeightMap, height_map
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
+from tissue_core.csvtext import csv_writer
 from tissue_core.html import input_records
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import recorded_command
@@ -454,7 +454,7 @@ def _quality(hm: HeightMap, mesh) -> dict:
 def _write_table(path: Path, table: dict) -> None:
     keys = list(table)
     with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
+        w = csv_writer(f)
         w.writerow(keys)
         for row in zip(*(table[k] for k in keys), strict=True):
             w.writerow([f"{v:.6g}" if isinstance(v, float | np.floating) else v for v in row])

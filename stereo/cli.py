@@ -13,7 +13,6 @@ Errors a user can cause end with one line on stderr and exit status 2.
 from __future__ import annotations
 
 import argparse
-import csv
 import glob
 import math
 import re
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from tissue_core.cli import CommandLine
+from tissue_core.csvtext import csv_writer
 from tissue_core.errors import InputError, SourceError
 
 __all__ = ["main"]
@@ -467,7 +467,7 @@ def _cmd_match(args) -> int:
     )
     with atomic_file(args.out, **writing) as tmp:
         with open(tmp, "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f)
+            w = csv_writer(f)
             w.writerow(MATCH_COLUMNS)
             for i in range(len(points)):
                 w.writerow(
@@ -595,7 +595,7 @@ def _write_frame_quality(path: Path, per_frame: dict) -> None:
     from stereo.report import FRAME_COLUMNS
 
     with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
+        w = csv_writer(f)
         w.writerow(FRAME_COLUMNS)
         for t in range(len(per_frame["frame"])):
             row = []

@@ -49,6 +49,7 @@ import numpy as np
 from strain2d.errors import InputError
 from strain2d.run import COMPONENTS, Run, load_run
 from strain2d.stats import paired_node_tests
+from tissue_core.csvtext import restore_cell
 
 __all__ = [
     "Specimen",
@@ -99,7 +100,10 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
     Columns: ``run`` (an ``analyze`` output folder, relative to the manifest's
     folder or absolute; required), ``specimen`` (default: the folder name),
     ``group`` (optional), ``endpoint`` (optional frame index overriding the
-    run's contraction endpoint).  Other columns are kept and ignored.
+    run's contraction endpoint).  Other columns are kept and ignored.  A cell
+    the toolkit wrote inert for spreadsheets (``strain2d batch``'s
+    ``study_manifest.csv``) is read as it was given
+    (:func:`tissue_core.csvtext.restore_cell`).
     """
     from tissue_core.tables import cell_count_error
 
@@ -120,7 +124,11 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
                 f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
             )
     # header names are matched without surrounding spaces and case
-    rows = [(i, {(k or "").strip().lower(): v for k, v in row.items()}) for i, row in rows]
+    rows = [
+        (i, {(k or "").strip().lower(): restore_cell(v.strip()) if isinstance(v, str) else v
+             for k, v in row.items()})
+        for i, row in rows
+    ]  # fmt: skip
     if not rows or "run" not in rows[0][1]:
         raise InputError(f"manifest {path} needs a header with a 'run' column and one row per run")
     entries = []

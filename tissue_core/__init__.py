@@ -13,6 +13,8 @@ Small pieces that ``strain2d``, ``surface_strain``, ``stereo``, ``mpm3d`` and
 * :mod:`tissue_core.cli` - the command runner: one error line and exit
   status 2, exit 130 on Ctrl-C, warnings as one line each;
   :mod:`tissue_core.main` - ``python -m PACKAGE``;
+* :mod:`tissue_core.csvtext` - CSV files written with every text cell inert
+  in a spreadsheet (no formula from a name), and read back as they were;
 * :mod:`tissue_core.images` - image files read whole or refused (NumPy, OpenCV);
 * :mod:`tissue_core.tiff_units` - the pixel sizes TIFF files record (ImageJ,
   OME, resolution tags);

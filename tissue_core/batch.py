@@ -53,16 +53,21 @@ from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
+from tissue_core.csvtext import restore_cell
 from tissue_core.errors import InputError
 from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
+    LEDGER,
+    check_name_lengths,
     foreign_content,
+    name_too_long,
     read_marker,
     recorded_command,
     replaced_on_success,
     sha256_of,
     written,
+    written_here,
 )
 
 __all__ = [
@@ -80,6 +85,7 @@ __all__ = [
     "raise_if_failed",
     "run_batch",
     "run_job",
+    "update_batch_file",
 ]
 
 #: the batch's record of every run, in the batch folder
@@ -520,8 +526,14 @@ def check_workers(workers: int | None, scheduler: str | None, n_jobs: int) -> in
     return workers
 
 
-def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
-    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command."""
+def add_batch_arguments(
+    p: argparse.ArgumentParser, *, what: str, tables: Sequence[str] = ()
+) -> None:
+    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command.
+
+    ``tables``: the files of the batch folder that list its runs
+    (:func:`update_batch_file`), which ``--overwrite`` replaces once edited.
+    """
     g = p.add_argument_group("where the runs go")
     g.add_argument(
         "--workers",
@@ -540,15 +552,18 @@ def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace runs made with other parameters or from changed inputs (runs complete "
-        "with the same parameters are always kept)",
+        help="replace runs made with other parameters or from changed inputs"
+        + (f", and {' and '.join(tables)} when edited since the batch wrote it" if tables else "")
+        + " (runs complete with the same parameters are always kept)",
     )
 
 
 def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[dict[str, str]]:
     """A manifest CSV's rows: header names lower-cased and stripped, values stripped.
 
-    Each row gets ``_line`` (its line number in the file) for messages.
+    Each row gets ``_line`` (its line number in the file) for messages.  A cell
+    the toolkit wrote inert for spreadsheets (a manifest of ``sample_data_synth
+    study``) is read as it was given (:func:`tissue_core.csvtext.restore_cell`).
     """
     from tissue_core.tables import cell_count_error
 
@@ -573,7 +588,7 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
             raise cell_count_error(
                 f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
             )
-        clean = {(k or "").strip().lower(): (v or "").strip() for k, v in row.items()}
+        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
         clean["_line"] = str(i)
         out.append(clean)
     if not out:
@@ -672,6 +687,9 @@ def manifest_jobs(
         problem = _bad_name(name)
         if problem:
             raise InputError(f"{where}: {name_column} {name!r} {problem}")
+        problem = name_too_long(name, out)  # a run's folder is made under a temporary name
+        if problem:
+            raise InputError(f"{where}: {name_column} {problem}; give a shorter one")
         run = out / "runs" / name
         run_argv = options.argv(args, {c: row[c] for c in run_columns}, where=where, base=base)
         # files named by options (points, calibrations) are inputs too
@@ -728,6 +746,7 @@ def _check_unique(jobs: Sequence[Job]) -> None:
 def batch_folder(path: str | os.PathLike) -> Path:
     """The batch's output folder, made if needed; one that is not a batch's is refused."""
     path = Path(path)
+    check_name_lengths(path, scratch=False)  # made as it is, not under a temporary name
     if path.exists() and not path.is_dir():
         raise InputError(f"--out {path} is a file; give a folder for the batch")
     if path.is_dir() and any(path.iterdir()):
@@ -769,6 +788,38 @@ class _Log:
                 f.write(f"{stamp}   | {line}\n")
         if show:
             self.say(message)
+
+
+def update_batch_file(path: str | os.PathLike, text: str, *, overwrite: bool) -> str:
+    """Write a file of the batch folder that lists its runs (a study manifest, a table of
+    metrics) when it is the batch's to write; say what became of it.
+
+    The file is the batch's while it holds exactly what a batch wrote there
+    (the folder's ledger records it: :func:`tissue_core.outputs.written_here`):
+    it is then written again whenever ``text`` differs.  A file the user
+    edited, or one no batch wrote, is the user's, and is left as it is unless
+    ``overwrite``.
+
+    Returns
+    -------
+    str
+        ``"written"``, ``"unchanged"`` (it holds ``text`` already), or
+        ``"kept"`` (the user's, left as it is: the caller says so).
+    """
+    path = Path(path)
+    try:
+        current = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        current = None
+    except (OSError, ValueError):  # a folder, or not text: not the batch's
+        current = ""
+    if current == text:
+        return "unchanged"
+    if current is not None and not overwrite and not written_here(path):
+        return "kept"
+    with replaced_on_success(path, record=True) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return "written"
 
 
 def raise_if_failed(outcomes: Sequence[Outcome], folder: str | os.PathLike) -> None:
@@ -815,17 +866,17 @@ def _without_provenance(value):
 
 #: files of a folder that record how results were made, not results
 _NOT_RESULTS = frozenset(
-    {".tissue-strain-result.json", "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
+    {".tissue-strain-result.json", LEDGER, "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
 )
 
 
 def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
     """The files that differ between two result folders, beyond their provenance.
 
-    Every file is compared byte for byte, except: the result marker, the
-    batch's record and log (how and where the runs were made); JSON
-    files, compared without their time stamps, command lines and run times;
-    and ``report.html``, which shows those.  Where a file names its own
+    Every file is compared byte for byte, except: the result marker and the
+    ledger of files, the batch's record and log (how and where the runs were
+    made); JSON files, compared without their time stamps, command lines and
+    run times; and ``report.html``, which shows those.  Where a file names its own
     folder (a study lists its runs), the two folders' paths count as equal.
     An empty list means the two folders hold the same results.
     """

@@ -18,7 +18,10 @@ An output *file* (``strain2d track --out TRACKS.csv``) is recorded in a ledger
 beside it, ``.tissue-strain-files.json``; an existing file is replaced only
 with ``overwrite=True`` and when the ledger says the toolkit wrote exactly
 that content.  No output may replace an input, hold one, lie inside an input
-folder, or be the working directory or one of its parents.
+folder, or be the working directory or one of its parents.  A name longer than
+the file system allows (255 bytes on most; an output's own name needs room for
+its temporary name, :data:`SCRATCH_BYTES` more) is refused before anything is
+made (:func:`name_too_long`).
 """
 
 from __future__ import annotations
@@ -42,14 +45,18 @@ from tissue_core.interrupt import deferred_interrupt, raise_if_interrupted
 __all__ = [
     "LEDGER",
     "MARKER",
+    "SCRATCH_BYTES",
     "atomic_dir",
     "atomic_file",
+    "check_name_lengths",
     "check_writable",
     "foreign_content",
+    "name_too_long",
     "read_marker",
     "recorded_command",
     "replaced_on_success",
     "sha256_of",
+    "written_here",
 ]
 
 log = logging.getLogger(__name__)
@@ -62,6 +69,10 @@ LEDGER = ".tissue-strain-files.json"
 _LEDGER_KIND = "tissue-strain files"
 #: files that file browsers drop into any folder they show
 _BROWSER_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
+#: the bytes an output's temporary name adds to its own: ``.NAME.tmp-`` and 8 random characters
+SCRATCH_BYTES = len("..tmp-") + 8
+#: the longest name in bytes where the file system cannot be asked (most allow 255)
+_NAME_MAX = 255
 
 #: the results renamed into place since the command began (cleared by tissue_core.cli), so
 #: that Ctrl-C after them is not reported as "no output written"
@@ -193,7 +204,83 @@ def _file_written_here(path: Path) -> bool:
     return ledger is not None and _unchanged(path, ledger["files"].get(path.name))
 
 
+def written_here(path: str | os.PathLike) -> bool:
+    """Whether the file ``path`` holds exactly what the toolkit wrote there.
+
+    True when its folder's ledger (:data:`LEDGER`) records it and its content
+    is unchanged since; False for a file the user edited, one the toolkit did
+    not write, or one that is not there.
+    """
+    try:
+        return _file_written_here(Path(path))
+    except OSError:  # there, but it cannot be read: not known to be the toolkit's
+        return False
+
+
 # --------------------------------------------------------------------------- checks
+
+
+def _name_max(folder: Path) -> int:
+    """The longest name, in bytes, the file system of ``folder`` (or of its nearest existing
+    parent) allows."""
+    for candidate in (folder, *folder.parents):
+        try:
+            return int(os.pathconf(candidate, "PC_NAME_MAX"))
+        except (OSError, ValueError, AttributeError):  # not there (yet), or no pathconf
+            continue
+    return _NAME_MAX
+
+
+def name_too_long(name: str, folder: str | os.PathLike, *, scratch: bool = True) -> str:
+    """Why ``name`` is too long for a file or folder in ``folder``, in words; ``""`` if it is not.
+
+    ``scratch``: the name is written under a temporary name first (every
+    output of :func:`atomic_dir` and :func:`atomic_file`, every run of a
+    batch), which needs :data:`SCRATCH_BYTES` more.
+
+    Examples
+    --------
+    >>> name_too_long("S01", "/tmp")
+    ''
+    >>> name_too_long("x" * 300, "/tmp", scratch=False)
+    "'xxxxxxxxxxxxxxxxxxxx...xxxxxxxxxx' is 300 bytes long; names here may have at most 255"
+    """
+    size = len(os.fsencode(name))
+    limit = _name_max(Path(os.path.abspath(folder)))
+    if scratch:
+        limit -= SCRATCH_BYTES
+    if size <= limit:
+        return ""
+    shown = name if len(name) <= 40 else f"{name[:20]}...{name[-10:]}"
+    why = f" (the toolkit writes it under a temporary name {SCRATCH_BYTES} bytes longer first)"
+    return f"{shown!r} is {size} bytes long; names here may have at most {limit}" + (
+        why if scratch else ""
+    )
+
+
+def check_name_lengths(
+    path: str | os.PathLike, *, option: str = "--out", scratch: bool = True
+) -> None:
+    """Refuse ``path`` in one line when one of its names is longer than the file system allows.
+
+    Its own (last) name needs room for its temporary name when ``scratch``
+    (see :func:`name_too_long`).  Checked before anything looks at ``path``:
+    the system refuses a name too long with an error of its own.
+
+    Raises
+    ------
+    InputError
+        Naming ``option``, the name and the limit.
+    """
+    path = Path(path)
+    parts = path.parts
+    for k, part in enumerate(parts):
+        if part in (path.anchor, "", ".", ".."):
+            continue
+        last = k == len(parts) - 1
+        problem = name_too_long(part, Path(*parts[:k]) if k else ".", scratch=scratch and last)
+        if problem:
+            raise InputError(f"{option}: the name {problem}; choose a shorter one")
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -237,6 +324,7 @@ def check_writable(
         Naming ``path`` and the reason.
     """
     path = Path(path)
+    check_name_lengths(path, option=option)
     if path.is_symlink():
         raise InputError(f"{option} {path} is a symbolic link; give the real {kind} instead")
     target = path.resolve()
@@ -379,12 +467,15 @@ def _record_in_ledger(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
+def replaced_on_success(path: str | os.PathLike, *, record: bool = False) -> Iterator[Path]:
     """A temporary file beside ``path`` (same suffix) that becomes ``path`` if the block succeeds.
 
     No policy: for library writers that were given ``path`` (a file inside a
     result being written, or a file the caller named); the command lines'
     outputs use :func:`atomic_file`, which also checks what may be replaced.
+    With ``record``, ``path`` is also recorded in its folder's ledger
+    (:data:`LEDGER`), so that :func:`written_here` can tell later whether it
+    still holds what was written (a batch's table in the batch folder).
     """
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
@@ -393,7 +484,12 @@ def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
     try:
         yield tmp
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
-        os.replace(tmp, path)
+        if record:
+            with deferred_interrupt():  # Ctrl-C waits until the file and its record are in place
+                os.replace(tmp, path)
+                _record_in_ledger(path)
+        else:
+            os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -18,7 +18,14 @@ import pytest
 import tifffile
 
 from mpm3d.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, unwritable_folder, write
+from tests.badinput import (
+    FAMILIES,
+    assert_inert,
+    assert_refused,
+    interrupt,
+    unwritable_folder,
+    write,
+)
 from tissue_core.outputs import atomic_dir
 
 COMMANDS = ("analyze", "compare")
@@ -37,7 +44,9 @@ def case(name: str, *commands: str):
     """Register ``COMMAND-FAMILY-CASE`` for each of ``commands`` (default: both).
 
     The decorated function of ``(stack, tmp)`` returns the options to change and the
-    fragments the error line must hold (the file or option, and the problem).
+    fragments the error line must hold (the file or option, and the problem), or None for
+    input that is accepted (the ``formula`` family: see :func:`tests.badinput.assert_inert`).
+    ``batch`` is named explicitly: it runs ``analyze``, whose cases hold for it too.
     """
     assert any(name.startswith(f"{family}-") for family in FAMILIES), name
 
@@ -53,6 +62,9 @@ def base(command: str, stack: Path, tmp: Path) -> dict:
     """The options of a command line that would run; positionals under ``_N`` keys."""
     if command == "analyze":
         return {"_1": stack, "--out": tmp / "out", "--no-figures": True, "-q": True}
+    if command == "batch":
+        return {"_1": stack, "--out": tmp / "out", "--no-figures": True, "--workers": "1",
+                "-q": True}  # fmt: skip
     return {"_1": stack, "_2": stack, "--out": tmp / "out", "--no-figures": True, "-q": True}
 
 
@@ -405,6 +417,51 @@ def _(s, t):
     return {"--out": folder / "out"}, [str(folder), "cannot be written"]
 
 
+# ---- names too long for a folder: refused before any folder is made
+
+
+@case("output-name-too-long", "analyze", "compare", "batch")
+def _(s, t):
+    return {"--out": t / ("x" * 300)}, ["--out", "300 bytes long"]
+
+
+@case("output-run-name-too-long", "batch")
+def _(s, t):
+    stack = write(t / "data", "y" * 245 + ".tif", s.read_bytes())
+    return {"_1": stack}, [stack.name, "245 bytes long", "at most 241"]
+
+
+@case("csv-name-too-long", "batch")
+def _(s, t):
+    manifest = write(t / "data", "stacks.csv", f"stack,name\n{s},{'x' * 300}\n")
+    return {"_1": manifest}, ["stacks.csv, line 2", "name", "300 bytes long"]
+
+
+# ---- names a spreadsheet would run as formulas: accepted, and every CSV written holds them inert
+
+
+@case("formula-stack-and-out-names", "analyze")
+def _(s, t):
+    return {"_1": write(t / "data", "=1+2.tif", s.read_bytes()), "--out": t / "-2+3"}, None
+
+
+@case("formula-stack-and-out-names", "compare")
+def _(s, t):
+    before = write(t / "data", "=1+2.tif", s.read_bytes())
+    after = write(t / "data", "@SUM(A1).tif", s.read_bytes())
+    return {"_1": before, "_2": after, "--out": t / "-2+3"}, None
+
+
+@case("formula-stack-file-name", "batch")
+def _(s, t):
+    return {"_1": write(t / "data", "-2+3.tif", s.read_bytes())}, None
+
+
+@case("formula-manifest-names", "batch")
+def _(s, t):
+    return {"_1": write(t / "data", "stacks.csv", f"stack,name\n{s},@SUM(A1)\n")}, None
+
+
 def _files(options: dict, out: Path) -> list[Path]:
     """The inputs of a command line: every existing path but the output."""
     paths = [Path(v) for k, v in options.items() if k.startswith("_")]
@@ -422,6 +479,9 @@ def test_bad_input(command, build, mpm_small, tmp_path, capsys):
     argv = command_line(command, options)
     out = Path(options["--out"])
     try:
+        if fragments is None:  # accepted: see tests.badinput.assert_inert
+            assert_inert(run, argv, capsys, out=out, inputs=_files(options, out))
+            return
         assert_refused(
             run,
             argv,

