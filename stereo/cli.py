@@ -348,6 +348,13 @@ def _cmd_calibrate(args) -> int:
     board = parse_board(args.board)
     _check_unit(args.unit)
     left, right = _expand(args.left, "left"), _expand(args.right, "right")
+    both = sorted({Path(f).resolve() for f in left} & {Path(f).resolve() for f in right})
+    if both:
+        more = f" and {len(both) - 1} more" if len(both) > 1 else ""
+        raise InputError(
+            f"--left {args.left} and --right {args.right} name the same images ({both[0]}"
+            f"{more}): a stereo calibration needs each camera's own views of the target"
+        )
     if len(left) != len(right):
         raise InputError(f"unequal image counts: {len(left)} left and {len(right)} right")
     inputs = [*left, *right, *_folders(args.left, args.right)]
@@ -387,8 +394,7 @@ def _cmd_import(args) -> int:
     size = parse_image_size(args.image_size) if args.image_size is not None else None
     writing = {"overwrite": args.overwrite, "inputs": args.files}
     check_writable(args.out, kind="file", **writing)
-    calib = load_calibration(*args.files, image_size=size)
-    calib.unit = args.unit
+    calib = load_calibration(*args.files, image_size=size, unit=args.unit)
     calib.extra["imported_from"] = [Path(f).name for f in args.files]
     calib.extra["import_options"] = {"image_size": args.image_size, "unit": args.unit}
     calib.extra["software"] = {

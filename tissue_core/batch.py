@@ -568,10 +568,13 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
     the toolkit wrote inert for spreadsheets (a manifest of ``sample_data_synth
     study``) is read as it was given (:func:`tissue_core.csvtext.restore_cell`).
     """
+    from tissue_core.tables import cell_count_error
+
     path = Path(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows = [(reader.line_num, row) for row in reader]
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
     except IsADirectoryError:
@@ -579,12 +582,16 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
     out = []
-    for i, row in enumerate(rows, start=2):
-        if None in row:  # more cells than the header has names
-            raise InputError(f"manifest {path}, line {i}: more cells than the header has columns")
-        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
-        if not any(clean.values()):
+    for i, row in rows:
+        cells = [v for k, v in row.items() if k is not None and v is not None]
+        cells += row.get(None, [])
+        if not any(v.strip() for v in cells):
             continue  # an empty row (a spreadsheet's trailing commas)
+        if len(cells) != len(reader.fieldnames):  # more or fewer cells than the header
+            raise cell_count_error(
+                f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
+            )
+        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
         clean["_line"] = str(i)
         out.append(clean)
     if not out:

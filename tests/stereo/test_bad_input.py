@@ -397,6 +397,51 @@ def _(s, t):
     return {"--left": t / "left", "--right": t / "right"}, ["differ in size"]
 
 
+# ---- calibrate: calibrations that cannot be physical
+
+
+@case("calibrate-calibration-board-4x4-on-a-9x6-target")
+def _(s, t):
+    """OpenCV finds a 4 x 4 corner pattern inside the 9 x 6 board (the calibration came out
+    at RMS 15 px and a 600 mm baseline for a 120 mm one)."""
+    fragments = ["view_00.png", "--board checkerboard:4x4:10", "the images hold 9x6 inner corners",
+                 "e.g. --board checkerboard:9x6:10"]  # fmt: skip
+    return {"--board": "checkerboard:4x4:10"}, fragments
+
+
+@case("calibrate-calibration-board-one-column-short")
+def _(s, t):
+    return {"--board": "checkerboard:8x6:10"}, ["the images hold 9x6 inner corners"]
+
+
+@case("calibrate-calibration-left-and-right-the-same-folder")
+def _(s, t):
+    return {"--right": s.views_left}, ["--left", "--right", "name the same images", "view_00.png"]
+
+
+@case("calibrate-calibration-left-and-right-globs-sharing-images")
+def _(s, t):
+    changes = {"--left": f"{s.views_left}/view_0[0-4].png", "--right": f"{s.views_left}/*.png"}
+    return changes, ["name the same images", "and 4 more"]
+
+
+@case("calibrate-calibration-copies-of-the-left-images-as-the-right")
+def _(s, t):
+    shutil.copytree(s.views_left, t / "right")
+    return {"--right": t / "right"}, ["view_00.png / view_00.png", "the same picture"]
+
+
+@case("calibrate-calibration-pairs-out-of-step")
+def _(s, t):
+    """The right images listed one place off (renamed, or sorted another way): each camera
+    calibrates, the rig cannot."""
+    files = sorted(s.views_right.glob("*.png"))
+    (t / "right").mkdir()
+    for source, target in zip(files, files[1:] + files[:1], strict=True):
+        shutil.copy(source, t / "right" / target.name)
+    return {"--right": t / "right"}, ["RMS reprojection error", "at most 5 px", "same moment"]
+
+
 # ---- import-calib (and every reader of a calibration)
 
 
@@ -561,6 +606,54 @@ def _(s, t):
     return {"--unit": " "}, ["--unit"]
 
 
+#: calibrations that cannot be physical, as every reader meets them: (name, file, fragments)
+UNPHYSICAL = [
+    ("T-half-a-mm", lambda s, t: calib_json(s, t, setter(("T",), [0.5, 0.0, 0.0]), "rig.json"),
+     ["rig.json", "T gives the baseline |T| = 0.5 mm", "never closer than 1 mm"]),
+    ("T-in-metres-read-as-mm", lambda s, t: calib_yml(
+        s, t, lambda d: d.update(T=(np.asarray(d["T"]) / 1000).tolist())),
+     ["stereo.yml", "T gives the baseline", "--unit"]),
+    ("rms-15-px", lambda s, t: calib_json(s, t, setter(("rms_px",), 15.0), "rig.json"),
+     ["rig.json", "rms_px is 15 px", "no real rig"]),
+]  # fmt: skip
+for name, make, fragments in UNPHYSICAL:
+
+    @case(f"import-calib-calibration-{name}")
+    def _(s, t, make=make, fragments=fragments):
+        return {"_1": make(s, t)}, fragments
+
+    for command in ("match", "reconstruct"):
+
+        @case(f"{command}-calibration-{name}")
+        def _(s, t, make=make, fragments=fragments):
+            return {"--calib": make(s, t)}, fragments
+
+
+@case("import-calib-calibration-unit-um-for-a-rig-in-mm")
+def _(s, t):
+    return {"--unit": "um"}, ["stereo.yml", "|T| = 120 um (0.12 mm)", "never closer than 1 mm"]
+
+
+@case("reconstruct-calibration-cameras-2-mm-apart")
+def _(s, t):
+    """A rig whose cameras are 2 mm apart, 300 mm from the sheet: its calibration is right,
+    but the rays to a point meet at 0.4 degrees and depth is not measured."""
+    import dataclasses
+
+    from sample_data_synth.stereo import default_rig, render_surface_scene, save_stereo_scene
+    from stereo.calibration import load_calibration
+
+    rig = default_rig(image_size=SMALL_SIZE)
+    close = dataclasses.replace(rig, T=rig.T / np.linalg.norm(rig.T) * 2.0)
+    scene = render_surface_scene(close, "stretch", n_frames=2, supersample=1, distance=300.0,
+                                 rng=1)  # fmt: skip
+    save_stereo_scene(t / "scene", scene)
+    load_calibration(t / "scene" / "rig.json").save(t / "calib.json")
+    changes = {"--calib": t / "calib.json", "--left": t / "scene" / "left",
+               "--right": t / "scene" / "right"}  # fmt: skip
+    return changes, ["the cameras are 2 mm apart for the surface", "depth is not measured"]
+
+
 # ---- match and reconstruct: the calibration they read
 
 for command in ("match", "reconstruct"):
@@ -691,7 +784,13 @@ BAD_POINTS = [
     ("header-only", "x,y\n", ["no points"]),
     ("outside-the-image", f"x,y\n300,150\n{W + 5},200\n350,220\n", ["point 1", "outside"]),
     ("negative", "x,y\n300,150\n-3,200\n350,220\n", ["point 1", "outside"]),
-]
+    # a decimal comma (320,5 for 320.5) makes one cell too many; a cell missing
+    ("ragged-decimal-comma", "x,y\n300,150\n320,5,200\n350,220\n",
+     ["line 3: 3 cells where the header has 2 (a decimal comma?): 320,5,200"]),
+    ("ragged-first-row", "x,y\n300,5,150\n320,200\n350,220\n", ["line 2: 3 cells"]),
+    ("ragged-short-row", "x,y\n300,150\n320\n350,220\n",
+     ["line 3: 1 cell where the header has 2"]),
+]  # fmt: skip
 for command in ("match", "reconstruct"):
     for name, text, fragments in BAD_POINTS:
 
@@ -877,7 +976,7 @@ def test_every_command_has_cases_of_every_family_that_applies():
     ids = [p.id for p in CASES]
     for command in ("calibrate", "import-calib", "match", "reconstruct"):
         for family in ("missing", "empty", "truncated", "wrong-type", "option", "conflict",
-                       "output"):  # fmt: skip
+                       "output", "calibration"):  # fmt: skip
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
         if command in ("match", "reconstruct"):
             assert any(i.startswith(f"{command}-csv-") for i in ids), command

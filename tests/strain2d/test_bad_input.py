@@ -91,6 +91,16 @@ def inputs(small_case, tmp_path_factory):
         with open(d / f"points_{name}.csv", mode) as f:
             f.write(text.encode("latin-1") if mode == "wb" else text)
     (d / "points_bom.csv").write_bytes(b"\xef\xbb\xbfx,y\n10,10\n60,60\nnan,1\n")
+    # rows with more or fewer cells than the header: a decimal comma (10,5 for 10.5) makes one
+    # too many and would shift y into the next column
+    ragged = {
+        "decimal_comma": "x,y\n10,10\n60,5,60\n40,90\n",
+        "decimal_comma_first_row": "x,y\n10,5,10\n60,60\n40,90\n",
+        "short_row": "x,y\n10,10\n60\n40,90\n",
+        "trailing_comma": "x,y\n10,10\n60,60,\n40,90\n",
+    }
+    for name, text in ragged.items():
+        (d / f"points_{name}.csv").write_text(text)
     # track files from another tool, broken
     corners = [(10, 10), (90, 10), (50, 80)]
     rows = [f"{t},{i},{x},{y},1,1\n" for t in range(2) for i, (x, y) in enumerate(corners)]
@@ -102,9 +112,23 @@ def inputs(small_case, tmp_path_factory):
         "negative_index": good.replace("1,2,", "-1,2,", 1),
         "no_columns": "a,b\n1,2\n",
     }
+    # tracks of the video's 6 frames, each broken in one row (that read silently before)
+    rows = [f"{t},{i},{x},{y},1,1\n" for t in range(6) for i, (x, y) in enumerate(corners)]
+    whole = "frame,point,x,y,visible,quality\n" + "".join(rows)
+    tracks |= {
+        "decimal_comma": whole.replace("1,1,90,10,1,1", "1,1,90,5,10,1,1", 1),
+        "decimal_comma_reference": whole.replace("0,2,50,80,1,1", "0,2,50,80,5,1,1", 1),
+        "short_row": whole.replace("1,1,90,10,1,1", "1,1,90,10,1", 1),
+        "visible_7": whole.replace("1,1,90,10,1,1", "1,1,90,10,7,1", 1),
+        "visible_half": whole.replace("1,1,90,10,1,1", "1,1,90,10,0.5,1", 1),
+        "visible_true": whole.replace("0,1,90,10,1,1", "0,1,90,10,true,1", 1),
+    }
     for name, text in tracks.items():
         (d / f"tracks_{name}.csv").write_text(text)
     np.savez(d / "tracks_ok.npz", positions=np.zeros((2, 3, 2)))
+    visible = np.ones((6, 3))
+    visible[1, 1] = 7
+    np.savez(d / "tracks_visible_7.npz", positions=np.tile(corners, (6, 1, 1)), visible=visible)
     (d / "tracks_corrupt.npz").write_bytes((d / "tracks_ok.npz").read_bytes()[:100])
     np.save(d / "tracks_shape.npy", np.zeros((2, 3)))
     np.savez(d / "tracks_named.npz", coords=np.zeros((2, 3, 2)))
@@ -118,6 +142,30 @@ def inputs(small_case, tmp_path_factory):
     (d / "manifest_missing.csv").write_text("run,group\nnowhere,a\n")
     (d / "manifest_endpoint.csv").write_text("run,endpoint\nnowhere,-1\n")
     (d / "not_a_run").mkdir()
+    # a run folder, and copies whose nodal table has a ragged row or a flag that is not 0 or 1
+    from tests.strain2d.test_study import _field, _write_run
+
+    _write_run(d / "run_ok", _field(0.8, 0.9, rng=np.random.default_rng(0), n_frames=4), endpoint=3)
+    nodes = (d / "run_ok" / "strain_nodes.csv").read_text().splitlines()
+    row = nodes[60].split(",")  # line 61: frame 1
+    damaged = {
+        "run_decimal_comma": [*row[:2], row[2].replace(".", ","), *row[3:]],
+        "run_visible_7": [*row[:6], "7", *row[7:]],
+    }
+    assert nodes[0].split(",")[6] == "visible"
+    for name, cells in damaged.items():
+        shutil.copytree(d / "run_ok", d / name)
+        text = "\n".join([*nodes[:60], ",".join(cells), *nodes[61:]]) + "\n"
+        (d / name / "strain_nodes.csv").write_text(text)
+    manifests = {
+        "extra_cell": "run,group\nrun_ok,a\nrun_ok,b,c\n",
+        "missing_cell": "run,specimen,group\nrun_ok,A,a\nrun_ok,B\n",
+    }
+    for name, text in manifests.items():
+        (d / f"manifest_{name}.csv").write_text(text)
+        (d / f"batch_manifest_{name}.csv").write_text(
+            text.replace("run,", "video,", 1).replace("run_ok", "eq.avi")
+        )
     # batch manifests: a name too long for a folder, names a spreadsheet would run
     (d / "batch_long_name.csv").write_text(f"video,specimen\neq.avi,{'x' * 300}\n")
     (d / "batch_formula.csv").write_text(
@@ -236,6 +284,41 @@ CASES = [
                              ("no_header", "points_no_header.csv"), ("bom", "finite")]],
     *[(f"track-csv-tracks-{name}", _tracks_file(name), [f"tracks_{name}.csv"])
       for name in ("duplicate_row", "text", "negative_index", "no_columns")],
+    # ---- CSV rows with more or fewer cells than the header, flags that are not 0 or 1
+    *[(f"{command}-csv-ragged-points-{name.replace('_', '-')}", (lambda cmd, n: lambda c, o: [
+        cmd, c.avi, "--points", c.dir / f"points_{n}.csv", "--out", o])(command, name),
+      [f"points_{name}.csv, line {line}", fragment])
+      for command in ("track", "analyze")
+      for name, line, fragment in [
+          ("decimal_comma", 3, "3 cells where the header has 2 (a decimal comma?): 60,5,60"),
+          ("decimal_comma_first_row", 2, "3 cells where the header has 2"),
+          ("short_row", 3, "1 cell where the header has 2: 60"),
+          ("trailing_comma", 3, "3 cells where the header has 2")]],
+    *[(f"track-csv-ragged-tracks-{name.replace('_', '-')}", _tracks_file(name),
+       [f"tracks_{name}.csv, line {line}", fragment])
+      for name, line, fragment in [
+          ("decimal_comma", 6, "7 cells where the header has 6 (a decimal comma?)"),
+          ("decimal_comma_reference", 4, "7 cells where the header has 6"),
+          ("short_row", 6, "5 cells where the header has 6")]],
+    *[(f"track-csv-visible-tracks-{name}", _tracks_file(f"visible_{name}"),
+       [f"tracks_visible_{name}.csv, line {line}", fragment])
+      for name, line, fragment in [("7", 6, "visible must be 0 or 1, got 7"),
+                                   ("half", 6, "visible must be 0 or 1, got 0.5"),
+                                   ("true", 3, "not a number")]],
+    ("track-csv-visible-tracks-npz-7", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_visible_7.npz", "--out", o],
+     ["tracks_visible_7.npz", "visible must hold 0 or 1", "got 7"]),
+    ("study-csv-ragged-strain-nodes", lambda c, o: ["study", c.dir / "run_decimal_comma",
+     "--out", o], ["strain_nodes.csv, line 61", "cells where the header has", "decimal comma"]),
+    ("study-csv-visible-strain-nodes-7", lambda c, o: ["study", c.dir / "run_visible_7",
+     "--out", o], ["strain_nodes.csv, line 61", "visible must be 0 or 1, got 7"]),
+    *[(f"{command}-csv-ragged-manifest-{name.replace('_', '-')}", (lambda cmd, n: lambda c, o: [
+        cmd, *(["--manifest"] if cmd == "study" else []),
+        c.dir / f"{'batch_' if cmd == 'batch' else ''}manifest_{n}.csv", "--out", o])(
+            command, name), [f"manifest_{name}.csv, line 3: {fragment}"])
+      for command in ("study", "batch")
+      for name, fragment in [("extra_cell", "3 cells where the header has 2 (a decimal comma?)"),
+                             ("missing_cell", "2 cells where the header has 3")]],
     # ---- options out of range
     ("analyze-option-grid-1x5", lambda c, o: ["analyze", c.avi, "--grid", "1x5", "--out", o],
      ["--grid"]),

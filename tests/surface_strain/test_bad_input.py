@@ -31,6 +31,11 @@ def _set_column(row: str, k: int, value: str) -> str:
     return ",".join(cells)
 
 
+def _decimal_comma(row: str) -> str:
+    """The row with its X written with a decimal comma (``12,5`` for ``12.5``)."""
+    return _set_column(row, 2, row.split(",")[2].replace(".", ","))
+
+
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
     d = tmp_path_factory.mktemp("bad_points")
@@ -53,13 +58,25 @@ def inputs(tmp_path_factory):
         "truncated": good[: len(good) // 2].rsplit(",", 2)[0] + "\n",
         "all_lost": "\n".join([header] + [",".join([*r.split(",")[:-1], "0"]) for r in rows])
         + "\n",
+        # a decimal comma (1,5 for 1.5) makes one cell too many: on a later frame and on the
+        # reference frame (where it read as a lost point); a cell missing
+        "ragged_decimal_comma": good.replace(rows[40], _decimal_comma(rows[40]), 1),
+        "ragged_reference_frame": good.replace(rows[3], _decimal_comma(rows[3]), 1),
+        "ragged_short_row": good.replace(rows[40], rows[40].rsplit(",", 1)[0], 1),
+        "visible_7": good.replace(rows[40], _set_column(rows[40], -1, "7"), 1),
+        "visible_half": good.replace(rows[3], _set_column(rows[3], -1, "0.5"), 1),
+        "visible_minus_1": good.replace(rows[40], _set_column(rows[40], -1, "-1"), 1),
     }
     for name, text in broken.items():
         (d / f"points_{name}.csv").write_text(text)
     (d / "points_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
     (d / "points.xlsx").write_bytes(b"PK\x03\x04")
     tri = {"outside": "p0,p1,p2\n0,1,99\n", "repeat": "p0,p1,p2\n0,1,1\n",
-           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n"}  # fmt: skip
+           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n",
+           "ragged": "p0,p1,p2\n0,1,5\n1,6,5,2\n", "short": "p0,p1,p2\n0,1,5\n1,6\n",
+           "ragged_no_header": "0,1,5\n1,6,5,2\n",
+           "repeated": "p0,p1,p2\n0,1,5\n1,6,5\n0,1,5\n",
+           "repeated_reordered": "p0,p1,p2\n0,1,5\n1,6,5\n5,0,1\n"}  # fmt: skip
     for name, text in tri.items():
         (d / f"tri_{name}.csv").write_text(text)
     (d / "tri_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
@@ -107,6 +124,23 @@ CASES = [
     *[(f"compute-csv-triangles-{name}", (lambda n: lambda c, o: _compute(
         c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv"])
       for name in ("outside", "repeat", "text", "two_columns")],
+    *[(f"compute-csv-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
+        c, "--out", o, points=c.dir / f"points_{n}.csv"))(name),
+        [f"points_{name}.csv, line {line}: {fragment}"]) for name, line, fragment in [
+          ("ragged_decimal_comma", 42, "8 cells where the header has 7 (a decimal comma?)"),
+          ("ragged_reference_frame", 5, "8 cells where the header has 7 (a decimal comma?)"),
+          ("ragged_short_row", 42, "6 cells where the header has 7"),
+          ("visible_7", 42, "visible must be 0 or 1, got 7"),
+          ("visible_half", 5, "visible must be 0 or 1, got 0.5"),
+          ("visible_minus_1", 42, "visible must be 0 or 1, got -1")]],
+    *[(f"compute-csv-triangles-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
+        c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv",
+        fragment]) for name, fragment in [
+          ("ragged", "line 3: 4 cells where the header has 3: 1,6,5,2"),
+          ("short", "line 3: 2 cells where the header has 3"),
+          ("ragged_no_header", "line 2: 4 cells where the first row (line 1) has 3"),
+          ("repeated", "lines 2 and 4 give the same triangle: 0, 1, 5 and 0, 1, 5"),
+          ("repeated_reordered", "lines 2 and 4 give the same triangle: 0, 1, 5 and 5, 0, 1")]],
     ("compute-option-fps-zero", lambda c, o: _compute(c, "--fps", "0", "--out", o), ["--fps"]),
     ("compute-option-fps-inf", lambda c, o: _compute(c, "--fps", "inf", "--out", o), ["--fps"]),
     ("compute-option-grid-1x25", lambda c, o: _compute(c, "--grid", "1x25", "--out", o),
