@@ -42,6 +42,7 @@ import io
 import json
 import os
 import shutil
+import signal
 import socket
 import sys
 import threading
@@ -54,7 +55,14 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from tissue_core.errors import InputError
-from tissue_core.interrupt import was_interrupted
+from tissue_core.interrupt import (
+    SIGNALS,
+    exit_status,
+    interrupt_signal,
+    raise_if_interrupted,
+    signal_name,
+    was_interrupted,
+)
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
     foreign_content,
@@ -335,7 +343,7 @@ def run_job(job: Job, overwrite: bool = False, *, remake: bool = False) -> Outco
     seconds = time.perf_counter() - start
     if status == 0:
         return Outcome(job.name, "done", job.out, "", seconds, worker, messages=text.splitlines())
-    if status == 130:
+    if status in {exit_status(signum) for signum in SIGNALS}:
         reason = "interrupted"
     else:
         reason = _error_line(text) or f"exit status {status}"
@@ -1027,7 +1035,8 @@ def _run_batch(
         outcome = run_job(job, overwrite, remake=remake)
         written[:] = made
         if outcome.reason == "interrupted" or was_interrupted():
-            raise KeyboardInterrupt  # Ctrl-C ended the job: it ends the batch
+            raise_if_interrupted()  # Ctrl-C (SIGTERM, SIGHUP) ended the job: it ends the batch
+            raise KeyboardInterrupt
         return outcome
 
     extra: list[Job] = []  # run by ``then`` on the cluster
@@ -1049,7 +1058,7 @@ def _run_batch(
                         _remove_scratch(job.out)
         elif then:  # nothing to run: no workers to start for it
             after(here)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         # a run a worker finished as the cluster closed is whole: it counts as made
         for job, _ in todo:
             if job.name not in outcomes and job_state(job) == "complete":
@@ -1064,10 +1073,9 @@ def _run_batch(
                 log(f"{job.name}: its worker finished it as the batch stopped", show=False)
         made = sum(o.status == "done" for o in outcomes.values())
         still = " (runs in progress on the cluster may still be made)" if scheduler else ""
-        log(
-            f"interrupted: {made} of {len(todo)} runs made{still}; a rerun makes the others",
-            show=False,
-        )
+        signum = interrupt_signal(exc)
+        how = "interrupted" if signum == signal.SIGINT else f"terminated ({signal_name(signum)})"
+        log(f"{how}: {made} of {len(todo)} runs made{still}; a rerun makes the others", show=False)
         raise
     return [outcomes[j.name] for j in jobs]
 
