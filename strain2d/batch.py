@@ -27,6 +27,7 @@ import io
 from pathlib import Path
 
 from tissue_core.batch import Job, RunOptions, job_state, manifest_jobs, run_job
+from tissue_core.outputs import remove_stale_scratch
 
 __all__ = ["analyze_jobs", "study_job", "write_study_manifest"]
 
@@ -86,6 +87,7 @@ def run_study(job: Job, changed: bool, run=run_job):
     ``run(job, overwrite, remake)`` makes it: here by default, on the batch's workers
     when :func:`tissue_core.batch.run_batch` passes its own (``then``).
     """
+    remove_stale_scratch(job.out)  # left by a killed batch: its earlier study put back
     state = job_state(job)
     if state == "complete" and not changed:
         return None

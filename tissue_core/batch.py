@@ -37,11 +37,9 @@ import argparse
 import contextlib
 import csv
 import difflib
-import glob
 import io
 import json
 import os
-import shutil
 import signal
 import socket
 import sys
@@ -68,6 +66,7 @@ from tissue_core.outputs import (
     foreign_content,
     read_marker,
     recorded_command,
+    remove_stale_scratch,
     replaced_on_success,
     sha256_of,
     written,
@@ -746,15 +745,6 @@ def batch_folder(path: str | os.PathLike) -> Path:
     return path
 
 
-def _remove_scratch(out: str) -> None:
-    """Scratch folders a killed run left beside its result (``.NAME.tmp-*``)."""
-    out = Path(out)
-    if not out.parent.is_dir():
-        return
-    for scratch in out.parent.glob(f".{glob.escape(out.name)}.tmp-*"):
-        shutil.rmtree(scratch, ignore_errors=True)
-
-
 class _Log:
     """The batch's log file: timestamped lines, appended and flushed one at a time."""
 
@@ -913,7 +903,8 @@ LOCK_FILE = ".batch.lock"
 
 @contextlib.contextmanager
 def _lock(folder: Path) -> Iterator[None]:
-    """One batch at a time in a folder: two would remove each other's scratch."""
+    """One batch at a time in a folder: two would make the same runs and rewrite each other's
+    record."""
     path = folder / LOCK_FILE
     me = {"host": socket.gethostname(), "pid": os.getpid(), "started": _now()}
     for _ in range(2):
@@ -965,6 +956,7 @@ def _run_batch(
     todo: list[tuple[Job, bool]] = []
     stale = []
     for job in jobs:
+        remove_stale_scratch(job.out)  # left by a killed run: its earlier result put back
         state = job_state(job)
         if state == "complete":
             outcomes[job.name] = Outcome(job.name, "skipped", job.out, "complete already")
@@ -992,11 +984,10 @@ def _run_batch(
         log(note)
     for job, _ in todo:
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
-        _remove_scratch(job.out)
 
     def finished(outcome: Outcome) -> None:
         outcomes[outcome.name] = outcome
-        _remove_scratch(outcome.out)  # left by an attempt whose worker was killed
+        remove_stale_scratch(outcome.out)  # left by an attempt whose worker was killed
         done = sum(o.status != "skipped" for o in outcomes.values())
         count = f"[{done}/{len(todo)}]"
         deaths = outcome.worker_deaths
@@ -1055,7 +1046,7 @@ def _run_batch(
             finally:
                 if scheduler is None:  # the local workers are gone, and with them their runs
                     for job in [*(job for job, _ in todo), *extra]:
-                        _remove_scratch(job.out)
+                        remove_stale_scratch(job.out)
         elif then:  # nothing to run: no workers to start for it
             after(here)
     except KeyboardInterrupt as exc:
