@@ -59,6 +59,7 @@ def write_study_manifest(path: Path, jobs: list[Job], rows: list[dict], done: se
             writer.writerow([Path(job.out).relative_to(path.parent).as_posix(), job.name,
                              row.get("group", "")])  # fmt: skip
     text = buffer.getvalue()
+    remove_stale_scratch(path)  # left by a batch killed while it wrote the manifest
     try:
         if path.read_text(encoding="utf-8") == text:
             return False

@@ -160,7 +160,7 @@ def assert_refused(
 
 def _start(argv: Sequence[object], cwd, stderr=subprocess.PIPE) -> subprocess.Popen:
     """``python ARGV...`` with this checkout first on the path, in a session of its own (so
-    that the processes it starts can be found: :func:`_session`)."""
+    that the processes it starts can be found: :func:`session_processes`)."""
     return subprocess.Popen(
         [sys.executable, *map(str, argv)],
         cwd=cwd or REPO,
@@ -172,7 +172,7 @@ def _start(argv: Sequence[object], cwd, stderr=subprocess.PIPE) -> subprocess.Po
     )
 
 
-def _session(sid: int) -> list[str]:
+def session_processes(sid: int) -> list[str]:
     """The processes of session ``sid`` still running (not zombies): ``"PID NAME"`` each."""
     found = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
@@ -196,9 +196,10 @@ def assert_no_process_left(sid: int, timeout: float = 30.0) -> None:
     if not Path("/proc/self/stat").exists():
         return
     deadline = time.monotonic() + timeout
-    while _session(sid) and time.monotonic() < deadline:
+    while session_processes(sid) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert _session(sid) == [], f"processes left running by the command: {_session(sid)}"
+    left = session_processes(sid)
+    assert left == [], f"processes left running by the command: {left}"
 
 
 #: ``when=WRITING``: the moment the command's own temporary result holds something
@@ -318,7 +319,7 @@ def killed(
     proc.kill()
     proc.wait(timeout=60)
     assert proc.returncode == -signal.SIGKILL, f"exit {proc.returncode}: it ended before writing"
-    for pid in _session(proc.pid):  # what it started dies with it here
+    for pid in session_processes(proc.pid):  # what it started dies with it here
         os.kill(int(pid.split()[0]), signal.SIGKILL)
     return scratch_left(out.parent)
 

@@ -55,6 +55,7 @@ from pathlib import Path
 from tissue_core.errors import InputError
 from tissue_core.interrupt import (
     SIGNALS,
+    deferred_interrupt,
     exit_status,
     interrupt_signal,
     raise_if_interrupted,
@@ -1205,28 +1206,32 @@ def _run_on_dask(todo, workers, scheduler, log, finished, then=None, extra=None)
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
         else:
-            try:
-                stack.enter_context(_without_malloc_trimming())
-                cluster = LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,  # a run is one task; its libraries' threads: its own
-                    processes=True,
-                    dashboard_address=":0",  # a free port: batches may run side by side
-                    silence_logs=logging.CRITICAL,  # the workers' too
-                    preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
-                    # the cores shared out: a run's compiled kernels use its worker's share
-                    env={
-                        "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
-                        _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
-                    },
-                )
-                stack.enter_context(cluster)
-            except (RuntimeError, OSError, TimeoutError) as exc:
-                raise InputError(
-                    f"a local Dask cluster of {workers} workers could not start: {exc} "
-                    "(--workers 1 runs the batch without one)"
-                ) from None
-            client = stack.enter_context(Client(cluster))
+            # a signal while the cluster starts waits until it is up and in the stack, which
+            # then closes it: one that lands half-way leaves worker processes, a scheduler
+            # that goes on logging, and semaphores the resource tracker complains of
+            with deferred_interrupt():
+                try:
+                    stack.enter_context(_without_malloc_trimming())
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,  # a run is one task; its libraries' threads: its own
+                        processes=True,
+                        dashboard_address=":0",  # a free port: batches may run side by side
+                        silence_logs=logging.CRITICAL,  # the workers' too
+                        preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
+                        # the cores shared out: a run's compiled kernels use its worker's share
+                        env={
+                            "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
+                            _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
+                        },
+                    )
+                    stack.enter_context(cluster)
+                except (RuntimeError, OSError, TimeoutError) as exc:
+                    raise InputError(
+                        f"a local Dask cluster of {workers} workers could not start: {exc} "
+                        "(--workers 1 runs the batch without one)"
+                    ) from None
+                client = stack.enter_context(Client(cluster))
         n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"
         log(f"{n} workers; Dask dashboard: {link}", show=bool(scheduler) or n > 1)

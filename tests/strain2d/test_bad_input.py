@@ -29,6 +29,7 @@ from tests.badinput import (
     message_lines,
     parse_case_id,
     scratch_left,
+    session_processes,
     snapshot,
     stale_scratch,
     unwritable_folder,
@@ -504,9 +505,12 @@ def _stale(request, tmp_path, *, command):
     assert scratch_left(tmp_path) == [] and out.exists()
 
 
-def _batch_terminated(request, tmp_path):
+def _batch_terminated(request, tmp_path, *, moment):
     """SIGTERM to a batch on a local cluster of two workers (``kill PID``: the batch process
-    alone): it stops the workers, and whole runs only are left."""
+    alone) while a run is made, or while the cluster starts: it stops the workers, and whole
+    runs only are left."""
+    import threading
+
     manifest = request.getfixturevalue("small_manifest")
     out = tmp_path / "b"
     proc = subprocess.Popen(
@@ -515,20 +519,35 @@ def _batch_terminated(request, tmp_path):
         stderr=subprocess.PIPE, text=True, errors="replace", start_new_session=True,
         env={**os.environ, "PYTHONPATH": str(REPO)},
     )  # fmt: skip
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
     runs = out / "runs"
+
+    def now() -> bool:
+        if moment == "run":
+            return any(runs.glob(".S0*.tmp-*"))
+        # its worker processes exist, and the cluster is not up yet
+        started = any("workers;" in line for line in list(lines))
+        return len(session_processes(proc.pid)) > 1 and not started
+
     deadline = time.monotonic() + 120
-    while proc.poll() is None and not any(runs.glob(".S0*.tmp-*")):
-        assert time.monotonic() < deadline, "no run started"
-        time.sleep(0.01)
+    while proc.poll() is None and not now():
+        assert time.monotonic() < deadline, f"no {moment} seen"
+        time.sleep(0.002)
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
+    proc.wait(timeout=120)
+    reader.join(timeout=10)
+    proc.stderr.close()
+    err = "".join(lines)
     assert proc.returncode == 143, err
     assert "Traceback" not in err, err
     last = message_lines(err)[-1]
     assert last.startswith("strain2d batch: terminated (SIGTERM)"), err
     assert_no_process_left(proc.pid)  # the cluster's workers ended with the batch
-    assert scratch_left(runs) == []
-    for run in sorted(runs.iterdir()):  # whole runs only, with their marker, named in the line
+    made = sorted(runs.iterdir()) if runs.is_dir() else []  # none while the cluster starts
+    assert not runs.is_dir() or scratch_left(runs) == []
+    for run in made:  # whole runs only, with their marker, named in the line
         assert read_marker(run) is not None and foreign_content(run) is None, run
         assert str(run) in last, last
     assert "terminated (SIGTERM): " in (out / "batch.log").read_text()
@@ -601,7 +620,10 @@ INTERRUPTS = [
         {"command": "benchmark", "when": "tracking with dic", "after": 0.3},
         id="benchmark-terminate-tracking",
     ),
-    pytest.param(_batch_terminated, {}, id="batch-terminate-local-cluster"),
+    pytest.param(_batch_terminated, {"moment": "run"}, id="batch-terminate-local-cluster"),
+    pytest.param(
+        _batch_terminated, {"moment": "cluster-start"}, id="batch-terminate-cluster-starting"
+    ),
     *(
         pytest.param(_stale, {"command": command}, id=f"{command}-stale-killed-run")
         for command in ("analyze", "track", "study", "benchmark")
