@@ -329,8 +329,8 @@ _KILLED_WRITER = """
 import os, signal, sys
 from tissue_core import outputs
 
-writer = outputs.atomic_dir if sys.argv[1] == "dir" else outputs.atomic_file
-with writer(sys.argv[2]) as tmp:
+writer = {"dir": outputs.atomic_dir, "file": outputs.atomic_file}.get(sys.argv[1])
+with (writer or outputs.replaced_on_success)(sys.argv[2]) as tmp:
     if sys.argv[1] == "dir":
         tmp = tmp / "half.csv"
     tmp.write_text("half a result")
@@ -340,7 +340,8 @@ with writer(sys.argv[2]) as tmp:
 
 def stale_scratch(out: str | os.PathLike, kind: str = "dir") -> list[str]:
     """Leave beside ``out`` the scratch of a run killed (SIGKILL) while writing it: a folder
-    (``kind="dir"``) or a file (``"file"``); return the scratch's names."""
+    (``kind="dir"``), a file (``"file"``), or a file that replaces one the toolkit keeps up to
+    date (``"replaced"``: a batch's record); return the scratch's names."""
     done = subprocess.run(
         [sys.executable, "-c", _KILLED_WRITER, kind, str(out)],
         env={**os.environ, "PYTHONPATH": str(REPO)},

@@ -645,3 +645,10 @@ def test_a_foreign_folder_survives_an_overwrite_attempt_untouched(inputs, capsys
         assert "is not a result of this toolkit" in capsys.readouterr().err
     assert snapshot(inputs.mine) == before
     assert Path(inputs.mine / "chapter1.tex").read_text() == "years of work"
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [p.id for p in INTERRUPTS]
+    for command in ("analyze", "track", "study", "benchmark", "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
