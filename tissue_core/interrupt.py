@@ -1,12 +1,7 @@
 """Ctrl-C (and SIGTERM, SIGHUP) that arrives where Python cannot raise it cleanly.
 
 Python turns SIGINT into :class:`KeyboardInterrupt` at the next bytecode,
-wherever that is.  SIGTERM (``kill``, ``timeout``, SLURM's ``scancel``,
-``docker stop``) and SIGHUP (the terminal closed) end a process at once by
-default, leaving its temporary results behind; while the command runner
-runs they take the same path as Ctrl-C: they are raised as :class:`Terminated`,
-a KeyboardInterrupt that names its signal, so that every ``except
-KeyboardInterrupt`` cleans up after them too.  Four places go wrong:
+wherever that is.  Four places go wrong:
 
 * inside a numba kernel's call back into Python, where it ends as
   ``SystemError: ... returned a result with an exception set``;
@@ -20,6 +15,13 @@ KeyboardInterrupt`` cleans up after them too.  Four places go wrong:
   ``__array__``; CPython itself at times drops it for the ``ValueError`` of
   an ``int("normal")`` that matplotlib's font matching catches), or Python
   code that catches every exception and goes on.
+
+SIGTERM (``kill``, ``timeout``, SLURM's ``scancel``, ``docker stop``) and
+SIGHUP (the terminal closed) end a process at once by default, leaving its
+temporary results behind.  While the command runner runs they take Ctrl-C's
+path: they are raised as :class:`Terminated`, a KeyboardInterrupt that names
+its signal, so that every ``except KeyboardInterrupt`` cleans up after them
+too, and the four places above are handled for them alike.
 
 While :func:`handling_interrupts` is active (the command runner turns it on),
 Ctrl-C (or SIGTERM, SIGHUP) in an import is held until the import is done and
@@ -78,8 +80,11 @@ class Terminated(KeyboardInterrupt):
     """
 
     def __init__(self, signum: int) -> None:
-        super().__init__(signal_name(signum))
+        super().__init__(signum)
         self.signum = signum
+
+    def __str__(self) -> str:
+        return signal_name(self.signum)
 
 
 def signal_name(signum: int) -> str:
