@@ -187,6 +187,15 @@ def session_processes(sid: int) -> list[str]:
     return found
 
 
+def _state(pid: int) -> str:
+    """The state of process ``pid`` (``R``, ``S``, ``T``: stopped, ...; ``X`` when it is gone)."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text(errors="replace")
+    except OSError:
+        return "X"
+    return text[text.rindex(")") + 2 :].split()[0]
+
+
 def assert_no_process_left(sid: int, timeout: float = 30.0) -> None:
     """No process that the command started outlives it (an encoder, a cluster's workers).
 
@@ -310,11 +319,21 @@ def killed(
 
     "While it writes": as soon as a temporary sibling of ``out`` holds
     something (a folder with an entry, or a file), which is what a run killed
-    outright (SIGKILL, out of memory, a power cut) leaves behind.
+    outright (SIGKILL, out of memory, a power cut) leaves behind.  The process
+    is stopped (SIGSTOP) and seen to be writing still before it is killed, so
+    that a result renamed into place just then does not count.
     """
+    out = Path(out)
     proc = _start(argv, cwd, stderr=subprocess.DEVNULL)
     start = time.monotonic()
-    while proc.poll() is None and not writing(out) and time.monotonic() - start < timeout:
+    while proc.poll() is None and time.monotonic() - start < timeout:
+        if writing(out):
+            proc.send_signal(signal.SIGSTOP)
+            while proc.poll() is None and _state(proc.pid) not in ("T", "t", "Z", "X"):
+                time.sleep(0.001)  # a rename in progress ends before it stops
+            if writing(out):
+                break
+            proc.send_signal(signal.SIGCONT)  # its result was renamed into place just then
         time.sleep(0.002)
     proc.kill()
     proc.wait(timeout=60)

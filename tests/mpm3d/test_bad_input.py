@@ -511,7 +511,6 @@ STAGES = [
 ]
 #: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
 TERMINATE_STAGES = [
-    ("analyze", "finding the surface", 0.05, signal.SIGTERM, "height-map"),
     ("analyze", "writing results", 0.3, signal.SIGTERM, "writing"),
     ("analyze", "building the isosurface", 0.05, signal.SIGHUP, "sighup-mesh"),
     ("compare", "writing results", 0.2, signal.SIGTERM, "writing"),
@@ -617,7 +616,7 @@ def _killed_then_run_again(command: str, stack: Path, tmp_path: Path) -> None:
         argv = ["compare", str(stack), str(stack), "--out", str(out), "--no-surface"]
         stale_scratch(out)
     else:  # a batch killed while it wrote its first run, and one killed writing metrics.csv
-        argv = ["batch", str(stack), "--workers", "1", "--out", str(out), "--no-figures"]
+        argv = ["batch", str(stack), "--workers", "1", "--out", str(out)]  # figures: seconds
         assert killed(["-m", "mpm3d", *argv], out=out / "runs" / "small")
         stale_scratch(out / "metrics.csv", "file")
     assert run(["-q", *argv]) == 0

@@ -928,7 +928,6 @@ STAGES = [
         "reconstruct-interrupt-tracking",
     ),
     ("reconstruct", "computing strain", 0.02, signal.SIGINT, "reconstruct-interrupt-strain"),
-    ("reconstruct", "triangulating", 0.02, signal.SIGTERM, "reconstruct-terminate-triangulating"),
     ("reconstruct", "computing strain", 0.3, signal.SIGTERM, "reconstruct-terminate-strain"),
     (
         "reconstruct",
