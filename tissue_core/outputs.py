@@ -100,7 +100,7 @@ def _host() -> str:
     """This host as scratch names record it: its name (letters, digits, ``.``, ``-``, ``_``),
     and its process-id namespace where there is one (containers that share a host name and a
     folder still tell their processes apart)."""
-    name = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname())[:64] or "localhost"
+    name = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname())[:32] or "localhost"
     try:
         return f"{name}-pidns{os.stat('/proc/self/ns/pid').st_ino}"
     except OSError:

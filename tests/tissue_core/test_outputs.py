@@ -331,7 +331,7 @@ def test_scratch_names_carry_their_owner(tmp_path):
 
     with open("/proc/self/stat") as f:
         start = f.read().rsplit(")", 1)[1].split()[19]
-    host = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname())
+    host = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname())[:32]  # long names cut
     with atomic_dir(tmp_path / "run") as tmp:
         (scratch,) = [p.name for p in tmp_path.iterdir()]
         assert tmp.name == scratch
