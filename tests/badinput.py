@@ -199,8 +199,9 @@ def _state(pid: int) -> str:
 def assert_no_process_left(sid: int, timeout: float = 30.0) -> None:
     """No process that the command started outlives it (an encoder, a cluster's workers).
 
-    Waits up to ``timeout`` seconds for processes that are ending (a tracker process
-    that sees its parent's pipe close), then fails naming those still running.
+    Waits up to ``timeout`` seconds for processes that are ending (multiprocessing's
+    resource tracker, once it sees its parent's pipe close), then fails naming those
+    still running.
     """
     if not Path("/proc/self/stat").exists():
         return
