@@ -37,11 +37,10 @@ import argparse
 import contextlib
 import csv
 import difflib
-import glob
 import io
 import json
 import os
-import shutil
+import signal
 import socket
 import sys
 import threading
@@ -56,7 +55,15 @@ from pathlib import Path
 from tissue_core.csvtext import restore_cell
 from tissue_core.errors import InputError
 from tissue_core.filenames import readable
-from tissue_core.interrupt import was_interrupted
+from tissue_core.interrupt import (
+    SIGNALS,
+    deferred_interrupt,
+    exit_status,
+    interrupt_signal,
+    raise_if_interrupted,
+    signal_name,
+    was_interrupted,
+)
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
     LEDGER,
@@ -65,6 +72,7 @@ from tissue_core.outputs import (
     name_too_long,
     read_marker,
     recorded_command,
+    remove_stale_scratch,
     replaced_on_success,
     sha256_of,
     written,
@@ -344,7 +352,7 @@ def run_job(job: Job, overwrite: bool = False, *, remake: bool = False) -> Outco
     seconds = time.perf_counter() - start
     if status == 0:
         return Outcome(job.name, "done", job.out, "", seconds, worker, messages=text.splitlines())
-    if status == 130:
+    if status in {exit_status(signum) for signum in SIGNALS}:
         reason = "interrupted"
     else:
         reason = _error_line(text) or f"exit status {status}"
@@ -767,15 +775,6 @@ def batch_folder(path: str | os.PathLike) -> Path:
     return path
 
 
-def _remove_scratch(out: str) -> None:
-    """Scratch folders a killed run left beside its result (``.NAME.tmp-*``)."""
-    out = Path(out)
-    if not out.parent.is_dir():
-        return
-    for scratch in out.parent.glob(f".{glob.escape(out.name)}.tmp-*"):
-        shutil.rmtree(scratch, ignore_errors=True)
-
-
 class _Log:
     """The batch's log file: timestamped lines, appended and flushed one at a time."""
 
@@ -966,7 +965,8 @@ LOCK_FILE = ".batch.lock"
 
 @contextlib.contextmanager
 def _lock(folder: Path) -> Iterator[None]:
-    """One batch at a time in a folder: two would remove each other's scratch."""
+    """One batch at a time in a folder: two would make the same runs and rewrite each other's
+    record."""
     path = folder / LOCK_FILE
     me = {"host": socket.gethostname(), "pid": os.getpid(), "started": _now()}
     for _ in range(2):
@@ -1018,6 +1018,7 @@ def _run_batch(
     todo: list[tuple[Job, bool]] = []
     stale = []
     for job in jobs:
+        remove_stale_scratch(job.out)  # left by a killed run: its earlier result put back
         state = job_state(job)
         if state == "complete":
             outcomes[job.name] = Outcome(job.name, "skipped", job.out, "complete already")
@@ -1045,11 +1046,10 @@ def _run_batch(
         log(note)
     for job, _ in todo:
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
-        _remove_scratch(job.out)
 
     def finished(outcome: Outcome) -> None:
         outcomes[outcome.name] = outcome
-        _remove_scratch(outcome.out)  # left by an attempt whose worker was killed
+        remove_stale_scratch(outcome.out)  # left by an attempt whose worker was killed
         done = sum(o.status != "skipped" for o in outcomes.values())
         count = f"[{done}/{len(todo)}]"
         deaths = outcome.worker_deaths
@@ -1088,7 +1088,8 @@ def _run_batch(
         outcome = run_job(job, overwrite, remake=remake)
         written[:] = made
         if outcome.reason == "interrupted" or was_interrupted():
-            raise KeyboardInterrupt  # Ctrl-C ended the job: it ends the batch
+            raise_if_interrupted()  # Ctrl-C (SIGTERM, SIGHUP) ended the job: it ends the batch
+            raise KeyboardInterrupt
         return outcome
 
     extra: list[Job] = []  # run by ``then`` on the cluster
@@ -1107,10 +1108,10 @@ def _run_batch(
             finally:
                 if scheduler is None:  # the local workers are gone, and with them their runs
                     for job in [*(job for job, _ in todo), *extra]:
-                        _remove_scratch(job.out)
+                        remove_stale_scratch(job.out)
         elif then:  # nothing to run: no workers to start for it
             after(here)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         # a run a worker finished as the cluster closed is whole: it counts as made
         for job, _ in todo:
             if job.name not in outcomes and job_state(job) == "complete":
@@ -1125,10 +1126,9 @@ def _run_batch(
                 log(f"{job.name}: its worker finished it as the batch stopped", show=False)
         made = sum(o.status == "done" for o in outcomes.values())
         still = " (runs in progress on the cluster may still be made)" if scheduler else ""
-        log(
-            f"interrupted: {made} of {len(todo)} runs made{still}; a rerun makes the others",
-            show=False,
-        )
+        signum = interrupt_signal(exc)
+        how = "interrupted" if signum == signal.SIGINT else f"terminated ({signal_name(signum)})"
+        log(f"{how}: {made} of {len(todo)} runs made{still}; a rerun makes the others", show=False)
         raise
     return [outcomes[j.name] for j in jobs]
 
@@ -1267,28 +1267,32 @@ def _run_on_dask(todo, workers, scheduler, log, finished, then=None, extra=None)
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
         else:
-            try:
-                stack.enter_context(_without_malloc_trimming())
-                cluster = LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,  # a run is one task; its libraries' threads: its own
-                    processes=True,
-                    dashboard_address=":0",  # a free port: batches may run side by side
-                    silence_logs=logging.CRITICAL,  # the workers' too
-                    preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
-                    # the cores shared out: a run's compiled kernels use its worker's share
-                    env={
-                        "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
-                        _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
-                    },
-                )
-                stack.enter_context(cluster)
-            except (RuntimeError, OSError, TimeoutError) as exc:
-                raise InputError(
-                    f"a local Dask cluster of {workers} workers could not start: {exc} "
-                    "(--workers 1 runs the batch without one)"
-                ) from None
-            client = stack.enter_context(Client(cluster))
+            # a signal while the cluster starts waits until it is up and in the stack, which
+            # then closes it: one that lands half-way leaves worker processes, a scheduler
+            # that goes on logging, and semaphores the resource tracker complains of
+            with deferred_interrupt():
+                try:
+                    stack.enter_context(_without_malloc_trimming())
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,  # a run is one task; its libraries' threads: its own
+                        processes=True,
+                        dashboard_address=":0",  # a free port: batches may run side by side
+                        silence_logs=logging.CRITICAL,  # the workers' too
+                        preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
+                        # the cores shared out: a run's compiled kernels use its worker's share
+                        env={
+                            "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
+                            _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
+                        },
+                    )
+                    stack.enter_context(cluster)
+                except (RuntimeError, OSError, TimeoutError) as exc:
+                    raise InputError(
+                        f"a local Dask cluster of {workers} workers could not start: {exc} "
+                        "(--workers 1 runs the batch without one)"
+                    ) from None
+                client = stack.enter_context(Client(cluster))
         n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"
         log(f"{n} workers; Dask dashboard: {link}", show=bool(scheduler) or n > 1)

@@ -20,11 +20,14 @@ import tifffile
 from mpm3d.cli import main
 from tests.badinput import (
     FAMILIES,
+    WRITING,
     assert_inert,
     assert_refused,
     interrupt,
+    killed,
     scratch_left,
     snapshot,
+    stale_scratch,
     unwritable_folder,
     write,
 )
@@ -506,7 +509,7 @@ def test_every_command_has_cases_of_every_family_that_applies():
         for family in FAMILIES:
             if family == "csv":  # mpm3d reads no tables
                 continue
-            if family == "interrupt":
+            if family in ("interrupt", "terminate", "stale"):
                 continue  # test_interrupt below
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
 
@@ -515,12 +518,13 @@ def test_every_command_has_cases_of_every_family_that_applies():
 
 
 #: ``python -c``: run mpm3d with a compiled kernel called over and over for 0.2 s (each call
-#: takes milliseconds) and Ctrl-C sent 1 ms after the first call starts; it prints how long the
-#: calls went on, to show that the signal came while compiled code ran
+#: takes milliseconds) and Ctrl-C (``KERNEL:SIGTERM``: SIGTERM) sent 1 ms after the first call
+#: starts; it prints how long the calls went on, to show that the signal came while compiled
+#: code ran
 IN_KERNEL = """
 import os, signal, sys, threading, time
 import mpm3d._kernels as kernels
-name = sys.argv[1]
+name, _, sent_signal = sys.argv[1].partition(":")
 real = getattr(kernels, name)
 def started(*args):
     # the first call in a process loads the compiled kernel, importing numba's modules: a
@@ -529,7 +533,7 @@ def started(*args):
     result = real(*args)
     sent = threading.Event()
     def ctrl_c():
-        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), getattr(signal, sent_signal or "SIGINT"))
         sent.set()
     waited = time.perf_counter()
     calls = 0  # calls begun after the Ctrl-C was sent
@@ -561,9 +565,17 @@ STAGES = [
     ("compare", "finding the surface", 0.05, "height-map"),
     ("compare", "writing results", 0.2, "writing"),
 ]
+#: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
+TERMINATE_STAGES = [
+    ("analyze", "writing results", 0.3, signal.SIGTERM, "writing"),
+    ("analyze", "building the isosurface", 0.05, signal.SIGHUP, "sighup-mesh"),
+    ("compare", "writing results", 0.2, signal.SIGTERM, "writing"),
+]
 INTERRUPTS = [
     *(
-        pytest.param(command, after, None, (), when, id=f"{command}-interrupt-{stage}")
+        pytest.param(
+            command, after, None, (), when, signal.SIGINT, id=f"{command}-interrupt-{stage}"
+        )
         for command, when, after, stage in STAGES
     ),
     # Ctrl-C while a numba kernel runs, its threads busy
@@ -573,6 +585,7 @@ INTERRUPTS = [
         "combine_channels",
         (),
         None,
+        signal.SIGINT,
         id="analyze-interrupt-in-combine-channels-kernel",
     ),
     pytest.param(
@@ -581,6 +594,7 @@ INTERRUPTS = [
         "first_crossing",
         (),
         None,
+        signal.SIGINT,
         id="analyze-interrupt-in-first-crossing-kernel",
     ),
     pytest.param(
@@ -589,31 +603,90 @@ INTERRUPTS = [
         "bin_lateral",
         ("--iso-bin", "2"),
         None,
+        signal.SIGINT,
         id="analyze-interrupt-in-bin-kernel",
+    ),
+    *(
+        pytest.param(command, after, None, (), when, signum, id=f"{command}-terminate-{stage}")
+        for command, when, after, signum, stage in TERMINATE_STAGES
+    ),
+    pytest.param(
+        "analyze",
+        120,
+        "first_crossing",
+        (),
+        None,
+        signal.SIGTERM,
+        id="analyze-terminate-in-first-crossing-kernel",
+    ),
+    # mpm3d batch, one run after the other: SIGTERM while a run is written
+    pytest.param("batch", 0.05, None, (), WRITING, signal.SIGTERM, id="batch-terminate-writing"),
+    # the scratch of runs killed outright (SIGKILL), removed by the next run
+    *(
+        pytest.param(command, None, None, (), "stale", None, id=f"{command}-stale-killed-run")
+        for command in ("analyze", "compare", "batch")
     ),
 ]
 
 
-@pytest.mark.parametrize(("command", "after", "kernel", "extra", "when"), INTERRUPTS)
-def test_interrupt(command, after, kernel, extra, when, mpm_pair, tmp_path):
+@pytest.mark.parametrize(("command", "after", "kernel", "extra", "when", "signum"), INTERRUPTS)
+def test_interrupt(command, after, kernel, extra, when, signum, mpm_pair, mpm_small, tmp_path):
     before, later = mpm_pair["before"][0], mpm_pair["after"][0]
     out = tmp_path / "out"
+    if when == "stale":
+        _killed_then_run_again(command, mpm_small[0], tmp_path)
+        return
     if kernel is not None:  # the largest test stack: the kernels run longest
         inputs = [later]
-        argv = ["-c", IN_KERNEL, kernel, "analyze", later, "--out", out, "--no-figures", *extra]
+        name = kernel if signum == signal.SIGINT else f"{kernel}:{signal.Signals(signum).name}"
+        argv = ["-c", IN_KERNEL, name, "analyze", later, "--out", out, "--no-figures", *extra]
     elif command == "analyze":
         inputs = [before]
         argv = ["-m", "mpm3d", "analyze", before, "--out", out]
+    elif command == "batch":  # the signal while its first run is written: watch that run
+        inputs = [before, later]
+        argv = ["-m", "mpm3d", "batch", before, later, "--workers", "1", "--out", tmp_path / "b"]
+        out = tmp_path / "b" / "runs" / "before"
     else:
         inputs = [before, later]
         argv = ["-m", "mpm3d", "compare", before, later, "--out", out, "--no-surface"]
         argv += ["--icp", "off"]
-    status, err = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
+    status, err = interrupt(argv, after=after, when=when, out=out, inputs=inputs, signum=signum)
     if kernel is not None:
-        assert status == 130 and not out.exists(), err
+        assert status == 128 + signum and not out.exists(), err
         assert f"[kernel {kernel} interrupted: " in err, err  # Ctrl-C ended the kernel calls
     elif status == 0:
         assert (out / ("metrics.json" if command == "analyze" else "compare.json")).is_file()
+    if command == "batch":
+        assert status == 143 and not out.exists(), err
+        assert scratch_left(tmp_path / "b") == []
+
+
+def _killed_then_run_again(command: str, stack: Path, tmp_path: Path) -> None:
+    """A run killed (SIGKILL) while it wrote; the next run removes what it left."""
+    out = tmp_path / "out"
+    if command == "analyze":
+        argv = ["analyze", str(stack), "--out", str(out)]
+        assert killed(["-m", "mpm3d", *argv], out=out)  # a real run, killed mid-way
+    elif command == "compare":
+        argv = ["compare", str(stack), str(stack), "--out", str(out), "--no-surface"]
+        stale_scratch(out)
+    else:  # a batch killed while it wrote its first run, and one killed writing metrics.csv
+        argv = ["batch", str(stack), "--workers", "1", "--out", str(out)]  # figures: seconds
+        assert killed(["-m", "mpm3d", *argv], out=out / "runs" / "small")
+        stale_scratch(out / "metrics.csv", "file")
+    assert run(["-q", *argv]) == 0
+    for folder in (tmp_path, out, out / "runs"):
+        if folder.is_dir():
+            assert scratch_left(folder) == [], folder
+    assert not (out / ".batch.lock").exists()
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [p.id for p in INTERRUPTS]
+    for command in (*COMMANDS, "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
 
 
 class _ConvertedByMatplotlib:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import copy
 import json
 import shutil
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
@@ -15,7 +16,17 @@ import numpy as np
 import pytest
 
 from stereo.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, scratch_left, snapshot, write
+from tests.badinput import (
+    FAMILIES,
+    WRITING,
+    assert_refused,
+    interrupt,
+    killed,
+    scratch_left,
+    snapshot,
+    stale_scratch,
+    write,
+)
 from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
 from tissue_core.outputs import atomic_dir
@@ -982,31 +993,98 @@ def test_every_command_has_cases_of_every_family_that_applies():
             assert any(i.startswith(f"{command}-csv-") for i in ids), command
 
 
-# --------------------------------------------------------------------------- Ctrl-C
+# --------------------------------------------------------------------------- Ctrl-C, SIGTERM
 
 
-#: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start)
+def _stereo_command(command: str, s: SmallStereo, tmp: Path, *, strain: bool = True):
+    """``(argv, out, inputs)`` of a run of ``command`` on the small inputs."""
+    if command == "batch":
+        manifest = tmp / "specimens.csv"
+        manifest.write_text(
+            "specimen,left,right,calib\n"
+            + "".join(f"{name},{s.left},{s.right},{s.calib}\n" for name in ("A", "B"))
+        )
+        argv = ["batch", manifest, "--workers", "1", "--grid", "5x4", "--roi", "280,150,400,240",
+                "--out", tmp / "b"]  # fmt: skip
+        return argv, tmp / "b", [s.left, s.right, s.calib]
+    options = base(command, s, tmp)
+    options.pop("-q", None)
+    if command == "reconstruct" and strain:
+        options["--strain"] = True
+    argv = command_line(command, options)
+    out = Path(options["--out"])
+    return argv, out, [Path(a) for a in argv[1:] if Path(a).exists() and Path(a) != out]
+
+
+#: Ctrl-C (SIGTERM, SIGHUP) ``after`` seconds after the step ``when`` was printed (None: after
+#: the start; WRITING: once its temporary result holds something)
 STAGES = [
-    (None, 0.3, "imports"),
-    ("matching", 0.05, "matching"),
-    ("tracking the left view", 0.05, "tracking"),
-    ("computing strain", 0.02, "strain"),
+    ("reconstruct", None, 0.3, signal.SIGINT, "reconstruct-interrupt-imports"),
+    ("reconstruct", "matching", 0.05, signal.SIGINT, "reconstruct-interrupt-matching"),
+    (
+        "reconstruct",
+        "tracking the left view",
+        0.05,
+        signal.SIGINT,
+        "reconstruct-interrupt-tracking",
+    ),
+    ("reconstruct", "computing strain", 0.02, signal.SIGINT, "reconstruct-interrupt-strain"),
+    ("reconstruct", "computing strain", 0.3, signal.SIGTERM, "reconstruct-terminate-strain"),
+    (
+        "reconstruct",
+        "tracking the left",
+        0.05,
+        signal.SIGHUP,
+        "reconstruct-terminate-sighup-tracking",
+    ),
+    ("calibrate", "detecting the target", 0.1, signal.SIGTERM, "calibrate-terminate-detecting"),
+    ("import-calib", None, 0.3, signal.SIGTERM, "import-calib-terminate-imports"),
+    ("match", None, 1.0, signal.SIGTERM, "match-terminate-start"),
+    ("batch", WRITING, 0.05, signal.SIGTERM, "batch-terminate-first-run"),
+    # the scratch of a run killed outright (SIGKILL), removed by the next run
+    *(
+        (command, "stale", None, None, f"{command}-stale-killed-run")
+        for command in (*COMMANDS, "batch")
+    ),
 ]
 
 
 @pytest.mark.parametrize(
-    ("when", "after"),
-    [s[:2] for s in STAGES],
-    ids=[f"reconstruct-interrupt-{s[2]}" for s in STAGES],
+    ("command", "when", "after", "signum"), [s[:4] for s in STAGES], ids=[s[4] for s in STAGES]
 )
-def test_interrupt(when, after, small_stereo, tmp_path):
-    s = small_stereo
-    out = tmp_path / "rec"
-    inputs = [s.calib, s.left, s.right, s.points]
-    argv = ["-m", "stereo", "reconstruct", "--calib", s.calib, "--left", s.left,
-            "--right", s.right, "--points", s.points, "--strain", "--out", out]  # fmt: skip
-    status, _ = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
-    assert status == 130
+def test_interrupt(command, when, after, signum, small_stereo, tmp_path, capsys):
+    if when == "stale":
+        _killed_then_run_again(command, small_stereo, tmp_path, capsys)
+        return
+    argv, out, inputs = _stereo_command(command, small_stereo, tmp_path)
+    if command == "batch":  # a batch's result is its runs: watch the first one
+        out = tmp_path / "b" / "runs" / "A"
+    status, err = interrupt(["-m", "stereo", *argv], after=after, when=when, out=out,
+                            inputs=inputs, signum=signum)  # fmt: skip
+    assert status == 128 + signum, err
+    if command == "batch":
+        assert scratch_left(tmp_path / "b") == [] and not out.exists()
+
+
+def _killed_then_run_again(command: str, s: SmallStereo, tmp_path: Path, capsys) -> None:
+    """A run killed (SIGKILL) while it wrote; the next run removes what it left."""
+    argv, out, _ = _stereo_command(command, s, tmp_path, strain=False)
+    if command == "batch":  # killed while it wrote a run, and one killed writing its record
+        assert killed(["-m", "stereo", *argv], out=out / "runs" / "A")
+        stale_scratch(out / "batch.json", "replaced")
+    else:
+        stale_scratch(out, "dir" if command == "reconstruct" else "file")
+    assert main(["-q", *map(str, argv)]) == 0, capsys.readouterr().err
+    for folder in (tmp_path, out, out / "runs"):
+        if folder.is_dir():
+            assert scratch_left(folder) == [], folder
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [s[4] for s in STAGES]
+    for command in (*COMMANDS, "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
 
 
 # --------------------------------------------------------------------------- names

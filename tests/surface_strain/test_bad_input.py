@@ -5,6 +5,7 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import signal
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,8 +13,10 @@ import pytest
 
 from surface_strain.cli import main
 from tests.badinput import (
+    WRITING,
     assert_refused,
     interrupt,
+    killed,
     message_lines,
     parse_case_id,
     scratch_left,
@@ -211,18 +214,40 @@ def test_points_lost_on_the_reference_frame_are_named(inputs, tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    ("when", "after"),
-    [(None, 0.3), ("points over 40 frames", 0.02), ("points over 40 frames", 0.5)],
-    ids=["compute-interrupt-imports", "compute-interrupt-strain", "compute-interrupt-writing"],
+    ("when", "after", "signum"),
+    [
+        (None, 0.3, signal.SIGINT),
+        ("points over 40 frames", 0.02, signal.SIGINT),
+        ("points over 40 frames", 0.5, signal.SIGINT),
+        ("points over 40 frames", 0.02, signal.SIGTERM),
+        (WRITING, 0.0, signal.SIGTERM),
+        ("points over 40 frames", 0.02, signal.SIGHUP),
+        ("stale", None, None),
+    ],
+    ids=[
+        "compute-interrupt-imports",
+        "compute-interrupt-strain",
+        "compute-interrupt-writing",
+        "compute-terminate-strain",
+        "compute-terminate-writing",
+        "compute-terminate-sighup-strain",
+        "compute-stale-killed-run",
+    ],
 )
-def test_interrupt(tmp_path, when, after):
+def test_interrupt(tmp_path, when, after, signum):
     points, *_ = _tilted_sheet_tracks(n=40, frames=40)
     src = tmp_path / "p.csv"
     _write(src, points)
     out = tmp_path / "run"
+    if when == "stale":  # a run killed (SIGKILL) while it wrote: the next one removes its scratch
+        argv = ["compute", str(src), "--out", str(out)]  # the figures: seconds of writing
+        assert killed(["-m", "surface_strain", *argv], out=out)
+        assert main(["-q", *argv]) == 0
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv", "run"]
+        return
     status, err = interrupt(["-m", "surface_strain", "compute", src, "--out", out], after=after,
-                            when=when, out=out, inputs=[src])  # fmt: skip
-    assert status == 130  # before the command is parsed the line names the program only
+                            when=when, out=out, inputs=[src], signum=signum)  # fmt: skip
+    assert status == 128 + signum  # before the command is parsed the line names the program only
     assert message_lines(err)[-1].startswith("surface_strain")
 
 
