@@ -10,6 +10,8 @@ Small pieces that ``strain2d``, ``surface_strain``, ``stereo``, ``mpm3d`` and
 * :mod:`tissue_core.interrupt` - Ctrl-C held back where Python cannot raise it
   cleanly (compiled kernels, imports, finalizers);
 * :mod:`tissue_core.progress` - timestamped progress on stderr;
+* :mod:`tissue_core.resources` - whether what an option asks for fits the
+  memory and the disk, checked before it is made;
 * :mod:`tissue_core.cli` - the command runner: one error line and exit
   status 2, exit 130 on Ctrl-C, warnings as one line each;
   :mod:`tissue_core.main` - ``python -m PACKAGE``;
