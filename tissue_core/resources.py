@@ -117,7 +117,7 @@ def check_fits(
         if memory > have:
             raise InputError(
                 f"{what} needs {format_size(memory)} of memory; {format_size(have)} is "
-                "available: ask for less"
+                f"available: {remedy}"
             )
     if disk > 0 and out is not None:
         free = free_disk(out)

@@ -27,6 +27,8 @@ def test_memory_beyond_what_is_available_is_refused_naming_both(monkeypatch):
         "--grid 900x900 (810000 points over 6 frames) needs 3 GiB of memory; 2 GiB is "
         "available: ask for less"
     )
+    with pytest.raises(InputError, match=r"available: use a coarser grid$"):
+        check_fits("--grid 900x900", memory=3 * 2**30, remedy="use a coarser grid")
 
 
 def test_the_disk_of_the_output_is_asked_even_before_the_output_exists(tmp_path, monkeypatch):
