@@ -548,19 +548,13 @@ def _check_reconstruct_options(args) -> None:
 
 
 def _grid_points(args, shape: tuple[int, int]) -> tuple[np.ndarray, dict]:
-    from strain2d import default_roi, make_grid, parse_grid, parse_roi
+    from strain2d import make_grid, parse_grid, parse_roi
 
     text = args.grid or _DEFAULT_GRID
     cols, rows = parse_grid(text)
     roi = parse_roi(args.roi) if args.roi else None
     if roi is not None and not all(math.isfinite(v) for v in roi):
         raise InputError(f"--roi must be four finite numbers X0,Y0,X1,Y1, got {args.roi!r}")
-    x0, y0, x1, y1 = roi or default_roi(shape)
-    if x1 > x0 and y1 > y0 and (cols - 1 > x1 - x0 or rows - 1 > y1 - y0):
-        raise InputError(
-            f"--grid {text} puts points less than a pixel apart in the region "
-            f"{x0:g},{y0:g},{x1:g},{y1:g}; choose fewer points"
-        )
     points = make_grid(shape, shape=(cols, rows), roi=roi)
     return points, {"grid": [cols, rows], "roi": list(roi) if roi else None}
 
@@ -707,6 +701,11 @@ def _cmd_reconstruct(args) -> int:
         point_info = {"source": Path(args.points).name}
     else:
         points, point_info = _grid_points(args, left.shape)
+    from strain2d import check_tracks_fit
+
+    check_tracks_fit(
+        len(points), len(left), views=2, remedy="use fewer points (--grid, --points) or frames"
+    )
     directions = args.directions or "xy"
     rec = reconstruct(
         left,

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import tissue_core.resources as resources
 from stereo.cli import main
 from tests.badinput import FAMILIES, assert_refused, interrupt, write
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
@@ -856,13 +857,30 @@ for option, value, fragment in (
         return {"--points": None, option: value}, [option, fragment]
 
 
+@case("reconstruct-allocation-grid-300x300")
+def _(s, t):
+    return {"--points": None, "--grid": "300x300"}, ["--grid 300x300", "px apart", "at most"]
+
+
+@case("reconstruct-allocation-tracks-memory")
+def _(s, t):
+    return {}, ["points over 2 frames in each of 2 views", "of memory", "100 bytes", "--grid"]
+
+
+#: the memory available, bytes, in the cases that ask for more than there is
+SMALL_MEMORY = {"reconstruct-allocation-tracks-memory": 100}
+
+
 @case("reconstruct-option-directions-unknown")
 def _(s, t):
     return {"--strain": True, "--directions": "polar"}, ["--directions", "polar"]
 
 
 @pytest.mark.parametrize(("command", "build"), CASES)
-def test_bad_input(command, build, small_stereo, tmp_path, capsys):
+def test_bad_input(command, build, small_stereo, tmp_path, capsys, monkeypatch, request):
+    memory = SMALL_MEMORY.get(request.node.callspec.id)
+    if memory is not None:
+        monkeypatch.setattr(resources, "available_memory", lambda: memory)
     changes, fragments = build(small_stereo, tmp_path)
     options = base(command, small_stereo, tmp_path)
     options.update(changes)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import tifffile
 
+import tissue_core.resources as resources
 from strain2d.cli import main
 from tests.badinput import (
     assert_refused,
@@ -73,6 +74,7 @@ def inputs(small_case, tmp_path_factory):
         "empty": "",
         "header_only": "x,y\n",
         "binary": "\x00\x01\x02\xff",
+        "many": "x,y\n10,10\n60,60\n20,80\n90,30\n",
     }
     for name, text in csv.items():
         mode = "wb" if name == "binary" else "w"
@@ -267,6 +269,22 @@ CASES = [
      "imported", "--out", o], ["imported"]),
     ("benchmark-option-grid", lambda c, o: ["benchmark", "--quick", "--grid", "0x3", "--out", o],
      ["--grid"]),
+    # ---- options that size an allocation beyond the frames or the memory
+    ("analyze-allocation-grid-100000x100000", lambda c, o: _analyze(c, "--grid", "100000x100000",
+     "--out", o), ["--grid 100000x100000", "0.00139 px apart", "at most 70x70"]),
+    ("analyze-allocation-grid-500x500", lambda c, o: _analyze(c, "--grid", "500x500", "--out", o),
+     ["--grid 500x500", "0.279 px apart", "closer than 2 px", "at most 70x70"]),
+    ("analyze-allocation-grid-in-roi", lambda c, o: _analyze(c, "--roi", "10,10,20,30", "--grid",
+     "20x20", "--out", o), ["--grid 20x20", "10x20 px region", "at most 6x11"]),
+    ("track-allocation-grid-500x500", lambda c, o: ["track", c.avi, "--grid", "500x500",
+     "--out", o], ["--grid 500x500", "at most 70x70"]),
+    ("analyze-allocation-tracks-memory", lambda c, o: _analyze(c, "--out", o),
+     ["tracking 9 points over 6 frames", "1.74 KiB of memory", "1000 bytes is available",
+      "--grid"]),
+    ("track-allocation-points-memory", lambda c, o: ["track", c.avi, "--points",
+     c.dir / "points_many.csv", "--out", o], ["tracking 4 points over 6 frames", "of memory"]),
+    ("benchmark-allocation-grid-1000x1000", lambda c, o: ["benchmark", "--quick", "--grid",
+     "1000x1000", "--out", o], ["--grid 1000x1000", "at most"]),
     # ---- conflicting options
     ("analyze-conflict-points-and-grid", lambda c, o: ["analyze", c.avi, "--points",
      c.dir / "points_nan.csv", "--grid", "3x3", "--out", o], ["--points", "--grid"]),
@@ -324,10 +342,15 @@ def _output_cases():
 
 ALL = CASES + _output_cases()
 
+#: the memory available, bytes, in the cases that ask for more than there is
+SMALL_MEMORY = {"analyze-allocation-tracks-memory": 1000, "track-allocation-points-memory": 100}
+
 
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
 def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
+    if case in SMALL_MEMORY:
+        monkeypatch.setattr(resources, "available_memory", lambda: SMALL_MEMORY[case])
     out = tmp_path / "out"
     argv = [str(a) for a in build(inputs, out)]
     if "-q" not in argv:
