@@ -114,6 +114,27 @@ def _data_range(frame: np.ndarray, dtype: np.dtype | None) -> tuple[float, float
     return lo, hi
 
 
+def _check_finite(frame: np.ndarray, where: Path, index: int) -> None:
+    """Refuse a frame with infinite or NaN pixels (float TIFFs can hold them).
+
+    The trackers' gray-level models and their 8-bit conversion (see
+    :attr:`FrameSource.value_range`) have no value for them: one such pixel,
+    far from every point, can make all the points of its frame lost.
+    """
+    if np.isfinite(np.add.reduce(frame, axis=None, dtype=np.float64)):
+        return  # the sum of float32 values in float64 is finite exactly when every value is
+    nan = np.isnan(frame)
+    inf = np.isinf(frame)
+    n_nan, n_inf = int(nan.sum()), int(inf.sum())
+    what = " and ".join(f"{n} {kind}" for n, kind in ((n_inf, "infinite"), (n_nan, "NaN")) if n)
+    y, x = np.argwhere(nan | inf)[0]
+    raise SourceError(
+        f"{where}: frame {index} holds {what} pixel value{'s' if n_nan + n_inf > 1 else ''} "
+        f"(the first at x={x}, y={y}); the trackers need finite gray values: replace them "
+        "(e.g. by their neighbours' values) or leave the frame out (--start, --stop)"
+    )
+
+
 class FrameSource:
     """A lazy, re-iterable sequence of gray frames.
 
@@ -294,12 +315,13 @@ class FrameSource:
     def __iter__(self) -> Iterator[np.ndarray]:
         shape = getattr(self, "shape", None)
         for k, frame in enumerate(self._iter_raw()):
+            where = self._paths[self._indices[k]] if self.kind == "images" else self._paths[0]
             if shape is not None and frame.shape != shape:
-                where = self._paths[self._indices[k]] if self.kind == "images" else self._paths[0]
                 raise SourceError(
                     f"{where}: frame {k} has size {frame.shape[1]}x{frame.shape[0]}, "
                     f"the reference frame {shape[1]}x{shape[0]}"
                 )
+            _check_finite(frame, where, self._indices[k])
             yield frame
 
     def __len__(self) -> int:

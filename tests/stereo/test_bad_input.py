@@ -857,6 +857,34 @@ for option, value, fragment in (
         return {"--points": None, option: value}, [option, fragment]
 
 
+def float_frames(source: Path, tmp: Path, name: str, bad: tuple[int, float]) -> Path:
+    """The frames of the folder ``source`` as float32 TIFFs, frame ``bad[0]`` with the value
+    ``bad[1]`` in nine pixels of a corner, far from every point."""
+    import cv2
+    import tifffile
+
+    folder = tmp / name
+    folder.mkdir()
+    for k, png in enumerate(sorted(source.glob("*.png"))):
+        frame = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        if k == bad[0]:
+            frame[-3:, -3:] = bad[1]
+        tifffile.imwrite(folder / f"{png.stem}.tif", frame)
+    return folder
+
+
+@case("reconstruct-nonfinite-inf-in-the-right-view")
+def _(s, t):
+    return {"--right": float_frames(s.right, t, "right", (1, np.inf))}, [
+        "frame_001.tif", "frame 1", "9 infinite pixel values"]  # fmt: skip
+
+
+@case("reconstruct-nonfinite-nan-on-the-left-reference")
+def _(s, t):
+    return {"--left": float_frames(s.left, t, "left", (0, np.nan))}, [
+        "frame_000.tif", "frame 0", "9 NaN pixel values"]  # fmt: skip
+
+
 @case("reconstruct-allocation-grid-300x300")
 def _(s, t):
     return {"--points": None, "--grid": "300x300"}, ["--grid 300x300", "px apart", "at most"]

@@ -47,6 +47,18 @@ def inputs(small_case, tmp_path_factory):
     tifffile.imwrite(d / "one_frame.tif", np.zeros((64, 64), np.uint8))
     tifffile.imwrite(d / "rgb_channels.tif", np.zeros((3, 2, 64, 64), np.uint8), imagej=True,
                      metadata={"axes": "TCYX"})  # fmt: skip
+    frames = tifffile.imread(c.tif).astype(np.float32)
+    for name, frame, value in (("inf_corner", 3, np.inf), ("nan_reference", 0, np.nan),
+                               ("minus_inf", 5, -np.inf)):  # fmt: skip
+        bad = frames.copy()
+        bad[frame, -3:, -3:] = value  # nine pixels in a corner, far from every point
+        tifffile.imwrite(d / f"{name}.tif", bad)
+    (d / "float_images").mkdir()
+    for k, frame in enumerate(frames[:3]):
+        if k == 2:
+            frame = frame.copy()
+            frame[0, 0] = np.inf
+        tifffile.imwrite(d / "float_images" / f"f{k}.tif", frame)
     (d / "no_images").mkdir()
     (d / "no_images" / "readme.txt").write_text("x")
     (d / "mixed").mkdir()
@@ -112,11 +124,15 @@ def inputs(small_case, tmp_path_factory):
 
 
 def _analyze(c, *extra):
-    return ["-q", "analyze", c.avi, "--grid", "3x3", "--animation", "none", *extra]
+    """``analyze`` of the video (or of the source ``c``, a path) on a 3x3 grid."""
+    video = c if isinstance(c, Path) else c.avi
+    return ["-q", "analyze", video, "--grid", "3x3", "--animation", "none", *extra]
 
 
 def _track(c, *extra):
-    return ["-q", "track", c.avi, "--grid", "3x3", *extra]
+    """``track`` of the video (or of the source ``c``, a path) on a 3x3 grid."""
+    video = c if isinstance(c, Path) else c.avi
+    return ["-q", "track", video, "--grid", "3x3", *extra]
 
 
 def _points_file(name):
@@ -285,6 +301,16 @@ CASES = [
      c.dir / "points_many.csv", "--out", o], ["tracking 4 points over 6 frames", "of memory"]),
     ("benchmark-allocation-grid-1000x1000", lambda c, o: ["benchmark", "--quick", "--grid",
      "1000x1000", "--out", o], ["--grid 1000x1000", "at most"]),
+    # ---- infinite or NaN pixels in float frames (a corner, far from every point)
+    ("analyze-nonfinite-inf-corner", lambda c, o: _analyze(c.dir / "inf_corner.tif", "--out", o),
+     ["inf_corner.tif", "frame 3", "9 infinite pixel values", "x=197, y=197"]),
+    ("analyze-nonfinite-nan-reference", lambda c, o: _analyze(c.dir / "nan_reference.tif",
+     "--out", o), ["nan_reference.tif", "frame 0", "9 NaN pixel values"]),
+    ("analyze-nonfinite-image-folder", lambda c, o: _analyze(c.dir / "float_images", "--out", o),
+     ["f2.tif", "frame 2", "1 infinite pixel value "]),
+    *[(f"track-nonfinite-minus-inf-{tracker}", (lambda t: lambda c, o: _track(
+        c.dir / "minus_inf.tif", "--tracker", t, "--out", o))(tracker),
+       ["minus_inf.tif", "frame 5", "9 infinite"]) for tracker in ("gdic", "dic", "klt")],
     # ---- conflicting options
     ("analyze-conflict-points-and-grid", lambda c, o: ["analyze", c.avi, "--points",
      c.dir / "points_nan.csv", "--grid", "3x3", "--out", o], ["--points", "--grid"]),

@@ -196,3 +196,18 @@ def test_a_damaged_video_header_is_one_line_on_the_terminal(tmp_path, where, pri
     assert quiet.stderr.splitlines() == [f"strain2d analyze: error: cannot read video {video}"]
     assert printed in verbose.stderr  # OpenCV's own words, in the log
     assert not (tmp_path / "out").exists()
+
+
+def test_float_frames_are_read_while_finite_and_refused_with_nonfinite_pixels(tmp_path):
+    frames = np.random.default_rng(0).uniform(0, 1, (3, 32, 48)).astype(np.float32)
+    frames[1, 0, 0] = np.finfo(np.float32).max  # extreme, but a value
+    frames[2, 5, 7] = -np.finfo(np.float32).max
+    tifffile.imwrite(tmp_path / "ok.tif", frames, photometric="minisblack")
+    np.testing.assert_array_equal(open_frames(tmp_path / "ok.tif").read_all(), frames)
+    frames[2, 30, 40] = np.nan
+    frames[2, 31, 47] = np.inf
+    tifffile.imwrite(tmp_path / "bad.tif", frames, photometric="minisblack")
+    source = open_frames(tmp_path / "bad.tif")  # frame 0 is clean: opened
+    with pytest.raises(SourceError, match=r"bad.tif: frame 2 holds 1 infinite and 1 NaN pixel "
+                       r"values \(the first at x=40, y=30\)"):  # fmt: skip
+        source.read_all()
