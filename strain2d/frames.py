@@ -11,9 +11,6 @@ from __future__ import annotations
 import logging
 import os
 import re
-import sys
-import tempfile
-import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -30,10 +27,6 @@ TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".jp2", ".webp"})
 
 
-#: one thread at a time points the process's stderr elsewhere
-_STDERR_LOCK = threading.Lock()
-
-
 def _video_capture(path: Path):
     """An OpenCV capture whose messages on opening do not reach the terminal.
 
@@ -47,23 +40,13 @@ def _video_capture(path: Path):
     """
     import cv2
 
+    from tissue_core.images import caught_stderr
+
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    with _STDERR_LOCK, tempfile.TemporaryFile() as caught:
-        try:
-            sys.stderr.flush()
-            saved = os.dup(2)
-        except (OSError, ValueError, AttributeError):  # no stderr to keep quiet
-            return cv2.VideoCapture(str(path))
-        try:
-            os.dup2(caught.fileno(), 2)
-            cap = cv2.VideoCapture(str(path))
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        caught.seek(0)
-        said = caught.read().decode("utf-8", "replace").strip()
-    if said:
-        logging.getLogger(__name__).info("OpenCV on opening %s: %s", path, said)
+    with caught_stderr() as said:
+        cap = cv2.VideoCapture(str(path))
+    if said[0]:
+        logging.getLogger(__name__).info("OpenCV on opening %s: %s", path, said[0])
     return cap
 
 
@@ -237,13 +220,19 @@ class FrameSource:
         if self.kind == "tiff":
             import tifffile
 
+            from tissue_core.tiff_files import check_complete, tifffile_messages
+
             try:
-                with tifffile.TiffFile(self._paths[0]) as tif:
+                with tifffile_messages() as messages, tifffile.TiffFile(self._paths[0]) as tif:
                     n = len(tif.pages)
                     series = tif.series[0]
+                    # a file cut short reads as fewer frames: refused as truncated instead
+                    check_complete(tif, series, str(self._paths[0]), messages)
                     axes = dict(zip(series.axes, series.shape, strict=True))
                     self._dtype = np.dtype(tif.pages[0].dtype)
                     self._raw_range = _dtype_range(self._dtype)
+            except SourceError:
+                raise
             except Exception as exc:  # tifffile raises many types on corrupt files
                 raise SourceError(f"cannot read TIFF {self._paths[0]}: {exc}") from None
             if axes.get("C", 1) > 1:
@@ -297,7 +286,9 @@ class FrameSource:
         elif self.kind == "tiff":
             import tifffile
 
-            with tifffile.TiffFile(self._paths[0]) as tif:
+            from tissue_core.tiff_files import tifffile_messages
+
+            with tifffile_messages(), tifffile.TiffFile(self._paths[0]) as tif:
                 for i in wanted:
                     try:
                         page = tif.pages[i].asarray()

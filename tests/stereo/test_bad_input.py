@@ -624,6 +624,22 @@ def _(s, t):
     return {"_1": cut(s.left0, t, "left.png")}, ["left.png", "truncated"]
 
 
+def tiff_copy(png: Path, folder: Path, name: str) -> Path:
+    """A PNG's gray image as a TIFF file."""
+    import cv2
+    import tifffile
+
+    folder.mkdir(parents=True, exist_ok=True)
+    tifffile.imwrite(folder / name, cv2.imread(str(png), cv2.IMREAD_GRAYSCALE))
+    return folder / name
+
+
+@case("match-truncated-left-tif")
+def _(s, t):
+    tif = tiff_copy(s.left0, t / "whole", "left.tif")
+    return {"_1": cut(tif, t)}, ["left.tif is truncated", "runs to byte"]
+
+
 @case("match-truncated-right-jpeg")
 def _(s, t):
     jpeg = jpeg_copy(s.right0, t / "whole", "right.jpg")
@@ -746,6 +762,18 @@ def _(s, t):
 @case("reconstruct-truncated-right-video")
 def _(s, t):
     return {"--left": s.left_video, "--right": cut(s.right_video, t)}, ["right.avi"]
+
+
+@case("reconstruct-truncated-tif-movie")
+def _(s, t):
+    import cv2
+    import tifffile
+
+    frames = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in sorted(s.right.glob("*.png"))]
+    tifffile.imwrite(t / "whole.tif", np.stack(frames))
+    data = (t / "whole.tif").read_bytes()
+    right = write(t, "right.tif", data[: len(data) * 3 // 4])  # the first page is whole
+    return {"--right": right}, ["right.tif is truncated"]
 
 
 @case("reconstruct-truncated-png-in-the-left-folder")

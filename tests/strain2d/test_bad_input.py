@@ -43,6 +43,12 @@ def inputs(small_case, tmp_path_factory):
     (d / "text.avi").write_text("not a video\n")
     tif = c.tif.read_bytes()
     (d / "truncated.tif").write_bytes(tif[: len(tif) // 2])
+    (d / "last_page_cut.tif").write_bytes(tif[: len(tif) * 99 // 100])
+    (d / "cut_tif").mkdir()
+    for k, frame in enumerate(tifffile.imread(c.tif)[:3]):
+        tifffile.imwrite(d / "cut_tif" / f"f{k}.tif", frame)
+    page = (d / "cut_tif" / "f2.tif").read_bytes()
+    (d / "cut_tif" / "f2.tif").write_bytes(page[: len(page) // 2])
     (d / "text.tif").write_text("not a tiff\n")
     tifffile.imwrite(d / "one_frame.tif", np.zeros((64, 64), np.uint8))
     tifffile.imwrite(d / "rgb_channels.tif", np.zeros((3, 2, 64, 64), np.uint8), imagej=True,
@@ -181,7 +187,11 @@ CASES = [
     ("analyze-truncated-avi-header", lambda c, o: ["analyze", c.dir / "header_only.avi",
      "--out", o], ["header_only.avi"]),
     ("analyze-truncated-tif", lambda c, o: ["analyze", c.dir / "truncated.tif", "--grid", "3x3",
-     "--out", o], ["truncated.tif"]),
+     "--out", o], ["truncated.tif is truncated"]),
+    ("track-truncated-tif-last-page", lambda c, o: _track(c.dir / "last_page_cut.tif",
+     "--out", o), ["last_page_cut.tif is truncated", "bytes"]),
+    ("analyze-truncated-tif-in-folder", lambda c, o: _analyze(c.dir / "cut_tif", "--out", o),
+     ["f2.tif is truncated", "runs to byte"]),
     ("track-truncated-npz", lambda c, o: ["track", "--tracker", "imported", c.avi,
      "--tracks-file", c.dir / "tracks_corrupt.npz", "--out", o], ["tracks_corrupt.npz"]),
     ("track-truncated-tracks-missing-row", lambda c, o: ["track", "--tracker", "imported", c.avi,
