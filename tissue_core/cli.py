@@ -128,6 +128,20 @@ def one_line(message: object) -> str:
     return text or "unknown error"
 
 
+#: the toolkit's packages: their log records reach the terminal without -v
+_TOOLKIT = frozenset(
+    {"tissue_core", "strain2d", "surface_strain", "stereo", "mpm3d", "sample_data_synth"}
+)
+
+
+def _toolkit_or_verbose(record: logging.LogRecord) -> bool:
+    """The libraries' log records (tifffile's ``ERROR: ...`` on a damaged file, ...) only
+    with -v: without it, the command's one error line stays the only one."""
+    if record.name.split(".")[0] in _TOOLKIT:
+        return True
+    return logging.getLogger().getEffectiveLevel() <= logging.INFO
+
+
 def _show_warning(prefix: str):
     def show(message, category, filename, lineno, file=None, line=None) -> None:
         if issubclass(category, UserWarning):
@@ -174,10 +188,13 @@ def run_command(
     try:
         args = parser.parse_args(argv)
         prefix = f"{prog} {args.command}"
+        before = set(logging.getLogger().handlers)
         logging.basicConfig(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
             format="%(levelname)s: %(message)s",
         )
+        for handler in set(logging.getLogger().handlers) - before:
+            handler.addFilter(_toolkit_or_verbose)
         with warnings.catch_warnings(), handling_interrupts():
             warnings.simplefilter("always", UserWarning)
             warnings.showwarning = _show_warning(prefix)

@@ -15,6 +15,8 @@ from tissue_core.errors import InputError
 from tissue_core.interrupt import deferred_interrupt, is_interrupt
 from tissue_core.progress import Progress, close_open_lines
 
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
 
 def run(handler, capsys, **kwargs) -> tuple[int, str]:
     parser = ArgumentParser(prog="tool")
@@ -254,3 +256,37 @@ def test_a_ctrl_c_held_in_a_failing_block_wins_and_is_not_left_behind():
         pass
     raise_if_interrupted()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_libraries_log_lines_reach_the_terminal_only_with_verbose(tmp_path):
+    """tifffile logs ``ERROR: ...`` on a damaged file and carries on: without -v the toolkit's
+    one error line must stay the only line (in a process of its own: pytest keeps the log)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "tool.py"
+    script.write_text(
+        "import logging, sys\n"
+        "from tissue_core.cli import CommandLine, run_command\n"
+        "from tissue_core.errors import InputError\n"
+        "def go(args):\n"
+        "    logging.getLogger('tifffile').error('<tifffile.TiffPages @8> invalid page offset')\n"
+        "    logging.getLogger('tissue_core.outputs').warning('the toolkit says this')\n"
+        "    raise InputError('the one line')\n"
+        "cli = CommandLine('tool', 'A test.')\n"
+        "cli.command('go', go)\n"
+        "sys.exit(run_command('tool', cli, sys.argv[1:]))\n"
+    )
+    runs = {
+        flag: subprocess.run(
+            [sys.executable, str(script), "go", *flags], capture_output=True, text=True,
+            cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)},
+        )
+        for flag, flags in (("quiet", []), ("verbose", ["-v"]))
+    }  # fmt: skip
+    assert runs["quiet"].returncode == 2
+    assert runs["quiet"].stderr.splitlines() == [
+        "WARNING: the toolkit says this",
+        "tool go: error: the one line",
+    ]
+    assert "ERROR: <tifffile.TiffPages @8> invalid page offset" in runs["verbose"].stderr
