@@ -190,6 +190,8 @@ CASES = [
      "--out", o], ["truncated.tif is truncated"]),
     ("track-truncated-tif-last-page", lambda c, o: _track(c.dir / "last_page_cut.tif",
      "--out", o), ["last_page_cut.tif is truncated", "bytes"]),
+    ("analyze-truncated-tif-scale-auto", lambda c, o: _analyze(c.dir / "truncated.tif", "--scale",
+     "auto", "--out", o), ["truncated.tif is truncated"]),
     ("analyze-truncated-tif-in-folder", lambda c, o: _analyze(c.dir / "cut_tif", "--out", o),
      ["f2.tif is truncated", "runs to byte"]),
     ("track-truncated-npz", lambda c, o: ["track", "--tracker", "imported", c.avi,
