@@ -5,6 +5,9 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import errno
+import importlib
+import os
 import shutil
 from pathlib import Path
 from types import SimpleNamespace
@@ -370,6 +373,11 @@ def _output_cases():
         ("benchmark-output-users-folder", lambda c, o: ["benchmark", "--quick", "--out", c.mine,
          "--overwrite"], ["thesis"]),
     ]
+    cases += [
+        (f"{command}-output-disk-full", lambda c, o, b=builder: b(c, "--roi", "60,60,140,140",
+         "--out", o), ["[Errno 28] No space left on device: '", "/out'"])
+        for command, builder in (("analyze", _analyze), ("track", _track))
+    ]
     cases.append(("analyze-output-read-only-folder", lambda c, o: _analyze(
         c, "--out", unwritable_folder(c.dir) / "run"), ["cannot be written"]))
     cases.append(("track-output-read-only-folder", lambda c, o: _track(
@@ -380,15 +388,39 @@ def _output_cases():
 
 ALL = CASES + _output_cases()
 
-#: the memory available, bytes, in the cases that ask for more than there is
-SMALL_MEMORY = {"analyze-allocation-tracks-memory": 1000, "track-allocation-points-memory": 100}
+
+def _memory(available: int):
+    """The machine has only ``available`` bytes of memory."""
+    return lambda monkeypatch: monkeypatch.setattr(resources, "available_memory", lambda: available)
+
+
+def _disk_full(module: str, name: str):
+    """The writer ``module.name`` writes part of its file, then the disk is full."""
+
+    def patch(monkeypatch):
+        def full(path, *args, **kwargs):
+            Path(path).write_text("part of a table")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # as write() raises it
+
+        monkeypatch.setattr(importlib.import_module(module), name, full)
+
+    return patch
+
+
+#: what a case changes in the machine: less memory, a full disk
+PATCHES = {
+    "analyze-allocation-tracks-memory": _memory(1000),
+    "track-allocation-points-memory": _memory(100),
+    "analyze-output-disk-full": _disk_full("tissue_core.jsonio", "write_json"),
+    "track-output-disk-full": _disk_full("tissue_core.tables", "write_long_table"),
+}
 
 
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
 def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
-    if case in SMALL_MEMORY:
-        monkeypatch.setattr(resources, "available_memory", lambda: SMALL_MEMORY[case])
+    if case in PATCHES:
+        PATCHES[case](monkeypatch)
     out = tmp_path / "out"
     argv = [str(a) for a in build(inputs, out)]
     if "-q" not in argv:
