@@ -107,6 +107,8 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
             rows = list(csv.DictReader(f))
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
+    except IsADirectoryError:
+        raise InputError(f"manifest {path} is a folder; give the CSV file") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
     # header names are matched without surrounding spaces and case

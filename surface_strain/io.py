@@ -42,6 +42,8 @@ def read_points3d(path: str | os.PathLike) -> Tracks:
         duplicate rows; the message names the file and the row.
     """
     path = Path(path)
+    if path.is_dir():
+        raise PointsError(f"{path} is a folder, not a points file (frame,point,X,Y,Z)")
     if not path.is_file():
         raise PointsError(f"points file not found: {path}")
     table = read_long_table(path, required=("X", "Y", "Z"), optional=("visible",))
@@ -67,6 +69,8 @@ def read_points3d(path: str | os.PathLike) -> Tracks:
 def read_triangles(path: str | os.PathLike, n_points: int) -> np.ndarray:
     """Read ``p0,p1,p2`` rows (a header line optional); (M, 3) int."""
     path = Path(path)
+    if path.is_dir():
+        raise PointsError(f"{path} is a folder, not a triangles file (p0,p1,p2)")
     if not path.is_file():
         raise PointsError(f"triangles file not found: {path}")
     out = []

@@ -173,6 +173,11 @@ def _load(
     ckpt = None
     if checkpoint is not None:
         ckpt = Path(checkpoint).expanduser()
+        if ckpt.is_dir():
+            raise InputError(
+                f"--cotracker-checkpoint {ckpt} is a folder; give the weights file in it "
+                "(e.g. scaled_offline.pth)"
+            )
         if not ckpt.is_file():
             raise InputError(
                 f"no such CoTracker3 checkpoint: {ckpt} (download it from {WEIGHTS_URL})"

@@ -228,6 +228,10 @@ CASES = [
     ("track-wrong-type-points-binary", lambda c, o: ["track", c.avi, "--points",
      c.dir / "points_binary.csv", "--out", o], ["points_binary.csv"]),
     ("study-wrong-type-video-as-run", lambda c, o: ["study", c.avi, "--out", o], ["eq.avi"]),
+    ("study-wrong-type-folder-as-manifest", lambda c, o: ["study", "--manifest", c.dir / "mixed",
+     "--out", o], ["mixed is a folder"]),
+    ("track-wrong-type-folder-as-tracks-file", lambda c, o: ["track", "--tracker", "imported",
+     c.avi, "--tracks-file", c.dir / "mixed", "--out", o], ["mixed is a folder, not a tracks"]),
     # ---- CSV content
     *[(f"track-csv-points-{name}", _points_file(name), [fragment])
       for name, fragment in [("nan", "finite"), ("inf", "finite"), ("text", "points_text.csv"),

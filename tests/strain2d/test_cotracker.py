@@ -290,6 +290,8 @@ def test_missing_code_or_weights_say_how_to_get_them(tmp_path, hub_repo, checkpo
         load_cotracker3(repo=tmp_path, checkpoint=checkpoint)
     with pytest.raises(InputError, match="no such CoTracker3 checkpoint"):
         load_cotracker3(repo=hub_repo, checkpoint=tmp_path / "nope.pth")
+    with pytest.raises(InputError, match=r"--cotracker-checkpoint .* is a folder; give the"):
+        load_cotracker3(repo=hub_repo, checkpoint=tmp_path)
 
 
 def test_unusable_checkpoints_are_one_line_errors(tmp_path, hub_repo):

@@ -88,7 +88,9 @@ CASES = [
     ("compute-wrong-type-xlsx", lambda c, o: _compute(c, "--out", o,
      points=c.dir / "points.xlsx"), ["points.xlsx"]),
     ("compute-wrong-type-folder", lambda c, o: _compute(c, "--out", o, points=c.dir),
-     ["not found"]),
+     ["is a folder, not a points file"]),
+    ("compute-wrong-type-folder-as-triangles", lambda c, o: _compute(c, "--triangles", c.dir,
+     "--out", o), ["is a folder, not a triangles file"]),
     ("compute-wrong-type-binary-triangles", lambda c, o: _compute(c, "--triangles",
      c.dir / "tri_binary.csv", "--out", o), ["tri_binary.csv"]),
     *[(f"compute-csv-{name}", (lambda n: lambda c, o: _compute(
