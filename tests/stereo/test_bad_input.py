@@ -927,6 +927,17 @@ def _(s, t):
 SMALL_MEMORY = {"reconstruct-allocation-tracks-memory": 100}
 
 
+for name, value, fragment in (
+    ("parallel", "vectors:1,0,0:2,0,0", "parallel"),
+    ("zero-vector", "vectors:0,0,0:0,1,0", "first vector has zero length"),
+    ("zero-axis", "sphere:0,0,450:0,0,0", "axis A has zero length"),
+):
+
+    @case(f"reconstruct-option-directions-{name}")
+    def _(s, t, value=value, fragment=fragment):
+        return {"--strain": True, "--directions": value}, [f"--directions {value}", fragment]
+
+
 @case("reconstruct-option-directions-unknown")
 def _(s, t):
     return {"--strain": True, "--directions": "polar"}, ["--directions", "polar"]
@@ -981,3 +992,19 @@ def test_interrupt(when, after, small_stereo, tmp_path):
             "--right", s.right, "--points", s.points, "--strain", "--out", out]  # fmt: skip
     status, _ = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
     assert status == 130
+
+
+def test_directions_no_surface_can_use_are_refused_before_the_tracking(
+    small_stereo, tmp_path, capsys, monkeypatch
+):
+    """Zero or parallel vectors were refused only once both videos were tracked."""
+    import stereo.reconstruct
+
+    def not_now(*args, **kwargs):
+        raise AssertionError("reconstruct ran")
+
+    monkeypatch.setattr(stereo.reconstruct, "reconstruct", not_now)
+    options = {**base("reconstruct", small_stereo, tmp_path), "--strain": True,
+               "--directions": "vectors:0,1,0:0,-3,0"}  # fmt: skip
+    assert run(command_line("reconstruct", options)) == 2
+    assert "the two vectors are parallel" in capsys.readouterr().err
