@@ -6,7 +6,9 @@ the same behaviour:
 * errors a user can cause (:class:`~tissue_core.errors.InputError`,
   :class:`~tissue_core.errors.SourceError`, any other ``OSError`` such as a
   full disk or a missing permission, and the command's own ``errors``) end
-  with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2;
+  with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2; so
+  does an allocation that fails (``MemoryError``) where no check of the
+  options (:mod:`tissue_core.resources`) foresaw it;
 * Ctrl-C ends with one line ``PROG COMMAND: interrupted; no output written``
   and exit status 130, also when it arrives inside compiled code or library
   code loses its KeyboardInterrupt;
@@ -205,6 +207,11 @@ def run_command(
                     return _interrupted(prefix)
                 close_open_lines()
                 print(f"{prefix}: error: {one_line(exc)}", file=sys.stderr, flush=True)
+                return 2
+            except MemoryError as exc:  # an allocation no check foresaw: still one line
+                close_open_lines()
+                what = one_line(exc) if str(exc) else "an allocation failed"
+                print(f"{prefix}: error: not enough memory: {what}", file=sys.stderr, flush=True)
                 return 2
             except KeyboardInterrupt:  # here, so that finalizers run under handling_interrupts
                 return _interrupted(prefix)

@@ -39,6 +39,21 @@ def test_errors_are_one_line_and_exit_2(capsys):
     assert status == 2 and err.count("\n") == 1 and "No space left" in err
 
 
+def test_an_allocation_no_check_foresaw_is_one_line_and_exit_2(capsys):
+    def allocate(args):
+        np.empty((10**7, 10**7))  # 728 TiB: NumPy's ArrayMemoryError
+
+    status, err = run(allocate, capsys)
+    assert status == 2 and err.count("\n") == 1
+    assert err.startswith("tool go: error: not enough memory: Unable to allocate 728")
+    assert err.endswith("shape (10000000, 10000000) and data type float64\n")
+
+    def bare(args):
+        raise MemoryError
+
+    assert run(bare, capsys) == (2, "tool go: error: not enough memory: an allocation failed\n")
+
+
 def test_warnings_are_one_line_and_numerical_ones_stay_in_the_log(capsys):
     def warn(args):
         warnings.warn("the stack has no spacing", UserWarning, stacklevel=1)
