@@ -61,6 +61,8 @@ RENDER_BYTES_PER_PIXEL = 64
 #: working memory per pixel of a stereo image while it is ray-traced, bytes (140 to 150
 #: measured at 1280 x 960 px, with 3 x 3 supersampling): a lower bound
 RAYTRACE_BYTES_PER_PIXEL = 100
+#: the least distance, px, between a target's corners or dots at which a detector finds them
+MIN_FEATURE_SPACING_PX = 4
 #: the least share of the raw bytes that lossless video (FFV1) and PNG keep of frames with
 #: sensor noise: a bit per pixel
 NOISY_LOSSLESS_FRACTION = 1 / 8
@@ -316,8 +318,19 @@ def _parse_size(text: str) -> tuple[int, int]:
     return w, h
 
 
-def _check_stereo_fits(args, cases: list[str], size: tuple[int, int]) -> None:
-    """Refuse, before anything is written, scenes that cannot fit the memory or the disk."""
+def _check_stereo_fits(args, cases: list[str], size: tuple[int, int], board) -> None:
+    """Refuse, before anything is written, scenes that cannot fit the memory or the disk, and a
+    board with more corners or dots than the images can show."""
+    counts = (
+        (board.squares_x, board.squares_y) if hasattr(board, "squares_x") else board.pattern_size
+    )
+    most = sorted(max(1, n // MIN_FEATURE_SPACING_PX) for n in size)
+    if "calibration" in cases and (sorted(counts)[0] > most[0] or sorted(counts)[1] > most[1]):
+        raise ValueError(
+            f"--board {args.board}: {counts[0]}x{counts[1]} is more than {size[0]}x{size[1]} px "
+            f"images can show (at most {most[1]}x{most[0]}, {MIN_FEATURE_SPACING_PX} px apart: "
+            "the least a detector finds)"
+        )
     pixels = size[0] * size[1]
     memory = disk = 0
     for case in cases:
@@ -347,7 +360,7 @@ def _cmd_stereo(args) -> int:
     if not (np.isfinite(args.noise) and args.noise >= 0):
         raise ValueError(f"--noise must be a number >= 0, got {args.noise}")
     size = _parse_size(args.size)
-    _check_stereo_fits(args, cases, size)
+    _check_stereo_fits(args, cases, size, board)
     rig = default_rig(image_size=size)
     say = Progress(quiet=args.quiet)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:

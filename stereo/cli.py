@@ -87,6 +87,23 @@ def _check_calibration_size(calib, calib_paths, shape: tuple[int, int], source: 
         )
 
 
+#: the least distance, px, between a target's corners or dots at which a detector finds them
+MIN_FEATURE_SPACING_PX = 4
+
+
+def _check_board_fits(spec: str, counts: tuple[int, int], shape: tuple[int, int]) -> None:
+    """Refuse a board with more corners or dots than the images can show (its arrays, sized by
+    the counts, would be allocated for nothing)."""
+    most = sorted(max(1, n // MIN_FEATURE_SPACING_PX) for n in shape)
+    if sorted(counts)[0] > most[0] or sorted(counts)[1] > most[1]:
+        h, w = shape
+        raise InputError(
+            f"--board {spec}: {counts[0]}x{counts[1]} is more than {w}x{h} px images can show "
+            f"(at most {most[1]}x{most[0]}, {MIN_FEATURE_SPACING_PX} px apart: the least a "
+            "detector finds); give the board's own counts"
+        )
+
+
 def _read_points(path: str, shape: tuple[int, int], *, for_strain: bool) -> np.ndarray:
     """Points (N, 2) of a CSV file with columns x,y, checked against the image; errors name
     the file.  ``for_strain``: the points must also carry a mesh (3 or more, not collinear)."""
@@ -355,9 +372,11 @@ def _cmd_calibrate(args) -> int:
     check_writable(args.out, kind="file", **writing)
     say = _say(args)
     names = [f"{Path(a).name} / {Path(b).name}" for a, b in zip(left, right, strict=True)]
+    left_images, right_images = [read_gray(f) for f in left], [read_gray(f) for f in right]
+    _check_board_fits(args.board, (board.cols, board.rows), left_images[0].shape)
     calib = calibrate_stereo(
-        [read_gray(f) for f in left],
-        [read_gray(f) for f in right],
+        left_images,
+        right_images,
         board,
         names=names,
         unit=args.unit,

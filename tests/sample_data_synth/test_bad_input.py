@@ -87,6 +87,11 @@ CASES = [
         ["--views 100000000", "TiB of memory"],
     ),
     (
+        "stereo-allocation-board-corners",
+        ["stereo", "--size", "256x192", "--board", "checkerboard:100000x100000:10"],
+        ["--board checkerboard:100000x100000:10", "at most 64x48", "4 px apart"],
+    ),
+    (
         "study-allocation-size-100000",
         ["study", "--size", "100000"],
         ["--size 100000", "GiB of memory"],

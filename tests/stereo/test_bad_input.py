@@ -913,6 +913,12 @@ def _(s, t):
         "frame_000.tif", "frame 0", "9 NaN pixel values"]  # fmt: skip
 
 
+@case("calibrate-allocation-board-corners")
+def _(s, t):
+    board = "checkerboard:100000x100000:10"
+    return {"--board": board}, [f"--board {board}", "px images can show", "at most"]
+
+
 @case("reconstruct-allocation-grid-300x300")
 def _(s, t):
     return {"--points": None, "--grid": "300x300"}, ["--grid 300x300", "px apart", "at most"]
