@@ -112,6 +112,7 @@ def inputs(small_case, tmp_path_factory):
         "text": good.replace("90,10", "ninety,10", 1),
         "negative_index": good.replace("1,2,", "-1,2,", 1),
         "no_columns": "a,b\n1,2\n",
+        "huge_indices": good + "5,100000000,50,80,1,1\n",  # (T, N) arrays of 6 x 10^8 cells
     }
     for name, text in tracks.items():
         (d / f"tracks_{name}.csv").write_text(text)
@@ -318,6 +319,8 @@ CASES = [
       "--grid"]),
     ("track-allocation-points-memory", lambda c, o: ["track", c.avi, "--points",
      c.dir / "points_many.csv", "--out", o], ["tracking 4 points over 6 frames", "of memory"]),
+    ("track-allocation-tracks-indices-beyond-the-rows", _tracks_file("huge_indices"),
+     ["tracks_huge_indices.csv", "is incomplete", "point indices up to 1e+08"]),
     ("benchmark-allocation-grid-1000x1000", lambda c, o: ["benchmark", "--quick", "--grid",
      "1000x1000", "--out", o], ["--grid 1000x1000", "at most"]),
     # ---- infinite or NaN pixels in float frames (a corner, far from every point)

@@ -45,6 +45,8 @@ def inputs(tmp_path_factory):
         "truncated": good[: len(good) // 2].rsplit(",", 2)[0] + "\n",
         "all_lost": "\n".join([header] + [",".join([*r.split(",")[:-1], "0"]) for r in rows])
         + "\n",
+        # indices that would size (T, N) arrays of 10^16 cells
+        "huge_indices": good + "100000000,100000000," + rows[0].split(",", 2)[2] + "\n",
     }
     for name, text in broken.items():
         (d / f"points_{name}.csv").write_text(text)
@@ -101,6 +103,9 @@ CASES = [
     *[(f"compute-csv-triangles-{name}", (lambda n: lambda c, o: _compute(
         c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv"])
       for name in ("outside", "repeat", "text", "two_columns")],
+    ("compute-allocation-indices-beyond-the-rows", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_huge_indices.csv"), ["points_huge_indices.csv", "is incomplete",
+                                                 "frame indices up to 1e+08"]),
     ("compute-option-fps-zero", lambda c, o: _compute(c, "--fps", "0", "--out", o), ["--fps"]),
     ("compute-option-fps-inf", lambda c, o: _compute(c, "--fps", "inf", "--out", o), ["--fps"]),
     ("compute-option-grid-1x25", lambda c, o: _compute(c, "--grid", "1x25", "--out", o),
