@@ -25,7 +25,6 @@ share one colour scale.
 from __future__ import annotations
 
 import contextlib
-import csv
 import logging
 import os
 import warnings
@@ -40,6 +39,8 @@ from mpm3d.errors import InputError
 from mpm3d.heightmap import HEIGHT_DATUM, HeightMap, height_map
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
+from tissue_core.csvtext import csv_writer
+from tissue_core.filenames import readable, utf8_output
 from tissue_core.html import input_records
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import recorded_command
@@ -283,8 +284,9 @@ def _analyze(
         mesh_range = [float(mesh_height.min()), float(mesh_height.max())]
         colour = [min(colour[0], mesh_range[0]), max(colour[1], mesh_range[1])]
     record = {
-        "input": os.path.basename(stack.path),
-        "input_path": str(stack.path),
+        # names as text (figure titles, tables): bytes that are not UTF-8 as \xNN
+        "input": readable(os.path.basename(stack.path)),
+        "input_path": readable(stack.path),
         "inputs": input_records([stack.path]),
         **{k: metrics[k] for k in metrics},
         "spacing_um": {"z": stack.spacing[0], "y": stack.spacing[1], "x": stack.spacing[2]},
@@ -464,7 +466,7 @@ def _quality(hm: HeightMap, mesh) -> dict:
 def _write_table(path: Path, table: dict) -> None:
     keys = list(table)
     with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
+        w = csv_writer(f)
         w.writerow(keys)
         for row in zip(*(table[k] for k in keys), strict=True):
             w.writerow([f"{v:.6g}" if isinstance(v, float | np.floating) else v for v in row])
@@ -475,12 +477,13 @@ def _save_vtp(mesh, path: Path) -> None:
     from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
     writer = vtkXMLPolyDataWriter()
-    writer.SetFileName(str(path))
     writer.SetInputData(mesh)
     writer.SetDataModeToAppended()
     writer.SetCompressorTypeToLZ4()
-    if not writer.Write():
-        raise OSError(f"could not write {path}")
+    with utf8_output(path) as target:  # VTK takes UTF-8 names only
+        writer.SetFileName(str(target))
+        if not writer.Write():
+            raise OSError(f"could not write {path}")
 
 
 def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bool = True) -> None:
@@ -523,7 +526,8 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
 
     def vtk_outputs() -> None:  # VTK work, in a thread beside the matplotlib figures
         _save_vtp(mesh, folder / "surface.vtp")
-        mesh.save(folder / "surface.ply", binary=True)
+        with utf8_output(folder / "surface.ply") as target:
+            mesh.save(target, binary=True)
         if figures:
             from mpm3d.figures import render_surface
 

@@ -12,18 +12,23 @@ manifest CSV with one row per stack:
 Each stack is analyzed into ``OUT/runs/NAME`` as ``mpm3d analyze`` would, as one
 task of the batch (:mod:`tissue_core.batch`); ``OUT/metrics.csv`` then lists the
 headline metrics of every run, one row per stack, with units in the column
-names.
+names.  The table is the batch's while it holds what the batch wrote (the
+folder's ledger, ``.tissue-strain-files.json``, records it); one the user
+edited is kept as it is, with a warning, unless ``--overwrite``.  Its names
+are written inert for spreadsheets (:mod:`tissue_core.csvtext`).
 """
 
 from __future__ import annotations
 
-import csv
 import io
 import json
+import warnings
 from pathlib import Path
 
-from tissue_core.batch import Outcome
+from tissue_core.batch import Outcome, update_batch_file
+from tissue_core.csvtext import csv_writer
 from tissue_core.errors import InputError
+from tissue_core.filenames import readable
 
 __all__ = ["METRIC_COLUMNS", "stack_rows", "write_metrics_table"]
 
@@ -58,12 +63,16 @@ def stack_rows(inputs: list[str]) -> list[dict[str, str]] | str:
     return [{"stack": path, "_line": f"stack {path}"} for path in inputs]
 
 
-def write_metrics_table(path: Path, outcomes: list[Outcome]) -> int:
-    """``metrics.csv`` of the runs that exist (made now or before); how many rows it has."""
-    from tissue_core.outputs import replaced_on_success
+def write_metrics_table(
+    path: Path, outcomes: list[Outcome], *, overwrite: bool = False
+) -> int | None:
+    """``metrics.csv`` of the runs that exist (made now or before); how many rows it has.
 
+    A table the user edited, or one the batch did not write, is kept as it is
+    unless ``overwrite``, with a warning; None then.
+    """
     buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
+    writer = csv_writer(buffer, lineterminator="\n")
     writer.writerow(["name", "stack", *METRIC_COLUMNS])
     rows = 0
     for outcome in outcomes:
@@ -71,8 +80,15 @@ def write_metrics_table(path: Path, outcomes: list[Outcome]) -> int:
             continue
         metrics = json.loads((Path(outcome.out) / "metrics.json").read_text(encoding="utf-8"))
         values = ["" if metrics.get(c) is None else metrics[c] for c in METRIC_COLUMNS]
-        writer.writerow([outcome.name, metrics.get("input_path", ""), *values])
+        # a stack's name as text (bytes that are not UTF-8 as \xNN), as metrics.json has it
+        writer.writerow([readable(outcome.name), metrics.get("input_path", ""), *values])
         rows += 1
-    with replaced_on_success(path) as tmp:
-        tmp.write_text(buffer.getvalue(), encoding="utf-8")
+    if update_batch_file(path, buffer.getvalue(), overwrite=overwrite) == "kept":
+        warnings.warn(
+            f"{path} was edited since the batch wrote it (or not written by a batch): kept as "
+            f"it is, without the metrics of this batch's {rows} runs (--overwrite replaces it)",
+            UserWarning,
+            stacklevel=2,
+        )
+        return None
     return rows

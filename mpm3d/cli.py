@@ -152,7 +152,7 @@ def _build_parser() -> CommandLine:
     p.add_argument("--out", required=True, help="batch folder: runs/, metrics.csv, batch.log")
     from tissue_core.batch import RunOptions, add_batch_arguments
 
-    add_batch_arguments(p, what="analyses")
+    add_batch_arguments(p, what="analyses", tables=["metrics.csv"])
     options = RunOptions(p, "analyze options, for every run")
     _stack_options(options)
     _memory_args(options)
@@ -210,8 +210,9 @@ def _cmd_batch(args) -> int:
         say=say,
         notes=notes,
     )
-    n = write_metrics_table(out / "metrics.csv", outcomes)
-    say(f"metrics of {n} stacks in {Path(args.out) / 'metrics.csv'}")
+    n = write_metrics_table(out / "metrics.csv", outcomes, overwrite=args.overwrite)
+    if n is not None:
+        say(f"metrics of {n} stacks in {Path(args.out) / 'metrics.csv'}")
     raise_if_failed(outcomes, args.out)
     say(f"results in {args.out}")
     return 0

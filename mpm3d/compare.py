@@ -16,7 +16,6 @@ extra); every metric's change is reported.  It writes::
 
 from __future__ import annotations
 
-import csv
 import logging
 import math
 import os
@@ -28,6 +27,7 @@ import numpy as np
 
 from mpm3d.analyze import Analysis, analyze_stack, write_analysis
 from mpm3d.errors import InputError, SourceError
+from tissue_core.csvtext import csv_writer
 from tissue_core.jsonio import write_json
 
 __all__ = [
@@ -367,10 +367,11 @@ def write_comparison(
         (folder / name).mkdir()
         write_analysis(analysis, folder / name, figures=figures)
     with open(folder / "changes.csv", "w", newline="", encoding="utf-8") as f:
-        w = csv.DictWriter(f, fieldnames=["metric", "before", "after", "change", "ratio"])
-        w.writeheader()
+        columns = ["metric", "before", "after", "change", "ratio"]
+        w = csv_writer(f)
+        w.writerow(columns)
         for row in report["changes"]:
-            w.writerow({k: ("" if v is None else v) for k, v in row.items()})
+            w.writerow(["" if row.get(k) is None else row[k] for k in columns])
     if figures:
         from mpm3d.figures import plot_comparison
         from mpm3d.metrics import detrend

@@ -400,15 +400,19 @@ def write_video(frames: np.ndarray, path: str | os.PathLike, *, fps: float = 10.
         return
     import cv2
 
+    from tissue_core.filenames import utf8_output
+
     fourcc = {".avi": "FFV1", ".mp4": "mp4v", ".mkv": "FFV1"}.get(suffix)
     if fourcc is None:
         raise ValueError(f"video format must be .avi, .mp4, .mkv or .tif, got {path.name}")
     h, w = frames.shape[1:]
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*fourcc), fps, (w, h), isColor=False)
-    if not writer.isOpened():
-        raise OSError(f"OpenCV cannot write {path} with codec {fourcc}")
-    try:
-        for frame in frames:
-            writer.write(np.ascontiguousarray(frame))
-    finally:
-        writer.release()
+    with utf8_output(path) as target:  # OpenCV crashes on a name that is not UTF-8
+        code = cv2.VideoWriter_fourcc(*fourcc)
+        writer = cv2.VideoWriter(str(target), code, fps, (w, h), isColor=False)
+        if not writer.isOpened():
+            raise OSError(f"OpenCV cannot write {path} with codec {fourcc}")
+        try:
+            for frame in frames:
+                writer.write(np.ascontiguousarray(frame))
+        finally:
+            writer.release()

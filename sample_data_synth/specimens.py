@@ -35,7 +35,6 @@ area-weighted nodal averages; :func:`grid_nodal_strain`), which is what
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -55,6 +54,7 @@ from sample_data_synth.cases import (
 from sample_data_synth.deformations import Contraction, Field, RampHold, green_lagrange
 from sample_data_synth.render import add_sensor_noise, render_image, render_speckle
 from sample_data_synth.speckle import speckle_pattern
+from tissue_core.csvtext import csv_writer
 from tissue_core.jsonio import write_json
 
 __all__ = [
@@ -575,10 +575,10 @@ def make_study(
     # the truth columns carry a true_ prefix: a study manifest's "endpoint" column
     # overrides the run's detected endpoint (strain2d study), which would hide detection
     manifest = [{_MANIFEST_NAMES.get(k, k): v for k, v in r.items()} for r in rows]
-    with open(out / "manifest.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(manifest[0]))
-        writer.writeheader()
-        writer.writerows(manifest)
+    with open(out / "manifest.csv", "w", newline="", encoding="utf-8") as f:
+        writer = csv_writer(f)  # group names may be anything: written inert for spreadsheets
+        writer.writerow(list(manifest[0]))
+        writer.writerows(list(r.values()) for r in manifest)
 
     result = {
         "description": "synthetic contraction study with known anisotropy: exact mean nodal "

@@ -734,19 +734,22 @@ def render_surface_scene(
 
 
 def _write_png(path: Path, image: np.ndarray) -> None:
+    """Encoded in memory, written by Python: any file name (OpenCV's own crash on names that
+    are not UTF-8)."""
     import cv2
 
-    if not cv2.imwrite(str(path), image):
+    ok, data = cv2.imencode(".png", image)
+    if not ok:
         raise OSError(f"OpenCV cannot write {path}")
+    Path(path).write_bytes(data.tobytes())
 
 
 def _read_png(path: Path) -> np.ndarray:
     import cv2
 
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        raise OSError(f"cannot read {path}")
-    return image
+    from tissue_core.images import read_image
+
+    return read_image(path, flags=cv2.IMREAD_UNCHANGED)
 
 
 def save_stereo_scene(folder: str | os.PathLike, scene: StereoScene) -> None:

@@ -13,7 +13,6 @@ Errors a user can cause end with one line on stderr and exit status 2.
 from __future__ import annotations
 
 import argparse
-import csv
 import glob
 import math
 import re
@@ -23,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from tissue_core.cli import CommandLine
+from tissue_core.csvtext import csv_writer
 from tissue_core.errors import InputError, SourceError
 
 __all__ = ["main"]
@@ -365,6 +365,13 @@ def _cmd_calibrate(args) -> int:
     board = parse_board(args.board)
     _check_unit(args.unit)
     left, right = _expand(args.left, "left"), _expand(args.right, "right")
+    both = sorted({Path(f).resolve() for f in left} & {Path(f).resolve() for f in right})
+    if both:
+        more = f" and {len(both) - 1} more" if len(both) > 1 else ""
+        raise InputError(
+            f"--left {args.left} and --right {args.right} name the same images ({both[0]}"
+            f"{more}): a stereo calibration needs each camera's own views of the target"
+        )
     if len(left) != len(right):
         raise InputError(f"unequal image counts: {len(left)} left and {len(right)} right")
     inputs = [*left, *right, *_folders(args.left, args.right)]
@@ -406,8 +413,7 @@ def _cmd_import(args) -> int:
     size = parse_image_size(args.image_size) if args.image_size is not None else None
     writing = {"overwrite": args.overwrite, "inputs": args.files}
     check_writable(args.out, kind="file", **writing)
-    calib = load_calibration(*args.files, image_size=size)
-    calib.unit = args.unit
+    calib = load_calibration(*args.files, image_size=size, unit=args.unit)
     calib.extra["imported_from"] = [Path(f).name for f in args.files]
     calib.extra["import_options"] = {"image_size": args.image_size, "unit": args.unit}
     calib.extra["software"] = {
@@ -480,7 +486,7 @@ def _cmd_match(args) -> int:
     )
     with atomic_file(args.out, **writing) as tmp:
         with open(tmp, "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f)
+            w = csv_writer(f)
             w.writerow(MATCH_COLUMNS)
             for i in range(len(points)):
                 w.writerow(
@@ -602,7 +608,7 @@ def _write_frame_quality(path: Path, per_frame: dict) -> None:
     from stereo.report import FRAME_COLUMNS
 
     with open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
+        w = csv_writer(f)
         w.writerow(FRAME_COLUMNS)
         for t in range(len(per_frame["frame"])):
             row = []

@@ -199,7 +199,7 @@ def _build_parser():
     p.add_argument("--out", required=True, help="batch folder: runs/, study/, batch.log")
     from tissue_core.batch import add_batch_arguments
 
-    add_batch_arguments(p, what="runs")
+    add_batch_arguments(p, what="runs", tables=["study_manifest.csv"])
     g = p.add_argument_group("the study")
     g.add_argument("--no-study", action="store_true", help="analyze only; no study")
     g.add_argument("--compare", default="Exx,Eyy", metavar="A,B", help="as for study (Exx,Eyy)")
@@ -272,7 +272,8 @@ def _cmd_batch(args) -> int:
         ok = {o.name for o in outcomes if o.status != "failed"}
         if ok:
             changed = any(o.status == "done" for o in outcomes)
-            changed |= write_study_manifest(out / "study_manifest.csv", jobs, rows, ok)
+            path = out / "study_manifest.csv"
+            changed |= write_study_manifest(path, jobs, rows, ok, overwrite=args.overwrite)
             studied.append((len(ok), run_study(study_job(out, args), changed, run)))
 
     outcomes = run_batch(

@@ -37,14 +37,20 @@ def _video_capture(path: Path):
     broken").  The toolkit reports the problem itself, in one line: what OpenCV
     printed while opening goes to the log (``-v`` shows it); set
     ``OPENCV_FFMPEG_LOGLEVEL`` (e.g. 24) to see FFmpeg's.
+
+    OpenCV converts the name to UTF-8 and crashes the process on one that is not
+    (``vid\\xe9o.avi`` from a Latin-1 drive): such a video is opened through a
+    UTF-8 alias (:func:`tissue_core.filenames.utf8_alias`); the capture keeps
+    the file open once it has opened it.
     """
     import cv2
 
+    from tissue_core.filenames import utf8_alias
     from tissue_core.images import caught_stderr
 
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    with caught_stderr() as said:
-        cap = cv2.VideoCapture(str(path))
+    with utf8_alias(path) as name, caught_stderr() as said:
+        cap = cv2.VideoCapture(str(name))
     if said[0]:
         logging.getLogger(__name__).info("OpenCV on opening %s: %s", path, said[0])
     return cap

@@ -195,28 +195,41 @@ def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = No
 def read_points_csv(path: str | os.PathLike) -> np.ndarray:
     """Read points from a CSV file with a header holding columns ``x`` and ``y``.
 
-    A byte-order mark (as spreadsheet programs write) is accepted.
+    A byte-order mark (as spreadsheet programs write) is accepted.  Every row
+    must have as many cells as the header (a decimal comma, ``10,5`` for
+    10.5, makes one too many) and numbers for ``x`` and ``y``; errors name the
+    file and the line.
 
     Returns
     -------
     points : (N, 2) float
     """
+    from tissue_core.tables import cell_count_error
+
+    line = 1
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.DictReader(f)
-            fields = [c.strip().lower() for c in (reader.fieldnames or [])]
+            reader = csv.reader(f)
+            fields = [c.strip().lower() for c in next(reader, [])]
             if "x" not in fields or "y" not in fields:
                 raise InputError(f"{path} needs a header with columns x,y (found {fields})")
-            reader.fieldnames = fields
-            rows = [(float(r["x"]), float(r["y"])) for r in reader]
+            ix, iy = fields.index("x"), fields.index("y")
+            rows = []
+            for cells in reader:
+                line = reader.line_num
+                if not cells:
+                    continue  # a blank line
+                if len(cells) != len(fields):
+                    raise cell_count_error(path, line, len(cells), len(fields), ",".join(cells))
+                rows.append((float(cells[ix]), float(cells[iy])))
     except FileNotFoundError:
         raise InputError(f"no such points file: {path}") from None
     except IsADirectoryError:
         raise InputError(f"{path} is a folder, not a points CSV file") from None
     except UnicodeDecodeError:
         raise InputError(f"{path} is not a text CSV file") from None
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, csv.Error) as exc:
         if isinstance(exc, InputError):
             raise
-        raise InputError(f"{path}: x and y must be numbers ({exc})") from None
+        raise InputError(f"{path}, line {line}: x and y must be numbers ({exc})") from None
     return np.array(rows, dtype=float).reshape(-1, 2)

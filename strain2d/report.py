@@ -25,7 +25,7 @@ from strain2d.errors import InputError
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
 from surface_strain import StrainField, nodal_scalars
-from tissue_core.html import HtmlReport, format_value
+from tissue_core.html import HtmlReport, format_value, input_records
 from tissue_core.jsonio import write_json
 
 __all__ = [
@@ -725,9 +725,8 @@ def study_outputs(
     result of :func:`strain2d.study.study_statistics` for them.  Returns the
     ``figures`` list for ``summary.json``.
     """
-    import csv
-
     from strain2d import figures as fg
+    from tissue_core.csvtext import csv_writer
 
     folder = Path(folder)
     a, b = stats["components"]
@@ -793,7 +792,7 @@ def study_outputs(
     ]  # fmt: skip
     node_cols = ["t_p", "wilcoxon_p", "cohens_dz", "morans_i", "morans_p"]
     with open(folder / "specimens.csv", "w", newline="", encoding="utf-8") as f:
-        writer = csv.writer(f)
+        writer = csv_writer(f)  # names and groups are the user's text
         writer.writerow(columns + [f"node_{c}" for c in node_cols])
         for r in stats["specimens"]:
             writer.writerow(
@@ -1070,6 +1069,8 @@ def write_study(
     entries = [e if isinstance(e, dict) else {"run": Path(e)} for e in runs]
     inputs = ([str(manifest)] if manifest else []) + [str(e["run"]) for e in entries]
     check_writable(out, overwrite=overwrite, inputs=inputs)
+    # the manifest's checksum: a batch makes its study again once the manifest is edited
+    manifest_files = input_records([manifest]) if manifest else []
     specimens = load_specimens(entries)
     a, b = compare
     stats = study_statistics(specimens, a=a, b=b, alpha=alpha)
@@ -1084,6 +1085,7 @@ def write_study(
                 "manifest": str(manifest) if manifest else None,
                 "runs": [str(e["run"]) for e in entries],
             },
+            "input_files": manifest_files,
             "parameters": {"compare": [a, b], "alpha": alpha, "formats": list(formats)},
             "specimens": [
                 {

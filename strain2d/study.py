@@ -49,6 +49,8 @@ import numpy as np
 from strain2d.errors import InputError
 from strain2d.run import COMPONENTS, Run, load_run
 from strain2d.stats import paired_node_tests
+from tissue_core.csvtext import restore_cell
+from tissue_core.filenames import readable
 
 __all__ = [
     "Specimen",
@@ -99,24 +101,41 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
     Columns: ``run`` (an ``analyze`` output folder, relative to the manifest's
     folder or absolute; required), ``specimen`` (default: the folder name),
     ``group`` (optional), ``endpoint`` (optional frame index overriding the
-    run's contraction endpoint).  Other columns are kept and ignored.
+    run's contraction endpoint).  Other columns are kept and ignored.  A cell
+    the toolkit wrote inert for spreadsheets (``strain2d batch``'s
+    ``study_manifest.csv``) is read as it was given
+    (:func:`tissue_core.csvtext.restore_cell`).
     """
+    from tissue_core.tables import cell_count_error
+
     path = Path(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows = [(reader.line_num, row) for row in reader]
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
     except IsADirectoryError:
         raise InputError(f"manifest {path} is a folder; give the CSV file") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
+    for i, row in rows:  # a row with more or fewer cells than the header
+        cells = [v for k, v in row.items() if k is not None and v is not None]
+        cells += row.get(None, [])
+        if len(cells) != len(reader.fieldnames) and any(c.strip() for c in cells):
+            raise cell_count_error(
+                f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
+            )
     # header names are matched without surrounding spaces and case
-    rows = [{(k or "").strip().lower(): v for k, v in row.items()} for row in rows]
-    if not rows or "run" not in rows[0]:
+    rows = [
+        (i, {(k or "").strip().lower(): restore_cell(v.strip()) if isinstance(v, str) else v
+             for k, v in row.items()})
+        for i, row in rows
+    ]  # fmt: skip
+    if not rows or "run" not in rows[0][1]:
         raise InputError(f"manifest {path} needs a header with a 'run' column and one row per run")
     entries = []
-    for i, row in enumerate(rows, start=2):
+    for i, row in rows:
         run = (row.get("run") or "").strip()
         if not run:
             raise InputError(f"manifest {path}, line {i}: the run column is empty")
@@ -138,7 +157,7 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
         entries.append(
             {
                 "run": run_path,
-                "specimen": (row.get("specimen") or "").strip() or run_path.name,
+                "specimen": (row.get("specimen") or "").strip() or readable(run_path.name),
                 "group": group,
                 "endpoint": endpoint if endpoint != "" else None,
             }
@@ -157,7 +176,8 @@ def load_specimens(entries: list[dict]) -> list[Specimen]:
     specimens = []
     for e in entries:
         run = load_run(e["run"])
-        name = e.get("specimen") or Path(e["run"]).name
+        # a folder's name as text: bytes that are not UTF-8 as \xNN (tables, figures, reports)
+        name = e.get("specimen") or readable(Path(e["run"]).name)
         endpoint, source = run.endpoint, run.endpoint_source
         if e.get("endpoint") is not None:
             endpoint, source = int(e["endpoint"]), "given in the manifest"
@@ -389,7 +409,7 @@ def study_statistics(
         row = {
             "specimen": s.name,
             "group": s.group,
-            "run": str(s.run.path),
+            "run": readable(s.run.path),
             "endpoint": s.endpoint,
             "endpoint_source": s.endpoint_source,
             "endpoint_time": float(s.run.times[s.endpoint]),

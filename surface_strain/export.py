@@ -49,6 +49,7 @@ import numpy as np
 
 from surface_strain.field import StrainField, element_scalars, nodal_scalars
 from surface_strain.streamed import iter_blocks
+from tissue_core.filenames import utf8_output
 
 __all__ = [
     "ELEMENT_COLUMNS",
@@ -256,7 +257,8 @@ def write_pvd(
                 data["principal_direction_2_current"] = np.nan_to_num(_xyz(pd.dir2_cur[i]))
             _name_units(mesh, unit, time_unit)
             fname = f"{name}_{t:04d}.vtp"
-            mesh.save(sub / fname, binary=True)
+            with utf8_output(sub / fname) as target:  # VTK takes UTF-8 names only
+                mesh.save(target, binary=True)
             entries.append(
                 f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>'
             )

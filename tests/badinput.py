@@ -5,7 +5,10 @@ hostile and conflicting input through :func:`assert_refused`: exit status 2,
 exactly one line on stderr (after any timestamped progress lines) that starts
 with ``PROG COMMAND: error:`` and names the file or option and the problem,
 no traceback, inputs byte-identical, no output and no temporary file left
-behind, and nothing of the user's removed.  :func:`interrupt` sends Ctrl-C
+behind, and nothing of the user's removed.  Text a spreadsheet would run
+(the ``formula`` family: names starting with ``=``, ``+``, ``-``, ``@``) is
+not an error: :func:`assert_inert` checks that such a command succeeds and
+that every CSV it wrote holds the text inert.  :func:`interrupt` sends Ctrl-C
 to a real process at a chosen moment: exit 130 and one line, or (when the
 command had already finished) exit 0 and a complete result; never a
 traceback, never half a result.
@@ -18,6 +21,7 @@ so that it can.
 
 from __future__ import annotations
 
+import csv
 import os
 import re
 import signal
@@ -97,12 +101,12 @@ def write(folder: Path, name: str, content: str | bytes) -> Path:
 def snapshot(*paths: str | os.PathLike) -> dict[str, bytes | None]:
     """Bytes of every file under ``paths`` (None for folders), to compare before and after."""
     out: dict[str, bytes | None] = {}
-    for path in map(Path, paths):
-        if path.is_dir():
+    for path in map(Path, paths):  # os.path: False for a name too long, where pathlib raises
+        if os.path.isdir(path):
             out[str(path)] = None
             for p in sorted(path.rglob("*")):
                 out[str(p)] = p.read_bytes() if p.is_file() else None
-        elif path.exists():
+        elif os.path.exists(path):
             out[str(path)] = path.read_bytes()
     return out
 
@@ -152,6 +156,60 @@ def assert_refused(
     if out is not None and Path(out).resolve().parent.is_dir():
         assert scratch_left(Path(out).resolve().parent) == []
     return line
+
+
+def formula_cells(where: str | os.PathLike) -> list[str]:
+    """``FILE: CELL`` for every cell of every CSV under ``where`` (a folder, or one CSV file)
+    that a spreadsheet would run: one that starts with ``=``, ``+``, ``-``, ``@``, a tab or a
+    carriage return and is not a plain number (``-0.5``, ``+3``, ``-inf``)."""
+    from tissue_core.csvtext import FORMULA_STARTS
+
+    def number(cell: str) -> bool:
+        try:
+            float(cell)
+        except ValueError:
+            return False
+        return cell == cell.strip() and "_" not in cell
+
+    found = []
+    where = Path(where)
+    for path in sorted(where.rglob("*.csv")) if where.is_dir() else [where]:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            for row in csv.reader(f):
+                found += [
+                    f"{path}: {cell!r}"
+                    for cell in row
+                    if cell.startswith(FORMULA_STARTS) and not number(cell)
+                ]
+    return found
+
+
+def assert_inert(
+    main: Callable[[list[str]], int],
+    argv: Sequence[object],
+    capsys,
+    *,
+    out: str | os.PathLike,
+    inputs: Sequence[str | os.PathLike] = (),
+) -> str:
+    """Run ``main(argv)`` on names a spreadsheet would run as formulas; return its stderr.
+
+    The command must succeed (exit 0, no traceback), leave ``inputs``
+    byte-identical and no temporary file beside ``out``, and no CSV under
+    ``out`` (a folder, or a CSV file) may hold a cell that starts a formula.
+    """
+    argv = [str(a) for a in argv]
+    before = snapshot(*inputs)
+    status = main(argv)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    assert status == 0, f"exit {status} for {argv}: {err}"
+    assert snapshot(*inputs) == before, f"{argv} changed its inputs"
+    out = Path(out)
+    assert out.exists(), f"{argv} wrote no {out}"
+    assert scratch_left(out.resolve().parent) == []
+    assert formula_cells(out) == []
+    return err
 
 
 def interrupt(

@@ -267,7 +267,8 @@ def test_bad_manifests_end_in_one_line_before_anything_runs(study_data, tmp_path
         (f"video,specimen\n{video},x/y\n", "cannot name a folder (it holds /)"),
         (f"video,specimen\n{video},.A.tmp-x\n", "line 2: specimen '.A.tmp-x' starts with '.'"),
         (f"video,specimen\n{video},S0?\n", "cannot name a folder (it holds ?)"),
-        (f"video,specimen\n{video},A,extra\n", "line 2: more cells than the header has"),
+        (f"video,specimen\n{video},A,extra\n", "line 2: 3 cells where the header has 2"),
+        (f"video,specimen,group\n{video},A\n", "line 2: 2 cells where the header has 3"),
         (f"video,specimen\n{video},a\n{video},A\n", "run names must be unique"),
     ]
     for text, message in cases:
@@ -350,3 +351,55 @@ def test_ctrl_c_stops_a_batch_in_one_process_after_the_run_it_was_making(study_d
     assert [(r["name"], r["status"]) for r in record["runs"]] == [("S01", "done")]
     assert "interrupted: 1 of 5 runs made" in (out / "batch.log").read_text()
     assert not (out / "study").exists()
+
+
+def test_a_study_manifest_the_user_edited_is_kept_and_the_study_is_built_from_it(
+    study_data, tmp_path, capsys
+):
+    """The batch rewrites its study manifest while it is its own; once edited it is the user's:
+    kept byte for byte, the study built from it (again when it is edited again), the finished
+    runs it leaves out named; --overwrite alone replaces it."""
+    from strain2d.cli import main
+    from tissue_core.outputs import written_here
+
+    with open(study_data / "manifest.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["specimen"] in ("S01", "S03")]
+    manifest = tmp_path / "two.csv"
+    with open(manifest, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["video", "specimen", "group", "roi"])
+        writer.writerows([study_data / r["video"], r["specimen"], r["group"], r["roi"]]
+                         for r in rows)  # fmt: skip
+    out = tmp_path / "b"
+    batch = ["-q", "batch", str(manifest), "--workers", "1", "--out", str(out), *RUN_OPTIONS]
+    path = out / "study_manifest.csv"
+
+    def study() -> list[tuple[str, str]]:
+        summary = json.loads((out / "study" / "summary.json").read_text())
+        return [(s["specimen"], s["group"]) for s in summary["specimens"]]
+
+    assert main(batch) == 0, capsys.readouterr().err
+    assert written_here(path) and study() == [("S01", "anisotropic"), ("S03", "isotropic")]
+    mine = "run,specimen,group,note\nruns/S01,S01,treated,checked by hand\n"
+    path.write_text(mine)
+    assert main(batch) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("strain2d batch: warning: "), err
+    assert str(path) in err[0] and "kept as it is" in err[0]
+    assert "does not list the finished runs S03" in err[0] and "--overwrite" in err[0]
+    assert path.read_text() == mine and study() == [("S01", "treated")]
+    marker = (out / "study" / ".tissue-strain-result.json").read_bytes()
+    assert main(batch) == 0  # nothing changed: the study is kept
+    assert (out / "study" / ".tissue-strain-result.json").read_bytes() == marker
+    path.write_text(mine.replace("treated", "control"))  # edited again: the study is made again
+    assert main(batch) == 0
+    assert study() == [("S01", "control")]
+    # a batch that fails before the study leaves the user's manifest as it is
+    capsys.readouterr()
+    assert main([*batch, "--grid", "4x4"]) == 2
+    assert "made with other parameters" in capsys.readouterr().err
+    assert path.read_text() == mine.replace("treated", "control")
+    # --overwrite replaces it with the batch's list of the runs
+    assert main([*batch, "--overwrite"]) == 0
+    assert written_here(path) and "treated" not in path.read_text()
+    assert study() == [("S01", "anisotropic"), ("S03", "isotropic")]

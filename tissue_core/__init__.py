@@ -15,10 +15,14 @@ Small pieces that ``strain2d``, ``surface_strain``, ``stereo``, ``mpm3d`` and
 * :mod:`tissue_core.cli` - the command runner: one error line and exit
   status 2, exit 130 on Ctrl-C, warnings as one line each;
   :mod:`tissue_core.main` - ``python -m PACKAGE``;
+* :mod:`tissue_core.csvtext` - CSV files written with every text cell inert
+  in a spreadsheet (no formula from a name), and read back as they were;
 * :mod:`tissue_core.images` - image files read whole or refused (NumPy, OpenCV),
   and what OpenCV prints on stderr kept off the terminal;
 * :mod:`tissue_core.tiff_files` - TIFF files cut short or damaged refused in one
   line, what tifffile logs about them kept off the terminal;
+* :mod:`tissue_core.filenames` - file and folder names that are not UTF-8:
+  a UTF-8 alias for the libraries that need one, and the names shown in text;
 * :mod:`tissue_core.tiff_units` - the pixel sizes TIFF files record (ImageJ,
   OME, resolution tags);
 * :mod:`tissue_core.html` - the self-contained `report.html` every package

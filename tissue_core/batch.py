@@ -53,16 +53,22 @@ from dataclasses import asdict, dataclass, field, replace
 from datetime import UTC, datetime
 from pathlib import Path
 
+from tissue_core.csvtext import restore_cell
 from tissue_core.errors import InputError
+from tissue_core.filenames import readable
 from tissue_core.interrupt import was_interrupted
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
+    LEDGER,
+    check_name_lengths,
     foreign_content,
+    name_too_long,
     read_marker,
     recorded_command,
     replaced_on_success,
     sha256_of,
     written,
+    written_here,
 )
 
 __all__ = [
@@ -80,6 +86,7 @@ __all__ = [
     "raise_if_failed",
     "run_batch",
     "run_job",
+    "update_batch_file",
 ]
 
 #: the least memory a local worker process takes, bytes: Python, NumPy and Dask loaded
@@ -177,7 +184,8 @@ def _inputs_unchanged(job: Job, out: Path, created: float) -> bool:
     listed = summary.get("input_files") or summary.get("inputs") or []
     records = {str(r.get("path")): r for r in listed if isinstance(r, dict)}
     for path in job.inputs:
-        record = records.get(str(path), {})  # not recorded: unchanged if not touched since
+        # (names as the summary shows them: valid UTF-8, see tissue_core.filenames)
+        record = records.get(readable(path), {})  # not recorded: unchanged if not touched since
         p = Path(path)
         try:
             if p.is_dir():
@@ -213,7 +221,8 @@ def job_state(job: Job) -> str:
     if foreign_content(out) is not None:
         return f"{out} was changed since it was written"
     recorded = (marker.get("command") or [])[1:]
-    if _parameters(recorded, job.neutral) != _parameters(job.argv, job.neutral):
+    argv = [readable(a) for a in job.argv]  # as the marker records it
+    if _parameters(recorded, job.neutral) != _parameters(argv, job.neutral):
         return f"{out} was made with other parameters"
     try:
         created = datetime.fromisoformat(marker["created"]).timestamp()
@@ -530,8 +539,14 @@ def check_workers(workers: int | None, scheduler: str | None, n_jobs: int) -> in
     return workers
 
 
-def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
-    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command."""
+def add_batch_arguments(
+    p: argparse.ArgumentParser, *, what: str, tables: Sequence[str] = ()
+) -> None:
+    """``--workers``, ``--scheduler`` and ``--overwrite`` of a batch command.
+
+    ``tables``: the files of the batch folder that list its runs
+    (:func:`update_batch_file`), which ``--overwrite`` replaces once edited.
+    """
     g = p.add_argument_group("where the runs go")
     g.add_argument(
         "--workers",
@@ -550,20 +565,26 @@ def add_batch_arguments(p: argparse.ArgumentParser, *, what: str) -> None:
     p.add_argument(
         "--overwrite",
         action="store_true",
-        help="replace runs made with other parameters or from changed inputs (runs complete "
-        "with the same parameters are always kept)",
+        help="replace runs made with other parameters or from changed inputs"
+        + (f", and {' and '.join(tables)} when edited since the batch wrote it" if tables else "")
+        + " (runs complete with the same parameters are always kept)",
     )
 
 
 def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[dict[str, str]]:
     """A manifest CSV's rows: header names lower-cased and stripped, values stripped.
 
-    Each row gets ``_line`` (its line number in the file) for messages.
+    Each row gets ``_line`` (its line number in the file) for messages.  A cell
+    the toolkit wrote inert for spreadsheets (a manifest of ``sample_data_synth
+    study``) is read as it was given (:func:`tissue_core.csvtext.restore_cell`).
     """
+    from tissue_core.tables import cell_count_error
+
     path = Path(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows = [(reader.line_num, row) for row in reader]
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
     except IsADirectoryError:
@@ -571,12 +592,16 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
     out = []
-    for i, row in enumerate(rows, start=2):
-        if None in row:  # more cells than the header has names
-            raise InputError(f"manifest {path}, line {i}: more cells than the header has columns")
-        clean = {(k or "").strip().lower(): (v or "").strip() for k, v in row.items()}
-        if not any(clean.values()):
+    for i, row in rows:
+        cells = [v for k, v in row.items() if k is not None and v is not None]
+        cells += row.get(None, [])
+        if not any(v.strip() for v in cells):
             continue  # an empty row (a spreadsheet's trailing commas)
+        if len(cells) != len(reader.fieldnames):  # more or fewer cells than the header
+            raise cell_count_error(
+                f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
+            )
+        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
         clean["_line"] = str(i)
         out.append(clean)
     if not out:
@@ -675,6 +700,9 @@ def manifest_jobs(
         problem = _bad_name(name)
         if problem:
             raise InputError(f"{where}: {name_column} {name!r} {problem}")
+        problem = name_too_long(name, out)  # a run's folder is made under a temporary name
+        if problem:
+            raise InputError(f"{where}: {name_column} {problem}; give a shorter one")
         run = out / "runs" / name
         run_argv = options.argv(args, {c: row[c] for c in run_columns}, where=where, base=base)
         # files named by options (points, calibrations) are inputs too
@@ -731,6 +759,7 @@ def _check_unique(jobs: Sequence[Job]) -> None:
 def batch_folder(path: str | os.PathLike) -> Path:
     """The batch's output folder, made if needed; one that is not a batch's is refused."""
     path = Path(path)
+    check_name_lengths(path, scratch=False)  # made as it is, not under a temporary name
     if path.exists() and not path.is_dir():
         raise InputError(f"--out {path} is a file; give a folder for the batch")
     if path.is_dir() and any(path.iterdir()):
@@ -766,12 +795,44 @@ class _Log:
 
     def __call__(self, message: str, *, show: bool = True, details: Sequence[str] = ()) -> None:
         stamp = datetime.now(UTC).isoformat(timespec="seconds")
-        with open(self.path, "a", encoding="utf-8") as f:
-            f.write(f"{stamp} {message}\n")
+        with open(self.path, "a", encoding="utf-8") as f:  # names as text: tissue_core.filenames
+            f.write(f"{stamp} {readable(message)}\n")
             for line in details:
-                f.write(f"{stamp}   | {line}\n")
+                f.write(f"{stamp}   | {readable(line)}\n")
         if show:
             self.say(message)
+
+
+def update_batch_file(path: str | os.PathLike, text: str, *, overwrite: bool) -> str:
+    """Write a file of the batch folder that lists its runs (a study manifest, a table of
+    metrics) when it is the batch's to write; say what became of it.
+
+    The file is the batch's while it holds exactly what a batch wrote there
+    (the folder's ledger records it: :func:`tissue_core.outputs.written_here`):
+    it is then written again whenever ``text`` differs.  A file the user
+    edited, or one no batch wrote, is the user's, and is left as it is unless
+    ``overwrite``.
+
+    Returns
+    -------
+    str
+        ``"written"``, ``"unchanged"`` (it holds ``text`` already), or
+        ``"kept"`` (the user's, left as it is: the caller says so).
+    """
+    path = Path(path)
+    try:
+        current = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        current = None
+    except (OSError, ValueError):  # a folder, or not text: not the batch's
+        current = ""
+    if current == text:
+        return "unchanged"
+    if current is not None and not overwrite and not written_here(path):
+        return "kept"
+    with replaced_on_success(path, record=True) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return "written"
 
 
 def raise_if_failed(outcomes: Sequence[Outcome], folder: str | os.PathLike) -> None:
@@ -818,17 +879,17 @@ def _without_provenance(value):
 
 #: files of a folder that record how results were made, not results
 _NOT_RESULTS = frozenset(
-    {".tissue-strain-result.json", "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
+    {".tissue-strain-result.json", LEDGER, "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
 )
 
 
 def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
     """The files that differ between two result folders, beyond their provenance.
 
-    Every file is compared byte for byte, except: the result marker, the
-    batch's record and log (how and where the runs were made); JSON
-    files, compared without their time stamps, command lines and run times;
-    and ``report.html``, which shows those.  Where a file names its own
+    Every file is compared byte for byte, except: the result marker and the
+    ledger of files, the batch's record and log (how and where the runs were
+    made); JSON files, compared without their time stamps, command lines and
+    run times; and ``report.html``, which shows those.  Where a file names its own
     folder (a study lists its runs), the two folders' paths count as equal.
     An empty list means the two folders hold the same results.
     """
@@ -845,8 +906,8 @@ def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
     out = [f"{name}: only in {a}" for name in sorted(fa - fb)]
     out += [f"{name}: only in {b}" for name in sorted(fb - fa)]
     for name in sorted(fa & fb):
-        x = (a / name).read_bytes().replace(str(a).encode(), b"<folder>")
-        y = (b / name).read_bytes().replace(str(b).encode(), b"<folder>")
+        x = (a / name).read_bytes().replace(readable(a).encode(), b"<folder>")
+        y = (b / name).read_bytes().replace(readable(b).encode(), b"<folder>")
         if x == y:
             continue
         if name.endswith(".json"):

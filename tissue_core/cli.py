@@ -26,10 +26,12 @@ from __future__ import annotations
 
 import argparse
 import logging
+import re
 import sys
 import warnings
 
 from tissue_core.errors import InputError, SourceError
+from tissue_core.filenames import readable
 from tissue_core.interrupt import (
     handling_interrupts,
     is_interrupt,
@@ -124,9 +126,17 @@ class CommandLine:
         g.add_argument("-v", "--verbose", action="store_true", default=default, help="log details")
 
 
+#: an undecodable byte of a file name as ``repr`` shows it (``'vid\\udce9o.avi'``)
+_REPR_BYTE = re.compile(r"\\udc([89a-f][0-9a-f])")
+
+
 def one_line(message: object) -> str:
-    """A message folded onto one line (a file's own error text may hold newlines)."""
-    text = " ".join(str(message).split())
+    """A message folded onto one line (a file's own error text may hold newlines).
+
+    Bytes of file names that are not UTF-8 are shown as ``\\xNN``, also where
+    the message quotes a name with ``repr`` (Python's own ``OSError`` text).
+    """
+    text = _REPR_BYTE.sub(r"\\x\1", readable(" ".join(str(message).split())))
     return text or "unknown error"
 
 
@@ -136,12 +146,25 @@ _TOOLKIT = frozenset(
 )
 
 
-def _toolkit_or_verbose(record: logging.LogRecord) -> bool:
-    """The libraries' log records (tifffile's ``ERROR: ...`` on a damaged file, ...) only
-    with -v: without it, the command's one error line stays the only one."""
-    if record.name.split(".")[0] in _TOOLKIT:
-        return True
-    return logging.getLogger().getEffectiveLevel() <= logging.INFO
+def _toolkit_or_verbose(prog: str):
+    """A filter that passes the libraries' log records (tifffile's ``ERROR: ...`` on a damaged
+    file, ...) only with -v: without it, the command's one error line stays the only one.
+    The toolkit's records, and those of the program ``prog``, always pass."""
+    own = _TOOLKIT | {prog}
+
+    def passes(record: logging.LogRecord) -> bool:
+        if record.name.split(".")[0] in own:
+            return True
+        return logging.getLogger().getEffectiveLevel() <= logging.INFO
+
+    return passes
+
+
+class _ReadableFormatter(logging.Formatter):
+    """Log lines that show file names whose bytes are not UTF-8 as ``\\xNN``."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return readable(super().format(record))
 
 
 def _show_warning(prefix: str):
@@ -190,13 +213,13 @@ def run_command(
     try:
         args = parser.parse_args(argv)
         prefix = f"{prog} {args.command}"
-        before = set(logging.getLogger().handlers)
+        log_lines = logging.StreamHandler()
+        log_lines.setFormatter(_ReadableFormatter("%(levelname)s: %(message)s"))
+        log_lines.addFilter(_toolkit_or_verbose(prog))
         logging.basicConfig(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
-            format="%(levelname)s: %(message)s",
+            handlers=[log_lines],
         )
-        for handler in set(logging.getLogger().handlers) - before:
-            handler.addFilter(_toolkit_or_verbose)
         with warnings.catch_warnings(), handling_interrupts():
             warnings.simplefilter("always", UserWarning)
             warnings.showwarning = _show_warning(prefix)
@@ -270,7 +293,7 @@ def _interrupted(prefix: str) -> int:
     # on a terminal, ^C was echoed on the open line
     newline = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
     what = (
-        f"interrupted after the results were written to {', '.join(written)}"
+        f"interrupted after the results were written to {readable(', '.join(written))}"
         if written
         else "interrupted; no output written"
     )

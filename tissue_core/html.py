@@ -5,7 +5,9 @@ videos (MP4) as a ``<video>`` element with a ``data:`` source; every piece of
 text is escaped.  Every package's ``report.html`` is built with it, so the
 reports look alike: the inputs with their checksums (:func:`input_records`),
 parameters, results with units, figures, the quality of the measurement, what
-was flagged, and the provenance folded away at the end.
+was flagged, and the provenance folded away at the end.  The page is valid
+UTF-8 whatever the names it shows: bytes of a file name that are not UTF-8
+appear as ``\\xNN`` (:func:`tissue_core.filenames.readable`).
 
 Tables fit the page: cells wrap (long names and checksums break anywhere) and
 tables with many columns are set smaller, so no report is wider than the
@@ -30,6 +32,7 @@ import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+from tissue_core.filenames import readable
 from tissue_core.outputs import sha256_of
 
 __all__ = ["HtmlReport", "format_value", "input_records", "sequence_record"]
@@ -79,6 +82,11 @@ def format_value(value, digits: int = 4) -> str:
     if isinstance(value, list | tuple):
         return ", ".join(format_value(v, digits) for v in value)
     return str(value)
+
+
+def _json_text(data, indent: int | None = 2) -> str:
+    """``data`` as JSON to show (text as it is, not ``\\u`` escapes: the page is UTF-8)."""
+    return json.dumps(data, indent=indent, default=str, allow_nan=True, ensure_ascii=False)
 
 
 def _size_text(n) -> str:
@@ -189,7 +197,7 @@ class HtmlReport:
             nested = isinstance(v, dict) or (
                 isinstance(v, list) and any(isinstance(x, dict) for x in v)
             )
-            text = json.dumps(v, default=str) if nested else format_value(v, digits)
+            text = _json_text(v, indent=None) if nested else format_value(v, digits)
             rows.append(f"<tr><th>{html.escape(str(k))}</th><td>{html.escape(text)}</td></tr>")
         self._parts.append(f"<table>{''.join(rows)}</table>")
 
@@ -197,7 +205,7 @@ class HtmlReport:
         self._parts.append(f"<pre>{html.escape(text)}</pre>")
 
     def json_block(self, data) -> None:
-        self.code(json.dumps(data, indent=2, default=str, allow_nan=True))
+        self.code(_json_text(data))
 
     def flags(self, items: Sequence[str], *, none: str = "Nothing was flagged.") -> None:
         """What the run flagged, one warning box per item, or one line saying there was none."""
@@ -224,7 +232,7 @@ class HtmlReport:
 
     def provenance(self, data, title: str = "Parameters and provenance (summary.json)") -> None:
         """``data`` as JSON, folded away under ``title`` (opened with a click)."""
-        text = html.escape(json.dumps(data, indent=2, default=str, allow_nan=True))
+        text = html.escape(_json_text(data))
         self._parts.append(
             f"<details><summary>{html.escape(title)}</summary><pre>{text}</pre></details>"
         )
@@ -254,8 +262,9 @@ class HtmlReport:
         self._parts.append(f"<figure>{element}{cap}</figure>")
 
     def html(self) -> str:
+        """The whole page, valid UTF-8 (names that are not UTF-8 shown with ``\\xNN``)."""
         body = "\n".join(self._parts)
-        return (
+        return readable(
             '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
             f"<title>{html.escape(self.title)}</title>\n<style>{_CSS}</style>\n</head>\n"
             f"<body>\n{body}\n</body>\n</html>\n"

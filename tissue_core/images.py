@@ -51,6 +51,7 @@ def caught_stderr() -> Iterator[list[str]]:
             saved = os.dup(2)
         except (OSError, ValueError, AttributeError):  # no stderr to keep quiet
             yield said
+            said.append("")
             return
         try:
             os.dup2(caught.fileno(), 2)

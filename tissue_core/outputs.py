@@ -18,7 +18,14 @@ An output *file* (``strain2d track --out TRACKS.csv``) is recorded in a ledger
 beside it, ``.tissue-strain-files.json``; an existing file is replaced only
 with ``overwrite=True`` and when the ledger says the toolkit wrote exactly
 that content.  No output may replace an input, hold one, lie inside an input
-folder, or be the working directory or one of its parents.
+folder, or be the working directory or one of its parents.  A name longer than
+the file system allows (255 bytes on most; an output's own name needs room for
+its temporary name, :data:`SCRATCH_BYTES` more) is refused before anything is
+made (:func:`name_too_long`).
+
+Both records are valid UTF-8 JSON.  A name that is not UTF-8 is listed as
+:func:`~tissue_core.filenames.readable` shows it, and its exact bytes under
+``exact_names``, so that ``--overwrite`` recognises exactly the files listed.
 """
 
 from __future__ import annotations
@@ -38,19 +45,24 @@ from pathlib import Path
 from typing import Literal
 
 from tissue_core.errors import InputError
+from tissue_core.filenames import exact_name, readable
 from tissue_core.interrupt import deferred_interrupt, raise_if_interrupted
 
 __all__ = [
     "LEDGER",
     "MARKER",
+    "SCRATCH_BYTES",
     "atomic_dir",
     "atomic_file",
+    "check_name_lengths",
     "check_writable",
     "foreign_content",
+    "name_too_long",
     "read_marker",
     "recorded_command",
     "replaced_on_success",
     "sha256_of",
+    "written_here",
 ]
 
 log = logging.getLogger(__name__)
@@ -63,6 +75,10 @@ LEDGER = ".tissue-strain-files.json"
 _LEDGER_KIND = "tissue-strain files"
 #: files that file browsers drop into any folder they show
 _BROWSER_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
+#: the bytes an output's temporary name adds to its own: ``.NAME.tmp-`` and 8 random characters
+SCRATCH_BYTES = len("..tmp-") + 8
+#: the longest name in bytes where the file system cannot be asked (most allow 255)
+_NAME_MAX = 255
 
 #: the results renamed into place since the command began (cleared by tissue_core.cli), so
 #: that Ctrl-C after them is not reported as "no output written"
@@ -130,7 +146,22 @@ def _read_json(path: Path, kind: str) -> dict | None:
         isinstance(k, str) and isinstance(v, dict) for k, v in files.items()
     ):
         return None
+    exact = data.setdefault("exact_names", {})
+    if not isinstance(exact, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in exact.items()
+    ):
+        return None
     return data
+
+
+def _listed(record: dict, entry: str) -> str | None:
+    """The key under which a marker or ledger lists ``entry`` (a relative name), or None.
+
+    A name that is not UTF-8 is listed as it reads, with its exact bytes in
+    ``exact_names``: a name that only reads alike is not the one listed.
+    """
+    key = readable(entry)
+    return key if record["exact_names"].get(key) == exact_name(entry) else None
 
 
 def read_marker(folder: str | os.PathLike) -> dict | None:
@@ -156,6 +187,10 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
         return f"no {MARKER}"
     files, folders = marker["files"], set(marker.get("folders", []))
 
+    def listed(entry: str, among) -> str | None:
+        key = _listed(marker, entry)
+        return key if key in among else None
+
     def cannot_list(error: OSError) -> None:
         raise error
 
@@ -168,7 +203,7 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
                 dirnames.remove(name)
                 if full.is_symlink():
                     return f"{entry}, a link the earlier result did not make"
-                if entry in folders:
+                if listed(entry, folders) is not None:
                     dirnames.append(name)  # descend: its content must be listed too
                 elif read_marker(full) is not None:
                     inner = foreign_content(full)
@@ -180,9 +215,10 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
                 entry = (rel / name).as_posix()
                 if entry == MARKER or name in _BROWSER_FILES:
                     continue
-                if entry not in files:
+                key = listed(entry, files)
+                if key is None:
                     return f"{entry}, which the earlier result did not write"
-                if not _unchanged(Path(dirpath) / name, files[entry]):
+                if not _unchanged(Path(dirpath) / name, files[key]):
                     return f"{entry}, which was changed after the toolkit wrote it"
     except OSError as exc:
         return f"{exc.filename or 'a subfolder'}, which cannot be read ({exc.strerror or exc})"
@@ -191,10 +227,89 @@ def foreign_content(folder: str | os.PathLike) -> str | None:
 
 def _file_written_here(path: Path) -> bool:
     ledger = _read_json(path.parent / LEDGER, _LEDGER_KIND)
-    return ledger is not None and _unchanged(path, ledger["files"].get(path.name))
+    if ledger is None:
+        return False
+    key = _listed(ledger, path.name)
+    return key is not None and _unchanged(path, ledger["files"].get(key))
+
+
+def written_here(path: str | os.PathLike) -> bool:
+    """Whether the file ``path`` holds exactly what the toolkit wrote there.
+
+    True when its folder's ledger (:data:`LEDGER`) records it and its content
+    is unchanged since; False for a file the user edited, one the toolkit did
+    not write, or one that is not there.
+    """
+    try:
+        return _file_written_here(Path(path))
+    except OSError:  # there, but it cannot be read: not known to be the toolkit's
+        return False
 
 
 # --------------------------------------------------------------------------- checks
+
+
+def _name_max(folder: Path) -> int:
+    """The longest name, in bytes, the file system of ``folder`` (or of its nearest existing
+    parent) allows."""
+    for candidate in (folder, *folder.parents):
+        try:
+            return int(os.pathconf(candidate, "PC_NAME_MAX"))
+        except (OSError, ValueError, AttributeError):  # not there (yet), or no pathconf
+            continue
+    return _NAME_MAX
+
+
+def name_too_long(name: str, folder: str | os.PathLike, *, scratch: bool = True) -> str:
+    """Why ``name`` is too long for a file or folder in ``folder``, in words; ``""`` if it is not.
+
+    ``scratch``: the name is written under a temporary name first (every
+    output of :func:`atomic_dir` and :func:`atomic_file`, every run of a
+    batch), which needs :data:`SCRATCH_BYTES` more.
+
+    Examples
+    --------
+    >>> name_too_long("S01", "/tmp")
+    ''
+    >>> name_too_long("x" * 300, "/tmp", scratch=False)
+    "'xxxxxxxxxxxxxxxxxxxx...xxxxxxxxxx' is 300 bytes long; names here may have at most 255"
+    """
+    size = len(os.fsencode(name))
+    limit = _name_max(Path(os.path.abspath(folder)))
+    if scratch:
+        limit -= SCRATCH_BYTES
+    if size <= limit:
+        return ""
+    shown = name if len(name) <= 40 else f"{name[:20]}...{name[-10:]}"
+    why = f" (the toolkit writes it under a temporary name {SCRATCH_BYTES} bytes longer first)"
+    return f"{shown!r} is {size} bytes long; names here may have at most {limit}" + (
+        why if scratch else ""
+    )
+
+
+def check_name_lengths(
+    path: str | os.PathLike, *, option: str = "--out", scratch: bool = True
+) -> None:
+    """Refuse ``path`` in one line when one of its names is longer than the file system allows.
+
+    Its own (last) name needs room for its temporary name when ``scratch``
+    (see :func:`name_too_long`).  Checked before anything looks at ``path``:
+    the system refuses a name too long with an error of its own.
+
+    Raises
+    ------
+    InputError
+        Naming ``option``, the name and the limit.
+    """
+    path = Path(path)
+    parts = path.parts
+    for k, part in enumerate(parts):
+        if part in (path.anchor, "", ".", ".."):
+            continue
+        last = k == len(parts) - 1
+        problem = name_too_long(part, Path(*parts[:k]) if k else ".", scratch=scratch and last)
+        if problem:
+            raise InputError(f"{option}: the name {problem}; choose a shorter one")
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -238,6 +353,7 @@ def check_writable(
         Naming ``path`` and the reason.
     """
     path = Path(path)
+    check_name_lengths(path, option=option)
     if path.is_symlink():
         raise InputError(f"{option} {path} is a symbolic link; give the real {kind} instead")
     target = path.resolve()
@@ -342,21 +458,23 @@ def _provenance() -> dict:
 
     return {
         "software": {"name": "tissue-strain", "version": __version__},
-        "command": recorded_command.get(),
+        "command": [readable(a) for a in recorded_command.get() or []] or None,
         "created": datetime.now(UTC).isoformat(timespec="seconds"),
     }
 
 
 def _write_marker(folder: Path) -> None:
-    files, folders = {}, []
+    files, folders, exact = {}, [], {}
     for p in sorted(folder.rglob("*")):
         rel = p.relative_to(folder).as_posix()
         if rel == MARKER:
             continue
+        if exact_name(rel) is not None:
+            exact[readable(rel)] = exact_name(rel)
         if p.is_dir() and not p.is_symlink():
-            folders.append(rel)
+            folders.append(readable(rel))
         else:
-            files[rel] = _record(p)
+            files[readable(rel)] = _record(p)
     marker = {
         "kind": _MARKER_KIND,
         "note": "written by the tissue-strain toolkit; --overwrite may replace this folder "
@@ -364,6 +482,7 @@ def _write_marker(folder: Path) -> None:
         **_provenance(),
         "folders": folders,
         "files": files,
+        "exact_names": exact,
     }
     (folder / MARKER).write_text(json.dumps(marker, indent=1) + "\n", encoding="utf-8")
 
@@ -376,8 +495,13 @@ def _record_in_ledger(path: Path) -> None:
         "note": "files the tissue-strain toolkit wrote here; --overwrite replaces only these, "
         "and only while their content is unchanged",
         "files": {},
+        "exact_names": {},
     }
-    ledger["files"][path.name] = {**_record(path), **_provenance()}
+    key = readable(path.name)
+    ledger["files"][key] = {**_record(path), **_provenance()}
+    ledger["exact_names"].pop(key, None)
+    if exact_name(path.name) is not None:
+        ledger["exact_names"][key] = exact_name(path.name)
     try:
         fd, name = tempfile.mkstemp(prefix=f"{LEDGER}.tmp-", dir=path.parent)
         with os.fdopen(fd, "w", encoding="utf-8") as f:
@@ -391,12 +515,15 @@ def _record_in_ledger(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
+def replaced_on_success(path: str | os.PathLike, *, record: bool = False) -> Iterator[Path]:
     """A temporary file beside ``path`` (same suffix) that becomes ``path`` if the block succeeds.
 
     No policy: for library writers that were given ``path`` (a file inside a
     result being written, or a file the caller named); the command lines'
     outputs use :func:`atomic_file`, which also checks what may be replaced.
+    With ``record``, ``path`` is also recorded in its folder's ledger
+    (:data:`LEDGER`), so that :func:`written_here` can tell later whether it
+    still holds what was written (a batch's table in the batch folder).
     """
     path = Path(path)
     fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
@@ -409,7 +536,12 @@ def replaced_on_success(path: str | os.PathLike) -> Iterator[Path]:
             _hide_scratch(exc, tmp, path)
             raise
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
-        os.replace(tmp, path)
+        if record:
+            with deferred_interrupt():  # Ctrl-C waits until the file and its record are in place
+                os.replace(tmp, path)
+                _record_in_ledger(path)
+        else:
+            os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -15,6 +15,7 @@ import sys
 import time
 from typing import TextIO
 
+from tissue_core.filenames import readable
 from tissue_core.interrupt import raise_if_interrupted
 
 __all__ = ["Progress", "close_open_lines"]
@@ -76,7 +77,7 @@ class Progress:
         if self.quiet:
             return
         close_open_lines()
-        _line(self.stream, f"[{self.elapsed():6.1f} s] {message}")
+        _line(self.stream, f"[{self.elapsed():6.1f} s] {readable(message)}")
 
     __call__ = say
 
@@ -90,7 +91,7 @@ class Task:
 
     def __init__(self, progress: Progress, description: str, unit: str) -> None:
         self.progress = progress
-        self.description = description
+        self.description = readable(description)
         self.unit = unit
         self.done = 0
         self.total: int | None = None

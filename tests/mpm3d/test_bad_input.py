@@ -19,7 +19,17 @@ import tifffile
 
 import tissue_core.resources as resources
 from mpm3d.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, unwritable_folder, write
+from tests.badinput import (
+    FAMILIES,
+    assert_inert,
+    assert_refused,
+    interrupt,
+    scratch_left,
+    snapshot,
+    unwritable_folder,
+    write,
+)
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tissue_core.outputs import atomic_dir
 
 COMMANDS = ("analyze", "compare")
@@ -38,7 +48,9 @@ def case(name: str, *commands: str):
     """Register ``COMMAND-FAMILY-CASE`` for each of ``commands`` (default: both).
 
     The decorated function of ``(stack, tmp)`` returns the options to change and the
-    fragments the error line must hold (the file or option, and the problem).
+    fragments the error line must hold (the file or option, and the problem), or None for
+    input that is accepted (the ``formula`` family: see :func:`tests.badinput.assert_inert`).
+    ``batch`` is named explicitly: it runs ``analyze``, whose cases hold for it too.
     """
     assert any(name.startswith(f"{family}-") for family in FAMILIES), name
 
@@ -54,6 +66,9 @@ def base(command: str, stack: Path, tmp: Path) -> dict:
     """The options of a command line that would run; positionals under ``_N`` keys."""
     if command == "analyze":
         return {"_1": stack, "--out": tmp / "out", "--no-figures": True, "-q": True}
+    if command == "batch":
+        return {"_1": stack, "--out": tmp / "out", "--no-figures": True, "--workers": "1",
+                "-q": True}  # fmt: skip
     return {"_1": stack, "_2": stack, "--out": tmp / "out", "--no-figures": True, "-q": True}
 
 
@@ -427,6 +442,51 @@ def _(s, t):
     return {"--out": folder / "out"}, [str(folder), "cannot be written"]
 
 
+# ---- names too long for a folder: refused before any folder is made
+
+
+@case("output-name-too-long", "analyze", "compare", "batch")
+def _(s, t):
+    return {"--out": t / ("x" * 300)}, ["--out", "300 bytes long"]
+
+
+@case("output-run-name-too-long", "batch")
+def _(s, t):
+    stack = write(t / "data", "y" * 245 + ".tif", s.read_bytes())
+    return {"_1": stack}, [stack.name, "245 bytes long", "at most 241"]
+
+
+@case("csv-name-too-long", "batch")
+def _(s, t):
+    manifest = write(t / "data", "stacks.csv", f"stack,name\n{s},{'x' * 300}\n")
+    return {"_1": manifest}, ["stacks.csv, line 2", "name", "300 bytes long"]
+
+
+# ---- names a spreadsheet would run as formulas: accepted, and every CSV written holds them inert
+
+
+@case("formula-stack-and-out-names", "analyze")
+def _(s, t):
+    return {"_1": write(t / "data", "=1+2.tif", s.read_bytes()), "--out": t / "-2+3"}, None
+
+
+@case("formula-stack-and-out-names", "compare")
+def _(s, t):
+    before = write(t / "data", "=1+2.tif", s.read_bytes())
+    after = write(t / "data", "@SUM(A1).tif", s.read_bytes())
+    return {"_1": before, "_2": after, "--out": t / "-2+3"}, None
+
+
+@case("formula-stack-file-name", "batch")
+def _(s, t):
+    return {"_1": write(t / "data", "-2+3.tif", s.read_bytes())}, None
+
+
+@case("formula-manifest-names", "batch")
+def _(s, t):
+    return {"_1": write(t / "data", "stacks.csv", f"stack,name\n{s},@SUM(A1)\n")}, None
+
+
 def _files(options: dict, out: Path) -> list[Path]:
     """The inputs of a command line: every existing path but the output."""
     paths = [Path(v) for k, v in options.items() if k.startswith("_")]
@@ -447,6 +507,9 @@ def test_bad_input(command, build, mpm_small, tmp_path, capsys, monkeypatch, req
     argv = command_line(command, options)
     out = Path(options["--out"])
     try:
+        if fragments is None:  # accepted: see tests.badinput.assert_inert
+            assert_inert(run, argv, capsys, out=out, inputs=_files(options, out))
+            return
         assert_refused(
             run,
             argv,
@@ -463,7 +526,7 @@ def test_bad_input(command, build, mpm_small, tmp_path, capsys, monkeypatch, req
 
 
 def test_every_command_has_cases_of_every_family_that_applies():
-    ids = [p.id for p in CASES]
+    ids = [p.id for p in CASES] + list(NAME_CASES)
     for command in COMMANDS:
         for family in FAMILIES:
             if family == "csv":  # mpm3d reads no tables
@@ -669,3 +732,91 @@ def test_compare_reads_both_headers_before_the_first_analysis(
     argv = ["-q", "compare", str(stack), str(one), "--channel", "1", "--out", str(tmp_path / "o")]
     assert run(argv) == 2
     assert "after stack" in capsys.readouterr().err and analysed == []
+
+
+# --------------------------------------------------------------------------- names
+
+
+# Names that are not UTF-8 (Windows-origin and shared drives) are read and written; each case
+# is a real process given its names as bytes (VTK raised on them, and matplotlib on the
+# figure titles naming the stack): exit 0, the metrics of plainly named stacks, and every
+# text file valid UTF-8 (names shown as \xNN).
+
+#: metrics that must not depend on the names
+MEASURED = ("n_folds", "fold_height_um", "fold_wavelength_um", "surface_coverage")
+
+
+@pytest.fixture(scope="module")
+def latin1_stacks(mpm_small, tmp_path_factory):
+    """``(folder, before, after, reference metrics of before)``: the small stack, and a copy
+    of it with its rows flipped, named in Latin-1 in a folder so named."""
+    plain = tmp_path_factory.mktemp("plain")
+    folder = tmp_path_factory.mktemp(latin1("Messdatén"))
+    before, after = folder / latin1("stäck.tif"), folder / latin1("après.tif")
+    before.write_bytes(mpm_small[0].read_bytes())
+    with tifffile.TiffFile(mpm_small[0]) as tif:
+        data, metadata = tif.asarray(), tif.imagej_metadata
+    tifffile.imwrite(after, data[..., ::-1, :], imagej=True, metadata=metadata)
+    assert run(["-q", "analyze", str(mpm_small[0]), "--no-figures", "--out",
+                str(plain / "ref")]) == 0  # fmt: skip
+    return folder, before, after, strict_json(plain / "ref" / "metrics.json")
+
+
+def _names_analyze(folder, before, after, reference, tmp):
+    out = tmp / latin1("résultats")
+    assert_ran(["-m", "mpm3d", "analyze", before, "--out", out], out)
+    metrics = strict_json(out / "metrics.json")
+    assert {k: metrics[k] for k in MEASURED} == {k: reference[k] for k in MEASURED}
+    assert metrics["input"] == shown(before.name)
+    assert {"surface.vtp", "surface.ply", "figures"} <= {p.name for p in out.iterdir()}
+    assert (out / "figures" / "surface3d.png").stat().st_size > 0
+
+
+def _names_compare(folder, before, after, reference, tmp):
+    out = tmp / latin1("comparé")
+    assert_ran(["-m", "mpm3d", "compare", before, after, "--no-surface", "--out", out], out)
+    metrics = strict_json(out / "before" / "metrics.json")
+    assert {k: metrics[k] for k in MEASURED} == {k: reference[k] for k in MEASURED}
+    assert (out / "figures" / "compare_heightmaps.png").stat().st_size > 0
+
+
+def _names_batch(folder, before, after, reference, tmp):
+    out = tmp / latin1("lot_é")
+    argv = ["-m", "mpm3d", "batch", before, after, "--no-figures", "--no-surface",
+            "--workers", "1", "--out", out]  # fmt: skip
+    assert_ran(argv, out)
+    table = (out / "metrics.csv").read_text(encoding="utf-8")
+    assert "\nst\\xe4ck," in table and "\napr\\xe8s," in table
+    assert (out / "runs" / latin1("stäck") / "metrics.json").is_file()
+    err = assert_ran(argv, out)  # the runs' markers name them readably, and exactly
+    assert "2 complete already, nothing to run" in err, err
+
+
+def _names_damaged_stack(folder, before, after, reference, tmp):
+    stack = write(tmp, latin1("abîmé.tif"), "not a stack\n")
+    assert_refused_process(["-m", "mpm3d", "analyze", stack, "--out", tmp / "out"],
+                           fragments=["mpm3d analyze: error:", shown(stack)])  # fmt: skip
+    assert not (tmp / "out").exists()
+
+
+NAME_CASES = {
+    "analyze-filename-damaged-stack": _names_damaged_stack,
+    "analyze-filename-stack-and-out": _names_analyze,
+    "compare-filename-stacks-and-out": _names_compare,
+    "batch-filename-stacks-and-out": _names_batch,
+}
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize("case", list(NAME_CASES), ids=list(NAME_CASES))
+    def test_bad_input(self, latin1_stacks, tmp_path, case):
+        folder = latin1_stacks[0]
+        tmp = tmp_path / latin1("dossier_é")
+        tmp.mkdir()
+        before = snapshot(folder)
+        NAME_CASES[case](*latin1_stacks, tmp)
+        assert snapshot(folder) == before  # inputs untouched
+        assert scratch_left(tmp) == []

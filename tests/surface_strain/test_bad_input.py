@@ -11,7 +11,15 @@ import numpy as np
 import pytest
 
 from surface_strain.cli import main
-from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id
+from tests.badinput import (
+    assert_refused,
+    interrupt,
+    message_lines,
+    parse_case_id,
+    scratch_left,
+    snapshot,
+)
+from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.surface_strain.test_cli import _tilted_sheet_tracks, _write
 
 PROG = "surface_strain"
@@ -21,6 +29,11 @@ def _set_column(row: str, k: int, value: str) -> str:
     cells = row.split(",")
     cells[k] = value
     return ",".join(cells)
+
+
+def _decimal_comma(row: str) -> str:
+    """The row with its X written with a decimal comma (``12,5`` for ``12.5``)."""
+    return _set_column(row, 2, row.split(",")[2].replace(".", ","))
 
 
 @pytest.fixture(scope="module")
@@ -47,13 +60,25 @@ def inputs(tmp_path_factory):
         + "\n",
         # indices that would size (T, N) arrays of 10^16 cells
         "huge_indices": good + "100000000,100000000," + rows[0].split(",", 2)[2] + "\n",
+        # a decimal comma (1,5 for 1.5) makes one cell too many: on a later frame and on the
+        # reference frame (where it read as a lost point); a cell missing
+        "ragged_decimal_comma": good.replace(rows[40], _decimal_comma(rows[40]), 1),
+        "ragged_reference_frame": good.replace(rows[3], _decimal_comma(rows[3]), 1),
+        "ragged_short_row": good.replace(rows[40], rows[40].rsplit(",", 1)[0], 1),
+        "visible_7": good.replace(rows[40], _set_column(rows[40], -1, "7"), 1),
+        "visible_half": good.replace(rows[3], _set_column(rows[3], -1, "0.5"), 1),
+        "visible_minus_1": good.replace(rows[40], _set_column(rows[40], -1, "-1"), 1),
     }
     for name, text in broken.items():
         (d / f"points_{name}.csv").write_text(text)
     (d / "points_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
     (d / "points.xlsx").write_bytes(b"PK\x03\x04")
     tri = {"outside": "p0,p1,p2\n0,1,99\n", "repeat": "p0,p1,p2\n0,1,1\n",
-           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n"}  # fmt: skip
+           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n",
+           "ragged": "p0,p1,p2\n0,1,5\n1,6,5,2\n", "short": "p0,p1,p2\n0,1,5\n1,6\n",
+           "ragged_no_header": "0,1,5\n1,6,5,2\n",
+           "repeated": "p0,p1,p2\n0,1,5\n1,6,5\n0,1,5\n",
+           "repeated_reordered": "p0,p1,p2\n0,1,5\n1,6,5\n5,0,1\n"}  # fmt: skip
     for name, text in tri.items():
         (d / f"tri_{name}.csv").write_text(text)
     (d / "tri_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
@@ -106,6 +131,23 @@ CASES = [
     ("compute-allocation-indices-beyond-the-rows", lambda c, o: _compute(c, "--out", o,
      points=c.dir / "points_huge_indices.csv"), ["points_huge_indices.csv", "is incomplete",
                                                  "frame indices up to 1e+08"]),
+    *[(f"compute-csv-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
+        c, "--out", o, points=c.dir / f"points_{n}.csv"))(name),
+        [f"points_{name}.csv, line {line}: {fragment}"]) for name, line, fragment in [
+          ("ragged_decimal_comma", 42, "8 cells where the header has 7 (a decimal comma?)"),
+          ("ragged_reference_frame", 5, "8 cells where the header has 7 (a decimal comma?)"),
+          ("ragged_short_row", 42, "6 cells where the header has 7"),
+          ("visible_7", 42, "visible must be 0 or 1, got 7"),
+          ("visible_half", 5, "visible must be 0 or 1, got 0.5"),
+          ("visible_minus_1", 42, "visible must be 0 or 1, got -1")]],
+    *[(f"compute-csv-triangles-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
+        c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv",
+        fragment]) for name, fragment in [
+          ("ragged", "line 3: 4 cells where the header has 3: 1,6,5,2"),
+          ("short", "line 3: 2 cells where the header has 3"),
+          ("ragged_no_header", "line 2: 4 cells where the first row (line 1) has 3"),
+          ("repeated", "lines 2 and 4 give the same triangle: 0, 1, 5 and 0, 1, 5"),
+          ("repeated_reordered", "lines 2 and 4 give the same triangle: 0, 1, 5 and 5, 0, 1")]],
     ("compute-option-fps-zero", lambda c, o: _compute(c, "--fps", "0", "--out", o), ["--fps"]),
     ("compute-option-fps-inf", lambda c, o: _compute(c, "--fps", "inf", "--out", o), ["--fps"]),
     ("compute-option-grid-1x25", lambda c, o: _compute(c, "--grid", "1x25", "--out", o),
@@ -194,3 +236,56 @@ def test_interrupt(tmp_path, when, after):
                             when=when, out=out, inputs=[src])  # fmt: skip
     assert status == 130  # before the command is parsed the line names the program only
     assert message_lines(err)[-1].startswith("surface_strain")
+
+
+# ---- names that are not UTF-8 (Windows-origin and shared drives) ---------------------------
+# Read and written, in a real process given its names as bytes (VTK raised on them): exit 0,
+# the tables of plainly named files, every text file valid UTF-8 (names shown as \xNN).
+
+
+def _names_points_triangles_and_out(tmp):
+    plain = tmp / "plain"
+    plain.mkdir()
+    points, *_ = _tilted_sheet_tracks(frames=3)
+    _write(plain / "points3d.csv", points)
+    (plain / "triangles.csv").write_text("p0,p1,p2\n0,1,5\n1,6,5\n1,2,6\n")
+    folder = tmp / latin1("Messdatén")
+    folder.mkdir()
+    src, tri = folder / latin1("pöints3d.csv"), folder / latin1("triängles.csv")
+    src.write_bytes((plain / "points3d.csv").read_bytes())
+    tri.write_bytes((plain / "triangles.csv").read_bytes())
+    before = snapshot(folder)
+    # the figures (VTK's screenshots, titles) once; the given triangles without them
+    for name, extra in (("grid", []), ("given", ["--triangles", tri, "--no-figures"])):
+        ref = plain / name
+        plain_extra = ["--triangles", str(plain / "triangles.csv")] if extra else []
+        assert main(["compute", "-q", str(plain / "points3d.csv"), "--no-figures", "--out",
+                     str(ref), *plain_extra]) == 0  # fmt: skip
+        out = tmp / latin1(f"résultats_{name}")
+        assert_ran(["-m", "surface_strain", "compute", src, *extra, "--out", out], out)
+        for table in ("strain_nodes.csv", "strain_elements.csv"):
+            assert (out / table).read_bytes() == (ref / table).read_bytes()
+        assert len(list((out / "strain").glob("*.vtp"))) == 3
+        assert (out / "figures").is_dir() == (not extra)
+        summary = strict_json(out / "summary.json")
+        assert summary["input_files"][0]["path"] == shown(src)
+    assert snapshot(folder) == before
+    assert scratch_left(tmp) == []
+
+
+class TestNamesNotUtf8:
+    """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
+    written (``test_bad_input[compute-filename-CASE]``, counted with the refusals)."""
+
+    @pytest.mark.parametrize(
+        "case", ["compute-filename-points-triangles-and-out", "compute-filename-missing-points"]
+    )
+    def test_bad_input(self, tmp_path, case):
+        assert parse_case_id(case)[:2] == ("compute", "filename")
+        if case.endswith("-missing-points"):
+            missing = tmp_path / latin1("pöints_perdus.csv")
+            assert_refused_process(["-m", "surface_strain", "compute", missing, "--out",
+                                    tmp_path / "out"], fragments=[shown(missing)])  # fmt: skip
+            assert list(tmp_path.iterdir()) == []
+        else:
+            _names_points_triangles_and_out(tmp_path)

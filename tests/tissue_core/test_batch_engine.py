@@ -247,3 +247,35 @@ def test_more_workers_than_the_memory_holds_are_refused_before_any_starts(monkey
     with pytest.raises(InputError, match=r"--workers 100000 \(worker processes\) needs 9.54 TiB "
                        r"of memory; 1 GiB is available: use fewer --workers"):  # fmt: skip
         check_workers(100000, None, 20)
+
+
+def test_a_batch_file_is_written_again_only_while_it_holds_what_a_batch_wrote(tmp_path):
+    from tissue_core.batch import update_batch_file
+    from tissue_core.outputs import LEDGER, written_here
+
+    path = tmp_path / "table.csv"
+    assert update_batch_file(path, "name\nA\n", overwrite=False) == "written"
+    assert written_here(path) and (tmp_path / LEDGER).is_file()
+    assert update_batch_file(path, "name\nA\n", overwrite=False) == "unchanged"
+    assert update_batch_file(path, "name\nA\nB\n", overwrite=False) == "written"  # the batch's
+    path.write_text("name,note\nA,edited by hand\n")  # now the user's
+    assert not written_here(path)
+    for _ in range(2):
+        assert update_batch_file(path, "name\nA\nB\nC\n", overwrite=False) == "kept"
+        assert path.read_text() == "name,note\nA,edited by hand\n"
+    assert update_batch_file(path, "name\nA\nB\nC\n", overwrite=True) == "written"
+    assert path.read_text() == "name\nA\nB\nC\n" and written_here(path)
+    mine = tmp_path / "mine.csv"  # never written by a batch
+    mine.write_text("name\nX\n")
+    assert update_batch_file(mine, "name\nA\n", overwrite=False) == "kept"
+    assert mine.read_text() == "name\nX\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [LEDGER, "mine.csv", "table.csv"]
+
+
+def test_a_manifest_cell_written_inert_is_read_as_it_was_given(tmp_path):
+    from tissue_core.batch import manifest_rows
+
+    path = tmp_path / "m.csv"
+    path.write_text("video,specimen,group\na.avi,'=1+2, '@SUM(A1)\nb.avi,=raw,'plain\n")
+    rows = manifest_rows(path, required=("video",))
+    assert [(r["specimen"], r["group"]) for r in rows] == [("=1+2", "@SUM(A1)"), ("=raw", "'plain")]
