@@ -115,6 +115,8 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
             rows = [(reader.line_num, row) for row in reader]
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
+    except IsADirectoryError:
+        raise InputError(f"manifest {path} is a folder; give the CSV file") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
     for i, row in rows:  # a row with more or fewer cells than the header

@@ -119,6 +119,8 @@ def _read_npz(path: Path, data):
 def read_tracks(path: str | os.PathLike) -> Tracks:
     """Read tracks from ``.csv``, ``.npy`` or ``.npz`` (see the module docstring)."""
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a folder, not a tracks file (CSV, NPY or NPZ)")
     if not path.is_file():
         raise InputError(f"no such tracks file: {path}")
     suffix = path.suffix.lower()

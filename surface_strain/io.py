@@ -43,6 +43,8 @@ def read_points3d(path: str | os.PathLike) -> Tracks:
         missing, or duplicate rows; the message names the file and the row.
     """
     path = Path(path)
+    if path.is_dir():
+        raise PointsError(f"{path} is a folder, not a points file (frame,point,X,Y,Z)")
     if not path.is_file():
         raise PointsError(f"points file not found: {path}")
     table = read_long_table(
@@ -76,6 +78,8 @@ def read_triangles(path: str | os.PathLike, n_points: int) -> np.ndarray:
     from tissue_core.tables import cell_count_error
 
     path = Path(path)
+    if path.is_dir():
+        raise PointsError(f"{path} is a folder, not a triangles file (p0,p1,p2)")
     if not path.is_file():
         raise PointsError(f"triangles file not found: {path}")
     out, lines = [], []

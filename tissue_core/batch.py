@@ -97,6 +97,8 @@ __all__ = [
     "update_batch_file",
 ]
 
+#: the least memory a local worker process takes, bytes: Python, NumPy and Dask loaded
+WORKER_BYTES = 100 * 2**20
 #: the batch's record of every run, in the batch folder
 BATCH_FILE = "batch.json"
 #: the batch's log, appended to by every batch run in the folder
@@ -534,6 +536,14 @@ def check_workers(workers: int | None, scheduler: str | None, n_jobs: int) -> in
         workers = min(os.cpu_count() or 1, max(n_jobs, 1))
     if workers < 1:
         raise InputError(f"--workers must be 1 or more, got {workers}")
+    if workers > 1:  # each a process of its own
+        from tissue_core.resources import check_fits
+
+        check_fits(
+            f"--workers {workers} (worker processes)",
+            memory=workers * WORKER_BYTES,
+            remedy="use fewer --workers",
+        )
     return workers
 
 

@@ -6,7 +6,9 @@ the same behaviour:
 * errors a user can cause (:class:`~tissue_core.errors.InputError`,
   :class:`~tissue_core.errors.SourceError`, any other ``OSError`` such as a
   full disk or a missing permission, and the command's own ``errors``) end
-  with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2;
+  with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2; so
+  does an allocation that fails (``MemoryError``) where no check of the
+  options (:mod:`tissue_core.resources`) foresaw it;
 * Ctrl-C ends with one line ``PROG COMMAND: interrupted; no output written``
   and exit status 130, also when it arrives inside compiled code or library
   code loses its KeyboardInterrupt; SIGTERM and SIGHUP the same way, with
@@ -145,6 +147,26 @@ def one_line(message: object) -> str:
     return text or "unknown error"
 
 
+#: the toolkit's packages: their log records reach the terminal without -v
+_TOOLKIT = frozenset(
+    {"tissue_core", "strain2d", "surface_strain", "stereo", "mpm3d", "sample_data_synth"}
+)
+
+
+def _toolkit_or_verbose(prog: str):
+    """A filter that passes the libraries' log records (tifffile's ``ERROR: ...`` on a damaged
+    file, ...) only with -v: without it, the command's one error line stays the only one.
+    The toolkit's records, and those of the program ``prog``, always pass."""
+    own = _TOOLKIT | {prog}
+
+    def passes(record: logging.LogRecord) -> bool:
+        if record.name.split(".")[0] in own:
+            return True
+        return logging.getLogger().getEffectiveLevel() <= logging.INFO
+
+    return passes
+
+
 class _ReadableFormatter(logging.Formatter):
     """Log lines that show file names whose bytes are not UTF-8 as ``\\xNN``."""
 
@@ -201,6 +223,7 @@ def run_command(
         prefix = f"{prog} {args.command}"
         log_lines = logging.StreamHandler()
         log_lines.setFormatter(_ReadableFormatter("%(levelname)s: %(message)s"))
+        log_lines.addFilter(_toolkit_or_verbose(prog))
         logging.basicConfig(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
             handlers=[log_lines],
@@ -215,6 +238,11 @@ def run_command(
                     return _interrupted(prefix, exc)
                 close_open_lines()
                 print(f"{prefix}: error: {one_line(exc)}", file=sys.stderr, flush=True)
+                return 2
+            except MemoryError as exc:  # an allocation no check foresaw: still one line
+                close_open_lines()
+                what = one_line(exc) if str(exc) else "an allocation failed"
+                print(f"{prefix}: error: not enough memory: {what}", file=sys.stderr, flush=True)
                 return 2
             except KeyboardInterrupt as exc:  # here: finalizers run under handling_interrupts
                 return _interrupted(prefix, exc)

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import errno
 import glob
 import hashlib
 import json
@@ -560,8 +561,19 @@ def _check_dir(path: Path, overwrite: bool, option: str) -> None:
 # --------------------------------------------------------------------------- writing
 
 
+#: errors of a write the disk refused (full, over the quota, a file too large)
+_DISK_FULL = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
 def _hide_scratch(exc: BaseException, scratch: Path, final: Path) -> None:
-    """Name the final output, not the temporary folder, in an error message."""
+    """Name the final output, not the temporary folder, in an error message.
+
+    A write the disk refused names no file when it comes from ``write`` or
+    ``close`` (``[Errno 28] No space left on device``): the output being
+    written is named then.
+    """
+    if isinstance(exc, OSError) and exc.errno in _DISK_FULL and not exc.filename:
+        exc.filename = str(scratch)
     old, new = str(scratch), str(final)
     if isinstance(exc, OSError):
         for attr in ("filename", "filename2"):
@@ -652,7 +664,11 @@ def replaced_on_success(path: str | os.PathLike, *, record: bool = False) -> Ite
     os.close(fd)
     tmp = Path(name)
     try:
-        yield tmp
+        try:
+            yield tmp
+        except BaseException as exc:
+            _hide_scratch(exc, tmp, path)
+            raise
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
         if record:
             with deferred_interrupt():  # Ctrl-C waits until the file and its record are in place

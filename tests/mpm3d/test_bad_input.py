@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import tifffile
 
+import tissue_core.resources as resources
 from mpm3d.cli import main
 from tests.badinput import (
     FAMILIES,
@@ -338,6 +339,27 @@ def _(s, t):
 # ---- conflicting options
 
 
+# ---- options that size an allocation beyond the stack or the memory
+@case("allocation-smooth-kernel-wider-than-the-field")
+def _(s, t):
+    return {"--smooth": "1e12"}, ["--smooth", "1e+12 um", "wider than the field of view"]
+
+
+@case("allocation-iso-bin-beyond-the-stack")
+def _(s, t):
+    return {"--iso-bin": "1000000"}, ["--iso-bin", "bin 1000000", "at most 48"]
+
+
+@case("allocation-memory-limit-beyond-the-memory", "analyze")
+def _(s, t):
+    said = ["--memory-limit 1024.00GiB reads the stack whole", "of memory", "1 MiB is available"]
+    return {"--memory-limit": "1TiB"}, said
+
+
+#: the memory available, bytes, in the cases that ask for more than there is
+SMALL_MEMORY = {"analyze-allocation-memory-limit-beyond-the-memory": 2**20}
+
+
 @case("conflict-no-surface-with-iso-bin")
 def _(s, t):
     return {"--no-surface": True, "--iso-bin": "2"}, ["--iso-bin", "--no-surface"]
@@ -475,7 +497,10 @@ def _files(options: dict, out: Path) -> list[Path]:
 
 
 @pytest.mark.parametrize(("command", "build"), CASES)
-def test_bad_input(command, build, mpm_small, tmp_path, capsys):
+def test_bad_input(command, build, mpm_small, tmp_path, capsys, monkeypatch, request):
+    memory = SMALL_MEMORY.get(request.node.callspec.id)
+    if memory is not None:
+        monkeypatch.setattr(resources, "available_memory", lambda: memory)
     stack = tmp_path / "data" / "stack.tif"  # a copy: the case may name its folder
     stack.parent.mkdir()
     stack.write_bytes(mpm_small[0].read_bytes())
@@ -511,6 +536,8 @@ def test_every_command_has_cases_of_every_family_that_applies():
                 continue
             if family in ("interrupt", "terminate", "stale"):
                 continue  # test_interrupt below
+            if family == "nonfinite":  # infinite voxels are read: test_stack_types.py
+                continue
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
 
 
@@ -758,6 +785,26 @@ def test_interrupt_lost_in_a_library(how, stage, mpm_small, tmp_path, monkeypatc
         assert (out / "metrics.json").is_file()
     assert [p.name for p in tmp_path.iterdir() if p.name != "out"] == []  # no scratch left
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_compare_reads_both_headers_before_the_first_analysis(
+    mpm_small, tmp_path, capsys, monkeypatch
+):
+    """A truncated after stack, or a channel it lacks, was found only once the before stack
+    had been analysed."""
+    import mpm3d.compare
+
+    analysed = []
+    monkeypatch.setattr(mpm3d.compare, "analyze_stack", lambda *a, **k: analysed.append(a))
+    stack = mpm_small[0]
+    after = cut(stack, tmp_path, 0.5, "after.tif")
+    argv = ["-q", "compare", str(stack), str(after), "--out", str(tmp_path / "out")]
+    assert run(argv) == 2
+    assert "after stack" in capsys.readouterr().err and analysed == []
+    one = imagej(tmp_path, "one.tif", stack_data(stack)[:, :1])  # one channel, named "0"
+    argv = ["-q", "compare", str(stack), str(one), "--channel", "1", "--out", str(tmp_path / "o")]
+    assert run(argv) == 2
+    assert "after stack" in capsys.readouterr().err and analysed == []
 
 
 # --------------------------------------------------------------------------- names

@@ -9,6 +9,7 @@ import signal
 
 import pytest
 
+import tissue_core.resources as resources
 from sample_data_synth.cli import main
 from tests.badinput import (
     assert_refused,
@@ -58,7 +59,61 @@ CASES = [
     ("study-option-heterogeneity", ["study", "--heterogeneity", "1"], ["--heterogeneity"]),
     ("study-option-heterogeneity-nan", ["study", "--heterogeneity", "nan"], ["--heterogeneity"]),
     ("study-option-size-small", ["study", "--size", "32"], ["--size"]),
+    # ---- sizes beyond the memory or the disk: refused before anything is made
+    (
+        "video-allocation-size-100000",
+        ["video", "--size", "100000"],
+        ["--size 100000", "100000x100000 px", "885 GiB of memory", "available"],
+    ),
+    (
+        "video-allocation-frames",
+        ["video", "--frames", "100000000"],
+        ["--frames 100000000", "TiB of memory"],
+    ),
+    (
+        "video-allocation-disk",
+        ["video", "--size", "256", "--formats", "tif"],
+        ["--size 256", "writes 1.94 MiB", "1 MiB free"],
+    ),
+    (
+        "stack-allocation-size-100000",
+        ["stack", "--size", "100000"],
+        ["--size 100000", "26 or more slices", "TiB of memory"],
+    ),
+    (
+        "stack-allocation-slices",
+        ["stack", "--size", "64", "--slices", "100000000"],
+        ["--slices 100000000", "of memory"],
+    ),
+    (
+        "stereo-allocation-size-100000x100000",
+        ["stereo", "--size", "100000x100000"],
+        ["--size 100000x100000", "TiB of memory"],
+    ),
+    (
+        "stereo-allocation-views",
+        ["stereo", "--views", "100000000"],
+        ["--views 100000000", "TiB of memory"],
+    ),
+    (
+        "stereo-allocation-board-corners",
+        ["stereo", "--size", "256x192", "--board", "checkerboard:100000x100000:10"],
+        ["--board checkerboard:100000x100000:10", "at most 64x48", "4 px apart"],
+    ),
+    (
+        "study-allocation-size-100000",
+        ["study", "--size", "100000"],
+        ["--size 100000", "GiB of memory"],
+    ),
+    (
+        "study-allocation-per-group",
+        ["study", "--per-group", "1000000000"],
+        ["--per-group 1000000000", "2000000000 videos", "TiB", "free"],
+    ),
 ]
+
+#: the disk space free, bytes, in the cases that write more than there is
+SMALL_DISK = {"video-allocation-disk": 2**20}
 
 OUTPUT_CASES = [
     (f"{command}-output-{name}", [command, *extra], fragments)
@@ -83,6 +138,8 @@ def test_bad_input(tmp_path, capsys, monkeypatch, case, argv, fragments):
     here.mkdir()
     (here / "data.csv").write_text("x,y\n")
     monkeypatch.chdir(here)
+    if case in SMALL_DISK:
+        monkeypatch.setattr(resources, "free_disk", lambda path: SMALL_DISK[case])
     out = tmp_path / "out"
     where = {"@mine": mine, "@cwd": ".", "@nowhere": tmp_path / "no" / "out"}
     target = next((where[a] for a in argv if a in where), out)

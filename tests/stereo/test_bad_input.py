@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import tissue_core.resources as resources
 from stereo.cli import main
 from tests.badinput import (
     FAMILIES,
@@ -728,6 +729,22 @@ def _(s, t):
     return {"_1": cut(s.left0, t, "left.png")}, ["left.png", "truncated"]
 
 
+def tiff_copy(png: Path, folder: Path, name: str) -> Path:
+    """A PNG's gray image as a TIFF file."""
+    import cv2
+    import tifffile
+
+    folder.mkdir(parents=True, exist_ok=True)
+    tifffile.imwrite(folder / name, cv2.imread(str(png), cv2.IMREAD_GRAYSCALE))
+    return folder / name
+
+
+@case("match-truncated-left-tif")
+def _(s, t):
+    tif = tiff_copy(s.left0, t / "whole", "left.tif")
+    return {"_1": cut(tif, t)}, ["left.tif is truncated", "runs to byte"]
+
+
 @case("match-truncated-right-jpeg")
 def _(s, t):
     jpeg = jpeg_copy(s.right0, t / "whole", "right.jpg")
@@ -858,6 +875,18 @@ def _(s, t):
     return {"--left": s.left_video, "--right": cut(s.right_video, t)}, ["right.avi"]
 
 
+@case("reconstruct-truncated-tif-movie")
+def _(s, t):
+    import cv2
+    import tifffile
+
+    frames = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in sorted(s.right.glob("*.png"))]
+    tifffile.imwrite(t / "whole.tif", np.stack(frames))
+    data = (t / "whole.tif").read_bytes()
+    right = write(t, "right.tif", data[: len(data) * 3 // 4])  # the first page is whole
+    return {"--right": right}, ["right.tif is truncated"]
+
+
 @case("reconstruct-truncated-png-in-the-left-folder")
 def _(s, t):
     left = folder_with(s.left, t, "left", lambda f: cut(f / "frame_001.png", f))
@@ -967,13 +996,75 @@ for option, value, fragment in (
         return {"--points": None, option: value}, [option, fragment]
 
 
+def float_frames(source: Path, tmp: Path, name: str, bad: tuple[int, float]) -> Path:
+    """The frames of the folder ``source`` as float32 TIFFs, frame ``bad[0]`` with the value
+    ``bad[1]`` in nine pixels of a corner, far from every point."""
+    import cv2
+    import tifffile
+
+    folder = tmp / name
+    folder.mkdir()
+    for k, png in enumerate(sorted(source.glob("*.png"))):
+        frame = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        if k == bad[0]:
+            frame[-3:, -3:] = bad[1]
+        tifffile.imwrite(folder / f"{png.stem}.tif", frame)
+    return folder
+
+
+@case("reconstruct-nonfinite-inf-in-the-right-view")
+def _(s, t):
+    return {"--right": float_frames(s.right, t, "right", (1, np.inf))}, [
+        "frame_001.tif", "frame 1", "9 infinite pixel values"]  # fmt: skip
+
+
+@case("reconstruct-nonfinite-nan-on-the-left-reference")
+def _(s, t):
+    return {"--left": float_frames(s.left, t, "left", (0, np.nan))}, [
+        "frame_000.tif", "frame 0", "9 NaN pixel values"]  # fmt: skip
+
+
+@case("calibrate-allocation-board-corners")
+def _(s, t):
+    board = "checkerboard:100000x100000:10"
+    return {"--board": board}, [f"--board {board}", "px images can show", "at most"]
+
+
+@case("reconstruct-allocation-grid-300x300")
+def _(s, t):
+    return {"--points": None, "--grid": "300x300"}, ["--grid 300x300", "px apart", "at most"]
+
+
+@case("reconstruct-allocation-tracks-memory")
+def _(s, t):
+    return {}, ["points over 2 frames in each of 2 views", "of memory", "100 bytes", "--grid"]
+
+
+#: the memory available, bytes, in the cases that ask for more than there is
+SMALL_MEMORY = {"reconstruct-allocation-tracks-memory": 100}
+
+
+for name, value, fragment in (
+    ("parallel", "vectors:1,0,0:2,0,0", "parallel"),
+    ("zero-vector", "vectors:0,0,0:0,1,0", "first vector has zero length"),
+    ("zero-axis", "sphere:0,0,450:0,0,0", "axis A has zero length"),
+):
+
+    @case(f"reconstruct-option-directions-{name}")
+    def _(s, t, value=value, fragment=fragment):
+        return {"--strain": True, "--directions": value}, [f"--directions {value}", fragment]
+
+
 @case("reconstruct-option-directions-unknown")
 def _(s, t):
     return {"--strain": True, "--directions": "polar"}, ["--directions", "polar"]
 
 
 @pytest.mark.parametrize(("command", "build"), CASES)
-def test_bad_input(command, build, small_stereo, tmp_path, capsys):
+def test_bad_input(command, build, small_stereo, tmp_path, capsys, monkeypatch, request):
+    memory = SMALL_MEMORY.get(request.node.callspec.id)
+    if memory is not None:
+        monkeypatch.setattr(resources, "available_memory", lambda: memory)
     changes, fragments = build(small_stereo, tmp_path)
     options = base(command, small_stereo, tmp_path)
     options.update(changes)
@@ -1085,6 +1176,22 @@ def test_every_command_has_terminate_and_stale_cases():
     for command in (*COMMANDS, "batch"):
         for family in ("terminate", "stale"):
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
+
+
+def test_directions_no_surface_can_use_are_refused_before_the_tracking(
+    small_stereo, tmp_path, capsys, monkeypatch
+):
+    """Zero or parallel vectors were refused only once both videos were tracked."""
+    import stereo.reconstruct
+
+    def not_now(*args, **kwargs):
+        raise AssertionError("reconstruct ran")
+
+    monkeypatch.setattr(stereo.reconstruct, "reconstruct", not_now)
+    options = {**base("reconstruct", small_stereo, tmp_path), "--strain": True,
+               "--directions": "vectors:0,1,0:0,-3,0"}  # fmt: skip
+    assert run(command_line("reconstruct", options)) == 2
+    assert "the two vectors are parallel" in capsys.readouterr().err
 
 
 # --------------------------------------------------------------------------- names

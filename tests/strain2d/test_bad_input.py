@@ -5,6 +5,8 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import errno
+import importlib
 import os
 import shutil
 import signal
@@ -18,6 +20,7 @@ import numpy as np
 import pytest
 import tifffile
 
+import tissue_core.resources as resources
 from strain2d.cli import main
 from tests.badinput import (
     REPO,
@@ -67,10 +70,28 @@ def inputs(small_case, tmp_path_factory):
     (d / "text.avi").write_text("not a video\n")
     tif = c.tif.read_bytes()
     (d / "truncated.tif").write_bytes(tif[: len(tif) // 2])
+    (d / "last_page_cut.tif").write_bytes(tif[: len(tif) * 99 // 100])
+    (d / "cut_tif").mkdir()
+    for k, frame in enumerate(tifffile.imread(c.tif)[:3]):
+        tifffile.imwrite(d / "cut_tif" / f"f{k}.tif", frame)
+    page = (d / "cut_tif" / "f2.tif").read_bytes()
+    (d / "cut_tif" / "f2.tif").write_bytes(page[: len(page) // 2])
     (d / "text.tif").write_text("not a tiff\n")
     tifffile.imwrite(d / "one_frame.tif", np.zeros((64, 64), np.uint8))
     tifffile.imwrite(d / "rgb_channels.tif", np.zeros((3, 2, 64, 64), np.uint8), imagej=True,
                      metadata={"axes": "TCYX"})  # fmt: skip
+    frames = tifffile.imread(c.tif).astype(np.float32)
+    for name, frame, value in (("inf_corner", 3, np.inf), ("nan_reference", 0, np.nan),
+                               ("minus_inf", 5, -np.inf)):  # fmt: skip
+        bad = frames.copy()
+        bad[frame, -3:, -3:] = value  # nine pixels in a corner, far from every point
+        tifffile.imwrite(d / f"{name}.tif", bad)
+    (d / "float_images").mkdir()
+    for k, frame in enumerate(frames[:3]):
+        if k == 2:
+            frame = frame.copy()
+            frame[0, 0] = np.inf
+        tifffile.imwrite(d / "float_images" / f"f{k}.tif", frame)
     (d / "no_images").mkdir()
     (d / "no_images" / "readme.txt").write_text("x")
     (d / "mixed").mkdir()
@@ -98,6 +119,7 @@ def inputs(small_case, tmp_path_factory):
         "empty": "",
         "header_only": "x,y\n",
         "binary": "\x00\x01\x02\xff",
+        "many": "x,y\n10,10\n60,60\n20,80\n90,30\n",
     }
     for name, text in csv.items():
         mode = "wb" if name == "binary" else "w"
@@ -124,6 +146,7 @@ def inputs(small_case, tmp_path_factory):
         "text": good.replace("90,10", "ninety,10", 1),
         "negative_index": good.replace("1,2,", "-1,2,", 1),
         "no_columns": "a,b\n1,2\n",
+        "huge_indices": good + "5,100000000,50,80,1,1\n",  # (T, N) arrays of 6 x 10^8 cells
     }
     # tracks of the video's 6 frames, each broken in one row (that read silently before)
     rows = [f"{t},{i},{x},{y},1,1\n" for t in range(6) for i, (x, y) in enumerate(corners)]
@@ -204,11 +227,15 @@ def _batch(c, *extra):
 
 
 def _analyze(c, *extra):
-    return ["-q", "analyze", c.avi, "--grid", "3x3", "--animation", "none", *extra]
+    """``analyze`` of the video (or of the source ``c``, a path) on a 3x3 grid."""
+    video = c if isinstance(c, Path) else c.avi
+    return ["-q", "analyze", video, "--grid", "3x3", "--animation", "none", *extra]
 
 
 def _track(c, *extra):
-    return ["-q", "track", c.avi, "--grid", "3x3", *extra]
+    """``track`` of the video (or of the source ``c``, a path) on a 3x3 grid."""
+    video = c if isinstance(c, Path) else c.avi
+    return ["-q", "track", video, "--grid", "3x3", *extra]
 
 
 def _points_file(name):
@@ -257,7 +284,13 @@ CASES = [
     ("analyze-truncated-avi-header", lambda c, o: ["analyze", c.dir / "header_only.avi",
      "--out", o], ["header_only.avi"]),
     ("analyze-truncated-tif", lambda c, o: ["analyze", c.dir / "truncated.tif", "--grid", "3x3",
-     "--out", o], ["truncated.tif"]),
+     "--out", o], ["truncated.tif is truncated"]),
+    ("track-truncated-tif-last-page", lambda c, o: _track(c.dir / "last_page_cut.tif",
+     "--out", o), ["last_page_cut.tif is truncated", "bytes"]),
+    ("analyze-truncated-tif-scale-auto", lambda c, o: _analyze(c.dir / "truncated.tif", "--scale",
+     "auto", "--out", o), ["truncated.tif is truncated"]),
+    ("analyze-truncated-tif-in-folder", lambda c, o: _analyze(c.dir / "cut_tif", "--out", o),
+     ["f2.tif is truncated", "runs to byte"]),
     ("track-truncated-npz", lambda c, o: ["track", "--tracker", "imported", c.avi,
      "--tracks-file", c.dir / "tracks_corrupt.npz", "--out", o], ["tracks_corrupt.npz"]),
     ("track-truncated-tracks-missing-row", lambda c, o: ["track", "--tracker", "imported", c.avi,
@@ -289,6 +322,10 @@ CASES = [
     ("track-wrong-type-points-binary", lambda c, o: ["track", c.avi, "--points",
      c.dir / "points_binary.csv", "--out", o], ["points_binary.csv"]),
     ("study-wrong-type-video-as-run", lambda c, o: ["study", c.avi, "--out", o], ["eq.avi"]),
+    ("study-wrong-type-folder-as-manifest", lambda c, o: ["study", "--manifest", c.dir / "mixed",
+     "--out", o], ["mixed is a folder"]),
+    ("track-wrong-type-folder-as-tracks-file", lambda c, o: ["track", "--tracker", "imported",
+     c.avi, "--tracks-file", c.dir / "mixed", "--out", o], ["mixed is a folder, not a tracks"]),
     # ---- CSV content
     *[(f"track-csv-points-{name}", _points_file(name), [fragment])
       for name, fragment in [("nan", "finite"), ("inf", "finite"), ("text", "points_text.csv"),
@@ -396,6 +433,34 @@ CASES = [
      "imported", "--out", o], ["imported"]),
     ("benchmark-option-grid", lambda c, o: ["benchmark", "--quick", "--grid", "0x3", "--out", o],
      ["--grid"]),
+    # ---- options that size an allocation beyond the frames or the memory
+    ("analyze-allocation-grid-100000x100000", lambda c, o: _analyze(c, "--grid", "100000x100000",
+     "--out", o), ["--grid 100000x100000", "0.00139 px apart", "at most 70x70"]),
+    ("analyze-allocation-grid-500x500", lambda c, o: _analyze(c, "--grid", "500x500", "--out", o),
+     ["--grid 500x500", "0.279 px apart", "closer than 2 px", "at most 70x70"]),
+    ("analyze-allocation-grid-in-roi", lambda c, o: _analyze(c, "--roi", "10,10,20,30", "--grid",
+     "20x20", "--out", o), ["--grid 20x20", "10x20 px region", "at most 6x11"]),
+    ("track-allocation-grid-500x500", lambda c, o: ["track", c.avi, "--grid", "500x500",
+     "--out", o], ["--grid 500x500", "at most 70x70"]),
+    ("analyze-allocation-tracks-memory", lambda c, o: _analyze(c, "--out", o),
+     ["tracking 9 points over 6 frames", "1.74 KiB of memory", "1000 bytes is available",
+      "--grid"]),
+    ("track-allocation-points-memory", lambda c, o: ["track", c.avi, "--points",
+     c.dir / "points_many.csv", "--out", o], ["tracking 4 points over 6 frames", "of memory"]),
+    ("track-allocation-tracks-indices-beyond-the-rows", _tracks_file("huge_indices"),
+     ["tracks_huge_indices.csv", "is incomplete", "point indices up to 1e+08"]),
+    ("benchmark-allocation-grid-1000x1000", lambda c, o: ["benchmark", "--quick", "--grid",
+     "1000x1000", "--out", o], ["--grid 1000x1000", "at most"]),
+    # ---- infinite or NaN pixels in float frames (a corner, far from every point)
+    ("analyze-nonfinite-inf-corner", lambda c, o: _analyze(c.dir / "inf_corner.tif", "--out", o),
+     ["inf_corner.tif", "frame 3", "9 infinite pixel values", "x=197, y=197"]),
+    ("analyze-nonfinite-nan-reference", lambda c, o: _analyze(c.dir / "nan_reference.tif",
+     "--out", o), ["nan_reference.tif", "frame 0", "9 NaN pixel values"]),
+    ("analyze-nonfinite-image-folder", lambda c, o: _analyze(c.dir / "float_images", "--out", o),
+     ["f2.tif", "frame 2", "1 infinite pixel value "]),
+    *[(f"track-nonfinite-minus-inf-{tracker}", (lambda t: lambda c, o: _track(
+        c.dir / "minus_inf.tif", "--tracker", t, "--out", o))(tracker),
+       ["minus_inf.tif", "frame 5", "9 infinite"]) for tracker in ("gdic", "dic", "klt")],
     # ---- conflicting options
     ("analyze-conflict-points-and-grid", lambda c, o: ["analyze", c.avi, "--points",
      c.dir / "points_nan.csv", "--grid", "3x3", "--out", o], ["--points", "--grid"]),
@@ -458,6 +523,11 @@ def _output_cases():
         ("benchmark-output-users-folder", lambda c, o: ["benchmark", "--quick", "--out", c.mine,
          "--overwrite"], ["thesis"]),
     ]
+    cases += [
+        (f"{command}-output-disk-full", lambda c, o, b=builder: b(c, "--roi", "60,60,140,140",
+         "--out", o), ["[Errno 28] No space left on device: '", "/out'"])
+        for command, builder in (("analyze", _analyze), ("track", _track))
+    ]
     cases.append(("analyze-output-read-only-folder", lambda c, o: _analyze(
         c, "--out", unwritable_folder(c.dir) / "run"), ["cannot be written"]))
     cases.append(("track-output-read-only-folder", lambda c, o: _track(
@@ -469,9 +539,38 @@ def _output_cases():
 ALL = CASES + _output_cases()
 
 
+def _memory(available: int):
+    """The machine has only ``available`` bytes of memory."""
+    return lambda monkeypatch: monkeypatch.setattr(resources, "available_memory", lambda: available)
+
+
+def _disk_full(module: str, name: str):
+    """The writer ``module.name`` writes part of its file, then the disk is full."""
+
+    def patch(monkeypatch):
+        def full(path, *args, **kwargs):
+            Path(path).write_text("part of a table")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # as write() raises it
+
+        monkeypatch.setattr(importlib.import_module(module), name, full)
+
+    return patch
+
+
+#: what a case changes in the machine: less memory, a full disk
+PATCHES = {
+    "analyze-allocation-tracks-memory": _memory(1000),
+    "track-allocation-points-memory": _memory(100),
+    "analyze-output-disk-full": _disk_full("tissue_core.jsonio", "write_json"),
+    "track-output-disk-full": _disk_full("tissue_core.tables", "write_long_table"),
+}
+
+
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
 def test_bad_input(inputs, tmp_path, capsys, monkeypatch, request, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
+    if case in PATCHES:
+        PATCHES[case](monkeypatch)
     out = tmp_path / "out"
     read = [inputs.dir]
     if case.startswith("study-formula-"):

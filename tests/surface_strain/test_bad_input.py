@@ -61,6 +61,8 @@ def inputs(tmp_path_factory):
         "truncated": good[: len(good) // 2].rsplit(",", 2)[0] + "\n",
         "all_lost": "\n".join([header] + [",".join([*r.split(",")[:-1], "0"]) for r in rows])
         + "\n",
+        # indices that would size (T, N) arrays of 10^16 cells
+        "huge_indices": good + "100000000,100000000," + rows[0].split(",", 2)[2] + "\n",
         # a decimal comma (1,5 for 1.5) makes one cell too many: on a later frame and on the
         # reference frame (where it read as a lost point); a cell missing
         "ragged_decimal_comma": good.replace(rows[40], _decimal_comma(rows[40]), 1),
@@ -116,7 +118,9 @@ CASES = [
     ("compute-wrong-type-xlsx", lambda c, o: _compute(c, "--out", o,
      points=c.dir / "points.xlsx"), ["points.xlsx"]),
     ("compute-wrong-type-folder", lambda c, o: _compute(c, "--out", o, points=c.dir),
-     ["not found"]),
+     ["is a folder, not a points file"]),
+    ("compute-wrong-type-folder-as-triangles", lambda c, o: _compute(c, "--triangles", c.dir,
+     "--out", o), ["is a folder, not a triangles file"]),
     ("compute-wrong-type-binary-triangles", lambda c, o: _compute(c, "--triangles",
      c.dir / "tri_binary.csv", "--out", o), ["tri_binary.csv"]),
     *[(f"compute-csv-{name}", (lambda n: lambda c, o: _compute(
@@ -127,6 +131,9 @@ CASES = [
     *[(f"compute-csv-triangles-{name}", (lambda n: lambda c, o: _compute(
         c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv"])
       for name in ("outside", "repeat", "text", "two_columns")],
+    ("compute-allocation-indices-beyond-the-rows", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_huge_indices.csv"), ["points_huge_indices.csv", "is incomplete",
+                                                 "frame indices up to 1e+08"]),
     *[(f"compute-csv-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
         c, "--out", o, points=c.dir / f"points_{n}.csv"))(name),
         [f"points_{name}.csv, line {line}: {fragment}"]) for name, line, fragment in [
@@ -157,7 +164,12 @@ CASES = [
     ("compute-option-directions-nan", lambda c, o: _compute(c, "--directions",
      "vectors:nan,0,0:0,1,0", "--out", o), ["finite"]),
     ("compute-option-directions-parallel", lambda c, o: _compute(c, "--directions",
-     "vectors:0,0,1:0,0,2", "--grid", "5x5", "--out", o), []),
+     "vectors:0,0,1:0,0,2", "--grid", "5x5", "--out", o),
+     ["--directions vectors:0,0,1:0,0,2", "parallel"]),
+    ("compute-option-directions-zero-vector", lambda c, o: _compute(c, "--directions",
+     "vectors:1,0,0:0,0,0", "--out", o), ["--directions", "second vector has zero length"]),
+    ("compute-option-directions-zero-axis", lambda c, o: _compute(c, "--directions",
+     "cylinder:0,0,0:0,0,0", "--out", o), ["--directions", "axis A has zero length"]),
     ("compute-option-projection", lambda c, o: _compute(c, "--projection", "torus", "--out", o),
      ["--projection"]),
     ("compute-conflict-triangles-and-grid", lambda c, o: _compute(c, "--triangles",

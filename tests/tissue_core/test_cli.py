@@ -16,6 +16,8 @@ from tissue_core.errors import InputError
 from tissue_core.interrupt import deferred_interrupt, is_interrupt
 from tissue_core.progress import Progress, close_open_lines
 
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
 
 def run(handler, capsys, **kwargs) -> tuple[int, str]:
     parser = ArgumentParser(prog="tool")
@@ -36,6 +38,21 @@ def test_errors_are_one_line_and_exit_2(capsys):
 
     status, err = run(disk_full, capsys)
     assert status == 2 and err.count("\n") == 1 and "No space left" in err
+
+
+def test_an_allocation_no_check_foresaw_is_one_line_and_exit_2(capsys):
+    def allocate(args):
+        np.empty((10**7, 10**7))  # 728 TiB: NumPy's ArrayMemoryError
+
+    status, err = run(allocate, capsys)
+    assert status == 2 and err.count("\n") == 1
+    assert err.startswith("tool go: error: not enough memory: Unable to allocate 728")
+    assert err.endswith("shape (10000000, 10000000) and data type float64\n")
+
+    def bare(args):
+        raise MemoryError
+
+    assert run(bare, capsys) == (2, "tool go: error: not enough memory: an allocation failed\n")
 
 
 def test_warnings_are_one_line_and_numerical_ones_stay_in_the_log(capsys):
@@ -405,3 +422,37 @@ def test_an_ignored_sighup_stays_ignored(capsys, request):
 
     assert run(hung_up, capsys) == (0, "")
     assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+
+
+def test_libraries_log_lines_reach_the_terminal_only_with_verbose(tmp_path):
+    """tifffile logs ``ERROR: ...`` on a damaged file and carries on: without -v the toolkit's
+    one error line must stay the only line (in a process of its own: pytest keeps the log)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "tool.py"
+    script.write_text(
+        "import logging, sys\n"
+        "from tissue_core.cli import CommandLine, run_command\n"
+        "from tissue_core.errors import InputError\n"
+        "def go(args):\n"
+        "    logging.getLogger('tifffile').error('<tifffile.TiffPages @8> invalid page offset')\n"
+        "    logging.getLogger('tissue_core.outputs').warning('the toolkit says this')\n"
+        "    raise InputError('the one line')\n"
+        "cli = CommandLine('tool', 'A test.')\n"
+        "cli.command('go', go)\n"
+        "sys.exit(run_command('tool', cli, sys.argv[1:]))\n"
+    )
+    runs = {
+        flag: subprocess.run(
+            [sys.executable, str(script), "go", *flags], capture_output=True, text=True,
+            cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)},
+        )
+        for flag, flags in (("quiet", []), ("verbose", ["-v"]))
+    }  # fmt: skip
+    assert runs["quiet"].returncode == 2
+    assert runs["quiet"].stderr.splitlines() == [
+        "WARNING: the toolkit says this",
+        "tool go: error: the one line",
+    ]
+    assert "ERROR: <tifffile.TiffPages @8> invalid page offset" in runs["verbose"].stderr

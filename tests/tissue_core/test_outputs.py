@@ -1,5 +1,6 @@
 """Outputs never replace what the toolkit did not write."""
 
+import errno
 import hashlib
 import json
 import os
@@ -17,6 +18,7 @@ from tissue_core.outputs import (
     foreign_content,
     read_marker,
     recorded_command,
+    replaced_on_success,
 )
 
 
@@ -233,6 +235,37 @@ def test_an_error_inside_leaves_nothing_and_names_the_output(tmp_path):
             raise InputError(f"cannot write {tmp / 'a.csv'}")
     assert str(info.value) == f"cannot write {out / 'a.csv'}"
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EDQUOT, errno.EFBIG])
+def test_a_full_disk_names_the_output_being_written(tmp_path, code):
+    """``write`` and ``close`` raise ENOSPC without a file name: the output is named instead."""
+
+    def fill(path: Path, named: bool) -> None:
+        with open(path, "w") as f:
+            f.write("half a table")
+        args = (code, os.strerror(code), *([str(path)] if named else []))
+        raise OSError(*args)
+
+    out = tmp_path / "run"
+    with pytest.raises(OSError) as info, atomic_dir(out) as tmp:
+        fill(tmp / "tracks.csv", named=False)
+    assert info.value.filename == str(out)
+    assert str(info.value) == f"[Errno {code}] {os.strerror(code)}: '{out}'"
+    with pytest.raises(OSError) as info, atomic_dir(out) as tmp:
+        fill(tmp / "tracks.csv", named=True)  # named, but by its scratch name
+    assert info.value.filename == str(out / "tracks.csv")
+    path = tmp_path / "tracks.csv"
+    with pytest.raises(OSError) as info, atomic_file(path) as tmp:
+        fill(tmp, named=False)
+    assert info.value.filename == str(path)
+    with pytest.raises(OSError) as info, replaced_on_success(path) as tmp:
+        fill(tmp, named=False)
+    assert info.value.filename == str(path)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(OSError) as info, atomic_dir(out):  # not a write: nothing to name
+        raise OSError(errno.EIO, os.strerror(errno.EIO))
+    assert info.value.filename is None
 
 
 def test_a_file_is_replaced_only_when_the_toolkit_wrote_it(tmp_path):
