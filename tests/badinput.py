@@ -291,6 +291,16 @@ def writing(out: str | os.PathLike, pid: int | None = None) -> bool:
     return False
 
 
+def _cpu_seconds(pid: int) -> float:
+    """CPU time (user and system, seconds) process ``pid`` has run; 0 once it is gone."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text(errors="replace")
+    except OSError:
+        return 0.0
+    fields = text[text.rindex(")") + 2 :].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+
+
 def interrupt(
     argv: Sequence[object],
     *,
@@ -307,7 +317,9 @@ def interrupt(
     stderr).
 
     The signal (SIGINT: Ctrl-C; SIGTERM: ``kill PID``; SIGHUP) goes to the
-    process alone, ``after`` seconds after it starts, or, with ``when``,
+    process alone once it has run ``after`` seconds of its own CPU time (on
+    an idle machine, ``after`` seconds after it starts; on a busy one later,
+    so that it still lands past Python's own start-up, in the imports), or, with ``when``,
     ``after`` seconds after a line of stderr holding ``when`` appeared (a
     progress step; :data:`WRITING`: once its temporary result holds
     something), so that it lands in a known stage whatever the machine's
@@ -332,7 +344,11 @@ def interrupt(
             writing(out, proc.pid) if when == WRITING else any(when in ln for ln in list(lines))
         ):
             anchor = time.monotonic()
-        if anchor is not None and time.monotonic() >= anchor + after:
+        if when is None:
+            due = _cpu_seconds(proc.pid) >= after
+        else:
+            due = anchor is not None and time.monotonic() >= anchor + after
+        if due:
             proc.send_signal(signum)
             break
         time.sleep(0.005)
