@@ -665,6 +665,8 @@ def _signalled(request, tmp_path, *, when, after, grid, signum, kernel=False):
     argv += ["analyze", long_video, "--grid", grid, "--animation", "mp4", "--out", out]
     if kernel:
         argv += ["--tracker", "dic"]
+    elif grid == COARSE:  # a stage after tracking: tracked quickly, whatever the tracker
+        argv += ["--tracker", "klt"]
     status, err = interrupt(argv, after=after, when=when, out=out, inputs=[long_video.parent],
                             signum=signum)  # fmt: skip
     assert status == 128 + signum
@@ -699,7 +701,8 @@ def _hung_up(request, tmp_path):
     out = tmp_path / "run"
     terminal, screen = pty.openpty()
     proc = subprocess.Popen(
-        [sys.executable, "-m", "strain2d", "analyze", video, "--grid", "40x40", "--out", out],
+        [sys.executable, "-m", "strain2d", "analyze", video, "--grid", "40x40", "--tracker", "klt",
+         "--out", out],
         stdin=subprocess.DEVNULL, stdout=screen, stderr=screen, start_new_session=True,
         env={**os.environ, "PYTHONPATH": str(REPO)},
     )  # fmt: skip
@@ -807,21 +810,23 @@ def _batch_stale(request, tmp_path):
 
 
 #: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start), on a
-#: run of a dense grid where it must land in tracking, of a coarse one (quicker) after tracking
+#: run of a dense grid where it must land in tracking, of a coarse one (tracked by klt, quicker)
+#: after tracking
+COARSE = "12x12"
 STAGES = [
     (None, 0.3, "40x40", "imports"),
     ("frames of", 0.02, "40x40", "reading"),
     ("tracking 1600 points (gdic)", 0.3, "40x40", "tracking"),  # the global fit, or IC-GN
     ("tracking 1600 points (gdic)", 1.5, "40x40", "tracking-later"),
-    ("strain on", 0.02, "12x12", "tables"),
-    ("figures and animation", 0.5, "12x12", "figures"),
+    ("strain on", 0.02, COARSE, "tables"),
+    ("figures and animation", 0.5, COARSE, "figures"),
 ]
 #: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
 TERMINATE_STAGES = [
     ("frames of", 0.02, "40x40", signal.SIGTERM, "reading"),
     ("[icgn running]", 0.05, "40x40", signal.SIGTERM, "in-icgn-kernel"),
-    ("strain on", 0.02, "12x12", signal.SIGTERM, "tables"),
-    ("figures and animation", 0.5, "12x12", signal.SIGTERM, "figures-and-animation"),
+    ("strain on", 0.02, COARSE, signal.SIGTERM, "tables"),
+    ("figures and animation", 0.5, COARSE, signal.SIGTERM, "figures-and-animation"),
     ("tracking 1600 points (gdic)", 0.3, "40x40", signal.SIGHUP, "sighup-tracking"),
 ]
 INTERRUPTS = [
