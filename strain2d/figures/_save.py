@@ -14,6 +14,9 @@ from tissue_core.outputs import replaced_on_success
 
 __all__ = ["save_figure"]
 
+#: zlib level of PNG files (1, the fastest, to 9; Pillow's default is 6)
+PNG_COMPRESSION = 1
+
 
 def save_figure(
     fig: Figure,
@@ -72,10 +75,17 @@ def save_figure(
     for fmt in dict.fromkeys(wanted):
         out = stem.with_name(f"{stem.name}.{fmt}")
         metadata = {"svg": {"Date": None}, "pdf": {"CreationDate": None}}.get(fmt)
+        # PNG: zlib's fastest level, a quarter of the default's time for files a few % larger
+        options = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if fmt == "png" else {}
         # a fixed salt makes SVG element ids, hence the file, reproducible
         with replaced_on_success(out) as tmp, rc_context({"svg.hashsalt": "strain2d"}):
             fig.savefig(
-                tmp, format=fmt, dpi=dpi, bbox_inches="tight" if tight else None, metadata=metadata
+                tmp,
+                format=fmt,
+                dpi=dpi,
+                bbox_inches="tight" if tight else None,
+                metadata=metadata,
+                **options,
             )
         written.append(out)
     return written

@@ -117,6 +117,30 @@ def test_save_figure_formats_suffixes_and_sizes(tmp_path):
         save_figure(fig, tmp_path / "x", ())
 
 
+def _zlib_level(png: bytes) -> int:
+    """FLEVEL of a PNG's image data stream: 0 fastest, 1 fast, 2 default, 3 best."""
+    at = 8
+    while at < len(png):
+        size = int.from_bytes(png[at : at + 4], "big")
+        if png[at + 4 : at + 8] == b"IDAT":
+            return png[at + 9] >> 6  # the zlib header: CMF, then FLG
+        at += size + 12
+    raise AssertionError("no image data")
+
+
+def test_png_figures_are_compressed_quickly_and_losslessly(tmp_path):
+    import io
+
+    from PIL import Image
+
+    (path,) = save_figure(_small_figure(), tmp_path / "f.png", dpi=100)
+    assert _zlib_level(path.read_bytes()) == 0  # zlib's fastest level
+    buffer = io.BytesIO()
+    _small_figure().savefig(buffer, format="png", dpi=100)
+    assert _zlib_level(buffer.getvalue()) == 2  # Pillow's default, which is slower
+    assert (np.asarray(Image.open(path)) == np.asarray(Image.open(buffer))).all()
+
+
 # ------------------------------------------------------------------ colour limits
 
 
