@@ -1,5 +1,7 @@
+import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -8,6 +10,7 @@ from matplotlib.contour import ContourSet
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 
+from strain2d.errors import InputError
 from strain2d.figures import (
     format_p,
     mean_strain_curves,
@@ -297,6 +300,11 @@ def test_mean_curves_and_their_figure(tmp_path):
     assert plot_strain_curves(noisy).axes[0].get_xlabel() == "frame"
     with pytest.raises(ValueError, match="one value per frame"):
         plot_strain_curves(noisy, times=[0, 1])
+    # the curves, when at hand, are drawn as given (a streamed field is not read again)
+    given = mean_strain_curves(noisy)
+    drawn = plot_strain_curves(noisy, curves=given).axes[0].get_lines()[0].get_ydata()
+    assert np.array_equal(drawn, given["mean"]["Exx"])
+    assert np.array_equal(drawn, plot_strain_curves(noisy).axes[0].get_lines()[0].get_ydata())
 
 
 def test_format_p():
@@ -567,6 +575,73 @@ def test_animation_title_is_each_frames_label_over_the_same_figure():
     rows = state["title_rows"]
     assert (first[:rows] != second[:rows]).any()  # another label
     assert (first[rows:] == second[rows:]).all()  # the same frame and figure below it
+
+
+# ------------------------------------------------------------------ figures drawn by workers
+
+
+def _font_size():
+    import warnings
+
+    import matplotlib
+
+    warnings.warn("drawn elsewhere", UserWarning, stacklevel=1)
+    return matplotlib.rcParams["font.size"], os.getpid()
+
+
+def _refuse():
+    raise InputError("frame 3: no strain")
+
+
+def _wait_for(path):
+    while not os.path.exists(path):
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize("threads", [1, 2], ids=["forked", "from-a-server"])
+def test_figure_pool_runs_tasks_elsewhere_as_they_would_run_here(tmp_path, threads):
+    """Workers forked from this process, or (another thread running here, when forking is
+    unsafe) from a fresh server: the caller's style, its warnings and errors either way."""
+    import threading
+
+    import matplotlib
+
+    from strain2d.figures._pool import FigurePool, _context
+
+    done = threading.Event()
+    others = [threading.Thread(target=done.wait) for _ in range(threads - 1)]
+    for thread in others:
+        thread.start()
+    try:
+        method, alive = _context().get_start_method(), threading.active_count()
+        with matplotlib.rc_context({"font.size": 7.5}), FigurePool(1) as pool:
+            pending = pool.submit(_font_size)
+            with pytest.warns(UserWarning, match="drawn elsewhere"):
+                size, pid = pending.result()  # the caller's style; its warning raised here
+            assert size == 7.5 and pid != os.getpid()
+            with pytest.raises(InputError, match="frame 3: no strain"):
+                pool.submit(_refuse).result()
+    finally:
+        done.set()
+    if sys.platform.startswith("linux"):
+        assert method == ("fork" if alive == 1 else "forkserver")
+    with FigurePool(0) as pool:  # here, at once
+        with pytest.warns(UserWarning, match="drawn elsewhere"):
+            assert pool.submit(_font_size).result()[1] == os.getpid()
+
+
+def test_figure_pool_ends_its_workers_when_left_by_an_error(tmp_path):
+    from strain2d.figures._pool import FigurePool
+
+    with pytest.raises(KeyboardInterrupt), FigurePool(2) as pool:
+        pids = [process.pid for process in pool._processes]
+        for _ in range(3):
+            pool.submit(_wait_for, tmp_path / "never")  # busy until ended, and one waiting
+        raise KeyboardInterrupt
+    assert len(pids) == 2
+    for pid in pids:  # ended and reaped before the caller goes on to remove their folder
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
 
 
 # ------------------------------------------------------------------ study figures
