@@ -144,6 +144,31 @@ def test_png_figures_are_compressed_quickly_and_losslessly(tmp_path):
     assert (np.asarray(Image.open(path)) == np.asarray(Image.open(buffer))).all()
 
 
+def test_png_figures_are_drawn_once_into_the_file_savefig_writes(tmp_path, monkeypatch):
+    """A figure with a layout engine is drawn once for its PNG (savefig draws it twice, to
+    lay it out, then to render it), into the same bytes."""
+    import io
+
+    import matplotlib
+
+    field = _field(T=3)
+    image = _frames(1)[0]
+    expected = io.BytesIO()
+    strain_maps_figure(image, field, 2).savefig(
+        expected, format="png", dpi=80, pil_kwargs={"compress_level": 1}
+    )
+    draws = []
+    plain = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda fig, r: draws.append(1) or plain(fig, r))
+    (path,) = save_figure(strain_maps_figure(image, field, 2), tmp_path / "m.png", dpi=80)
+    assert len(draws) == 1 and path.read_bytes() == expected.getvalue()
+    # a savefig style of the user's: drawn by savefig, which applies it
+    draws.clear()
+    with matplotlib.rc_context({"savefig.facecolor": "yellow"}):
+        save_figure(strain_maps_figure(image, field, 2), tmp_path / "y.png", dpi=80)
+    assert len(draws) == 2 and imread(tmp_path / "y.png")[0, 0, :3].tolist() == [1, 1, 0]
+
+
 # ------------------------------------------------------------------ colour limits
 
 
