@@ -249,7 +249,7 @@ def _animation_figure(
     canvas.draw()  # lays the figure out; the layout is kept for every frame (no jitter)
     fig.set_layout_engine("none")
     size = (width_px, height_px)
-    title_rows = _title_rows(fig, canvas, size)
+    title_rows = _title_rows(fig, canvas, title, size)
     _clear_rows(fig, canvas, title_rows)
     under = _rgb(canvas, size)
     faces = [ax.get_facecolor() for ax in axes]
@@ -287,13 +287,17 @@ def _rgb(canvas, size: tuple[int, int], rows: int | None = None) -> np.ndarray:
     return out
 
 
-def _title_rows(fig, canvas, size: tuple[int, int]) -> int:
-    """How many rows at the top of the output hold the title alone (above every axes)."""
-    renderer = canvas.get_renderer()
-    boxes = [ax.get_tightbbox(renderer) for ax in fig.axes]
-    top = max(b.y1 for b in boxes if b is not None)  # display: up from the bottom
-    rows = canvas.get_width_height()[1] - int(np.ceil(top)) - 1
-    return int(np.clip(rows, 0, size[1]))
+def _title_rows(fig, canvas, title, size: tuple[int, int]) -> int:
+    """How many rows at the top of the output hold the title alone: down to the first row
+    below it that anything else is drawn in."""
+    from matplotlib.colors import to_rgba
+
+    height = canvas.get_width_height()[1]
+    below = int(np.ceil(height - title.get_window_extent(canvas.get_renderer()).y0))
+    rgba = np.asarray(canvas.buffer_rgba())[: size[1], : size[0]]
+    background = np.round(np.array(to_rgba(fig.get_facecolor())) * 255).astype(np.uint8)
+    drawn = np.flatnonzero((rgba[below:] != background).any(axis=(1, 2)))
+    return int(min(below + (drawn[0] if drawn.size else rgba.shape[0]), size[1]))
 
 
 def _clear_rows(fig, canvas, rows: int) -> None:
@@ -343,7 +347,7 @@ def _sampling(x_data, y_data, extent: tuple[int, int], shape: tuple[int, int]):
     (he, we), (h, w) = extent, shape
     cols = np.floor((x_data + 0.5) * (w / we)).astype(np.intp).clip(0, w - 1)
     rows = np.floor((y_data + 0.5) * (h / he)).astype(np.intp).clip(0, h - 1)
-    return rows[:, None], cols[None, :]
+    return rows, cols
 
 
 def _colour_table(artist) -> np.ndarray:
@@ -413,7 +417,7 @@ def _gray(state: dict, image: np.ndarray, panel: dict) -> np.ndarray:
         panel["shape"] = shape
         panel["sample"] = _sampling(panel["x_data"], panel["y_data"], panel["extent"], shape)
     rows, cols = panel["sample"]
-    seen = image[rows, cols]
+    seen = image.take(rows, axis=0).take(cols, axis=1)
     vmin, vmax, table = state["gray"]
     if seen.ndim == 2:  # the colour map over vmin..vmax, quantised as imshow quantises it
         if seen.dtype != np.uint8 or (vmin, vmax) != (0.0, 255.0):
@@ -467,10 +471,10 @@ def _fill_bands(rgb, xy, values, triangles, good, bands) -> None:
     plane[:, 3], plane[:, 4] = v.min(axis=1), v.max(axis=1)
     r, c, t = _raster_triangles(corners, rgb.shape[:2])
     gx, gy, g0, low, high = plane.take(t, axis=0).T
-    field = (gx * c + gy * r + g0).clip(low, high)
+    field = (gx * c.astype(np.float32) + gy * r.astype(np.float32) + g0).clip(low, high)
     band = np.full(rgb.shape[:2], -1, np.int16)  # -1: none (the last colour, transparent)
-    level = np.ceil((field - bands["low"]) / bands["step"])
-    band[r, c] = level.clip(0, bands["n"] + 1)
+    level = np.ceil((field - bands["low"]) / bands["step"]).clip(0, bands["n"] + 1)
+    band.reshape(-1)[r * rgb.shape[1] + c] = level
     colours, opacity = bands["colours"], bands["opacity"]
     rgb += (colours.take(band, axis=0, mode="wrap") - rgb) * opacity.take(band, mode="wrap")[
         ..., None
