@@ -55,12 +55,24 @@ def _context():
     macOS; there the workers are forked from a server started afresh.
     """
     if sys.platform.startswith("linux") and threading.active_count() == 1:
+        _warm_up()
         return multiprocessing.get_context("fork")
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     context = multiprocessing.get_context(method)
     if method == "forkserver":
         context.set_forkserver_preload(_PRELOAD)
     return context
+
+
+def _warm_up() -> None:
+    """Draw a small figure with a mathematical label here, once: the workers forked from this
+    process then start with Matplotlib's fonts and math-text parser loaded."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(1, 1), dpi=72)
+    fig.text(0.5, 0.5, r"$E_{xx}$ (-)")
+    FigureCanvasAgg(fig).draw()
 
 
 def _style() -> dict:
