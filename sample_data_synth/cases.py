@@ -249,6 +249,8 @@ def load_ground_truth(path: str | os.PathLike) -> GroundTruth:
     try:
         with open(path, encoding="utf-8") as f:
             d = json.load(f)
+    except IsADirectoryError:
+        raise SourceError(f"{path} is a folder, not a ground-truth file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SourceError(f"cannot read the ground truth {path}: {exc}") from None
     except ValueError as exc:

@@ -128,7 +128,9 @@ def _read_nodes(file: Path):
     if not file.is_file():
         raise InputError(f"{file.parent}: strain_nodes.csv is missing")
     # 2D is the planar case of one schema: x, y (and u, v) without z
-    table = read_long_table(file, required=("x", "y", "visible", *COMPONENTS), optional=("z",))
+    table = read_long_table(
+        file, required=("x", "y", "visible", *COMPONENTS), optional=("z",), flags=("visible",)
+    )
     return table, ("x", "y", "z") if "z" in table else ("x", "y")
 
 
