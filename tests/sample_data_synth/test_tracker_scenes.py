@@ -45,3 +45,38 @@ def test_twitch_rises_relaxes_and_round_trips(tmp_path):
     np.testing.assert_allclose(back.positions(X, 13), X)
     with pytest.raises(ValueError, match="past the last frame"):
         GroundTruth("twitch", truth.deformation, 10, (40, 40), (0, 0, 39, 39), time_profile=profile)
+
+
+def test_a_fade_with_a_direction_is_deeper_on_one_side():
+    from sample_data_synth.tissue import Light
+
+    light = Light(fade=0.2, fade_gradient=(0.2, 0.0))
+    flat = np.full((40, 40), 100.0)
+    start, end = light.apply(flat, 0.0), light.apply(flat, 1.0)
+    np.testing.assert_allclose(start, 100.0)
+    assert end[20, 20] == pytest.approx(80.0)
+    assert end[20, 0] == pytest.approx(100 * (1 - 0.2 - 0.2 * (0 - 20) / 40))  # shallower
+    assert end[20, 39] == pytest.approx(100 * (1 - 0.2 - 0.2 * (39 - 20) / 40))  # deeper
+    assert light.to_dict()["fade_gradient"] == [0.2, 0.0]
+
+
+def test_rendered_frames_start_from_the_texture_and_follow_the_truth():
+    from scipy import ndimage
+
+    from sample_data_synth.tissue import render_frames, tissue_texture
+
+    texture = tissue_texture("fibres", 96, rng=1)
+    field = Field("bump", (48.0, 48.0), ax=3.0, ay=1.5, s=15.0)
+    frames = render_frames(texture, field, [0.0, 1.0], read_noise=0, shot_gain=0)
+    np.testing.assert_array_equal(frames[0], np.clip(np.rint(texture), 0, 255))
+    yy, xx = np.mgrid[30:66, 30:66].astype(float)
+    X = np.stack([xx.ravel(), yy.ravel()], axis=-1)
+    x = field.forward(X, 1.0)
+    moved = ndimage.map_coordinates(frames[1].astype(float), [x[:, 1], x[:, 0]], order=3)
+    still = ndimage.map_coordinates(frames[1].astype(float), [X[:, 1], X[:, 0]], order=3)
+    reference = texture[30:66, 30:66].ravel()
+    assert np.sqrt(np.mean((moved - reference) ** 2)) < 3.0
+    assert np.sqrt(np.mean((still - reference) ** 2)) > 10.0
+    blurred = render_frames(texture, field, [0.0], blur=1.5, read_noise=0, shot_gain=0)[0]
+    optics = np.clip(np.rint(ndimage.gaussian_filter(texture, 1.5, mode="mirror")), 0, 255)
+    assert np.abs(blurred.astype(float) - optics).max() <= 1.0  # rounding of equal values
