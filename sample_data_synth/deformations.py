@@ -32,6 +32,17 @@ __all__ = [
 ]
 
 
+def _solve2(F: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``F^-1 r`` for stacks of 2 x 2 matrices ``(..., 2, 2)`` and vectors ``(..., 2)``
+    (Cramer's rule: many times faster than ``numpy.linalg.solve`` on small systems)."""
+    a, b, c, d = F[..., 0, 0], F[..., 0, 1], F[..., 1, 0], F[..., 1, 1]
+    det = a * d - b * c
+    return (
+        np.stack([d * r[..., 0] - b * r[..., 1], a * r[..., 1] - c * r[..., 0]], -1)
+        / det[..., None]
+    )
+
+
 def green_lagrange(F: np.ndarray) -> np.ndarray:
     """``E = (F^T F - I) / 2`` for ``F`` of shape ``(..., 2, 2)``."""
     F = np.asarray(F, dtype=float)
@@ -205,8 +216,7 @@ class Field:
             residual = self.forward(X, t) - x
             if np.abs(residual).max() < 1e-10:
                 break
-            F = self.gradient(X, t)
-            X = X - np.linalg.solve(F, residual[..., None])[..., 0]
+            X = X - _solve2(self.gradient(X, t), residual)
         return X
 
     def gradient(self, X: np.ndarray, t: float) -> np.ndarray:
@@ -308,7 +318,7 @@ class Contraction:
             residual = self.forward(X, t) - x
             if np.abs(residual).max(initial=0.0) < 1e-10:
                 return X
-            X = X - np.linalg.solve(self.gradient(X, t), residual[..., None])[..., 0]
+            X = X - _solve2(self.gradient(X, t), residual)
         raise ValueError("Contraction.inverse did not converge; is det F > 0 everywhere?")
 
     def gradient(self, X: np.ndarray, t: float) -> np.ndarray:
