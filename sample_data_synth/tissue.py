@@ -34,6 +34,7 @@ scikit-image, so nothing is downloaded.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -55,10 +56,20 @@ def _unit(image: np.ndarray, lo: float = 25.0, hi: float = 225.0) -> np.ndarray:
     return lo + (hi - lo) * np.clip((image - a) / max(b - a, 1e-12), 0, 1)
 
 
-def _photograph(name: str, size: int, crop: tuple[float, float, float, float]) -> np.ndarray:
-    from skimage import color, data, transform
+@functools.cache
+def _pixels(name: str) -> np.ndarray:
+    """A photograph of ``skimage.data`` by its function name, read once (read-only)."""
+    from skimage import data
 
-    rgb = getattr(data, name)()
+    image = getattr(data, name)()
+    image.setflags(write=False)
+    return image
+
+
+def _photograph(name: str, size: int, crop: tuple[float, float, float, float]) -> np.ndarray:
+    from skimage import color, transform
+
+    rgb = _pixels(name)
     h, w = rgb.shape[:2]
     x0, y0, x1, y1 = crop
     part = rgb[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
