@@ -5,8 +5,9 @@ texture, this scene asks how fast it is where the texture is strong and the
 strain small, as on a light-stimulated muscle sheet filmed in full HD:
 
 * **texture** (:func:`muscle_texture`): wavy fibres along x, 8-24 px wide,
-  each with its own brightness and cross-striations (a period of 6-9 px),
-  dark membranes between fibres, fine granularity and slow shading;
+  each with its own brightness and cross-striations of irregular spacing
+  (features of 3-6 px), dark membranes between fibres, fine granularity and
+  slow shading;
 * **motion**: a contraction along the fibres with a local one superposed
   (:class:`~sample_data_synth.deformations.Contraction`): at the peak, over
   the grid, ``Exx`` runs from ``-peak`` at the local centre to about
@@ -58,12 +59,12 @@ def muscle_texture(shape: tuple[int, int] = (1080, 1920), *, rng=0) -> np.ndarra
     fibre = np.clip(np.searchsorted(edges, yf), 0, len(edges) - 1)
     n = len(edges)
     brightness = rng.normal(0, 0.5, n)
-    period = rng.uniform(6, 9, n)
-    phase = rng.uniform(0, 2 * np.pi, n)
     contrast = rng.uniform(0.3, 0.8, n)
-    image = brightness[fibre] + contrast[fibre] * np.cos(
-        2 * np.pi * xx / period[fibre] + phase[fibre]
-    )
+    # cross-striations of irregular spacing: noise along each fibre, band-limited to 3-6 px
+    # features (regular ones would let a subset match one striation over)
+    striations = ndimage.gaussian_filter1d(rng.standard_normal((n, w)), 1.5, axis=1)
+    striations /= striations.std()
+    image = brightness[fibre] + contrast[fibre] * striations[fibre, xx.astype(int)]
     distance = np.minimum(
         np.abs(yf - edges[fibre]), np.abs(yf - np.concatenate([[-1e9], edges])[fibre])
     )
