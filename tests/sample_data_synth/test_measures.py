@@ -80,6 +80,19 @@ def test_sigma_against_scatter_recovers_a_known_calibration():
     assert np.isnan(partial.ratio[2]) and partial.samples[1] == 4
 
 
+def test_a_calibrated_sigma_on_a_still_video_shares_the_reference_noise():
+    """Every frame is matched against one noisy reference: the numbers in SigmaCheck's notes."""
+    rng = np.random.default_rng(0)
+    T, N, s = 21, 20000, 0.01
+    noise = s * rng.standard_normal((T, N, 2))
+    positions = noise - noise[0]  # the reference's own noise, shared by every frame
+    sigma = np.full((T, N), s * np.sqrt(2))
+    check = sigma_against_scatter(positions, np.ones((T, N), bool), sigma, np.zeros((N, 2)))
+    assert check.pooled_ratio == pytest.approx(1.0, abs=0.01)
+    assert check.median_ratio == pytest.approx(1.08, abs=0.01)
+    assert check.within(1.5) == pytest.approx(0.92, abs=0.01)
+
+
 def test_disagreement_with_another_tracker_counts_both_sigmas():
     rng = np.random.default_rng(1)
     T, N, s = 301, 40, 0.1
