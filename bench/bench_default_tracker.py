@@ -19,7 +19,8 @@ threads
     whether the tracks are identical.
 variants
     The randomised variants of the tissue suite (:mod:`sample_data_synth.variants`):
-    per variant dic's and the default's final-frame RMSE and points kept, and
+    per variant dic's and the default's final-frame RMSE and points kept, the
+    default's RMSE on the points dic keeps (the same points for both), and
     the verdict of :func:`sample_data_synth.measures.compare_to_dic` (within
     10 % of dic or better where dic keeps its points; keeps them where dic
     loses some); a summary line.
@@ -215,21 +216,25 @@ def part_variants(trackers: list[str], n: int, seed: int) -> None:
     extra = "".join(f" {name} RMSE / kept |" for name in others)
     print(
         f"| variant | what | dic RMSE (px) | dic kept | {DEFAULT} RMSE (px) | {DEFAULT} kept | "
-        f"ratio | verdict | dic (s) | {DEFAULT} (s) |{extra}"
+        f"ratio | {DEFAULT} on dic's points (px) | ratio there | verdict | dic (s) | "
+        f"{DEFAULT} (s) |{extra}"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|" + "---|" * len(others))
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|" + "---|" * len(others))
     verdicts = []
     for variant in tissue_variants(n, rng=seed):
         video = make_variant(variant)
         points = video.truth.grid(variant.grid)
         true = video.truth.positions(points)
-        scores, seconds = {}, {}
+        scores, seconds, tracks = {}, {}, {}
         for name in pair + others:
-            tracks, seconds[name] = _run(name, video.frames, points)
-            scores[name] = score_tracks(tracks.positions, tracks.visible, true)
+            tracks[name], seconds[name] = _run(name, video.frames, points)
+            scores[name] = score_tracks(tracks[name].positions, tracks[name].visible, true)
         result = compare_to_dic(scores[DEFAULT], scores["dic"])
         verdicts.append((scores["dic"].keeps_all, result))
         d, g = scores["dic"], scores[DEFAULT]
+        shared = score_tracks(
+            tracks[DEFAULT].positions, tracks[DEFAULT].visible, true, among=d.kept_points
+        )
         cells = "".join(
             f" {_fmt(scores[name].rmse)} / {scores[name].kept}/{scores[name].in_view} |"
             for name in others
@@ -237,6 +242,7 @@ def part_variants(trackers: list[str], n: int, seed: int) -> None:
         print(
             f"| {variant.name} | {variant.describe()} | {_fmt(d.rmse)} | {d.kept}/{d.in_view} | "
             f"{_fmt(g.rmse)} | {g.kept}/{g.in_view} | {_fmt(result.ratio, 2)} | "
+            f"{_fmt(shared.rmse)} | {_fmt(shared.rmse / d.rmse, 2)} | "
             f"{result.verdict} | {seconds['dic']:.1f} | {seconds[DEFAULT]:.1f} |{cells}",
             flush=True,
         )

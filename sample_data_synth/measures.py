@@ -19,7 +19,7 @@ Errors are Euclidean distances (px) unless a name says per coordinate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -72,6 +72,8 @@ class Score:
         Largest final-frame error (px) among the points kept.
     rmse_all : float
         RMSE (px) over every frame after the reference and every point kept.
+    kept_points : (N,) bool or None
+        Which points were kept (to score another tracker on the same points).
     """
 
     in_view: int
@@ -79,6 +81,7 @@ class Score:
     rmse: float
     worst: float
     rmse_all: float
+    kept_points: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @property
     def lost(self) -> int:
@@ -97,6 +100,7 @@ def score_tracks(
     *,
     shape: tuple[int, int] | None = None,
     margin: float = 0.0,
+    among: np.ndarray | None = None,
 ) -> Score:
     """Points kept and tracking error against the truth.
 
@@ -109,6 +113,8 @@ def score_tracks(
         The frame; None counts every point as in view.
     margin : float, keyword-only
         See :func:`in_view`.
+    among : (N,) bool, keyword-only
+        Score these points alone (e.g. another tracker's ``kept_points``).
     """
     positions, true_positions = np.asarray(positions, float), np.asarray(true_positions, float)
     visible = np.asarray(visible, bool) & np.all(np.isfinite(positions), axis=-1)
@@ -116,6 +122,8 @@ def score_tracks(
         view = np.ones(visible.shape[1], bool)
     else:
         view = in_view(true_positions, shape, margin=margin).all(axis=0)
+    if among is not None:
+        view = view & np.asarray(among, bool)
     kept = view & visible.all(axis=0)
     error = np.linalg.norm(positions - true_positions, axis=-1)[:, kept]
     final = error[-1]
@@ -125,6 +133,7 @@ def score_tracks(
         rmse=float(np.sqrt(np.mean(final**2))) if final.size else float("nan"),
         worst=float(final.max()) if final.size else float("nan"),
         rmse_all=float(np.sqrt(np.mean(error[1:] ** 2))) if error[1:].size else float("nan"),
+        kept_points=kept,
     )
 
 

@@ -30,6 +30,9 @@ def test_score_counts_kept_points_in_view_and_the_final_error():
     assert in_view(true, (20, 50)).sum() == 11
     everything = score_tracks(positions, visible, true)
     assert (everything.in_view, everything.kept) == (4, 3)
+    np.testing.assert_array_equal(score.kept_points, [True, True, False, False])
+    first = score_tracks(positions, visible, true, among=np.array([False, True, True, True]))
+    assert (first.in_view, first.kept, first.rmse) == (3, 2, 0.0)
     positions[1, 1] = np.nan  # a point without a position is not kept
     assert score_tracks(positions, visible, true, shape=(20, 50)).kept == 1
 
