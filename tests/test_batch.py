@@ -29,7 +29,7 @@ from tissue_core.outputs import foreign_content, read_marker
 #: the module's tests share its batches: one xdist worker runs them all (make test: loadgroup)
 pytestmark = pytest.mark.xdist_group("batch")
 
-RUN_OPTIONS = ["--grid", "3x3", "--animation", "none"]
+RUN_OPTIONS = ["--grid", "3x3", "--animation", "none", "--tracker", "klt"]
 
 
 def _cli(*argv: str, cwd=None) -> subprocess.CompletedProcess:
