@@ -378,6 +378,16 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
             lazy=lazy,
             tile_rows=tile_rows,
         )
+        if memory_limit is not None and plan.path == "in-memory":
+            # a limit above the memory there is reads the stack whole: into swap, or a failure
+            from mpm3d.tiled import BASE_BYTES, format_bytes
+            from tissue_core.resources import check_fits
+
+            check_fits(
+                f"--memory-limit {format_bytes(limit)} reads the stack whole, which",
+                memory=plan.in_memory_bytes - BASE_BYTES,  # this process is running already
+                remedy="give a --memory-limit within it (the stack is then read in bands)",
+            )
     except BaseException:
         stack.data.close()
         raise

@@ -193,7 +193,8 @@ def _cmd_batch(args) -> int:
     workers = check_workers(args.workers, args.scheduler, len(jobs))
     if args.scheduler is None and workers > 1 and getattr(args, "memory_limit", None) is None:
         # analyze's default (half the memory available) is for one run on the machine
-        from mpm3d.tiled import available_memory, format_bytes
+        from mpm3d.tiled import format_bytes
+        from tissue_core.resources import available_memory
 
         share = format_bytes(int(available_memory() * 0.8 / workers))
         jobs = [job.with_options("--memory-limit", share) for job in jobs]

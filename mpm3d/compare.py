@@ -214,6 +214,39 @@ def _resample(height: np.ndarray, spacing, target_shape, target_spacing) -> np.n
     return ndimage.map_coordinates(height, [rr, cc], order=1, mode="nearest")
 
 
+def _namer(label: str, path: str | os.PathLike) -> Callable[[object], str]:
+    """A message about one side, naming the side and the stack."""
+    name = os.fspath(path)
+
+    def named(message: object) -> str:
+        text = str(message)
+        return f"{label} stack: {text}" if name in text else f"{label} stack {name}: {text}"
+
+    return named
+
+
+def _check_side(label: str, path: str | os.PathLike, options: dict) -> None:
+    """The checks of one side's file that need no pixel: its pages and bytes (truncation), its
+    type and axes, the spacing and the channel asked for; errors name the side."""
+    from mpm3d.io import _channel_index
+    from mpm3d.lazyio import open_stack_lazily
+
+    named = _namer(label, path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the analysis says them, once
+            stack = open_stack_lazily(path, spacing=options.get("spacing"))
+        try:
+            if options.get("channel") is not None:
+                _channel_index(options["channel"], stack.channel_names)
+        finally:
+            stack.data.close()
+    except InputError as exc:
+        raise InputError(named(exc)) from exc
+    except OSError as exc:  # SourceError, and the system's own (permissions)
+        raise SourceError(named(exc)) from exc
+
+
 def _analyze_side(
     label: str, path: str | os.PathLike, say: Callable[[str], None], options: dict
 ) -> Analysis:
@@ -222,12 +255,7 @@ def _analyze_side(
     Two stacks go through the same steps with the same options, so an error
     such as "no surface found" must say which stack it is about.
     """
-    name = os.fspath(path)
-
-    def named(message: object) -> str:
-        text = str(message)
-        return f"{label} stack: {text}" if name in text else f"{label} stack {name}: {text}"
-
+    named = _namer(label, path)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -275,6 +303,8 @@ def compare_stacks(
         if not options.get("surface", True):
             raise InputError("ICP refinement needs the isosurfaces: drop --no-surface")
         _open3d()
+    for label, path in (("before", before), ("after", after)):
+        _check_side(label, path, options)  # a broken after stack: before the first analysis
     first = _analyze_side("before", before, say, options)
     second = _analyze_side("after", after, say, options)
     sp_b = first.heightmap.spacing[1:]

@@ -45,16 +45,16 @@ import math
 import os
 import re
 import sys
-import threading
 import warnings
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, get_args
 
 import numpy as np
 
 from mpm3d.errors import InputError, MissingSpacingWarning, SourceError, warn_no_data
+from tissue_core.tiff_files import check_complete as _check_complete
+from tissue_core.tiff_files import tifffile_messages as _tifffile_messages
 from tissue_core.tiff_units import resolution, to_um, um_per_unit
 
 __all__ = ["SpacingSource", "Stack", "parse_spacing", "read_stack", "select_channel"]
@@ -77,11 +77,6 @@ _RANGE_PERCENTILES = (0.1, 99.9)
 _SPACING_RANGE_UM = (1e-3, 1e4)
 #: the TIFF byte order that needs no conversion on this machine
 _NATIVE_ORDER = "<" if sys.byteorder == "little" else ">"
-#: what tifffile logs when the chain of pages or a page's data is broken
-_DAMAGE = re.compile(
-    r"page|IFD|corrupted|ByteCounts|StripOffsets|data offset|ImageJ series metadata",
-    re.IGNORECASE,
-)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -466,69 +461,6 @@ def _check_spacing(spacing: Sequence[float], argument: str) -> Spacing:
     if len(values) != 3 or not all(math.isfinite(v) and v > 0 for v in values):
         raise InputError(message)
     return values
-
-
-@contextmanager
-def _tifffile_messages() -> Iterator[list[str]]:
-    """Collect what tifffile logs while this thread reads a file, instead of printing it.
-
-    tifffile reports a broken page chain or a corrupted tag as a log
-    message and carries on with what it could read; :func:`read_stack`
-    turns such messages into one error.  Every message is logged again at
-    INFO, under this module's name.
-    """
-    messages: list[str] = []
-    thread = threading.get_ident()
-
-    def collect(record: logging.LogRecord) -> bool:
-        if record.thread != thread:
-            return True
-        text = record.getMessage()
-        logger.info("tifffile: %s", text)
-        if record.levelno >= logging.ERROR and _DAMAGE.search(text):
-            messages.append(text)
-        return False
-
-    tiff_logger = logging.getLogger("tifffile")
-    tiff_logger.addFilter(collect)
-    try:
-        yield messages
-    finally:
-        tiff_logger.removeFilter(collect)
-
-
-def _check_complete(tif, series, path: str, messages: list[str]) -> None:
-    """Raise SourceError when the file is cut short or its pages are damaged."""
-    size = tif.filehandle.size
-    n_pages = len(tif.pages)  # indexes every page: a broken chain is logged here
-    if n_pages == 0 or not series.shape:
-        raise SourceError(f"{path} is a TIFF file that holds no images")
-    md = tif.imagej_metadata if tif.is_imagej else None
-    announced = md.get("images") if isinstance(md, Mapping) else None
-    planes = math.prod(n for a, n in zip(series.axes, series.shape, strict=True) if a not in "YXS")
-    if isinstance(announced, int) and announced > planes:
-        raise SourceError(
-            f"{path} is truncated or damaged: its ImageJ metadata announces {announced} "
-            f"images but the file holds {n_pages} page{'s' if n_pages != 1 else ''} "
-            f"({size} bytes)"
-        )
-    if messages:
-        detail = re.sub(r"^<[^>]*>\s*", "", messages[0])
-        raise SourceError(f"{path} is truncated or damaged: {detail} (the file has {size} bytes)")
-    if series.dataoffset is not None:
-        end = series.dataoffset + series.size * series.dtype.itemsize
-    else:
-        end = 0
-        for page in series.pages:
-            if page is None:
-                raise SourceError(f"{path} is truncated or damaged: a page of the stack is missing")
-            ends = [o + c for o, c in zip(page.dataoffsets, page.databytecounts, strict=False)]
-            end = max([end, *ends])
-    if end > size:
-        raise SourceError(
-            f"{path} is truncated: its pixel data runs to byte {end} but the file "
-            f"ends at byte {size}"
-        )
 
 
 def _reason(exc: Exception) -> str:

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mpm3d.errors import InputError
+from tissue_core.resources import available_memory
 
 __all__ = [
     "MemoryPlan",
@@ -99,24 +100,6 @@ def format_bytes(n: float) -> str:
     if n >= 2**30:
         return f"{math.ceil(n / 2**30 * 100) / 100:.2f}GiB"
     return f"{math.ceil(n / 2**20):d}MiB"
-
-
-def available_memory() -> int:
-    """Memory available to a new process now, bytes (psutil, else /proc/meminfo, else sysconf)."""
-    try:
-        import psutil
-
-        return int(psutil.virtual_memory().available)
-    except ImportError:
-        pass
-    with contextlib.suppress(OSError, ValueError):
-        with open("/proc/meminfo", encoding="ascii") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    import os
-
-    return int(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
 
 
 def default_memory_limit() -> int:

@@ -33,6 +33,10 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "sample_data_synth.render": ["add_sensor_noise", "render_image", "render_speckle"],
         "sample_data_synth.speckle": ["SpecklePattern", "speckle_pattern"],
         "sample_data_synth.tissue": ["TISSUE_CASES", "Light", "make_tissue_case", "tissue_texture"],
+        "sample_data_synth.variants": ["Variant", "make_variant", "tissue_variants"],
+        "sample_data_synth.pieces": ["PIECES_GRID", "make_rotation_pieces", "texture_depth"],
+        "sample_data_synth.still": ["NOISE_LEVELS", "make_still_video"],
+        "sample_data_synth.sheet": ["make_muscle_sheet", "muscle_texture"],
         "sample_data_synth.stacks": [
             "STACK_CASES",
             "SyntheticStack",

@@ -37,6 +37,7 @@ from sample_data_synth.deformations import (
     Field,
     Homogeneous,
     RampHold,
+    Twitch,
     deformation_from_dict,
     equibiaxial,
     rotation,
@@ -149,7 +150,7 @@ class GroundTruth:
         The case's grid region in pixels.
     params : dict
         Rendering parameters (pattern, noise, seed).
-    time_profile : RampHold or None
+    time_profile : RampHold, Twitch or None
         How frames map to the deformation's time ``t``; None (the benchmark
         cases) is the linear ramp ``t = k / (n_frames - 1)``.
     """
@@ -160,7 +161,7 @@ class GroundTruth:
     image_size: tuple[int, int]
     roi: tuple[float, float, float, float]
     params: dict = field(default_factory=dict)
-    time_profile: RampHold | None = None
+    time_profile: RampHold | Twitch | None = None
 
     def __post_init__(self) -> None:
         if self.n_frames < 2:
@@ -176,8 +177,8 @@ class GroundTruth:
             )
 
     def time(self, frame: int) -> float:
-        """Normalized time of a frame: 0 on the first, 1 on the last (linear ramp) or
-        from the endpoint on (``time_profile``)."""
+        """Normalized time of a frame: 0 on the first, 1 on the last (linear ramp), or
+        as ``time_profile`` says (from the endpoint on for a ramp and hold)."""
         if self.time_profile is not None:
             return self.time_profile(frame)
         return frame / (self.n_frames - 1)
@@ -249,6 +250,8 @@ def load_ground_truth(path: str | os.PathLike) -> GroundTruth:
     try:
         with open(path, encoding="utf-8") as f:
             d = json.load(f)
+    except IsADirectoryError:
+        raise SourceError(f"{path} is a folder, not a ground-truth file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SourceError(f"cannot read the ground truth {path}: {exc}") from None
     except ValueError as exc:

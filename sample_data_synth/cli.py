@@ -53,6 +53,19 @@ from sample_data_synth.tissue import TISSUE_CASES, make_tissue_case
 from tissue_core.cli import CommandLine
 from tissue_core.outputs import atomic_dir
 from tissue_core.progress import Progress
+from tissue_core.resources import check_fits
+
+#: working memory per pixel while a frame is rendered, bytes (the pattern's or the
+#: photograph's coordinates and densities; 70 to 140 measured at 512 to 1024 px): a lower bound
+RENDER_BYTES_PER_PIXEL = 64
+#: working memory per pixel of a stereo image while it is ray-traced, bytes (140 to 150
+#: measured at 1280 x 960 px, with 3 x 3 supersampling): a lower bound
+RAYTRACE_BYTES_PER_PIXEL = 100
+#: the least distance, px, between a target's corners or dots at which a detector finds them
+MIN_FEATURE_SPACING_PX = 4
+#: the least share of the raw bytes that lossless video (FFV1) and PNG keep of frames with
+#: sensor noise: a bit per pixel
+NOISY_LOSSLESS_FRACTION = 1 / 8
 
 
 def _build_parser() -> CommandLine:
@@ -170,6 +183,7 @@ def _cmd_video(args) -> int:
         value = getattr(args, name)
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"--{name.replace('_', '-')} must be a number >= 0, got {value}")
+    _check_video_fits(args, cases, formats)
     say = Progress(quiet=args.quiet)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         for case in cases:
@@ -205,6 +219,28 @@ def _cmd_video(args) -> int:
     return 0
 
 
+def _check_video_fits(args, cases: list[str], formats: list[str]) -> None:
+    """Refuse, before anything is written, videos that cannot fit the memory or the disk."""
+    noisy = args.read_noise > 0 or args.shot_gain > 0
+    kept = {"tif": 1.0, "avi": NOISY_LOSSLESS_FRACTION if noisy else 0.0, "mp4": 0.0}
+    pixels = args.size**2
+    memory = disk = 0
+    for case in cases:
+        default = TISSUE_CASES[case].n_frames if case in TISSUE_CASES else 31
+        raw = (args.frames or default) * pixels  # the case's frames, uint8, held whole
+        memory = max(memory, raw + RENDER_BYTES_PER_PIXEL * pixels)
+        disk += raw * sum(kept[f] for f in formats)
+    frames = f" --frames {args.frames}" if args.frames is not None else ""
+    videos = f"{len(cases)} videos" if len(cases) > 1 else "a video"
+    check_fits(
+        f"--size {args.size}{frames} ({videos} of {args.size}x{args.size} px frames)",
+        memory=memory,
+        disk=disk,
+        out=args.out,
+        remedy="use a smaller --size or fewer --frames",
+    )
+
+
 def _parse_spacing(text: str) -> tuple[float, float, float]:
     try:
         values = tuple(float(v) for v in text.split(","))
@@ -228,6 +264,7 @@ def _cmd_stack(args) -> int:
         raise ValueError(f"--size must be >= 16, got {args.size}")
     if args.slices is not None and args.slices < 2:
         raise ValueError(f"--slices must be >= 2, got {args.slices}")
+    _check_stack_fits(args, cases, spacing)
     suffix = ".tif" if args.format == "imagej" else ".ome.tif"
     say = Progress(quiet=args.quiet)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
@@ -248,6 +285,29 @@ def _cmd_stack(args) -> int:
     return 0
 
 
+def _check_stack_fits(args, cases: list[str], spacing: tuple[float, float, float]) -> None:
+    """Refuse, before anything is written, stacks that cannot fit the memory or the disk."""
+    import inspect
+
+    if args.slices is not None:
+        slices = args.slices
+    else:  # the fewest the folds could need: the tissue above the crests and below the folds
+        defaults = inspect.signature(make_stack_case).parameters
+        depth = defaults["crest_depth_um"].default + defaults["tissue_below_um"].default
+        slices = math.ceil(depth / spacing[0]) + 1
+    pixels = args.size**2
+    stack = 2 * 2 * slices * pixels  # two channels of uint16
+    what = f"--size {args.size}" + (f" --slices {args.slices}" if args.slices else "")
+    stacks = f"{len(cases)} stacks" if len(cases) > 1 else "a stack"
+    check_fits(
+        f"{what} ({stacks} of {slices} or more slices of {args.size}x{args.size} px)",
+        memory=stack + 2 * 8 * pixels,  # and its depth and height maps, float64
+        disk=len(cases) * stack,
+        out=args.out,
+        remedy="use a smaller --size or fewer --slices",
+    )
+
+
 def _parse_size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -256,6 +316,34 @@ def _parse_size(text: str) -> tuple[int, int]:
     if w < 64 or h < 64:
         raise ValueError(f"--size must be WIDTHxHEIGHT, both >= 64 px, got {text!r}")
     return w, h
+
+
+def _check_stereo_fits(args, cases: list[str], size: tuple[int, int], board) -> None:
+    """Refuse, before anything is written, scenes that cannot fit the memory or the disk, and a
+    board with more corners or dots than the images can show."""
+    counts = (
+        (board.squares_x, board.squares_y) if hasattr(board, "squares_x") else board.pattern_size
+    )
+    most = sorted(max(1, n // MIN_FEATURE_SPACING_PX) for n in size)
+    if "calibration" in cases and (sorted(counts)[0] > most[0] or sorted(counts)[1] > most[1]):
+        raise ValueError(
+            f"--board {args.board}: {counts[0]}x{counts[1]} is more than {size[0]}x{size[1]} px "
+            f"images can show (at most {most[1]}x{most[0]}, {MIN_FEATURE_SPACING_PX} px apart: "
+            "the least a detector finds)"
+        )
+    pixels = size[0] * size[1]
+    memory = disk = 0
+    for case in cases:
+        images = 2 * (args.views if case == "calibration" else args.frames)  # left and right
+        memory = max(memory, images * pixels + RAYTRACE_BYTES_PER_PIXEL * pixels)
+        disk += images * pixels * (NOISY_LOSSLESS_FRACTION if args.noise > 0 else 0.0)
+    check_fits(
+        f"--size {args.size} --views {args.views} --frames {args.frames}",
+        memory=memory,
+        disk=disk,
+        out=args.out,
+        remedy="use a smaller --size, or fewer --views or --frames",
+    )
 
 
 def _cmd_stereo(args) -> int:
@@ -271,7 +359,9 @@ def _cmd_stereo(args) -> int:
         raise ValueError(f"--frames must be >= 2, got {args.frames}")
     if not (np.isfinite(args.noise) and args.noise >= 0):
         raise ValueError(f"--noise must be a number >= 0, got {args.noise}")
-    rig = default_rig(image_size=_parse_size(args.size))
+    size = _parse_size(args.size)
+    _check_stereo_fits(args, cases, size, board)
+    rig = default_rig(image_size=size)
     say = Progress(quiet=args.quiet)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         for case in cases:
@@ -322,6 +412,15 @@ def _cmd_study(args) -> int:
         )
     design = tuple(replace(g, n=args.per_group) for g in DEFAULT_DESIGN)
     n_specimens = sum(g.n for g in design)
+    raw = args.frames * args.size**2  # a specimen's frames, uint8, held whole
+    check_fits(
+        f"--size {args.size} --frames {args.frames} --per-group {args.per_group} "
+        f"({n_specimens} videos)",
+        memory=raw + RENDER_BYTES_PER_PIXEL * args.size**2,
+        disk=n_specimens * raw * NOISY_LOSSLESS_FRACTION,
+        out=args.out,
+        remedy="use a smaller --size, or fewer --frames or --per-group",
+    )
 
     say = Progress(quiet=args.quiet)
     description = f"rendering {n_specimens} specimens x {args.frames} frames"

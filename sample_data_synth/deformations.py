@@ -9,7 +9,8 @@ rebuilt later with :func:`deformation_from_dict`.
 How frames map to ``t`` is a separate, optional time profile: by default frame
 ``k`` of ``T`` has ``t = k / (T - 1)``; :class:`RampHold` instead ramps ``t``
 from 0 to 1 up to a chosen frame and holds it there (a contraction that
-stops), see :func:`time_profile_from_dict`.
+stops), and :class:`Twitch` rises from 0 to 1 and relaxes back (a muscle's
+twitch), see :func:`time_profile_from_dict`.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ __all__ = [
     "Field",
     "Homogeneous",
     "RampHold",
+    "Twitch",
     "deformation_from_dict",
     "equibiaxial",
     "green_lagrange",
@@ -28,6 +30,17 @@ __all__ = [
     "simple_shear",
     "time_profile_from_dict",
 ]
+
+
+def _solve2(F: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``F^-1 r`` for stacks of 2 x 2 matrices ``(..., 2, 2)`` and vectors ``(..., 2)``
+    (Cramer's rule: many times faster than ``numpy.linalg.solve`` on small systems)."""
+    a, b, c, d = F[..., 0, 0], F[..., 0, 1], F[..., 1, 0], F[..., 1, 1]
+    det = a * d - b * c
+    return (
+        np.stack([d * r[..., 0] - b * r[..., 1], a * r[..., 1] - c * r[..., 0]], -1)
+        / det[..., None]
+    )
 
 
 def green_lagrange(F: np.ndarray) -> np.ndarray:
@@ -129,7 +142,7 @@ class Field:
 
     Parameters
     ----------
-    kind : {"gaussian", "sinusoid", "fold"}
+    kind : {"gaussian", "sinusoid", "fold", "bump"}
         ``gaussian``: local contraction towards ``center``,
         ``u = -a (X - c) exp(-|X - c|^2 / (2 s^2))``; at the centre
         ``F = (1 - a) I``.
@@ -138,14 +151,18 @@ class Field:
         ``fold``: a compression band across x (a fold-like strain
         concentration), ``u_x = -a w tanh((X - cx) / w)``, ``u_y = 0``:
         ``F_xx = 1 - a sech^2((X - cx) / w)``.
+        ``bump``: a local shift of the tissue around ``center``,
+        ``u = (ax, ay) exp(-|X - c|^2 / (2 s^2))``; one-to-one while
+        ``|a| < s sqrt(e)``.
     center : (cx, cy)
     params : dict
-        ``a, s`` (gaussian); ``amplitude, wavelength`` (sinusoid); ``a, width`` (fold).
+        ``a, s`` (gaussian); ``amplitude, wavelength`` (sinusoid); ``a, width`` (fold);
+        ``ax, ay, s`` (bump).
     """
 
     def __init__(self, kind: str, center: tuple[float, float], **params: float) -> None:
-        if kind not in ("gaussian", "sinusoid", "fold"):
-            raise ValueError(f"kind must be gaussian, sinusoid or fold, got {kind!r}")
+        if kind not in ("gaussian", "sinusoid", "fold", "bump"):
+            raise ValueError(f"kind must be gaussian, sinusoid, fold or bump, got {kind!r}")
         self.kind = kind
         self.center = np.asarray(center, dtype=float)
         self.params = {k: float(v) for k, v in params.items()}
@@ -160,6 +177,9 @@ class Field:
         if self.kind == "sinusoid":
             k = 2 * np.pi / p["wavelength"]
             return p["amplitude"] * np.sin(k * d)
+        if self.kind == "bump":
+            w = np.exp(-np.sum(d**2, axis=-1) / (2 * p["s"] ** 2))
+            return np.array([p["ax"], p["ay"]]) * w[..., None]
         ux = -p["a"] * p["width"] * np.tanh(d[..., 0] / p["width"])
         return np.stack([ux, np.zeros_like(ux)], axis=-1)
 
@@ -177,6 +197,10 @@ class Field:
             out[..., 0, 0] = p["amplitude"] * k * np.cos(k * d[..., 0])
             out[..., 1, 1] = p["amplitude"] * k * np.cos(k * d[..., 1])
             return out
+        if self.kind == "bump":
+            w = np.exp(-np.sum(d**2, axis=-1) / (2 * p["s"] ** 2))
+            a = np.array([p["ax"], p["ay"]])
+            return -(w / p["s"] ** 2)[..., None, None] * a[:, None] * d[..., None, :]
         out[..., 0, 0] = -p["a"] / np.cosh(d[..., 0] / p["width"]) ** 2
         return out
 
@@ -192,8 +216,7 @@ class Field:
             residual = self.forward(X, t) - x
             if np.abs(residual).max() < 1e-10:
                 break
-            F = self.gradient(X, t)
-            X = X - np.linalg.solve(F, residual[..., None])[..., 0]
+            X = X - _solve2(self.gradient(X, t), residual)
         return X
 
     def gradient(self, X: np.ndarray, t: float) -> np.ndarray:
@@ -295,7 +318,7 @@ class Contraction:
             residual = self.forward(X, t) - x
             if np.abs(residual).max(initial=0.0) < 1e-10:
                 return X
-            X = X - np.linalg.solve(self.gradient(X, t), residual[..., None])[..., 0]
+            X = X - _solve2(self.gradient(X, t), residual)
         raise ValueError("Contraction.inverse did not converge; is det F > 0 everywhere?")
 
     def gradient(self, X: np.ndarray, t: float) -> np.ndarray:
@@ -402,8 +425,73 @@ class RampHold:
         return f"RampHold({self.endpoint}, ramp={self.ramp!r})"
 
 
-def time_profile_from_dict(d: dict) -> RampHold:
+class Twitch:
+    """Time profile of a twitch: ``t`` rises from 0 to 1 and relaxes back to 0.
+
+    ``t = 0`` up to frame ``onset``, a smoothstep ``3 u^2 - 2 u^3`` up to 1 at
+    frame ``peak``, a smoothstep back down to 0 at frame ``endpoint``, and 0
+    from there on (the tissue is back at rest: positions equal the reference).
+
+    Parameters
+    ----------
+    onset, peak, endpoint : int
+        Frames with ``0 <= onset < peak < endpoint``.
+
+    Examples
+    --------
+    >>> profile = Twitch(1, 3, 7)
+    >>> [profile(k) for k in range(9)]
+    [0.0, 0.0, 0.5, 1.0, 0.84375, 0.5, 0.15625, 0.0, 0.0]
+    """
+
+    def __init__(self, onset: int, peak: int, endpoint: int) -> None:
+        values = (onset, peak, endpoint)
+        if any(isinstance(v, bool) or int(v) != v for v in values) or not (
+            0 <= onset < peak < endpoint
+        ):
+            raise ValueError(
+                "onset, peak and endpoint must be frame indices with 0 <= onset < peak < "
+                f"endpoint, got {onset!r}, {peak!r}, {endpoint!r}"
+            )
+        self.onset, self.peak, self.endpoint = int(onset), int(peak), int(endpoint)
+
+    def __call__(self, frame: float) -> float:
+        """Normalized time ``t`` in [0, 1] of a frame (fractional frames allowed)."""
+        frame = float(frame)
+        if frame <= self.peak:
+            u = min(max((frame - self.onset) / (self.peak - self.onset), 0.0), 1.0)
+        else:
+            u = 1.0 - min((frame - self.peak) / (self.endpoint - self.peak), 1.0)
+        return 3 * u**2 - 2 * u**3
+
+    def describe(self) -> str:
+        return (
+            f"twitch: t = 0 up to frame {self.onset}, a smoothstep (3 u^2 - 2 u^3) up to 1 at "
+            f"frame {self.peak} and back to 0 at frame {self.endpoint}, 0 after"
+        )
+
+    def to_dict(self) -> dict:
+        return {
+            "type": "twitch",
+            "onset": self.onset,
+            "peak": self.peak,
+            "endpoint": self.endpoint,
+        }
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Twitch) and other.to_dict() == self.to_dict()
+
+    def __hash__(self) -> int:
+        return hash((self.onset, self.peak, self.endpoint))
+
+    def __repr__(self) -> str:
+        return f"Twitch({self.onset}, {self.peak}, {self.endpoint})"
+
+
+def time_profile_from_dict(d: dict) -> RampHold | Twitch:
     """Rebuild a time profile from its ``to_dict()`` output."""
+    if d.get("type") == "twitch":
+        return Twitch(d["onset"], d["peak"], d["endpoint"])
     if d.get("type") != "ramp_hold":
         raise ValueError(f"unknown time profile type {d.get('type')!r}")
     return RampHold(d["endpoint"], ramp=d.get("ramp", "smoothstep"))

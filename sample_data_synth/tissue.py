@@ -34,7 +34,8 @@ scikit-image, so nothing is downloaded.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import functools
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,7 +45,7 @@ from sample_data_synth.cases import GroundTruth, SyntheticVideo
 from sample_data_synth.deformations import Field, Homogeneous
 from sample_data_synth.render import add_sensor_noise
 
-__all__ = ["TISSUE_CASES", "Light", "make_tissue_case", "tissue_texture"]
+__all__ = ["TISSUE_CASES", "Light", "make_tissue_case", "render_frames", "tissue_texture"]
 
 
 # ----------------------------------------------------------------------------- textures
@@ -55,10 +56,20 @@ def _unit(image: np.ndarray, lo: float = 25.0, hi: float = 225.0) -> np.ndarray:
     return lo + (hi - lo) * np.clip((image - a) / max(b - a, 1e-12), 0, 1)
 
 
-def _photograph(name: str, size: int, crop: tuple[float, float, float, float]) -> np.ndarray:
-    from skimage import color, data, transform
+@functools.cache
+def _pixels(name: str) -> np.ndarray:
+    """A photograph of ``skimage.data`` by its function name, read once (read-only)."""
+    from skimage import data
 
-    rgb = getattr(data, name)()
+    image = getattr(data, name)()
+    image.setflags(write=False)
+    return image
+
+
+def _photograph(name: str, size: int, crop: tuple[float, float, float, float]) -> np.ndarray:
+    from skimage import color, transform
+
+    rgb = _pixels(name)
     h, w = rgb.shape[:2]
     x0, y0, x1, y1 = crop
     part = rgb[int(y0 * h) : int(y1 * h), int(x0 * w) : int(x1 * w)]
@@ -139,19 +150,26 @@ def tissue_texture(kind: str, size: int = 800, *, rng: int | None = 0) -> np.nda
 class Light:
     """Illumination in the image frame (it does not move with the tissue).
 
-    ``I = (1 - fade t) (1 + gx (x - cx) / size + gy (y - cy) / size) T + spots``;
+    ``I = (1 - t (fade + fx (x - cx) / size + fy (y - cy) / size))
+    (1 + gx (x - cx) / size + gy (y - cy) / size) T + spots``:
+    ``fade`` dims the light over the video (a negative one brightens it),
+    ``fade_gradient = (fx, fy)`` makes the fade deeper towards one side, and
+    ``gradient = (gx, gy)`` is the fixed fall-off of the light across the field;
     each specular spot is a Gaussian of ``amplitude`` gray levels, clipped at 255.
     """
 
     fade: float = 0.0
     gradient: tuple[float, float] = (0.0, 0.0)
     spots: tuple[tuple[float, float, float, float], ...] = ()  # (x, y, radius, amplitude)
+    fade_gradient: tuple[float, float] = (0.0, 0.0)
 
     def apply(self, image: np.ndarray, t: float) -> np.ndarray:
         h, w = image.shape
         yy, xx = np.mgrid[0:h, 0:w].astype(float)
         size = max(h, w)
-        gain = (1 - self.fade * t) * (
+        fx, fy = self.fade_gradient
+        fade = self.fade + fx * (xx - w / 2) / size + fy * (yy - h / 2) / size
+        gain = (1 - fade * t) * (
             1 + self.gradient[0] * (xx - w / 2) / size + self.gradient[1] * (yy - h / 2) / size
         )
         out = gain * image
@@ -160,7 +178,82 @@ class Light:
         return np.clip(out, 0, 255)
 
     def to_dict(self) -> dict:
-        return {"fade": self.fade, "gradient": list(self.gradient), "spots": list(self.spots)}
+        return {
+            "fade": self.fade,
+            "gradient": list(self.gradient),
+            "spots": list(self.spots),
+            "fade_gradient": list(self.fade_gradient),
+        }
+
+
+# ----------------------------------------------------------------------------- frames
+
+
+def render_frames(
+    texture: np.ndarray,
+    deformation,
+    times: Sequence[float] | np.ndarray,
+    *,
+    light: Light | None = None,
+    blur: float = 0.0,
+    read_noise: float = 1.0,
+    shot_gain: float = 0.02,
+    rng: int | np.random.Generator | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> np.ndarray:
+    """Frames of a texture deformed over time, lit and blurred in the image frame.
+
+    Each pixel of a frame is inverse-mapped to the reference configuration
+    and the texture sampled there with cubic B-splines (mirrored beyond its
+    edges); then the light is applied (:meth:`Light.apply`), the optics'
+    Gaussian blur, and Poisson-Gaussian sensor noise
+    (:func:`sample_data_synth.render.add_sensor_noise`).
+
+    Parameters
+    ----------
+    texture : (H, W) float
+        The reference image in gray levels; the frames have its shape.
+    deformation : object with ``inverse(x, t)``
+    times : (T,) float
+        The deformation's normalized time of each frame.
+    light : Light, keyword-only
+        Default: uniform light that does not change.
+    blur : float, keyword-only
+        Standard deviation of the optics' Gaussian blur in px (0: none).
+    read_noise, shot_gain : float, keyword-only
+        See :func:`sample_data_synth.render.add_sensor_noise`.
+    rng : int or Generator, keyword-only
+        Seed of the noise.
+    progress : callable(done, total), keyword-only
+
+    Returns
+    -------
+    frames : (T, H, W) uint8
+        Frame ``k`` at ``t = times[k]``: with ``times[0] = 0`` and no light
+        change, blur or noise, frame 0 is ``texture`` rounded to 8 bits.
+    """
+    light = Light() if light is None else light
+    noise_rng = np.random.default_rng(rng)
+    times = np.asarray(times, dtype=float)
+    h, w = texture.shape
+    coefficients = ndimage.spline_filter(np.asarray(texture, float), order=3, mode="mirror")
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    here = np.stack([xx, yy], axis=-1)
+    frames = np.empty((len(times), h, w), dtype=np.uint8)
+    for k, t in enumerate(times):
+        X = deformation.inverse(here, t)
+        image = ndimage.map_coordinates(
+            coefficients, [X[..., 1], X[..., 0]], order=3, mode="mirror", prefilter=False
+        )
+        image = light.apply(image, t)
+        if blur > 0:
+            image = ndimage.gaussian_filter(image, blur, mode="mirror")
+        frames[k] = add_sensor_noise(
+            image, read_noise=read_noise, shot_gain=shot_gain, rng=noise_rng
+        )
+        if progress:
+            progress(k + 1, len(times))
+    return frames
 
 
 # ----------------------------------------------------------------------------- cases
@@ -279,21 +372,16 @@ def make_tissue_case(
     seq = np.random.SeedSequence(rng)
     texture_rng, noise_rng = (np.random.default_rng(s) for s in seq.spawn(2))
     texture = tissue_texture(spec.texture, size, rng=texture_rng)
-    coefficients = ndimage.spline_filter(texture, order=3, mode="mirror")
-    yy, xx = np.mgrid[0:size, 0:size].astype(float)
-    here = np.stack([xx, yy], axis=-1)
-    frames = np.empty((n_frames, size, size), dtype=np.uint8)
-    for k in range(n_frames):
-        t = k / (n_frames - 1)
-        X = deformation.inverse(here, t)
-        image = ndimage.map_coordinates(
-            coefficients, [X[..., 1], X[..., 0]], order=3, mode="mirror", prefilter=False
-        )
-        frames[k] = add_sensor_noise(
-            light.apply(image, t), read_noise=read_noise, shot_gain=shot_gain, rng=noise_rng
-        )
-        if progress:
-            progress(k + 1, n_frames)
+    frames = render_frames(
+        texture,
+        deformation,
+        np.arange(n_frames) / (n_frames - 1),
+        light=light,
+        read_noise=read_noise,
+        shot_gain=shot_gain,
+        rng=noise_rng,
+        progress=progress,
+    )
     params = {
         "description": spec.description,
         "suite": "tissue",

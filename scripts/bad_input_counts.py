@@ -3,15 +3,17 @@
     python scripts/bad_input_counts.py
 
 Runs every ``tests/*/test_bad_input.py`` with pytest (``test_bad_input[...]``:
-refused inputs; ``test_interrupt[...]``: Ctrl-C at a chosen moment of a real
-process), reads the outcome of each case from a JUnit XML report, and prints
-a Markdown table: per command, the cases by family and how many passed.
-Every passing case has exited with status 2 and one error line naming the
-file (or 130 and one line after Ctrl-C), printed no traceback, left its
-inputs byte-identical and removed nothing that was there before; a case of
-the formula family (names a spreadsheet would run) was accepted instead, with
-every cell of every CSV it wrote inert; see tests/badinput.py.  Exits 1 when
-any case failed.
+refused inputs; ``test_interrupt[...]``: Ctrl-C, SIGTERM or SIGHUP at a chosen
+moment of a real process, and the scratch of runs killed outright), reads the
+outcome of each case from a JUnit XML report, and prints a Markdown table: per
+command, the cases by family and how many passed.  Every passing case has
+exited with status 2 and one error line naming the file (or, after a signal,
+130, 143 or 129 and one line, with no process of its left running; or, after
+a run killed outright, a rerun that removed what it left), printed no
+traceback, left its inputs byte-identical and removed nothing that was there
+before; a case of the formula family (names a spreadsheet would run) was
+accepted instead, with every cell of every CSV it wrote inert; see
+tests/badinput.py.  Exits 1 when any case failed.
 """
 
 from __future__ import annotations
@@ -94,9 +96,11 @@ def main() -> int:
     total = sum(sum(c.values()) for c in table.values())
     print(
         f"\n{total} cases, {sum(passed.values())} passed, {len(failed_ids)} failed: "
-        "every passing case exited 2 (130 after Ctrl-C) with one line and no traceback, "
-        "left its inputs byte-identical and removed nothing it did not write (formula cases: "
-        "exited 0 with every CSV cell inert)."
+        "every passing case exited 2 (130 after Ctrl-C, 143 after SIGTERM, 129 after SIGHUP, "
+        "with no process of its left running) with one line and no traceback, left its inputs "
+        "byte-identical, removed nothing it did not write, and left no scratch (a rerun after "
+        "a run killed outright removed what that run left; formula cases: exited 0 with "
+        "every CSV cell inert)."
     )
     for case_id in failed_ids:
         print(f"FAILED {case_id}")

@@ -217,7 +217,7 @@ def _size(found, given, path: Path) -> tuple[int, int]:
     return int(size[0]), int(size[1])
 
 
-def _make(path: Path, fmt: str, size, cams, R, T, notes: list[str]):
+def _make(path: Path, fmt: str, size, cams, R, T, notes: list[str], unit: str | None):
     from stereo.calibration import Calibration, CalibrationValueError
 
     try:
@@ -229,6 +229,7 @@ def _make(path: Path, fmt: str, size, cams, R, T, notes: list[str]):
             dist_right=cams[1][1],
             R=R,
             T=T,
+            unit=unit or "mm",
             extra={"imported_format": fmt, "notes": notes},
         )
     except CalibrationValueError as exc:
@@ -239,7 +240,7 @@ def _tag(element: ET.Element) -> str:
     return element.tag.rsplit("}", 1)[-1].lower() if isinstance(element.tag, str) else ""
 
 
-def read_vic3d(path: str | os.PathLike, *, image_size=None):
+def read_vic3d(path: str | os.PathLike, *, image_size=None, unit: str | None = None):
     """Read a VIC-3D calibration (a ``.cal`` file or a project's XML).
 
     Parameters
@@ -247,6 +248,8 @@ def read_vic3d(path: str | os.PathLike, *, image_size=None):
     path : the XML file
     image_size : (width, height) px, keyword-only
         Needed when the file holds no ``<polygonmask width= height=>``.
+    unit : str, keyword-only
+        The unit of the file's lengths (default mm).
 
     Returns
     -------
@@ -306,7 +309,7 @@ def read_vic3d(path: str | os.PathLike, *, image_size=None):
         cams.append((_camera_matrix(fx, fy, cx, cy, fs), [k1, k2, 0.0, 0.0, k3]))
         poses.append((euler_rotation(a, b, g), np.array([tx, ty, tz])))
     R, T = _rig(poses)
-    return _make(path, "vic3d", _size(found_size, image_size, path), cams, R, T, [])
+    return _make(path, "vic3d", _size(found_size, image_size, path), cams, R, T, [], unit)
 
 
 def _dice_params(element: ET.Element) -> tuple[dict, dict]:
@@ -401,7 +404,7 @@ def _dice_distortion(
     return [0.0] * 5, scale, True
 
 
-def read_dice(path: str | os.PathLike, *, image_size=None):
+def read_dice(path: str | os.PathLike, *, image_size=None, unit: str | None = None):
     """Read a DICe XML calibration (``cal.xml``, a Teuchos ParameterList).
 
     Parameters
@@ -409,6 +412,8 @@ def read_dice(path: str | os.PathLike, *, image_size=None):
     path : the XML file
     image_size : (width, height) px, keyword-only
         Needed when the cameras have no ``IMAGE_HEIGHT_WIDTH``.
+    unit : str, keyword-only
+        The unit of the file's lengths (default mm).
 
     Returns
     -------
@@ -475,7 +480,7 @@ def read_dice(path: str | os.PathLike, *, image_size=None):
             raise InputError(f"{path}: IMAGE_HEIGHT_WIDTH must be whole pixels > 0")
         found = (int(w), int(h))
     R, T = _rig(poses, relative == "true")
-    return _make(path, "dice", _size(found, image_size, path), cams, R, T, notes)
+    return _make(path, "dice", _size(found, image_size, path), cams, R, T, notes, unit)
 
 
 def _fmt(value: float) -> str:

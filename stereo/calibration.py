@@ -10,6 +10,13 @@ pycolmap's bundle adjuster would solve the same problem for this input
 (known planar points, two cameras), so it would add a dependency without
 improving the estimate; it serves where the structure is unknown.
 
+A calibration that cannot be physical is refused where it is made and
+wherever it is read: a board size that does not fit the target, the same
+pictures on both sides, a reprojection error no real rig has
+(:data:`MAX_RMS_PX`), cameras closer than :data:`MIN_BASELINE_MM` or than
+:data:`MIN_BASELINE_RATIO` of the distance to what they look at; a poor one
+(:data:`POOR_RMS_PX`) is flagged.
+
 A :class:`Calibration` is saved as JSON (:meth:`Calibration.save`), with
 ``image_size``, ``K_left``, ``dist_left``, ``K_right``, ``dist_right``,
 ``R``, ``T`` (``x_right = R x_left + T``), ``rms_px`` and ``unit``, and can
@@ -36,6 +43,7 @@ import json
 import logging
 import math
 import os
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,10 +54,17 @@ from tissue_core.errors import InputError, SourceError
 
 __all__ = [
     "CALIBRATION_KEYS",
+    "MAX_RMS_PX",
+    "MIN_BASELINE_MM",
+    "MIN_BASELINE_RATIO",
+    "POOR_RMS_PX",
     "Board",
+    "BoardSizeError",
     "Calibration",
     "CalibrationValueError",
+    "board_size_in",
     "calibrate_stereo",
+    "check_baseline_ratio",
     "detect_board",
     "load_calibration",
     "parse_board",
@@ -161,6 +176,45 @@ def parse_board(text: str) -> Board:
     return Board(kind, cols, rows, square)
 
 
+class BoardSizeError(InputError):
+    """An image holds a target larger than the :class:`Board` given.
+
+    OpenCV finds a part of a larger checkerboard or dot grid as readily as the
+    whole (a 4 x 4 corner pattern inside a 9 x 6 board): the calibration would
+    then run on corners whose board positions are wrong.  ``found`` is the
+    ``(cols, rows)`` the image holds, in the board's order.
+    """
+
+    def __init__(self, board: Board, found: tuple[int, int]) -> None:
+        self.board, self.found = board, found
+        noun = "inner corners" if board.kind == "checkerboard" else "dots"
+        super().__init__(
+            f"the target continues beyond the {board.cols}x{board.rows} {noun} of --board "
+            f"{board.spec()}: the images hold {found[0]}x{found[1]} {noun} (e.g. --board "
+            f"{_resized(board, found).spec()})"
+        )
+
+
+def _resized(board: Board, size: tuple[int, int]) -> Board:
+    return Board(board.kind, size[0], size[1], board.square, board.marker, board.dictionary)
+
+
+def _as_given(board: Board, size: tuple[int, int]) -> tuple[int, int]:
+    """``size`` (cols, rows) in the order the board names its sides (the longer first or not)."""
+    a, b = (int(v) for v in size)
+    return (a, b) if (a >= b) == (board.cols >= board.rows) else (b, a)
+
+
+def _gray_uint8(image: np.ndarray) -> np.ndarray:
+    import cv2
+
+    gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
+    if gray.dtype != np.uint8:
+        lo, hi = float(gray.min()), float(gray.max())
+        gray = np.uint8(np.clip((gray - lo) * 255.0 / max(hi - lo, 1e-12), 0, 255))
+    return gray
+
+
 def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] | None:
     """Sub-pixel corners of ``board`` in a gray image.
 
@@ -168,24 +222,20 @@ def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarra
     -------
     (image_points (M, 2) float64, ids (M,) int) or None when not found.
     ``ids`` index :meth:`Board.object_points`.
+
+    Raises
+    ------
+    BoardSizeError
+        The image holds a larger checkerboard or symmetric dot grid than
+        ``board`` (a part of it was found; the corners' board positions would
+        be wrong).  Asymmetric dot grids and ChArUco boards of another size
+        are not found at all.
     """
     import cv2
 
-    gray = image if image.ndim == 2 else cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
-    if gray.dtype != np.uint8:
-        lo, hi = float(gray.min()), float(gray.max())
-        gray = np.uint8(np.clip((gray - lo) * 255.0 / max(hi - lo, 1e-12), 0, 255))
+    gray = _gray_uint8(image)
     if board.kind == "checkerboard":
-        size = (board.cols, board.rows)
-        flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
-        found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
-        if not found:  # harder images: a slower, exhaustive search
-            flags |= cv2.CALIB_CB_EXHAUSTIVE
-            found, corners = cv2.findChessboardCornersSB(gray, size, flags=flags)
-        if not found:
-            return None
-        pts = corners.reshape(-1, 2).astype(np.float64)
-        return pts, np.arange(len(pts))
+        return _detect_checkerboard(gray, board)
     if board.kind in ("circles", "acircles"):
         return _detect_circles(gray, board)
     detector = cv2.aruco.CharucoDetector(board.opencv_board())
@@ -193,6 +243,154 @@ def detect_board(image: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarra
     if ids is None or len(ids) < 6:
         return None
     return corners.reshape(-1, 2).astype(np.float64), ids.ravel().astype(np.int64)
+
+
+#: a grid continues past a side when this share of the corners or dots of the next row or
+#: column is there
+_CONTINUES = 0.75
+
+
+def _find_checkerboard(gray: np.ndarray, size: tuple[int, int]):
+    """``cv2.findChessboardCornersSBWithMeta`` allowing a larger board than ``size``, with the
+    exhaustive search for harder images: (corners (M, 2), their grid (rows, cols, 2) or None
+    when their layout is unclear), or None when nothing is found."""
+    import cv2
+
+    flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_LARGER
+    for extra in (0, cv2.CALIB_CB_EXHAUSTIVE):
+        found, corners, meta = cv2.findChessboardCornersSBWithMeta(gray, size, flags | extra)
+        if found:
+            points = corners.reshape(-1, 2).astype(np.float64)
+            return points, _as_grid(points, meta.shape[:2])
+    return None
+
+
+def _as_grid(points: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:
+    """Row-major corners as a (rows, cols, 2) grid: the one of ``shape`` or its transpose
+    whose neighbours along each axis are evenly spaced (None if neither)."""
+    for rows, cols in (shape, shape[::-1]):
+        grid = points.reshape(rows, cols, 2)
+        steps = [np.linalg.norm(np.diff(grid, axis=a), axis=-1) for a in (0, 1)]
+        if all(st.size and st.max() < 3 * np.median(st) for st in steps):
+            return grid
+    return None
+
+
+def _detect_checkerboard(gray: np.ndarray, board: Board):
+    """The board's inner corners; a larger board than ``board`` raises BoardSizeError.
+
+    OpenCV's detector, allowed to find a larger board (``CALIB_CB_LARGER``),
+    finds the whole board around a part of it, and sometimes a row of points
+    along the board's edge that are no corners: the board's extent is that of
+    the X-corners (:func:`_board_grid`).
+    """
+    import cv2
+
+    size = (board.cols, board.rows)
+    found = _find_checkerboard(gray, size)
+    if found is None:
+        return None
+    pts, grid = found
+    if grid is not None:
+        rows, cols = _board_grid(gray, grid).shape[:2]
+        if rows * cols > board.cols * board.rows:
+            raise BoardSizeError(board, _as_given(board, (cols, rows)))
+    if grid is None or grid.shape[:2] != (board.rows, board.cols):
+        # found the other way round, with false corners, or unclearly: read it as given
+        flags = cv2.CALIB_CB_ACCURACY | cv2.CALIB_CB_NORMALIZE_IMAGE
+        for extra in (0, cv2.CALIB_CB_EXHAUSTIVE):
+            ok, corners = cv2.findChessboardCornersSB(gray, size, flags=flags | extra)
+            if ok:
+                break
+        else:
+            return None
+        pts = corners.reshape(-1, 2).astype(np.float64)
+    return pts, np.arange(len(pts))
+
+
+def _homography(grid: np.ndarray):
+    """The homography from grid indices (col, row) to the image, of a (rows, cols, 2) grid."""
+    import cv2
+
+    rows, cols = grid.shape[:2]
+    gy, gx = np.mgrid[0:rows, 0:cols]
+    index = np.column_stack([gx.ravel(), gy.ravel()]).astype(np.float64)
+    return cv2.findHomography(index, grid.reshape(-1, 2), 0)[0]
+
+
+def _x_corners(smooth: np.ndarray, H: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Whether a checkerboard's X-corner is at each grid index (col, row): of the four squares
+    around it, those on one diagonal are both darker than both on the other.
+
+    A point on the board's edge, where squares meet the plain margin, is no X-corner (three
+    of its four squares are light, or the margin's level).  ``smooth`` is the image
+    averaged over about a third of a square; the squares are sampled at their centres.
+    """
+    import cv2
+
+    index = np.asarray(index, np.float64).reshape(-1, 2)
+    centres = [index + d for d in ((0.5, 0.5), (-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5))]
+    image = [cv2.perspectiveTransform(c[None], H)[0].astype(np.float32) for c in centres]
+    level = [
+        cv2.remap(smooth, p[:, 0:1], p[:, 1:2], cv2.INTER_LINEAR, borderValue=-1.0).ravel()
+        for p in image
+    ]
+    a, b, c, d = level
+    inside = np.min(level, axis=0) >= 0
+    span = np.max(level, axis=0) - np.min(level, axis=0)
+    gap = np.maximum(np.minimum(a, b) - np.maximum(c, d), np.minimum(c, d) - np.maximum(a, b))
+    return inside & (gap > 0.3 * span) & (span > 0.1 * 255)
+
+
+def _edges(rows: int, cols: int, offset: int) -> dict[str, np.ndarray]:
+    """Grid indices (col, row) of the edge rows and columns of a rows x cols grid (offset 0),
+    or of those just outside it (offset 1)."""
+    top, bottom, left, right = -offset, rows - 1 + offset, -offset, cols - 1 + offset
+    return {
+        "top": np.column_stack([np.arange(cols), np.full(cols, top)]),
+        "bottom": np.column_stack([np.arange(cols), np.full(cols, bottom)]),
+        "left": np.column_stack([np.full(rows, left), np.arange(rows)]),
+        "right": np.column_stack([np.full(rows, right), np.arange(rows)]),
+    }
+
+
+def _board_grid(gray: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """The X-corners around a detected corner grid (rows, cols, 2): edge rows or columns of
+    points that are mostly no X-corners are dropped, one at a time; then rows or columns
+    of X-corners just outside (:data:`_CONTINUES` of them) are added, one at a time."""
+    import cv2
+
+    steps = np.linalg.norm(np.diff(grid, axis=1), axis=-1)
+    k = max(3, int(np.median(steps) / 3) | 1)
+    smooth = cv2.blur(gray.astype(np.float32), (k, k))
+    while min(grid.shape[:2]) > 2:
+        H = _homography(grid)
+        if H is None:
+            return grid
+        share = {
+            side: _x_corners(smooth, H, index).mean()
+            for side, index in _edges(*grid.shape[:2], 0).items()
+        }
+        side = min(share, key=share.get)
+        if share[side] >= 0.5:
+            break
+        grid = {"top": grid[1:], "bottom": grid[:-1], "left": grid[:, 1:],
+                "right": grid[:, :-1]}[side]  # fmt: skip
+    for _ in range(max(gray.shape)):  # a row or a column more each time: it ends
+        H = _homography(grid)
+        if H is None:
+            break
+        rows, cols = grid.shape[:2]
+        for side, index in _edges(rows, cols, 1).items():
+            if _x_corners(smooth, H, index).mean() >= _CONTINUES:
+                line = cv2.perspectiveTransform(index.astype(np.float64)[None], H)[0]
+                axis = 0 if side in ("top", "bottom") else 1
+                parts = [np.expand_dims(line, axis), grid]
+                grid = np.concatenate(parts if side in ("top", "left") else parts[::-1], axis)
+                break
+        else:
+            break
+    return grid
 
 
 def _detect_circles(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndarray] | None:
@@ -203,8 +401,23 @@ def _detect_circles(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndar
     larger limit lets the bright board itself, thresholded near its own gray
     level, count as a blob and pull a dot's centre away).  A dot's centre is
     its image's centroid (OpenCV's estimate), not corrected for perspective
-    (Heikkila 2000): small dots keep the bias small.
+    (Heikkila 2000): small dots keep the bias small.  A symmetric grid found
+    inside a larger one (rows or columns of dots continue it) raises
+    :class:`BoardSizeError`.
     """
+    found = _find_circles(gray, board)
+    if found is None:
+        return None
+    pts, blobs = found
+    if board.kind == "circles":
+        size = _grid_extent(pts, blobs, (board.cols, board.rows))
+        if size != (board.cols, board.rows):
+            raise BoardSizeError(board, size)
+    return pts, np.arange(len(pts))
+
+
+def _find_circles(gray: np.ndarray, board: Board):
+    """(dot centres (M, 2), every blob's centre (K, 2)) of ``board``'s grid, or None."""
     import cv2
 
     params = cv2.SimpleBlobDetector_Params()
@@ -218,13 +431,98 @@ def _detect_circles(gray: np.ndarray, board: Board) -> tuple[np.ndarray, np.ndar
         for flags in (grid, grid | cv2.CALIB_CB_CLUSTERING):
             found, centers = cv2.findCirclesGrid(image, size, flags=flags, blobDetector=detector)
             if found:
-                pts = centers.reshape(-1, 2).astype(np.float64)
-                return pts, np.arange(len(pts))
+                blobs = np.array([k.pt for k in detector.detect(image)], np.float64)
+                return centers.reshape(-1, 2).astype(np.float64), blobs.reshape(-1, 2)
+    return None
+
+
+def _grid_extent(points: np.ndarray, blobs: np.ndarray, size: tuple[int, int]) -> tuple[int, int]:
+    """The (cols, rows) of the symmetric dot grid that holds ``points`` (a ``size`` grid,
+    row-major): grown a row or a column at a time while blobs continue it.
+
+    Each step maps grid indices to the image by the homography of the dots
+    known so far and looks for a blob within a third of the dot spacing of
+    each predicted dot of the next row or column on each side; a side grows
+    when :data:`_CONTINUES` of them are there.
+    """
+    import cv2
+
+    cols, rows = size
+    gy, gx = np.mgrid[0:rows, 0:cols]
+    index = np.column_stack([gx.ravel(), gy.ravel()]).astype(np.float64)
+    known = np.asarray(points, np.float64)
+    spacing = np.median(np.linalg.norm(np.diff(known.reshape(rows, cols, 2), axis=1), axis=-1))
+    x0, x1, y0, y1 = 0, cols - 1, 0, rows - 1
+    for _ in range(len(blobs) + 1):  # each step takes new blobs: it ends
+        H = cv2.findHomography(index, known, 0)[0]
+        if H is None or len(blobs) == 0:
+            break
+        grown = False
+        for side in ("x0", "x1", "y0", "y1"):
+            if side in ("x0", "x1"):
+                x = x0 - 1 if side == "x0" else x1 + 1
+                candidates = np.column_stack([np.full(y1 - y0 + 1, x), np.arange(y0, y1 + 1)])
+            else:
+                y = y0 - 1 if side == "y0" else y1 + 1
+                candidates = np.column_stack([np.arange(x0, x1 + 1), np.full(x1 - x0 + 1, y)])
+            candidates = candidates.astype(np.float64)
+            predicted = cv2.perspectiveTransform(candidates[None], H)[0]
+            distance = np.linalg.norm(predicted[:, None] - blobs[None], axis=-1)
+            nearest = distance.argmin(axis=1)
+            hit = distance[np.arange(len(predicted)), nearest] < spacing / 3
+            if hit.mean() < _CONTINUES:
+                continue
+            index = np.vstack([index, candidates[hit]])
+            known = np.vstack([known, blobs[nearest[hit]]])
+            x0, x1, y0, y1 = (
+                x0 - (side == "x0"), x1 + (side == "x1"), y0 - (side == "y0"), y1 + (side == "y1")
+            )  # fmt: skip
+            grown = True
+        if not grown:
+            break
+    return x1 - x0 + 1, y1 - y0 + 1
+
+
+def board_size_in(image: np.ndarray, board: Board) -> tuple[int, int] | None:
+    """The size (cols, rows) of the checkerboard or symmetric dot grid an image holds, in the
+    order ``board`` names its sides; None when none is found or for other targets.
+
+    For the message of a target that was not found: it tells which size to give.
+    """
+    gray = _gray_uint8(image)
+    if board.kind == "checkerboard":
+        found = _find_checkerboard(gray, (3, 3))
+        if found is None or found[1] is None:
+            return None
+        rows, cols = _board_grid(gray, found[1]).shape[:2]
+        return _as_given(board, (cols, rows))
+    if board.kind == "circles":
+        found = _find_circles(gray, _resized(board, (3, 3)))
+        return None if found is None else _as_given(board, _grid_extent(*found, (3, 3)))
     return None
 
 
 #: largest deviation of ``R @ R.T`` from the identity accepted for a rotation
 ROTATION_TOLERANCE = 1e-6
+#: px: a rig whose RMS reprojection error over the target views is above this is a poor
+#: calibration (good ones reach 0.1-0.3 px): ``stereo calibrate`` warns and flags it in the
+#: calibration file, and the reconstruction's report flags it
+POOR_RMS_PX = 0.5
+#: px: above this RMS no real rig was calibrated (a wrong board size, pairs out of step):
+#: refused wherever a calibration is made or read
+MAX_RMS_PX = 5.0
+#: mm: two cameras are never closer than this (lenses have apertures); a smaller baseline is
+#: that of the same images on both sides, or of a T in another unit than the calibration's
+MIN_BASELINE_MM = 1.0
+#: the least baseline as a share of the distance to the target or the surface (a
+#: triangulation angle of 0.6 degrees): below it depth is 100 times less certain than the
+#: position across the view, and is not measured
+MIN_BASELINE_RATIO = 0.01
+#: millimetres per length unit, for :data:`MIN_BASELINE_MM` (other units are not checked)
+_MM_PER_UNIT = {
+    "nm": 1e-6, "um": 1e-3, "\u00b5m": 1e-3, "\u03bcm": 1e-3, "micron": 1e-3, "microns": 1e-3,
+    "mm": 1.0, "cm": 10.0, "dm": 100.0, "m": 1000.0, "in": 25.4, "inch": 25.4, "ft": 304.8,
+}  # fmt: skip
 #: the lengths of OpenCV's distortion vectors (0: no distortion)
 DISTORTION_LENGTHS = (0, 4, 5, 8, 12, 14)
 #: the keys :meth:`Calibration.save` always writes (how a calibration of this toolkit is known)
@@ -325,7 +623,7 @@ def _rotation(value, field: str) -> np.ndarray:
     return R
 
 
-def _translation(value, field: str) -> np.ndarray:
+def _translation(value, field: str, unit: str) -> np.ndarray:
     T = _numbers(value, field, "3 numbers").ravel()
     if T.size != 3:
         raise CalibrationValueError(field, f"must hold 3 numbers, got {T.size}")
@@ -338,6 +636,16 @@ def _translation(value, field: str) -> np.ndarray:
             field,
             f"gives the baseline |T| = {baseline:g}: the two cameras must be apart "
             "(0 < |T| < 1e9 in the calibration's unit)",
+        )
+    mm = _MM_PER_UNIT.get(unit.strip().lower())
+    if mm is not None and baseline * mm < MIN_BASELINE_MM:
+        in_mm = f" ({baseline * mm:.3g} mm)" if mm != 1 else ""
+        raise CalibrationValueError(
+            field,
+            f"gives the baseline |T| = {baseline:.3g} {unit}{in_mm}: two cameras are never "
+            f"closer than "
+            f"{MIN_BASELINE_MM:g} mm (the same images on both sides give about 0; if T is in "
+            "another unit, say which: stereo import-calib --unit)",
         )
     return T
 
@@ -385,8 +693,10 @@ class Calibration:
     Every value is checked when the calibration is made (so also when it is
     read): ``R`` must be a rotation (orthonormal to :data:`ROTATION_TOLERANCE`,
     det +1), the focal lengths positive, every number finite, the distortion
-    vectors of a length OpenCV accepts, the image size whole pixels and the
-    baseline ``|T|`` positive.
+    vectors of a length OpenCV accepts, the image size whole pixels, the
+    baseline ``|T|`` positive and, in a length unit it knows (mm, m, um...), at
+    least :data:`MIN_BASELINE_MM`, and ``rms_px`` (when known) at most
+    :data:`MAX_RMS_PX`.
 
     Attributes
     ----------
@@ -429,15 +739,21 @@ class Calibration:
         self.dist_left = _distortion(self.dist_left, "dist_left")
         self.dist_right = _distortion(self.dist_right, "dist_right")
         self.R = _rotation(self.R, "R")
-        self.T = _translation(self.T, "T")
+        if not isinstance(self.unit, str) or not self.unit.strip():
+            raise CalibrationValueError("unit", f"must be a name such as mm, got {self.unit!r}")
+        self.T = _translation(self.T, "T", self.unit)
         rms = float("nan") if self.rms_px is None else self.rms_px
         if not _is_number(rms) or math.isinf(rms) or rms < 0:
             raise CalibrationValueError(
                 "rms_px", f"must be a number >= 0 (or null), got {_describe(self.rms_px)}"
             )
+        if rms > MAX_RMS_PX:
+            raise CalibrationValueError(
+                "rms_px",
+                f"is {rms:.3g} px: no real rig calibrates that poorly (at most {MAX_RMS_PX:g} px); "
+                "the calibration is wrong (a wrong board size, pairs out of step): calibrate again",
+            )
         self.rms_px = float(rms)
-        if not isinstance(self.unit, str) or not self.unit.strip():
-            raise CalibrationValueError("unit", f"must be a name such as mm, got {self.unit!r}")
         if not isinstance(self.extra, dict):
             raise CalibrationValueError("extra", "must be a dict")
 
@@ -571,7 +887,7 @@ _ALIASES = {
 }
 
 
-def _read_json_calibration(path: Path) -> Calibration:
+def _read_json_calibration(path: Path, *, unit: str | None = None) -> Calibration:
     try:
         data = json.loads(path.read_text(encoding="utf-8-sig"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
@@ -582,6 +898,9 @@ def _read_json_calibration(path: Path) -> Calibration:
         raise InputError(
             f"{path}: a calibration JSON must hold an object, not {type(data).__name__}"
         )
+    own = data.get("unit", "mm")
+    if unit is not None and isinstance(own, str) and own.strip():  # a malformed one is named
+        data = {**data, "unit": unit}
     try:
         return Calibration.from_dict(data)
     except InputError as exc:
@@ -589,7 +908,9 @@ def _read_json_calibration(path: Path) -> Calibration:
 
 
 def load_calibration(
-    *paths: str | os.PathLike, image_size: tuple[int, int] | None = None
+    *paths: str | os.PathLike,
+    image_size: tuple[int, int] | None = None,
+    unit: str | None = None,
 ) -> Calibration:
     """Read a calibration: this package's JSON, OpenCV YAML/XML file(s), VIC-3D or DICe XML.
 
@@ -607,6 +928,9 @@ def load_calibration(
     image_size : (width, height) px, keyword-only
         For files that hold no image size (``--image-size``); a file that
         holds another one is refused, a calibration JSON included.
+    unit : str, keyword-only
+        The unit of T (``--unit``): that of a calibration JSON is replaced,
+        other files are taken to be in mm without it.
 
     Every value is checked (see :class:`Calibration`).
 
@@ -639,7 +963,7 @@ def load_calibration(
             names = ", ".join(map(str, paths))
             raise InputError(f"give one VIC-3D or DICe calibration file, not {names}")
         reader = read_vic3d if kinds[0] == "vic3d" else read_dice
-        return reader(first, image_size=image_size)
+        return reader(first, image_size=image_size, unit=unit)
 
     def is_json(p: Path) -> bool:
         with open(p, "rb") as f:
@@ -653,7 +977,7 @@ def load_calibration(
                 f"give one calibration JSON, or OpenCV YAML/XML files (intrinsics, "
                 f"extrinsics), not {names}"
             )
-        calib = _read_json_calibration(first)
+        calib = _read_json_calibration(first, unit=unit)
         if image_size is not None and tuple(calib.image_size) != tuple(image_size):
             w, h = calib.image_size
             raise InputError(
@@ -700,7 +1024,9 @@ def load_calibration(
                 "as --image-size says"
             )
     try:
-        return Calibration(image_size=size, **values, extra={"imported_format": "opencv"})
+        return Calibration(
+            image_size=size, **values, unit=unit or "mm", extra={"imported_format": "opencv"}
+        )
     except CalibrationValueError as exc:
         path, name = origin.get(exc.field, (first, exc.field))
         label = exc.field if name == exc.field else f"{name} ({exc.field})"
@@ -737,14 +1063,22 @@ def calibrate_stereo(
 ) -> Calibration:
     """Calibrate a stereo rig from image pairs of a calibration target.
 
-    1. Detect the target in each pair; a pair is rejected (with the reason)
+    1. Refuse a picture that is on both sides (the same images for --left
+       and --right): a calibration needs two cameras.
+    2. Detect the target in each pair; a pair is rejected (with the reason)
        when it is missing from either view or the two views share fewer
-       than 6 corners.
-    2. Calibrate each camera on its views (Zhang 2000); a pair is rejected
+       than 6 corners.  A target larger than ``board`` (OpenCV finds a part
+       of it as readily as the whole) is refused, naming the size the images
+       hold; so is a target found in too few pairs, naming it when it can.
+    3. Calibrate each camera on its views (Zhang 2000); a pair is rejected
        when a view's reprojection RMS exceeds ``outlier_factor`` times the
        median and 0.5 px, and the cameras are calibrated again.
-    3. Estimate ``(R, T)`` by ``cv2.stereoCalibrate`` with the intrinsics
+    4. Estimate ``(R, T)`` by ``cv2.stereoCalibrate`` with the intrinsics
        fixed, then refine everything together from there.
+    5. Refuse a rig RMS reprojection error above :data:`MAX_RMS_PX` (no real
+       rig: a wrong board, pairs out of step) and a baseline below
+       :data:`MIN_BASELINE_RATIO` of the distance to the target; warn of an
+       RMS above :data:`POOR_RMS_PX` and record it in ``extra["flags"]``.
 
     Parameters
     ----------
@@ -761,8 +1095,19 @@ def calibrate_stereo(
     -------
     Calibration
         With ``extra`` holding ``rms_left_px``, ``rms_right_px``,
-        ``views`` (name, per-view RMS), ``rejected`` (name, reason), the
-        board spec and the software version.
+        ``views`` (name, per-view RMS), ``rejected`` (name, reason),
+        ``flags`` (sentences: what a reader should know), the board spec and
+        the software version.
+
+    Raises
+    ------
+    InputError
+        The refusals above, in one line.
+
+    Warns
+    -----
+    UserWarning
+        A poor calibration (RMS above :data:`POOR_RMS_PX`).
     """
     import cv2
 
@@ -780,12 +1125,16 @@ def calibrate_stereo(
                 f"{a.shape[1]}x{a.shape[0]}, the first is {size[1]}x{size[0]}"
             )
     image_size = (int(size[1]), int(size[0]))
+    _check_two_cameras(left, right, names)
     objp = board.object_points().astype(np.float32)
     rejected: list[dict] = []
     views = []  # (name, object points, left points, right points)
     for i, (a, b) in enumerate(zip(left, right, strict=True)):
         say(f"detecting the target: {names[i]} ({i + 1}/{len(left)})")
-        dl, dr = detect_board(a, board), detect_board(b, board)
+        try:
+            dl, dr = detect_board(a, board), detect_board(b, board)
+        except BoardSizeError as exc:
+            raise InputError(f"{names[i]}: {exc}") from None
         if dl is None or dr is None:
             side = (
                 "both views" if dl is None and dr is None else ("left" if dl is None else "right")
@@ -815,9 +1164,18 @@ def calibrate_stereo(
         )
     if len(views) < min_views:
         found = ", ".join(f"{r['image']}: {r['reason']}" for r in rejected[:3])
+        held = [board_size_in(image, board) for image in left[:3]]
+        held = max((h for h in held if h is not None), key=lambda h: h[0] * h[1], default=None)
+        hint = (
+            f": the images hold {held[0]}x{held[1]} "
+            f"{'inner corners' if board.kind == 'checkerboard' else 'dots'} (e.g. --board "
+            f"{_resized(board, held).spec()})"
+            if held is not None and held != (board.cols, board.rows)
+            else ""
+        )
         raise InputError(
             f"the target was found in only {len(views)} of {len(left)} image pairs "
-            f"(need {min_views}); check --board ({board.spec()}). {found}"
+            f"(need {min_views}); check --board ({board.spec()}){hint}. {found}"
         )
 
     flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
@@ -830,7 +1188,9 @@ def calibrate_stereo(
             rms, K, dist, rv, tv = cv2.calibrateCamera(
                 obj, pts, image_size, None, None, flags=flags
             )
-            cams.append((rms, K, dist.ravel(), _per_view_rms(obj, pts, rv, tv, K, dist)))
+            cams.append(
+                (rms, K, dist.ravel(), _per_view_rms(obj, pts, rv, tv, K, dist), (obj, rv, tv))
+            )
         worst = np.maximum(cams[0][3], cams[1][3])
         limit = max(outlier_factor * float(np.median(worst)), 0.5)
         bad = np.flatnonzero(worst > limit)
@@ -872,6 +1232,24 @@ def calibrate_stereo(
     except cv2.error as exc:
         raise InputError(f"stereo calibration failed: {exc.err}") from None
     per_view = np.asarray(per_view, np.float64).reshape(len(views), 2)
+    rms, baseline = float(rms), float(np.linalg.norm(T))
+    if not rms <= MAX_RMS_PX:
+        raise InputError(
+            f"the rig's RMS reprojection error is {rms:.3g} px over {len(views)} pairs: no real "
+            f"rig calibrates that poorly (at most {MAX_RMS_PX:g} px); check --board "
+            f"({board.spec()}: the size and the square), that each left image was taken at the "
+            "same moment as its right one and that both sides list the pairs in the same order"
+        )
+    check_baseline_ratio(baseline, _target_distance(*cams[0][4]), unit=unit, what="the target")
+    flags_raised = []
+    if rms > POOR_RMS_PX:
+        flags_raised.append(
+            f"The rig's RMS reprojection error is {rms:.3g} px, above {POOR_RMS_PX:g} px: a poor "
+            "calibration (good ones reach 0.1-0.3 px); 3D positions carry its error. "
+            "Recalibrate with sharp, well-lit target views at varied tilts."
+        )
+    for text in flags_raised:
+        warnings.warn(text, UserWarning, stacklevel=2)
     from tissue_core.version import __version__
 
     extra = {
@@ -882,6 +1260,7 @@ def calibrate_stereo(
             for v, e in zip(views, per_view, strict=True)
         ],
         "rejected": rejected,
+        "flags": flags_raised,
         "board": board.spec(),
         "software": {"package": "tissue-strain", "module": "stereo", "version": __version__},
     }
@@ -893,7 +1272,82 @@ def calibrate_stereo(
         dist_right=dr.ravel(),
         R=R,
         T=T.ravel(),
-        rms_px=float(rms),
+        rms_px=rms,
         unit=unit,
         extra=extra,
     )
+
+
+def _check_two_cameras(left: Sequence[np.ndarray], right: Sequence[np.ndarray], names) -> None:
+    """Refuse a left image that is also a right image (the same picture on both sides)."""
+    import hashlib
+
+    def digest(image: np.ndarray) -> tuple:
+        return image.shape, hashlib.sha256(np.ascontiguousarray(image)).digest()
+
+    seen = {digest(a): i for i, a in enumerate(left)}
+    for j, b in enumerate(right):
+        i = seen.get(digest(b))
+        if i is None:
+            continue
+        which = (
+            f"{names[i]}: the left and right images are the same picture"
+            if i == j
+            else f"the left image of {names[i]} is the right image of {names[j]}"
+        )
+        raise InputError(
+            f"{which}; a stereo calibration needs each camera's own views of the target "
+            "(--left and --right)"
+        )
+
+
+def _target_distance(objects, rvecs, tvecs) -> float:
+    """The median distance from the camera to the centre of the target over the views."""
+    import cv2
+
+    centres = [
+        cv2.Rodrigues(r)[0] @ o.reshape(-1, 3).mean(axis=0) + np.ravel(t)
+        for o, r, t in zip(objects, rvecs, tvecs, strict=True)
+    ]
+    return float(np.median(np.linalg.norm(centres, axis=1)))
+
+
+def check_baseline_ratio(baseline: float, distance: float, *, unit: str, what: str) -> None:
+    """Refuse a baseline below :data:`MIN_BASELINE_RATIO` of the distance to ``what``.
+
+    Two cameras that close see ``what`` from nearly the same place: the rays
+    to a point meet at a glancing angle and its depth is not measured.
+
+    Parameters
+    ----------
+    baseline : float
+        ``|T|``, in ``unit``.
+    distance : float
+        The median distance from the left camera to ``what`` (the target's
+        views, the reconstructed surface), in ``unit``.
+    unit : str, keyword-only
+    what : str, keyword-only
+        What the distance is to, for the message.
+
+    Raises
+    ------
+    InputError
+
+    Examples
+    --------
+    >>> check_baseline_ratio(120.0, 450.0, unit="mm", what="the target")
+    >>> check_baseline_ratio(0.8, 450.0, unit="mm", what="the target")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    tissue_core.errors.InputError: the cameras are 0.8 mm apart for the target 450 mm away ...
+    """
+    if not (math.isfinite(distance) and distance > 0):
+        return
+    ratio = baseline / distance
+    if ratio < MIN_BASELINE_RATIO:
+        raise InputError(
+            f"the cameras are {baseline:.3g} {unit} apart for {what} {distance:.3g} {unit} away "
+            f"({100 * ratio:.2g} % of the distance; at least {100 * MIN_BASELINE_RATIO:g} % "
+            "needed): they see it from nearly the same place and depth is not measured; use "
+            "images of two cameras set apart"
+        )

@@ -87,6 +87,23 @@ def _check_calibration_size(calib, calib_paths, shape: tuple[int, int], source: 
         )
 
 
+#: the least distance, px, between a target's corners or dots at which a detector finds them
+MIN_FEATURE_SPACING_PX = 4
+
+
+def _check_board_fits(spec: str, counts: tuple[int, int], shape: tuple[int, int]) -> None:
+    """Refuse a board with more corners or dots than the images can show (its arrays, sized by
+    the counts, would be allocated for nothing)."""
+    most = sorted(max(1, n // MIN_FEATURE_SPACING_PX) for n in shape)
+    if sorted(counts)[0] > most[0] or sorted(counts)[1] > most[1]:
+        h, w = shape
+        raise InputError(
+            f"--board {spec}: {counts[0]}x{counts[1]} is more than {w}x{h} px images can show "
+            f"(at most {most[1]}x{most[0]}, {MIN_FEATURE_SPACING_PX} px apart: the least a "
+            "detector finds); give the board's own counts"
+        )
+
+
 def _read_points(path: str, shape: tuple[int, int], *, for_strain: bool) -> np.ndarray:
     """Points (N, 2) of a CSV file with columns x,y, checked against the image; errors name
     the file.  ``for_strain``: the points must also carry a mesh (3 or more, not collinear)."""
@@ -348,6 +365,13 @@ def _cmd_calibrate(args) -> int:
     board = parse_board(args.board)
     _check_unit(args.unit)
     left, right = _expand(args.left, "left"), _expand(args.right, "right")
+    both = sorted({Path(f).resolve() for f in left} & {Path(f).resolve() for f in right})
+    if both:
+        more = f" and {len(both) - 1} more" if len(both) > 1 else ""
+        raise InputError(
+            f"--left {args.left} and --right {args.right} name the same images ({both[0]}"
+            f"{more}): a stereo calibration needs each camera's own views of the target"
+        )
     if len(left) != len(right):
         raise InputError(f"unequal image counts: {len(left)} left and {len(right)} right")
     inputs = [*left, *right, *_folders(args.left, args.right)]
@@ -355,9 +379,11 @@ def _cmd_calibrate(args) -> int:
     check_writable(args.out, kind="file", **writing)
     say = _say(args)
     names = [f"{Path(a).name} / {Path(b).name}" for a, b in zip(left, right, strict=True)]
+    left_images, right_images = [read_gray(f) for f in left], [read_gray(f) for f in right]
+    _check_board_fits(args.board, (board.cols, board.rows), left_images[0].shape)
     calib = calibrate_stereo(
-        [read_gray(f) for f in left],
-        [read_gray(f) for f in right],
+        left_images,
+        right_images,
         board,
         names=names,
         unit=args.unit,
@@ -387,8 +413,7 @@ def _cmd_import(args) -> int:
     size = parse_image_size(args.image_size) if args.image_size is not None else None
     writing = {"overwrite": args.overwrite, "inputs": args.files}
     check_writable(args.out, kind="file", **writing)
-    calib = load_calibration(*args.files, image_size=size)
-    calib.unit = args.unit
+    calib = load_calibration(*args.files, image_size=size, unit=args.unit)
     calib.extra["imported_from"] = [Path(f).name for f in args.files]
     calib.extra["import_options"] = {"image_size": args.image_size, "unit": args.unit}
     calib.extra["software"] = {
@@ -548,19 +573,13 @@ def _check_reconstruct_options(args) -> None:
 
 
 def _grid_points(args, shape: tuple[int, int]) -> tuple[np.ndarray, dict]:
-    from strain2d import default_roi, make_grid, parse_grid, parse_roi
+    from strain2d import make_grid, parse_grid, parse_roi
 
     text = args.grid or _DEFAULT_GRID
     cols, rows = parse_grid(text)
     roi = parse_roi(args.roi) if args.roi else None
     if roi is not None and not all(math.isfinite(v) for v in roi):
         raise InputError(f"--roi must be four finite numbers X0,Y0,X1,Y1, got {args.roi!r}")
-    x0, y0, x1, y1 = roi or default_roi(shape)
-    if x1 > x0 and y1 > y0 and (cols - 1 > x1 - x0 or rows - 1 > y1 - y0):
-        raise InputError(
-            f"--grid {text} puts points less than a pixel apart in the region "
-            f"{x0:g},{y0:g},{x1:g},{y1:g}; choose fewer points"
-        )
     points = make_grid(shape, shape=(cols, rows), roi=roi)
     return points, {"grid": [cols, rows], "roi": list(roi) if roi else None}
 
@@ -707,6 +726,11 @@ def _cmd_reconstruct(args) -> int:
         point_info = {"source": Path(args.points).name}
     else:
         points, point_info = _grid_points(args, left.shape)
+    from strain2d import check_tracks_fit
+
+    check_tracks_fit(
+        len(points), len(left), views=2, remedy="use fewer points (--grid, --points) or frames"
+    )
     directions = args.directions or "xy"
     rec = reconstruct(
         left,

@@ -120,6 +120,7 @@ def reconstruct(
     -------
     Reconstruction
     """
+    from stereo.calibration import check_baseline_ratio
     from stereo.camera import triangulate
     from stereo.match import match_views
     from strain2d import track
@@ -146,6 +147,14 @@ def reconstruct(
             "view; check the calibration and that both views see the grid"
         )
     matched = np.flatnonzero(matches.visible)
+    # a baseline that is a sliver of the distance measures no depth: refused before tracking
+    X0, _ = triangulate(points[matched], matches.right[matched], calib)
+    distance = np.linalg.norm(X0, axis=1)
+    distance = distance[np.isfinite(distance)]
+    if distance.size:
+        check_baseline_ratio(
+            calib.baseline, float(np.median(distance)), unit=calib.unit, what="the surface"
+        )
 
     def progress_of(view: str):
         def report(done: int, total: int | None) -> None:

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from stereo.calibration import POOR_RMS_PX
 from tissue_core.html import HtmlReport
 
 __all__ = [
@@ -40,8 +41,8 @@ __all__ = [
     "write_report",
 ]
 
-#: a calibration's RMS reprojection error above this (px) is flagged
-CALIBRATION_RMS_PX = 0.5
+#: a calibration's RMS reprojection error above this (px) is flagged (as stereo calibrate does)
+CALIBRATION_RMS_PX = POOR_RMS_PX
 #: a frame whose median tracking quality (ZNCC for dic) falls below this is flagged
 LOW_TRACKING_QUALITY = 0.9
 #: triangles with a smaller radius ratio 2 r_in / r_circ (1: equilateral) are flagged

@@ -43,6 +43,7 @@ from tissue_core.batch import (
 )
 from tissue_core.csvtext import csv_writer
 from tissue_core.errors import InputError
+from tissue_core.outputs import remove_stale_scratch
 
 __all__ = ["analyze_jobs", "study_job", "write_study_manifest"]
 
@@ -80,6 +81,7 @@ def write_study_manifest(
         if job.name in done:
             writer.writerow([Path(job.out).relative_to(path.parent).as_posix(), job.name,
                              row.get("group", "")])  # fmt: skip
+    remove_stale_scratch(path)  # left by a batch killed while it wrote the manifest
     what = update_batch_file(path, buffer.getvalue(), overwrite=overwrite)
     if what == "kept":
         unlisted = _not_listed(path, [job for job in jobs if job.name in done])
@@ -122,6 +124,7 @@ def run_study(job: Job, changed: bool, run=run_job):
     ``run(job, overwrite, remake)`` makes it: here by default, on the batch's workers
     when :func:`tissue_core.batch.run_batch` passes its own (``then``).
     """
+    remove_stale_scratch(job.out)  # left by a killed batch: its earlier study put back
     state = job_state(job)
     if state == "complete" and not changed:
         return None

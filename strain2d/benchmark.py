@@ -28,7 +28,13 @@ from strain2d.pipeline import strain_from_tracks, track
 from strain2d.trackers import available_trackers
 from strain2d.tracks import Tracks
 
-__all__ = ["PAPER_TABLE1", "benchmark_markdown", "error_stats", "run_benchmark"]
+__all__ = [
+    "PAPER_TABLE1",
+    "benchmark_markdown",
+    "check_benchmark_grid",
+    "error_stats",
+    "run_benchmark",
+]
 
 #: CoTracker3 results from the paper's Table 1: track (RMSE, SD) px; E (RMSE, SD) per component.
 PAPER_TABLE1 = {
@@ -78,6 +84,24 @@ def error_stats(errors: np.ndarray) -> dict[str, float]:
     return {"rmse": float(np.sqrt(np.mean(e**2))), "sd": float(np.std(e)), "n": int(e.size)}
 
 
+def _size(quick: bool) -> tuple[int, int]:
+    """The benchmark's frame size and frame count."""
+    return (400, 11) if quick else (800, 31)
+
+
+def check_benchmark_grid(
+    grid: tuple[int, int], *, quick: bool = False, cases: Sequence[str] | None = None
+) -> None:
+    """Refuse a grid too dense for a case's region (:func:`strain2d.grid.check_grid_spacing`)."""
+    from sample_data_synth import CASES
+    from strain2d.grid import check_grid_spacing
+
+    size, _ = _size(quick)
+    for case in list(CASES) if cases is None else cases:
+        x0, y0, x1, y1 = (f * (size - 1) for f in CASES[case].roi)
+        check_grid_spacing(grid, (x1 - x0, y1 - y0))
+
+
 def run_benchmark(
     *,
     quick: bool = False,
@@ -109,10 +133,11 @@ def run_benchmark(
     from sample_data_synth import CASES, make_case
 
     cases = list(CASES) if cases is None else list(cases)
+    check_benchmark_grid(grid, quick=quick, cases=cases)
     registry = available_trackers()
     if trackers is None:
         trackers = [n for n, spec in registry.items() if spec.needs_frames and not spec.needs_model]
-    size, n_frames = (400, 11) if quick else (800, 31)
+    size, n_frames = _size(quick)
     rows = []
     for case in cases:
         if progress:
@@ -282,7 +307,7 @@ def run_sweep(
     registry = available_trackers()
     if trackers is None:
         trackers = [n for n, spec in registry.items() if spec.needs_frames and not spec.needs_model]
-    size, n_frames = (400, 11) if quick else (800, 31)
+    size, n_frames = _size(quick)
     last = n_frames - 1
     rows = []
     for case in cases:

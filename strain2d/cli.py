@@ -523,6 +523,7 @@ def _cmd_benchmark(args) -> int:
     from strain2d.benchmark import (
         SWEEPS,
         benchmark_markdown,
+        check_benchmark_grid,
         run_benchmark,
         run_sweep,
         sweep_markdown,
@@ -551,6 +552,7 @@ def _cmd_benchmark(args) -> int:
     from strain2d.grid import parse_grid
 
     grid = parse_grid(args.grid)
+    check_benchmark_grid(grid, quick=args.quick, cases=cases)
     sweeps = [k.strip() for k in args.sweep.split(",")] if args.sweep else []
     for kind in sweeps:
         if kind not in SWEEPS:

@@ -11,9 +11,6 @@ from __future__ import annotations
 import logging
 import os
 import re
-import sys
-import tempfile
-import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -28,10 +25,6 @@ VIDEO_SUFFIXES = frozenset(
 )
 TIFF_SUFFIXES = frozenset({".tif", ".tiff"})
 IMAGE_SUFFIXES = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".jp2", ".webp"})
-
-
-#: one thread at a time points the process's stderr elsewhere
-_STDERR_LOCK = threading.Lock()
 
 
 def _video_capture(path: Path):
@@ -53,24 +46,13 @@ def _video_capture(path: Path):
     import cv2
 
     from tissue_core.filenames import utf8_alias
+    from tissue_core.images import caught_stderr
 
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-    with _STDERR_LOCK, tempfile.TemporaryFile() as caught, utf8_alias(path) as name:
-        try:
-            sys.stderr.flush()
-            saved = os.dup(2)
-        except (OSError, ValueError, AttributeError):  # no stderr to keep quiet
-            return cv2.VideoCapture(str(name))
-        try:
-            os.dup2(caught.fileno(), 2)
-            cap = cv2.VideoCapture(str(name))
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-        caught.seek(0)
-        said = caught.read().decode("utf-8", "replace").strip()
-    if said:
-        logging.getLogger(__name__).info("OpenCV on opening %s: %s", path, said)
+    with utf8_alias(path) as name, caught_stderr() as said:
+        cap = cv2.VideoCapture(str(name))
+    if said[0]:
+        logging.getLogger(__name__).info("OpenCV on opening %s: %s", path, said[0])
     return cap
 
 
@@ -119,6 +101,27 @@ def _data_range(frame: np.ndarray, dtype: np.dtype | None) -> tuple[float, float
         info = np.iinfo(dtype)
         lo, hi = max(lo, float(info.min)), min(hi, float(info.max))
     return lo, hi
+
+
+def _check_finite(frame: np.ndarray, where: Path, index: int) -> None:
+    """Refuse a frame with infinite or NaN pixels (float TIFFs can hold them).
+
+    The trackers' gray-level models and their 8-bit conversion (see
+    :attr:`FrameSource.value_range`) have no value for them: one such pixel,
+    far from every point, can make all the points of its frame lost.
+    """
+    if np.isfinite(np.add.reduce(frame, axis=None, dtype=np.float64)):
+        return  # the sum of float32 values in float64 is finite exactly when every value is
+    nan = np.isnan(frame)
+    inf = np.isinf(frame)
+    n_nan, n_inf = int(nan.sum()), int(inf.sum())
+    what = " and ".join(f"{n} {kind}" for n, kind in ((n_inf, "infinite"), (n_nan, "NaN")) if n)
+    y, x = np.argwhere(nan | inf)[0]
+    raise SourceError(
+        f"{where}: frame {index} holds {what} pixel value{'s' if n_nan + n_inf > 1 else ''} "
+        f"(the first at x={x}, y={y}); the trackers need finite gray values: replace them "
+        "(e.g. by their neighbours' values) or leave the frame out (--start, --stop)"
+    )
 
 
 class FrameSource:
@@ -223,13 +226,19 @@ class FrameSource:
         if self.kind == "tiff":
             import tifffile
 
+            from tissue_core.tiff_files import check_complete, tifffile_messages
+
             try:
-                with tifffile.TiffFile(self._paths[0]) as tif:
+                with tifffile_messages() as messages, tifffile.TiffFile(self._paths[0]) as tif:
                     n = len(tif.pages)
                     series = tif.series[0]
+                    # a file cut short reads as fewer frames: refused as truncated instead
+                    check_complete(tif, series, str(self._paths[0]), messages)
                     axes = dict(zip(series.axes, series.shape, strict=True))
                     self._dtype = np.dtype(tif.pages[0].dtype)
                     self._raw_range = _dtype_range(self._dtype)
+            except SourceError:
+                raise
             except Exception as exc:  # tifffile raises many types on corrupt files
                 raise SourceError(f"cannot read TIFF {self._paths[0]}: {exc}") from None
             if axes.get("C", 1) > 1:
@@ -283,7 +292,9 @@ class FrameSource:
         elif self.kind == "tiff":
             import tifffile
 
-            with tifffile.TiffFile(self._paths[0]) as tif:
+            from tissue_core.tiff_files import tifffile_messages
+
+            with tifffile_messages(), tifffile.TiffFile(self._paths[0]) as tif:
                 for i in wanted:
                     try:
                         page = tif.pages[i].asarray()
@@ -301,12 +312,13 @@ class FrameSource:
     def __iter__(self) -> Iterator[np.ndarray]:
         shape = getattr(self, "shape", None)
         for k, frame in enumerate(self._iter_raw()):
+            where = self._paths[self._indices[k]] if self.kind == "images" else self._paths[0]
             if shape is not None and frame.shape != shape:
-                where = self._paths[self._indices[k]] if self.kind == "images" else self._paths[0]
                 raise SourceError(
                     f"{where}: frame {k} has size {frame.shape[1]}x{frame.shape[0]}, "
                     f"the reference frame {shape[1]}x{shape[0]}"
                 )
+            _check_finite(frame, where, self._indices[k])
             yield frame
 
     def __len__(self) -> int:

@@ -15,6 +15,8 @@ import numpy as np
 from strain2d.errors import InputError
 
 __all__ = [
+    "MIN_GRID_SPACING_PX",
+    "check_grid_spacing",
     "default_roi",
     "make_grid",
     "parse_grid",
@@ -22,6 +24,12 @@ __all__ = [
     "read_points_csv",
     "validate_points",
 ]
+
+
+#: the least distance between neighbouring grid points, px: points closer than this measure
+#: the same pixels (every tracker's subset or window is many pixels wide) and only multiply
+#: the work and the memory
+MIN_GRID_SPACING_PX = 2.0
 
 
 def parse_grid(text: str) -> tuple[int, int]:
@@ -51,6 +59,52 @@ def default_roi(image_shape: tuple[int, int], margin: float = 0.15) -> tuple[flo
     return (margin * (w - 1), margin * (h - 1), (1 - margin) * (w - 1), (1 - margin) * (h - 1))
 
 
+def check_grid_spacing(
+    shape: tuple[int, int], region: tuple[float, float], *, option: str = "--grid"
+) -> None:
+    """Refuse a grid whose points would be closer than :data:`MIN_GRID_SPACING_PX`.
+
+    Parameters
+    ----------
+    shape : (n_cols, n_rows)
+        Points along x and along y (at least 2 each).
+    region : (width, height)
+        The extent the grid spans, px (the ROI's ``x1 - x0`` and ``y1 - y0``).
+    option : str, keyword-only
+        The option that asks for the grid, for the message.
+
+    Raises
+    ------
+    InputError
+        Naming the grid, the spacing it asks for and the densest grid that
+        fits the region.
+
+    Examples
+    --------
+    >>> check_grid_spacing((70, 70), (138.0, 138.0))
+    >>> check_grid_spacing((500, 500), (139.3, 139.3))  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    tissue_core.errors.InputError: --grid 500x500 puts points 0.279 px apart ... at most 70x70 ...
+    """
+    n_cols, n_rows = shape
+    width, height = region
+    spacing = min(width / (n_cols - 1), height / (n_rows - 1))
+    if spacing >= MIN_GRID_SPACING_PX:
+        return
+    most = (int(width // MIN_GRID_SPACING_PX) + 1, int(height // MIN_GRID_SPACING_PX) + 1)
+    fits = (
+        f"at most {most[0]}x{most[1]} fit this region"
+        if min(most) >= 2
+        else f"this region is too small for a grid (under {MIN_GRID_SPACING_PX:g} px)"
+    )
+    raise InputError(
+        f"{option} {n_cols}x{n_rows} puts points {spacing:.3g} px apart in the "
+        f"{width:g}x{height:g} px region; points closer than {MIN_GRID_SPACING_PX:g} px "
+        f"measure the same pixels and only multiply the work: {fits}"
+    )
+
+
 def make_grid(
     image_shape: tuple[int, int],
     *,
@@ -76,7 +130,8 @@ def make_grid(
     Raises
     ------
     InputError
-        If the ROI is empty or extends outside the image.
+        If the ROI is empty or extends outside the image, or the points
+        would be closer than :data:`MIN_GRID_SPACING_PX`.
 
     Examples
     --------
@@ -95,6 +150,7 @@ def make_grid(
             f"--roi {x0:g},{y0:g},{x1:g},{y1:g} lies outside the {w}x{h} px image "
             f"(x in 0..{w - 1}, y in 0..{h - 1})"
         )
+    check_grid_spacing((n_cols, n_rows), (x1 - x0, y1 - y0))
     xs = np.linspace(x0, x1, n_cols)
     ys = np.linspace(y0, y1, n_rows)
     gx, gy = np.meshgrid(xs, ys)
@@ -139,28 +195,41 @@ def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = No
 def read_points_csv(path: str | os.PathLike) -> np.ndarray:
     """Read points from a CSV file with a header holding columns ``x`` and ``y``.
 
-    A byte-order mark (as spreadsheet programs write) is accepted.
+    A byte-order mark (as spreadsheet programs write) is accepted.  Every row
+    must have as many cells as the header (a decimal comma, ``10,5`` for
+    10.5, makes one too many) and numbers for ``x`` and ``y``; errors name the
+    file and the line.
 
     Returns
     -------
     points : (N, 2) float
     """
+    from tissue_core.tables import cell_count_error
+
+    line = 1
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.DictReader(f)
-            fields = [c.strip().lower() for c in (reader.fieldnames or [])]
+            reader = csv.reader(f)
+            fields = [c.strip().lower() for c in next(reader, [])]
             if "x" not in fields or "y" not in fields:
                 raise InputError(f"{path} needs a header with columns x,y (found {fields})")
-            reader.fieldnames = fields
-            rows = [(float(r["x"]), float(r["y"])) for r in reader]
+            ix, iy = fields.index("x"), fields.index("y")
+            rows = []
+            for cells in reader:
+                line = reader.line_num
+                if not cells:
+                    continue  # a blank line
+                if len(cells) != len(fields):
+                    raise cell_count_error(path, line, len(cells), len(fields), ",".join(cells))
+                rows.append((float(cells[ix]), float(cells[iy])))
     except FileNotFoundError:
         raise InputError(f"no such points file: {path}") from None
     except IsADirectoryError:
         raise InputError(f"{path} is a folder, not a points CSV file") from None
     except UnicodeDecodeError:
         raise InputError(f"{path} is not a text CSV file") from None
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, csv.Error) as exc:
         if isinstance(exc, InputError):
             raise
-        raise InputError(f"{path}: x and y must be numbers ({exc})") from None
+        raise InputError(f"{path}, line {line}: x and y must be numbers ({exc})") from None
     return np.array(rows, dtype=float).reshape(-1, 2)

@@ -14,7 +14,19 @@ from strain2d.trackers import get_tracker
 from strain2d.tracks import Tracks
 from surface_strain import Mesh, StrainField, choose_mesh, compute_strain, streamed_strain
 
-__all__ = ["Analysis", "analysis_of", "analyze", "strain_from_tracks", "track"]
+__all__ = [
+    "TRACK_BYTES",
+    "Analysis",
+    "analysis_of",
+    "analyze",
+    "check_tracks_fit",
+    "strain_from_tracks",
+    "track",
+]
+
+#: bytes a tracked point takes per frame in the tracks a tracker returns: its position (two
+#: float64), visibility (bool), quality and uncertainty (float64 each)
+TRACK_BYTES = 2 * 8 + 1 + 8 + 8
 
 
 @dataclass(frozen=True, repr=False)
@@ -54,6 +66,40 @@ class Analysis:
         )
 
 
+def check_tracks_fit(
+    n_points: int,
+    n_frames: int,
+    *,
+    views: int = 1,
+    remedy: str = "use fewer points (--grid, --points) or frames (--stop, --step)",
+) -> None:
+    """Refuse, before any work, tracks that cannot fit the memory available.
+
+    Parameters
+    ----------
+    n_points, n_frames : int
+        The points tracked and the frames they are tracked over.
+    views : int, keyword-only
+        Tracks of this many views held together (stereo: 2).
+    remedy : str, keyword-only
+        What to do instead, the end of the message.
+
+    Raises
+    ------
+    InputError
+        Naming the points, the frames, the memory they need and the memory
+        available (see :func:`tissue_core.resources.check_fits`).
+    """
+    from tissue_core.resources import check_fits
+
+    where = f" in each of {views} views" if views > 1 else ""
+    check_fits(
+        f"tracking {n_points} points over {n_frames} frames{where}",
+        memory=float(views) * n_points * n_frames * TRACK_BYTES,
+        remedy=remedy,
+    )
+
+
 def track(
     frames: Iterable[np.ndarray] | None,
     points: np.ndarray | None,
@@ -74,12 +120,20 @@ def track(
     options : dict, keyword-only
         Tracker options (see each tracker's docstring).
     progress : callable(done, total), keyword-only
+
+    Raises
+    ------
+    InputError
+        Bad points or options, or tracks that cannot fit the memory
+        (:func:`check_tracks_fit`), before any frame is tracked.
     """
     spec = get_tracker(tracker)
     options = dict(options or {})
     if points is not None:
         shape = getattr(frames, "shape", None)
         points = validate_points(points, None if shape is None else tuple(shape[-2:]))
+        if hasattr(frames, "__len__"):
+            check_tracks_fit(len(points), len(frames))
     if spec.needs_frames and frames is None:
         raise InputError(f"the {tracker} tracker needs frames")
     try:

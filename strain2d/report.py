@@ -16,7 +16,7 @@ import math
 import os
 import tempfile
 import uuid
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -180,11 +180,43 @@ class _FigureLog:
         self.items.append({"files": files, "caption": caption})
 
 
-def _capture(frames: Iterable[np.ndarray], wanted: set[int], store: dict) -> Iterable[np.ndarray]:
+def _capture(
+    frames: Iterable[np.ndarray],
+    wanted: set[int],
+    seen: Callable[[int, np.ndarray], None],
+    tick: Callable[[], None],
+) -> Iterable[np.ndarray]:
+    """The frames, passing those in ``wanted`` to ``seen(k, image)`` and calling ``tick()``
+    on the way."""
     for k, image in enumerate(frames):
         if k in wanted:
-            store[k] = np.asarray(image)
+            seen(k, np.array(image))
+        tick()
         yield image
+
+
+def _saved(make: Callable, path: Path, formats: Sequence[str], *args, **kwargs) -> list[Path]:
+    """``make(*args, **kwargs)``'s figure, saved (a task for a worker process)."""
+    from strain2d.figures import save_figure
+
+    return save_figure(make(*args, **kwargs), path, formats)
+
+
+def _tests_and_violins(
+    path: Path, formats: Sequence[str], a: str, b: str, nodal: dict, positions, n_boot: int,
+    frame: int, title: str,
+) -> tuple[dict, list[Path]]:  # fmt: skip
+    """The node-level paired tests of ``a`` against ``b`` and the violins that show them."""
+    from strain2d.figures import plot_strain_violins, save_figure
+
+    try:
+        tests = paired_node_tests(nodal[a], nodal[b], positions=positions, n_boot=n_boot)
+        tests["label"] = "node-level paired t-test"
+    except InputError as exc:  # too few nodes with values on that frame
+        tests = {"error": f"frame {frame}: {exc}"}
+    values = {c: v[np.isfinite(v)] for c, v in nodal.items()}
+    fig = plot_strain_violins(values, title=title, tests=None if "error" in tests else tests)
+    return tests, save_figure(fig, path, formats)
 
 
 def run_outputs(
@@ -206,6 +238,10 @@ def run_outputs(
     n_boot: int = 2000,
     progress: Callable[[int, int | None], None] | None = None,
     length=None,
+    images: Mapping[int, np.ndarray] | None = None,
+    pool=None,
+    meanwhile: Callable[[], None] | None = None,
+    runtime_s: dict | None = None,
 ) -> dict:
     """Write a run's figures and ``statistics.json`` into ``folder``; return summary entries.
 
@@ -215,7 +251,7 @@ def run_outputs(
         The run folder (``figures/`` is created in it).
     frames : callable
         Returns a fresh iterable over the video's frames (``(H, W)`` gray),
-        one per field frame; called once.
+        one per field frame; called once at most.
     times : (T,) float
         Frame times in ``time_unit`` (``"s"`` or ``"frame"``).
     endpoint : int, optional
@@ -228,6 +264,18 @@ def run_outputs(
         Every figure is written in each format (animations excepted).
     length : PixelScale, optional
         The pixel size (``--scale``): image axes in its unit.
+    images : dict, optional
+        ``{frame: (H, W) image}`` already read (the first and the last, say):
+        their figures need not wait for the video to be read to them.
+    pool : strain2d.figures._pool.FigurePool, optional
+        Where the figures are drawn (worker processes) while this function
+        writes the animation; default here, one after the other.
+    meanwhile : callable, optional
+        Called once the figures that need no frame of the video are on their
+        way, before the animation (:func:`strain2d.write_run` writes the
+        tables then).
+    runtime_s : dict, optional
+        Filled with the seconds the animation took (``animation``).
 
     Returns
     -------
@@ -235,7 +283,10 @@ def run_outputs(
         ``contraction_endpoint``, ``statistics`` and ``figures`` (a list of
         {``files``, ``caption``}) for ``summary.json``.
     """
+    import time
+
     from strain2d import figures as fg
+    from strain2d.figures._pool import FigurePool
 
     folder = Path(folder)
     T = field.n_frames
@@ -244,6 +295,7 @@ def run_outputs(
     bad = [k for k in map_frames if not 0 <= k < T]
     if bad:
         raise InputError(f"--maps-at frame {bad[0]} is outside the frames 0..{T - 1}")
+    pool = FigurePool(0) if pool is None else pool
     ep = endpoint_of(
         field,
         times=times,
@@ -260,17 +312,103 @@ def run_outputs(
         return f"frame {k}" + (f" (t = {times[k]:.3g} s)" if unit == "s" else "")
 
     log = _FigureLog(folder)
-    figdir, record, written = log.dir, log.add, log.items
-
-    # one pass over the video: the animation, and the images under the contour maps
-    images: dict[int, np.ndarray] = {}
-    wanted = set(maps)
+    figdir, record = log.dir, log.add
     limits = fg.strain_limits(field, components, cover=maps)  # no node of a map saturates
+    quality = fg.run_quality(tracks, field)
+    unc = quality["uncertainty_median_px"]
+    sigma = None if unc is None else unc[k_end]  # the median over the endpoint's points
+    noise = fg.principal_noise_floor(field, sigma, frame=k_end) if sigma is not None else 0.0
+    noise = noise if np.isfinite(noise) else 0.0
+
+    # the figures that need no frame of the video go to the pool first
+    node = nodal_scalars(field)
+    a, b = "Exx", "Eyy"
+    at_end = {c: np.asarray(node[c][k_end]) for c in (a, b, "Exy")}
+    tests = pool.submit(
+        _tests_and_violins,
+        figdir / f"violins_frame{k_end:04d}",
+        formats,
+        a,
+        b,
+        at_end,
+        np.asarray(field.points[k_end]),
+        n_boot,
+        k_end,
+        f"nodal strain at {when(k_end)}: {end_name}",
+    )
+    curves = pool.submit(
+        _saved,
+        fg.plot_strain_curves,
+        figdir / "strain_curves",
+        formats,
+        field,
+        times=times,
+        time_unit=unit,
+        components=components,
+        endpoint=k_end,
+        curves=fg.mean_strain_curves(field, components),
+    )
+    tracking = pool.submit(
+        _saved,
+        fg.plot_run_quality,
+        figdir / "tracking_quality",
+        formats,
+        quality,
+        times,
+        time_unit=unit,
+        tracker=str(tracks.meta.get("tracker", "")),
+        length=length,
+    )
+
+    # the figures on a frame of the video, as soon as the frame is at hand
+    drawn: dict[int, object] = {}
+    crosses = None
+
+    def draw_on(k: int, image: np.ndarray) -> None:
+        nonlocal crosses
+        if k in drawn:
+            return
+        what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
+        drawn[k] = pool.submit(
+            _saved,
+            fg.strain_maps_figure,
+            figdir / f"strain_frame{k:04d}",
+            formats,
+            image,
+            field,
+            k,
+            components=components,
+            limits=limits,
+            title=f"{when(k)}: {what}" if what else when(k),
+            length=length,
+        )
+        if k == k_end:
+            crosses = pool.submit(
+                _saved,
+                fg.plot_principal_crosses,
+                figdir / f"principal_directions_frame{k_end:04d}",
+                formats,
+                image,
+                field,
+                k_end,
+                noise=noise,
+                length=length,
+                title=f"principal strains at {when(k_end)}\n{end_name}",
+            )
+
+    for k, image in (images or {}).items():
+        if k in maps:
+            draw_on(k, np.asarray(image))
+    if meanwhile is not None:
+        meanwhile()
+    # one pass over the video: the animation, and the frames under the maps not yet at hand
+    wanted = set(maps) - set(drawn)
     if animation != "none":
+        started = time.perf_counter()
         path = figdir / f"strain_animation.{animation}"
         fg.write_strain_animation(
             path,
-            _capture(frames(), wanted, images),
+            _capture(frames(), wanted, draw_on, pool.poll),
             field,
             components=tuple(c for c in components if c != "Exy")[:2] or tuple(components[:1]),
             limits=limits,
@@ -280,44 +418,24 @@ def run_outputs(
             length=length,
         )
         record([path], f"Strain field over time on the video ({animation.upper()}).")
-    else:
-        for _ in _capture(frames(), wanted, images):
-            pass
-    missing = wanted - set(images)
+        if runtime_s is not None:
+            runtime_s["animation"] = time.perf_counter() - started
+    elif wanted:
+        for k, _ in enumerate(_capture(frames(), wanted, draw_on, pool.poll)):
+            if k >= max(wanted):
+                break
+    missing = set(maps) - set(drawn)
     if missing:
         raise InputError(f"the video ended before frame {min(missing)}")
 
     for k in maps:
         what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
-        fig = fg.strain_maps_figure(
-            images[k],
-            field,
-            k,
-            components=components,
-            limits=limits,
-            title=f"{when(k)}: {what}" if what else when(k),
-            length=length,
-        )
-        paths = fg.save_figure(fig, figdir / f"strain_frame{k:04d}", formats)
         record(
-            paths,
+            drawn[k].result(),
             f"Nodal strain on the deformed grid at {when(k)}"
             + (f", the {what}" if what else "")
             + "; the colour scale is the same at every frame.",
         )
-    quality = fg.run_quality(tracks, field)
-    unc = quality["uncertainty_median_px"]
-    sigma = None if unc is None else unc[k_end]  # the median over the endpoint's points
-    noise = fg.principal_noise_floor(field, sigma, frame=k_end) if sigma is not None else 0.0
-    noise = noise if np.isfinite(noise) else 0.0
-    fig = fg.plot_principal_crosses(
-        images[k_end],
-        field,
-        k_end,
-        noise=noise,
-        length=length,
-        title=f"principal strains at {when(k_end)}\n{end_name}",
-    )
     if sigma is None:
         noise_text = (
             "The tracker does not measure its uncertainty, so crosses are drawn wherever "
@@ -331,49 +449,28 @@ def run_outputs(
             "principal strain."
         )
     record(
-        fg.save_figure(fig, figdir / f"principal_directions_frame{k_end:04d}", formats),
+        crosses.result(),
         f"Principal strain directions at {when(k_end)}, the {end_name}: arm lengths "
         f"proportional to |E1| and |E2|, red = stretch, blue = shortening. {noise_text}",
     )
-    fig = fg.plot_strain_curves(
-        field, times=times, time_unit=unit, components=components, endpoint=k_end
-    )
     record(
-        fg.save_figure(fig, figdir / "strain_curves", formats),
+        curves.result(),
         "Mean nodal strain over time with a band of +/- one spatial SD over the nodes.",
     )
-
-    node = nodal_scalars(field)
-    a, b = "Exx", "Eyy"
-    try:
-        tests = paired_node_tests(
-            node[a][k_end], node[b][k_end], positions=field.points[k_end], n_boot=n_boot
-        )
-        tests["label"] = "node-level paired t-test"
-    except InputError as exc:  # too few nodes with values on that frame
-        tests = {"error": f"frame {k_end}: {exc}"}
-    values = {c: node[c][k_end][np.isfinite(node[c][k_end])] for c in (a, b, "Exy")}
-    fig = fg.plot_strain_violins(
-        values,
-        title=f"nodal strain at {when(k_end)}: {end_name}",
-        tests=None if "error" in tests else tests,
-    )
+    tests, paths = tests.result()
     record(
-        fg.save_figure(fig, figdir / f"violins_frame{k_end:04d}", formats),
+        paths,
         f"Distribution of the nodal strains at the {end_name}, with the node-level "
         f"paired tests of {a} against {b} (descriptive: nodes of one specimen are not "
         "independent).",
     )
-
-    fig = fg.plot_run_quality(
-        quality, times, time_unit=unit, tracker=str(tracks.meta.get("tracker", "")), length=length
-    )
     record(
-        fg.save_figure(fig, figdir / "tracking_quality", formats),
+        tracking.result(),
         "Quality of the measurement over time: the points still tracked and the mesh area "
         "with a valid strain (top); the tracker's own quality over the tracked points, median "
         "and 5th percentile, and its measured uncertainty where it has one (bottom).",
     )
+    values = {c: v[np.isfinite(v)] for c, v in at_end.items()}
     quality_summary = _quality_summary(quality, sigma, noise, unit)
     flags = _run_flags(quality_summary, ep, field, values, noise)
 
@@ -403,7 +500,7 @@ def run_outputs(
     return {
         "contraction_endpoint": ep,
         "statistics": statistics,
-        "figures": written,
+        "figures": log.items,
         "quality": quality_summary,
         "flags": flags,
     }

@@ -128,7 +128,9 @@ def _read_nodes(file: Path):
     if not file.is_file():
         raise InputError(f"{file.parent}: strain_nodes.csv is missing")
     # 2D is the planar case of one schema: x, y (and u, v) without z
-    table = read_long_table(file, required=("x", "y", "visible", *COMPONENTS), optional=("z",))
+    table = read_long_table(
+        file, required=("x", "y", "visible", *COMPONENTS), optional=("z",), flags=("visible",)
+    )
     return table, ("x", "y", "z") if "z" in table else ("x", "y")
 
 
@@ -386,6 +388,7 @@ def write_run(
     progress=None,
     runtime_s: dict | None = None,
     scale=None,
+    workers: int | None = None,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -430,12 +433,20 @@ def write_run(
         Timings to record (the command line passes tracking and strain).  The
         time a streamed field (:func:`surface_strain.streamed_strain`) spends
         computing its frames while the outputs are written is added to
-        ``strain``; ``figures`` is the rest of the writing.
+        ``strain``.  Then, in seconds of the clock: ``tables`` (the tables
+        and the ParaView series) and ``animation``, as written here;
+        ``figures``, from the start of the writing until the last figure was
+        drawn (by worker processes, meanwhile); ``report`` (``summary.json``
+        and ``report.html``); ``outputs``, the whole writing less the strain.
     scale : PixelScale or str, keyword-only
         The pixel size (``"0.012mm/px"``, see :mod:`strain2d.scale`): the
         tables gain positions and displacements in its unit (``x_mm``...),
         the figures' axes and the ParaView files are in it, and
         ``summary.json`` records it.  Strain does not depend on it.
+    workers : int, keyword-only
+        Processes that draw the figures meanwhile: default one per core this
+        process may use (none with one core, or in a daemonic process such as
+        a Dask worker's); 0 draws them here.  The files are the same.
 
     Returns
     -------
@@ -461,6 +472,7 @@ def write_run(
 
     from strain2d.export import write_pvd, write_strain_elements_csv, write_strain_nodes_csv
     from strain2d.figures import plot_tracked_grid
+    from strain2d.figures._pool import FigurePool
     from strain2d.report import run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
     from surface_strain import RUN_SCHEMA, Mesh
@@ -504,17 +516,18 @@ def write_run(
         )
     mesh = analysis.mesh or Mesh(field.triangles, "given", "given")
     tracker = analysis.tracker or tracks.meta.get("tracker") or "unknown"
-    # the video's files are inputs too: no output may replace them
-    with atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp:
-        write_tracks_csv(tmp / "tracks.csv", tracks, **length)
-        write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty, **length)
-        write_strain_elements_csv(tmp / "strain_elements.csv", field)
-        write_pvd(
-            tmp, field, name="strain", times=times, time_unit="s" if fps else "frame", **length
-        )
+    spent: dict[str, float] = {}
+    # the video's files are inputs too: no output may replace them; the figures are drawn in
+    # worker processes (when there are cores for them) while the tables and the animation
+    # are written here
+    with (
+        atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp,
+        FigurePool(workers) as pool,
+    ):
         figs = tmp / "figures"
         figs.mkdir()
-        grid_files = plot_tracked_grid(
+        grid = pool.submit(
+            plot_tracked_grid,
             figs / "tracked_grid",
             first_img,
             last_img,
@@ -523,6 +536,17 @@ def write_run(
             formats=formats,
             length=scale,
         )
+
+        def tables() -> None:
+            started = time.perf_counter()
+            write_tracks_csv(tmp / "tracks.csv", tracks, **length)
+            write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty, **length)
+            write_strain_elements_csv(tmp / "strain_elements.csv", field)
+            write_pvd(
+                tmp, field, name="strain", times=times, time_unit="s" if fps else "frame", **length
+            )
+            spent["tables"] = time.perf_counter() - started
+
         extra = run_outputs(
             tmp,
             field,
@@ -538,15 +562,21 @@ def write_run(
             formats=formats,
             progress=progress,
             length=scale,
+            images={0: first_img, T - 1: last_img},
+            pool=pool,
+            meanwhile=tables,
+            runtime_s=spent,
         )
         extra["figures"].insert(
             0,
             {
-                "files": [f"figures/{p.name}" for p in grid_files],
+                "files": [f"figures/{p.name}" for p in grid.result()],
                 "caption": "The tracked grid and mesh on the reference and the last frame; "
                 "lost points are red crosses.",
             },
         )
+        spent["figures"] = time.perf_counter() - t_start
+        reporting = time.perf_counter()
         command = recorded_command.get()
         summary = {
             "schema": RUN_SCHEMA,
@@ -590,7 +620,13 @@ def write_run(
         times = dict(runtime_s or {})
         if strain_s:
             times["strain"] = times.get("strain", 0.0) + strain_s
-        summary["runtime_s"] = {**times, "figures": time.perf_counter() - t_start - strain_s}
+        summary["runtime_s"] = {**times, **spent}
         write_json(tmp / "summary.json", summary)
         write_run_report(tmp, summary)
+        ended = time.perf_counter()
+        summary["runtime_s"] |= {
+            "report": ended - reporting,
+            "outputs": ended - t_start - strain_s,
+        }
+        write_json(tmp / "summary.json", summary)
     return summary

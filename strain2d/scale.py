@@ -173,11 +173,16 @@ def scale_from_file(path) -> PixelScale:
         )
     import tifffile
 
+    from tissue_core.errors import SourceError
+    from tissue_core.tiff_files import check_complete, tifffile_messages
     from tissue_core.tiff_units import lateral_pixel_size_um
 
     try:
-        with tifffile.TiffFile(name) as tif:
+        with tifffile_messages() as messages, tifffile.TiffFile(name) as tif:
+            check_complete(tif, tif.series[0], name, messages)  # cut short: truncated, not unscaled
             found = lateral_pixel_size_um(tif)
+    except SourceError:
+        raise
     except Exception as exc:  # tifffile raises many types on damaged files
         raise InputError(f"{name}: cannot read its TIFF tags ({exc})") from None
     if isinstance(found, str):

@@ -106,24 +106,36 @@ def read_manifest(path: str | os.PathLike) -> list[dict]:
     ``study_manifest.csv``) is read as it was given
     (:func:`tissue_core.csvtext.restore_cell`).
     """
+    from tissue_core.tables import cell_count_error
+
     path = Path(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows = [(reader.line_num, row) for row in reader]
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
+    except IsADirectoryError:
+        raise InputError(f"manifest {path} is a folder; give the CSV file") from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
+    for i, row in rows:  # a row with more or fewer cells than the header
+        cells = [v for k, v in row.items() if k is not None and v is not None]
+        cells += row.get(None, [])
+        if len(cells) != len(reader.fieldnames) and any(c.strip() for c in cells):
+            raise cell_count_error(
+                f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
+            )
     # header names are matched without surrounding spaces and case
     rows = [
-        {(k or "").strip().lower(): restore_cell(v.strip()) if isinstance(v, str) else v
-         for k, v in row.items()}
-        for row in rows
+        (i, {(k or "").strip().lower(): restore_cell(v.strip()) if isinstance(v, str) else v
+             for k, v in row.items()})
+        for i, row in rows
     ]  # fmt: skip
-    if not rows or "run" not in rows[0]:
+    if not rows or "run" not in rows[0][1]:
         raise InputError(f"manifest {path} needs a header with a 'run' column and one row per run")
     entries = []
-    for i, row in enumerate(rows, start=2):
+    for i, row in rows:
         run = (row.get("run") or "").strip()
         if not run:
             raise InputError(f"manifest {path}, line {i}: the run column is empty")

@@ -66,13 +66,14 @@ def _read_csv(path: Path) -> Tracks:
     from tissue_core.tables import read_long_table
 
     table = read_long_table(
-        path, required=("x", "y"), optional=("visible", "quality", "uncertainty_px")
+        path,
+        required=("x", "y"),
+        optional=("visible", "quality", "uncertainty_px"),
+        flags=("visible",),
     )
     pos = np.stack([table["x"], table["y"]], axis=-1)
     flag = table["visible"] if "visible" in table else np.full(pos.shape[:2], np.nan)
-    if np.isinf(flag).any():
-        raise InputError(f"{path}: visible must be 0 or 1, got an infinite value")
-    vis = np.where(np.isnan(flag), True, np.trunc(flag) != 0)  # an empty flag: visible
+    vis = np.where(np.isnan(flag), True, flag == 1)  # an empty flag: visible
     qual = table["quality"] if "quality" in table else np.ones(pos.shape[:2])
     unc = None
     if "uncertainty_px" in table and np.isfinite(table["uncertainty_px"]).any():
@@ -118,6 +119,8 @@ def _read_npz(path: Path, data):
 def read_tracks(path: str | os.PathLike) -> Tracks:
     """Read tracks from ``.csv``, ``.npy`` or ``.npz`` (see the module docstring)."""
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a folder, not a tracks file (CSV, NPY or NPZ)")
     if not path.is_file():
         raise InputError(f"no such tracks file: {path}")
     suffix = path.suffix.lower()
@@ -145,6 +148,9 @@ def read_tracks(path: str | os.PathLike) -> Tracks:
                 raise InputError(
                     f"{path}: {name} must have shape {pos.shape[:2]}, got {np.shape(arr)}"
                 )
+        if vis is not None and not np.isin(vis, (0, 1)).all():
+            value = vis[~np.isin(vis, (0, 1))][0]
+            raise InputError(f"{path}: visible must hold 0 or 1 (or booleans), got {value:g}")
         finite = np.all(np.isfinite(pos), axis=-1)
         vis = finite if vis is None else np.asarray(vis, dtype=bool) & finite
         qual = np.ones(pos.shape[:2]) if qual is None else qual

@@ -177,11 +177,11 @@ def _directions(field: StrainField) -> dict:
 _DIMENSIONLESS = {*SCALARS, *_PLANAR_SCALARS} - {"theta1_deg"}
 
 
-def _name_units(mesh, length_unit: str, time_unit: str) -> None:
-    """Field data saying the unit of the points and of every point and cell array."""
+def _array_units(point_data: dict, cell_data: dict, length_unit: str) -> list[str]:
+    """``"point NAME: UNIT"`` for every point and cell array, in order."""
     units = []
-    for kind, data in (("point", mesh.point_data), ("cell", mesh.cell_data)):
-        for key in data.keys():
+    for kind, data in (("point", point_data), ("cell", cell_data)):
+        for key in data:
             if key == "displacement":
                 unit = length_unit
             elif key in _DIMENSIONLESS:
@@ -193,9 +193,60 @@ def _name_units(mesh, length_unit: str, time_unit: str) -> None:
             else:  # visible, valid
                 unit = "1 (flag)"
             units.append(f"{kind} {key}: {unit}")
-    mesh.field_data["length_unit"] = np.array([length_unit])
-    mesh.field_data["time_unit"] = np.array([time_unit])
-    mesh.field_data["array_units"] = np.array(units)
+    return units
+
+
+def _write_vtp(
+    path: Path, points: np.ndarray, polys, point_data: dict, cell_data: dict, field_data: dict
+) -> None:
+    """One VTK XML PolyData file: binary, zlib-compressed, the first array of each kind active.
+
+    ``polys`` is a ``vtkCellArray`` (shared by the frames of a series);
+    ``field_data`` maps names to lists of strings.
+    """
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
+    from vtkmodules.vtkCommonDataModel import vtkPolyData
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
+
+    mesh = vtkPolyData()
+    vtk_points = vtkPoints()
+    vtk_points.SetData(numpy_to_vtk(np.ascontiguousarray(points, np.float64), deep=True))
+    mesh.SetPoints(vtk_points)
+    mesh.SetPolys(polys)
+    for data, arrays in ((mesh.GetPointData(), point_data), (mesh.GetCellData(), cell_data)):
+        for name, values in arrays.items():
+            array = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
+            array.SetName(name)
+            data.AddArray(array)
+        if arrays:
+            data.SetActiveScalars(next(iter(arrays)))
+    for name, texts in field_data.items():
+        strings = vtkStringArray()
+        strings.SetName(name)
+        for text in texts:
+            strings.InsertNextValue(text)
+        mesh.GetFieldData().AddArray(strings)
+    writer = vtkXMLPolyDataWriter()
+    writer.SetInputData(mesh)
+    writer.SetDataModeToBinary()
+    writer.SetCompressorTypeToZLib()
+    with utf8_output(path) as target:  # VTK takes UTF-8 names only
+        writer.SetFileName(str(target))
+        if not writer.Write():
+            raise OSError(f"could not write {path}")
+
+
+def _triangle_cells(triangles: np.ndarray):
+    """The triangles as a ``vtkCellArray`` (64-bit offsets and connectivity)."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonDataModel import vtkCellArray
+
+    offsets = np.arange(0, 3 * len(triangles) + 1, 3, dtype=np.int64)
+    connectivity = np.ascontiguousarray(triangles, dtype=np.int64).ravel()
+    cells = vtkCellArray()
+    cells.SetData(numpy_to_vtk(offsets, deep=True), numpy_to_vtk(connectivity, deep=True))
+    return cells
 
 
 def write_pvd(
@@ -219,15 +270,13 @@ def write_pvd(
     -------
     Path of the ``.pvd`` file.
     """
-    import pyvista as pv
-
     _check_length(length_scale, length_unit)
     folder = Path(folder)
     sub = folder / name
     sub.mkdir(parents=True, exist_ok=True)
     T = field.n_frames
     times = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
-    faces = np.column_stack([np.full(field.n_triangles, 3), field.triangles]).ravel()
+    polys = _triangle_cells(field.triangles)
     factor = 1.0 if length_scale is None else float(length_scale)
     unit = length_unit or ("px" if field.points.shape[-1] == 2 else "input units")
     ref = _xyz(field.reference) * factor
@@ -240,25 +289,32 @@ def write_pvd(
         for i in range(block.n_frames):
             t = start + i
             cur = _xyz(block.points[i]) * factor
-            mesh = pv.PolyData(np.where(np.isfinite(cur), cur, ref), faces=faces)
-            mesh.point_data["displacement"] = np.nan_to_num(cur - ref)  # lost: 0, see "visible"
-            for key, values in node.items():
-                mesh.point_data[key] = values[i]
-            mesh.point_data["visible"] = block.visible[i].astype(np.uint8)
-            for key, values in elem.items():
-                mesh.cell_data[key] = values[i]
-            mesh.cell_data["valid"] = block.element_valid[i].astype(np.uint8)
-            for data, pd in ((mesh.point_data, dirs["node"]), (mesh.cell_data, dirs["element"])):
+            point_data = {"displacement": np.nan_to_num(cur - ref)}  # lost: 0, see "visible"
+            point_data |= {key: values[i] for key, values in node.items()}
+            point_data["visible"] = block.visible[i].astype(np.uint8)
+            cell_data = {key: values[i] for key, values in elem.items()}
+            cell_data["valid"] = block.element_valid[i].astype(np.uint8)
+            for data, pd in ((point_data, dirs["node"]), (cell_data, dirs["element"])):
                 # zero vectors where a direction is undefined: NaN vectors give VTK's XML
                 # readers unreadable ranges
                 data["principal_direction_1"] = np.nan_to_num(_xyz(pd.dir1_ref[i]))
                 data["principal_direction_2"] = np.nan_to_num(_xyz(pd.dir2_ref[i]))
                 data["principal_direction_1_current"] = np.nan_to_num(_xyz(pd.dir1_cur[i]))
                 data["principal_direction_2_current"] = np.nan_to_num(_xyz(pd.dir2_cur[i]))
-            _name_units(mesh, unit, time_unit)
+            units = {
+                "length_unit": [unit],
+                "time_unit": [time_unit],
+                "array_units": _array_units(point_data, cell_data, unit),
+            }
             fname = f"{name}_{t:04d}.vtp"
-            with utf8_output(sub / fname) as target:  # VTK takes UTF-8 names only
-                mesh.save(target, binary=True)
+            _write_vtp(
+                sub / fname,
+                np.where(np.isfinite(cur), cur, ref),
+                polys,
+                point_data,
+                cell_data,
+                units,
+            )
             entries.append(
                 f'    <DataSet timestep="{times[t]:.10g}" part="0" file="{name}/{fname}"/>'
             )

@@ -151,8 +151,19 @@ def parse_directions(text: str) -> dict:
     if kind not in ("vectors", "cylinder", "sphere") or len(parts) != 3:
         raise InputError(usage)
     a, b = _vector(parts[1], f"{kind} first vector"), _vector(parts[2], f"{kind} second vector")
+    # what no surface can fix is refused now, not after the tracking and meshing
     if kind == "vectors":
+        for which, v in (("first", a), ("second", b)):
+            if not np.linalg.norm(v) > 0:
+                raise InputError(f"--directions {text}: the {which} vector has zero length")
+        if np.linalg.norm(np.cross(a, b)) <= 1e-9 * np.linalg.norm(a) * np.linalg.norm(b):
+            raise InputError(
+                f"--directions {text}: the two vectors are parallel; give two directions "
+                "that span a plane"
+            )
         return {"directions": np.stack([a, b])}
+    if not np.linalg.norm(b) > 0:
+        raise InputError(f"--directions {text}: the axis A has zero length")
     return {"directions": "cylindrical" if kind == "cylinder" else "spherical", "axis": (a, b)}
 
 

@@ -56,6 +56,10 @@ class _Blocks:
         self._cache: OrderedDict[int, StrainField] = OrderedDict()
         self.seconds = 0.0  # spent computing blocks
 
+    def __getstate__(self) -> dict:
+        # a copy sent to another process computes the blocks it reads there: none are sent
+        return {**self.__dict__, "_cache": OrderedDict(), "seconds": 0.0}
+
     def block(self, b: int) -> StrainField:
         if b in self._cache:
             self._cache.move_to_end(b)

@@ -9,9 +9,12 @@ behind, and nothing of the user's removed.  Text a spreadsheet would run
 (the ``formula`` family: names starting with ``=``, ``+``, ``-``, ``@``) is
 not an error: :func:`assert_inert` checks that such a command succeeds and
 that every CSV it wrote holds the text inert.  :func:`interrupt` sends Ctrl-C
-to a real process at a chosen moment: exit 130 and one line, or (when the
-command had already finished) exit 0 and a complete result; never a
-traceback, never half a result.
+(or SIGTERM, SIGHUP) to a real process at a chosen moment: exit 130 (143,
+129) and one line, or (when the command had already finished) exit 0 and a
+complete result; never a traceback, never half a result, no process of its
+left running.  :func:`killed` ends a real process with SIGKILL while it
+writes, and :func:`stale_scratch` leaves what such a process leaves, for the
+next run to remove.
 
 ``scripts/bad_input_counts.py`` counts these cases per command for the
 README's reliability section; the tests are named
@@ -22,6 +25,7 @@ so that it can.
 from __future__ import annotations
 
 import csv
+import glob
 import os
 import re
 import signal
@@ -212,6 +216,91 @@ def assert_inert(
     return err
 
 
+def _start(argv: Sequence[object], cwd, stderr=subprocess.PIPE) -> subprocess.Popen:
+    """``python ARGV...`` with this checkout first on the path, in a session of its own (so
+    that the processes it starts can be found: :func:`session_processes`)."""
+    return subprocess.Popen(
+        [sys.executable, *map(str, argv)],
+        cwd=cwd or REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        stdout=subprocess.DEVNULL,
+        stderr=stderr,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def session_processes(sid: int) -> list[str]:
+    """The processes of session ``sid`` still running (not zombies): ``"PID NAME"`` each."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text(errors="replace")
+        except OSError:  # ended meanwhile
+            continue
+        name = text[text.index("(") + 1 : text.rindex(")")]
+        fields = text[text.rindex(")") + 2 :].split()
+        if int(fields[3]) == sid and fields[0] not in ("Z", "X"):  # fields 3 and 6 of proc(5)
+            found.append(f"{stat.parent.name} {name}")
+    return found
+
+
+def _state(pid: int) -> str:
+    """The state of process ``pid`` (``R``, ``S``, ``T``: stopped, ...; ``X`` when it is gone)."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text(errors="replace")
+    except OSError:
+        return "X"
+    return text[text.rindex(")") + 2 :].split()[0]
+
+
+def assert_no_process_left(sid: int, timeout: float = 30.0) -> None:
+    """No process that the command started outlives it (an encoder, a cluster's workers).
+
+    Waits up to ``timeout`` seconds for processes that are ending (multiprocessing's
+    resource tracker, once it sees its parent's pipe close), then fails naming those
+    still running.
+    """
+    if not Path("/proc/self/stat").exists():
+        return
+    deadline = time.monotonic() + timeout
+    while session_processes(sid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    left = session_processes(sid)
+    assert left == [], f"processes left running by the command: {left}"
+
+
+#: ``when=WRITING``: the moment the command's own temporary result holds something
+WRITING = "<writing>"
+
+
+def writing(out: str | os.PathLike, pid: int | None = None) -> bool:
+    """Whether a temporary sibling of ``out`` (of process ``pid``, if given) holds something:
+    a folder with an entry, or a file."""
+    out = Path(out)
+    prefixes = tuple(
+        f".{out.name}.{kind}-{'' if pid is None else f'{pid}-'}" for kind in ("tmp", "old")
+    )
+    for p in out.parent.glob(f".{glob.escape(out.name)}.*"):
+        if p.name.startswith(prefixes):
+            try:
+                if not p.is_dir() or any(p.iterdir()):
+                    return True
+            except OSError:  # removed meanwhile
+                pass
+    return False
+
+
+def _cpu_seconds(pid: int) -> float:
+    """CPU time (user and system, seconds) process ``pid`` has run; 0 once it is gone."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text(errors="replace")
+    except OSError:
+        return 0.0
+    fields = text[text.rindex(")") + 2 :].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime, stime
+
+
 def interrupt(
     argv: Sequence[object],
     *,
@@ -222,39 +311,45 @@ def interrupt(
     may_finish: bool = False,
     cwd: str | os.PathLike | None = None,
     timeout: float = 240,
+    signum: int = signal.SIGINT,
 ) -> tuple[int, str]:
-    """Start ``python ARGV...`` and send it SIGINT; check the contract; return (status, stderr).
+    """Start ``python ARGV...`` and send it ``signum``; check the contract; return (status,
+    stderr).
 
-    The signal goes ``after`` seconds after the process starts, or, with
-    ``when``, ``after`` seconds after a line of stderr holding ``when``
-    appeared (a progress step), so that it lands in a known stage whatever
-    the machine's speed.  The process must then exit 130 with one line
-    ``...: interrupted; no output written`` and leave no output, or, if the
-    result was already in place, say so.  Exit 0 (it finished first) fails
-    unless ``may_finish``.  Inputs are byte-identical either way.
+    The signal (SIGINT: Ctrl-C; SIGTERM: ``kill PID``; SIGHUP) goes to the
+    process alone once it has run ``after`` seconds of its own CPU time (on
+    an idle machine, ``after`` seconds after it starts; on a busy one later,
+    so that it still lands past Python's own start-up, in the imports), or, with ``when``,
+    ``after`` seconds after a line of stderr holding ``when`` appeared (a
+    progress step; :data:`WRITING`: once its temporary result holds
+    something), so that it lands in a known stage whatever the machine's
+    speed.  The process must then exit 130 (143, 129) with one line
+    ``...: interrupted; no output written`` (``...: terminated (SIGTERM); no
+    output written``) and leave no output, or, if the result was already in
+    place, say so, and leave no process it started running.  Exit 0 (it
+    finished first) fails unless ``may_finish``.  Inputs are byte-identical
+    either way.
     """
     import threading
 
     before = snapshot(*inputs)
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
-    proc = subprocess.Popen(
-        [sys.executable, *map(str, argv)],
-        cwd=cwd or REPO,
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = _start(argv, cwd)
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
     reader.start()
     start = time.monotonic()
     anchor = None if when is not None else start
     while proc.poll() is None and time.monotonic() - start < timeout:
-        if anchor is None and any(when in line for line in list(lines)):
+        if anchor is None and (
+            writing(out, proc.pid) if when == WRITING else any(when in ln for ln in list(lines))
+        ):
             anchor = time.monotonic()
-        if anchor is not None and time.monotonic() >= anchor + after:
-            proc.send_signal(signal.SIGINT)
+        if when is None:
+            due = _cpu_seconds(proc.pid) >= after
+        else:
+            due = anchor is not None and time.monotonic() >= anchor + after
+        if due:
+            proc.send_signal(signum)
             break
         time.sleep(0.005)
     try:
@@ -266,18 +361,89 @@ def interrupt(
     proc.stderr.close()
     err = "".join(lines)
     out = Path(out)
+    status = 128 + signum
+    said = (
+        "interrupted" if signum == signal.SIGINT else f"terminated ({signal.Signals(signum).name})"
+    )
     assert "Traceback" not in err, err
-    assert proc.returncode in (0, 130), f"exit {proc.returncode}: {err}"
-    if proc.returncode == 130:
+    assert proc.returncode in (0, status), f"exit {proc.returncode}: {err}"
+    if proc.returncode == status:
         messages = message_lines(err)
-        assert messages, f"exit 130 without a message line:\n{err}"
-        if out.exists():  # Ctrl-C came after the result was complete, and says so
-            assert messages[-1].endswith(f": interrupted after the results were written to {out}")
+        assert messages, f"exit {status} without a message line:\n{err}"
+        if out.exists():  # the signal came after the result was complete, and says so
+            assert messages[-1].endswith(f": {said} after the results were written to {out}"), err
         else:
-            assert messages[-1].endswith(": interrupted; no output written"), err
+            assert messages[-1].endswith(f": {said}; no output written"), err
     else:
-        assert may_finish, f"the command finished before Ctrl-C reached it:\n{err}"
+        assert may_finish, f"the command finished before the signal reached it:\n{err}"
         assert out.exists()
+    assert_no_process_left(proc.pid)
     assert scratch_left(out.resolve().parent) == []
     assert snapshot(*inputs) == before
     return proc.returncode, err
+
+
+def killed(
+    argv: Sequence[object],
+    *,
+    out: str | os.PathLike,
+    cwd: str | os.PathLike | None = None,
+    timeout: float = 240,
+) -> list[str]:
+    """Start ``python ARGV...`` and SIGKILL it while it writes ``out``; return the scratch left.
+
+    "While it writes": as soon as a temporary sibling of ``out`` holds
+    something (a folder with an entry, or a file), which is what a run killed
+    outright (SIGKILL, out of memory, a power cut) leaves behind.  The process
+    is stopped (SIGSTOP) and seen to be writing still before it is killed, so
+    that a result renamed into place just then does not count.
+    """
+    out = Path(out)
+    proc = _start(argv, cwd, stderr=subprocess.DEVNULL)
+    start = time.monotonic()
+    while proc.poll() is None and time.monotonic() - start < timeout:
+        if writing(out):
+            proc.send_signal(signal.SIGSTOP)
+            while proc.poll() is None and _state(proc.pid) not in ("T", "t", "Z", "X"):
+                time.sleep(0.001)  # a rename in progress ends before it stops
+            if writing(out):
+                break
+            proc.send_signal(signal.SIGCONT)  # its result was renamed into place just then
+        time.sleep(0.002)
+    proc.kill()
+    proc.wait(timeout=60)
+    assert proc.returncode == -signal.SIGKILL, f"exit {proc.returncode}: it ended before writing"
+    for pid in session_processes(proc.pid):  # what it started dies with it here
+        os.kill(int(pid.split()[0]), signal.SIGKILL)
+    return scratch_left(out.parent)
+
+
+#: a run that writes its result as the toolkit does and is killed (SIGKILL) half-way
+_KILLED_WRITER = """
+import os, signal, sys
+from tissue_core import outputs
+
+writer = {"dir": outputs.atomic_dir, "file": outputs.atomic_file}.get(sys.argv[1])
+with (writer or outputs.replaced_on_success)(sys.argv[2]) as tmp:
+    if sys.argv[1] == "dir":
+        tmp = tmp / "half.csv"
+    tmp.write_text("half a result")
+    os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def stale_scratch(out: str | os.PathLike, kind: str = "dir") -> list[str]:
+    """Leave beside ``out`` the scratch of a run killed (SIGKILL) while writing it: a folder
+    (``kind="dir"``), a file (``"file"``), or a file that replaces one the toolkit keeps up to
+    date (``"replaced"``: a batch's record); return the scratch's names."""
+    done = subprocess.run(
+        [sys.executable, "-c", _KILLED_WRITER, kind, str(out)],
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == -signal.SIGKILL, done.stderr
+    left = scratch_left(Path(out).parent)
+    assert left, "no scratch was left"
+    return left

@@ -29,7 +29,7 @@ from tissue_core.outputs import foreign_content, read_marker
 #: the module's tests share its batches: one xdist worker runs them all (make test: loadgroup)
 pytestmark = pytest.mark.xdist_group("batch")
 
-RUN_OPTIONS = ["--grid", "3x3", "--animation", "none"]
+RUN_OPTIONS = ["--grid", "3x3", "--animation", "none", "--tracker", "klt"]
 
 
 def _cli(*argv: str, cwd=None) -> subprocess.CompletedProcess:
@@ -267,7 +267,8 @@ def test_bad_manifests_end_in_one_line_before_anything_runs(study_data, tmp_path
         (f"video,specimen\n{video},x/y\n", "cannot name a folder (it holds /)"),
         (f"video,specimen\n{video},.A.tmp-x\n", "line 2: specimen '.A.tmp-x' starts with '.'"),
         (f"video,specimen\n{video},S0?\n", "cannot name a folder (it holds ?)"),
-        (f"video,specimen\n{video},A,extra\n", "line 2: more cells than the header has"),
+        (f"video,specimen\n{video},A,extra\n", "line 2: 3 cells where the header has 2"),
+        (f"video,specimen,group\n{video},A\n", "line 2: 2 cells where the header has 3"),
         (f"video,specimen\n{video},a\n{video},A\n", "run names must be unique"),
     ]
     for text, message in cases:

@@ -37,11 +37,10 @@ import argparse
 import contextlib
 import csv
 import difflib
-import glob
 import io
 import json
 import os
-import shutil
+import signal
 import socket
 import sys
 import threading
@@ -56,7 +55,15 @@ from pathlib import Path
 from tissue_core.csvtext import restore_cell
 from tissue_core.errors import InputError
 from tissue_core.filenames import readable
-from tissue_core.interrupt import was_interrupted
+from tissue_core.interrupt import (
+    SIGNALS,
+    deferred_interrupt,
+    exit_status,
+    interrupt_signal,
+    raise_if_interrupted,
+    signal_name,
+    was_interrupted,
+)
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import (
     LEDGER,
@@ -65,6 +72,7 @@ from tissue_core.outputs import (
     name_too_long,
     read_marker,
     recorded_command,
+    remove_stale_scratch,
     replaced_on_success,
     sha256_of,
     written,
@@ -89,6 +97,8 @@ __all__ = [
     "update_batch_file",
 ]
 
+#: the least memory a local worker process takes, bytes: Python, NumPy and Dask loaded
+WORKER_BYTES = 100 * 2**20
 #: the batch's record of every run, in the batch folder
 BATCH_FILE = "batch.json"
 #: the batch's log, appended to by every batch run in the folder
@@ -344,7 +354,7 @@ def run_job(job: Job, overwrite: bool = False, *, remake: bool = False) -> Outco
     seconds = time.perf_counter() - start
     if status == 0:
         return Outcome(job.name, "done", job.out, "", seconds, worker, messages=text.splitlines())
-    if status == 130:
+    if status in {exit_status(signum) for signum in SIGNALS}:
         reason = "interrupted"
     else:
         reason = _error_line(text) or f"exit status {status}"
@@ -526,6 +536,14 @@ def check_workers(workers: int | None, scheduler: str | None, n_jobs: int) -> in
         workers = min(os.cpu_count() or 1, max(n_jobs, 1))
     if workers < 1:
         raise InputError(f"--workers must be 1 or more, got {workers}")
+    if workers > 1:  # each a process of its own
+        from tissue_core.resources import check_fits
+
+        check_fits(
+            f"--workers {workers} (worker processes)",
+            memory=workers * WORKER_BYTES,
+            remedy="use fewer --workers",
+        )
     return workers
 
 
@@ -568,10 +586,13 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
     the toolkit wrote inert for spreadsheets (a manifest of ``sample_data_synth
     study``) is read as it was given (:func:`tissue_core.csvtext.restore_cell`).
     """
+    from tissue_core.tables import cell_count_error
+
     path = Path(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.DictReader(f))
+            reader = csv.DictReader(f)
+            rows = [(reader.line_num, row) for row in reader]
     except FileNotFoundError:
         raise InputError(f"manifest {path} does not exist") from None
     except IsADirectoryError:
@@ -579,12 +600,16 @@ def manifest_rows(path: str | os.PathLike, *, required: Sequence[str]) -> list[d
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"manifest {path} cannot be read: {exc}") from None
     out = []
-    for i, row in enumerate(rows, start=2):
-        if None in row:  # more cells than the header has names
-            raise InputError(f"manifest {path}, line {i}: more cells than the header has columns")
-        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
-        if not any(clean.values()):
+    for i, row in rows:
+        cells = [v for k, v in row.items() if k is not None and v is not None]
+        cells += row.get(None, [])
+        if not any(v.strip() for v in cells):
             continue  # an empty row (a spreadsheet's trailing commas)
+        if len(cells) != len(reader.fieldnames):  # more or fewer cells than the header
+            raise cell_count_error(
+                f"manifest {path}", i, len(cells), len(reader.fieldnames), ",".join(cells)
+            )
+        clean = {(k or "").strip().lower(): restore_cell((v or "").strip()) for k, v in row.items()}
         clean["_line"] = str(i)
         out.append(clean)
     if not out:
@@ -758,15 +783,6 @@ def batch_folder(path: str | os.PathLike) -> Path:
             )
     path.mkdir(parents=True, exist_ok=True)
     return path
-
-
-def _remove_scratch(out: str) -> None:
-    """Scratch folders a killed run left beside its result (``.NAME.tmp-*``)."""
-    out = Path(out)
-    if not out.parent.is_dir():
-        return
-    for scratch in out.parent.glob(f".{glob.escape(out.name)}.tmp-*"):
-        shutil.rmtree(scratch, ignore_errors=True)
 
 
 class _Log:
@@ -959,7 +975,8 @@ LOCK_FILE = ".batch.lock"
 
 @contextlib.contextmanager
 def _lock(folder: Path) -> Iterator[None]:
-    """One batch at a time in a folder: two would remove each other's scratch."""
+    """One batch at a time in a folder: two would make the same runs and rewrite each other's
+    record."""
     path = folder / LOCK_FILE
     me = {"host": socket.gethostname(), "pid": os.getpid(), "started": _now()}
     for _ in range(2):
@@ -1011,6 +1028,7 @@ def _run_batch(
     todo: list[tuple[Job, bool]] = []
     stale = []
     for job in jobs:
+        remove_stale_scratch(job.out)  # left by a killed run: its earlier result put back
         state = job_state(job)
         if state == "complete":
             outcomes[job.name] = Outcome(job.name, "skipped", job.out, "complete already")
@@ -1038,11 +1056,10 @@ def _run_batch(
         log(note)
     for job, _ in todo:
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
-        _remove_scratch(job.out)
 
     def finished(outcome: Outcome) -> None:
         outcomes[outcome.name] = outcome
-        _remove_scratch(outcome.out)  # left by an attempt whose worker was killed
+        remove_stale_scratch(outcome.out)  # left by an attempt whose worker was killed
         done = sum(o.status != "skipped" for o in outcomes.values())
         count = f"[{done}/{len(todo)}]"
         deaths = outcome.worker_deaths
@@ -1081,7 +1098,8 @@ def _run_batch(
         outcome = run_job(job, overwrite, remake=remake)
         written[:] = made
         if outcome.reason == "interrupted" or was_interrupted():
-            raise KeyboardInterrupt  # Ctrl-C ended the job: it ends the batch
+            raise_if_interrupted()  # Ctrl-C (SIGTERM, SIGHUP) ended the job: it ends the batch
+            raise KeyboardInterrupt
         return outcome
 
     extra: list[Job] = []  # run by ``then`` on the cluster
@@ -1100,10 +1118,10 @@ def _run_batch(
             finally:
                 if scheduler is None:  # the local workers are gone, and with them their runs
                     for job in [*(job for job, _ in todo), *extra]:
-                        _remove_scratch(job.out)
+                        remove_stale_scratch(job.out)
         elif then:  # nothing to run: no workers to start for it
             after(here)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         # a run a worker finished as the cluster closed is whole: it counts as made
         for job, _ in todo:
             if job.name not in outcomes and job_state(job) == "complete":
@@ -1118,10 +1136,9 @@ def _run_batch(
                 log(f"{job.name}: its worker finished it as the batch stopped", show=False)
         made = sum(o.status == "done" for o in outcomes.values())
         still = " (runs in progress on the cluster may still be made)" if scheduler else ""
-        log(
-            f"interrupted: {made} of {len(todo)} runs made{still}; a rerun makes the others",
-            show=False,
-        )
+        signum = interrupt_signal(exc)
+        how = "interrupted" if signum == signal.SIGINT else f"terminated ({signal_name(signum)})"
+        log(f"{how}: {made} of {len(todo)} runs made{still}; a rerun makes the others", show=False)
         raise
     return [outcomes[j.name] for j in jobs]
 
@@ -1260,28 +1277,32 @@ def _run_on_dask(todo, workers, scheduler, log, finished, then=None, extra=None)
             except (OSError, TimeoutError, ValueError) as exc:
                 raise InputError(f"no Dask scheduler answers at {scheduler}: {exc}") from None
         else:
-            try:
-                stack.enter_context(_without_malloc_trimming())
-                cluster = LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,  # a run is one task; its libraries' threads: its own
-                    processes=True,
-                    dashboard_address=":0",  # a free port: batches may run side by side
-                    silence_logs=logging.CRITICAL,  # the workers' too
-                    preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
-                    # the cores shared out: a run's compiled kernels use its worker's share
-                    env={
-                        "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
-                        _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
-                    },
-                )
-                stack.enter_context(cluster)
-            except (RuntimeError, OSError, TimeoutError) as exc:
-                raise InputError(
-                    f"a local Dask cluster of {workers} workers could not start: {exc} "
-                    "(--workers 1 runs the batch without one)"
-                ) from None
-            client = stack.enter_context(Client(cluster))
+            # a signal while the cluster starts waits until it is up and in the stack, which
+            # then closes it: one that lands half-way leaves worker processes, a scheduler
+            # that goes on logging, and semaphores the resource tracker complains of
+            with deferred_interrupt():
+                try:
+                    stack.enter_context(_without_malloc_trimming())
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,  # a run is one task; its libraries' threads: its own
+                        processes=True,
+                        dashboard_address=":0",  # a free port: batches may run side by side
+                        silence_logs=logging.CRITICAL,  # the workers' too
+                        preload=["tissue_core._batch_worker"],  # Ctrl-C is the batch's alone
+                        # the cores shared out: a run's compiled kernels use its worker's share
+                        env={
+                            "NUMBA_NUM_THREADS": str(max(1, (os.cpu_count() or 1) // workers)),
+                            _THREADS_ENV: str(max(1, (os.cpu_count() or 1) // workers)),
+                        },
+                    )
+                    stack.enter_context(cluster)
+                except (RuntimeError, OSError, TimeoutError) as exc:
+                    raise InputError(
+                        f"a local Dask cluster of {workers} workers could not start: {exc} "
+                        "(--workers 1 runs the batch without one)"
+                    ) from None
+                client = stack.enter_context(Client(cluster))
         n = len(client.scheduler_info(n_workers=-1).get("workers", {}))
         link = client.dashboard_link if _has_dashboard(client) else "none (install bokeh)"
         log(f"{n} workers; Dask dashboard: {link}", show=bool(scheduler) or n > 1)

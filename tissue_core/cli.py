@@ -6,10 +6,15 @@ the same behaviour:
 * errors a user can cause (:class:`~tissue_core.errors.InputError`,
   :class:`~tissue_core.errors.SourceError`, any other ``OSError`` such as a
   full disk or a missing permission, and the command's own ``errors``) end
-  with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2;
+  with one line ``PROG COMMAND: error: ...`` on stderr and exit status 2; so
+  does an allocation that fails (``MemoryError``) where no check of the
+  options (:mod:`tissue_core.resources`) foresaw it;
 * Ctrl-C ends with one line ``PROG COMMAND: interrupted; no output written``
   and exit status 130, also when it arrives inside compiled code or library
-  code loses its KeyboardInterrupt;
+  code loses its KeyboardInterrupt; SIGTERM and SIGHUP the same way, with
+  ``PROG COMMAND: terminated (SIGTERM); no output written`` and the status
+  ``128 + signal`` (143, 129); a line that cannot be printed (the terminal
+  closed) is left out, never a traceback;
 * warnings (``UserWarning``: the toolkit's, and those its libraries raise)
   are one line each, ``PROG COMMAND: warning: ...``; numerical warnings
   (``RuntimeWarning`` and the like) go to the log, shown with ``-v``;
@@ -31,9 +36,13 @@ import warnings
 from tissue_core.errors import InputError, SourceError
 from tissue_core.filenames import readable
 from tissue_core.interrupt import (
+    SIGNALS,
+    exit_status,
     handling_interrupts,
+    interrupt_signal,
     is_interrupt,
     note_interrupted,
+    signal_name,
     was_interrupted,
 )
 from tissue_core.outputs import recorded_command, written
@@ -138,6 +147,26 @@ def one_line(message: object) -> str:
     return text or "unknown error"
 
 
+#: the toolkit's packages: their log records reach the terminal without -v
+_TOOLKIT = frozenset(
+    {"tissue_core", "strain2d", "surface_strain", "stereo", "mpm3d", "sample_data_synth"}
+)
+
+
+def _toolkit_or_verbose(prog: str):
+    """A filter that passes the libraries' log records (tifffile's ``ERROR: ...`` on a damaged
+    file, ...) only with -v: without it, the command's one error line stays the only one.
+    The toolkit's records, and those of the program ``prog``, always pass."""
+    own = _TOOLKIT | {prog}
+
+    def passes(record: logging.LogRecord) -> bool:
+        if record.name.split(".")[0] in own:
+            return True
+        return logging.getLogger().getEffectiveLevel() <= logging.INFO
+
+    return passes
+
+
 class _ReadableFormatter(logging.Formatter):
     """Log lines that show file names whose bytes are not UTF-8 as ``\\xNN``."""
 
@@ -182,7 +211,8 @@ def run_command(
     Returns
     -------
     int
-        0 on success, 2 for an error the user can fix, 130 after Ctrl-C.
+        0 on success, 2 for an error the user can fix, 130 after Ctrl-C (143 after
+        SIGTERM, 129 after SIGHUP).
     """
     argv = sys.argv[1:] if argv is None else list(argv)
     prefix = prog
@@ -193,6 +223,7 @@ def run_command(
         prefix = f"{prog} {args.command}"
         log_lines = logging.StreamHandler()
         log_lines.setFormatter(_ReadableFormatter("%(levelname)s: %(message)s"))
+        log_lines.addFilter(_toolkit_or_verbose(prog))
         logging.basicConfig(
             level=logging.INFO if getattr(args, "verbose", False) else logging.WARNING,
             handlers=[log_lines],
@@ -204,33 +235,40 @@ def run_command(
                 status = args.handler(args)
             except (InputError, SourceError, OSError, *errors) as exc:
                 if is_interrupt(exc) or was_interrupted():  # Ctrl-C wins over what it caused
-                    return _interrupted(prefix)
+                    return _interrupted(prefix, exc)
                 close_open_lines()
                 print(f"{prefix}: error: {one_line(exc)}", file=sys.stderr, flush=True)
                 return 2
-            except KeyboardInterrupt:  # here, so that finalizers run under handling_interrupts
-                return _interrupted(prefix)
+            except MemoryError as exc:  # an allocation no check foresaw: still one line
+                close_open_lines()
+                what = one_line(exc) if str(exc) else "an allocation failed"
+                print(f"{prefix}: error: not enough memory: {what}", file=sys.stderr, flush=True)
+                return 2
+            except KeyboardInterrupt as exc:  # here: finalizers run under handling_interrupts
+                return _interrupted(prefix, exc)
             except Exception as exc:
                 # compiled code interrupted mid-call (SystemError), or library code that
                 # turned the KeyboardInterrupt into an error of its own (matplotlib's pybind11
                 # functions: TypeError, ValueError)
                 if is_interrupt(exc) or was_interrupted():
-                    return _interrupted(prefix)
+                    return _interrupted(prefix, exc)
                 raise
             if was_interrupted():  # a KeyboardInterrupt that library code swallowed
                 return _interrupted(prefix)
             return status
-    except KeyboardInterrupt:  # also a second Ctrl-C while the first was handled
-        return _interrupted(prefix)
+    except KeyboardInterrupt as exc:  # also a second Ctrl-C while the first was handled
+        return _interrupted(prefix, exc)
     finally:
         recorded_command.reset(token)
 
 
-def run_module(cli_module: str) -> None:
+def run_module(cli_module: str, *, held: frozenset[int] = frozenset()) -> None:
     """``python -m PACKAGE`` and the console scripts: run ``cli_module.main()`` and exit.
 
-    Ctrl-C during the imports ends with exit status 130 and no traceback, as
-    it does later.
+    Ctrl-C (SIGTERM, SIGHUP) during the imports ends with exit status 130 (143,
+    129) and no traceback, as it does later.  ``held``: signals the caller
+    blocked until they are handled here (:mod:`tissue_core.main`); a signal
+    that came meanwhile is handled as soon as they are unblocked.
     """
     import importlib
     import os
@@ -241,11 +279,14 @@ def run_module(cli_module: str) -> None:
         # one of importlib's weakref callbacks is otherwise swallowed by Python ("Exception
         # ignored in ...") and the command runs on to the end
         with handling_interrupts():
+            if held:
+                signal.pthread_sigmask(signal.SIG_UNBLOCK, held)
             status = importlib.import_module(cli_module).main()
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # done: a late Ctrl-C changes nothing
-    except KeyboardInterrupt:  # while importing, building the parser, or just after main()
-        status = _interrupted(cli_module.split(".")[0])
-    if status == 130:
+        for signum in SIGNALS:  # done: a late signal changes nothing
+            signal.signal(signum, signal.SIG_IGN)
+    except KeyboardInterrupt as exc:  # while importing, building the parser, just after main()
+        status = _interrupted(cli_module.split(".")[0], exc)
+    if status in {exit_status(signum) for signum in SIGNALS}:
         # When Ctrl-C lands in code run by exec() (SciPy's imports do that), CPython
         # marks the interrupt as unhandled and, at exit, kills itself with SIGINT even
         # though it was handled: leave at once with the status the contract promises.
@@ -253,21 +294,32 @@ def run_module(cli_module: str) -> None:
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()
-            except (OSError, ValueError):  # a closed pipe, a closed stream
+            except (OSError, ValueError):  # a closed pipe, a closed stream (SIGHUP)
                 pass
-        os._exit(130)
+        os._exit(status)
     sys.exit(status)
 
 
-def _interrupted(prefix: str) -> int:
+def _interrupted(prefix: str, exc: BaseException | None = None) -> int:
+    """Say that the signal (Ctrl-C, SIGTERM, SIGHUP) ended the command; its exit status."""
+    import signal
+
+    signum = interrupt_signal(exc)
     note_interrupted()
-    close_open_lines()
-    # on a terminal, ^C was echoed on the open line
-    newline = "\n" if getattr(sys.stderr, "isatty", lambda: False)() else ""
-    what = (
-        f"interrupted after the results were written to {readable(', '.join(written))}"
+    if signum == signal.SIGINT:
+        what, newline = "interrupted", "\n"  # on a terminal, ^C was echoed on the open line
+    else:
+        what, newline = f"terminated ({signal_name(signum)})", ""
+    what += (
+        f" after the results were written to {readable(', '.join(written))}"
         if written
-        else "interrupted; no output written"
+        else "; no output written"
     )
-    print(f"{newline}{prefix}: {what}", file=sys.stderr, flush=True)
-    return 130
+    try:
+        close_open_lines()
+        if not getattr(sys.stderr, "isatty", lambda: False)():
+            newline = ""
+        print(f"{newline}{prefix}: {what}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):  # stderr is gone: a closed terminal (SIGHUP), a closed pipe
+        pass
+    return exit_status(signum)

@@ -1,8 +1,15 @@
 """Outputs that appear whole or not at all, and never replace a user's data.
 
 Every result is written into a hidden temporary sibling of its target and
-renamed into place when complete, so an error or Ctrl-C leaves no
-half-written result.
+renamed into place when complete, so an error or Ctrl-C (SIGTERM, SIGHUP)
+leaves no half-written result.  The temporary names carry their owner,
+``.NAME.tmp-PID-START@HOST@XXXXXXXX`` (``.NAME.old-...`` for an earlier result
+being replaced; START is the process's start time, so that a pid used again
+is not taken for the owner): a run killed outright (SIGKILL, a power cut)
+cannot clean up, and the next command that writes NAME removes what such
+runs left, or puts back the earlier result a replacement was holding.
+Scratch whose owner is alive, on another host, or whose name is not of this
+form is never touched.
 
 A result folder carries a marker, ``.tissue-strain-result.json``, that lists
 every file the toolkit wrote into it with its size, time and SHA-256.  An
@@ -32,11 +39,15 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import errno
+import glob
 import hashlib
 import json
 import logging
 import os
+import re
 import shutil
+import socket
 import tempfile
 from collections.abc import Iterator, Sequence
 from datetime import UTC, datetime
@@ -59,6 +70,7 @@ __all__ = [
     "name_too_long",
     "read_marker",
     "recorded_command",
+    "remove_stale_scratch",
     "replaced_on_success",
     "sha256_of",
     "written_here",
@@ -93,6 +105,122 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+# --------------------------------------------------------------------------- scratch
+
+#: what follows ``.NAME.tmp-`` (or ``.old-``) in a scratch name: its owner, then mkdtemp's part
+_OWNER = re.compile(r"(?P<pid>\d+)-(?P<start>\d+)@(?P<host>[A-Za-z0-9._-]+)@")
+
+
+def _host() -> str:
+    """This host as scratch names record it: its name (letters, digits, ``.``, ``-``, ``_``),
+    and its process-id namespace where there is one (containers that share a host name and a
+    folder still tell their processes apart)."""
+    name = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname())[:32] or "localhost"
+    try:
+        return f"{name}-pidns{os.stat('/proc/self/ns/pid').st_ino}"
+    except OSError:
+        return name
+
+
+def _process(pid: int) -> tuple[str, int]:
+    """``(state, start time)`` of a process from ``/proc/PID/stat`` (OSError where there is
+    none)."""
+    with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+        text = f.read()
+    fields = text[text.rindex(")") + 2 :].split()  # the name, in parentheses, may hold spaces
+    return fields[0], int(fields[19])  # fields 3 and 22 of proc(5)
+
+
+def _start_time(pid: int) -> int:
+    """The start time of process ``pid`` (clock ticks after boot), 0 where it is not known."""
+    try:
+        return _process(pid)[1]
+    except (OSError, ValueError, IndexError):
+        return 0
+
+
+def _owner() -> str:
+    """This process as scratch names record it: ``PID-START@HOST``."""
+    pid = os.getpid()
+    return f"{pid}-{_start_time(pid)}@{_host()}"
+
+
+def _scratch_prefix(base: str, kind: Literal["tmp", "old"]) -> str:
+    """The start of a scratch name for ``base`` (``.NAME``), up to the random part."""
+    return f"{base}.{kind}-{_owner()}@"
+
+
+def _running(pid: int, start: int) -> bool:
+    """Whether the process ``pid`` that started at ``start`` runs on this host (a zombie does
+    not; a pid used again by a later process is not it).  True when it cannot be told."""
+    try:
+        state, started = _process(pid)
+    except FileNotFoundError:
+        if os.path.exists("/proc/self/stat"):
+            return False
+    except (OSError, ValueError, IndexError):
+        pass
+    else:
+        return state not in ("Z", "X") and start in (0, started)
+    try:  # no /proc: whether the pid exists at all
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process, or no way to ask
+        return True
+    return True
+
+
+def remove_stale_scratch(path: str | os.PathLike) -> list[Path]:
+    """Remove what runs killed while writing ``path`` left beside it; return what was removed.
+
+    Scratch of ``path`` (``.NAME.tmp-*``, ``.NAME.old-*``) is removed when its
+    owner ran on this host and is no longer running.  A ``.old-`` folder
+    holds the earlier result while it is replaced: if ``path`` is missing
+    (the run was killed between the two renames), the earlier result is put
+    back instead.  Scratch of a live process, of another host, or with a
+    name not of the toolkit's form is left alone; a failure to remove is
+    logged, never raised.
+    """
+    path = Path(path)
+    if path.name in ("", ".", ".."):
+        return []
+    return _clear_stale(path.parent, f".{path.name}", path)
+
+
+def _clear_stale(parent: Path, base: str, path: Path) -> list[Path]:
+    removed = []
+    if not parent.is_dir():
+        return removed
+    host = _host()
+    for kind in ("tmp", "old"):
+        prefix = f"{base}.{kind}-"
+        for scratch in sorted(parent.glob(glob.escape(prefix) + "*")):
+            owner = _OWNER.match(scratch.name[len(prefix) :])
+            if (
+                owner is None
+                or owner["host"] != host
+                or scratch.is_symlink()  # never made by the toolkit
+                or _running(int(owner["pid"]), int(owner["start"]))
+            ):
+                continue
+            try:
+                earlier = scratch / path.name
+                if kind == "old" and earlier.exists() and not os.path.lexists(path):
+                    os.replace(earlier, path)
+                    log.info("%s: put back the earlier result a killed run was replacing", path)
+                if scratch.is_dir():
+                    shutil.rmtree(scratch)
+                else:
+                    scratch.unlink()
+            except OSError as exc:
+                log.warning("%s, left by a killed run, could not be removed: %s", scratch, exc)
+                continue
+            log.info("removed %s, left by process %s, which was killed", scratch, owner["pid"])
+            removed.append(scratch)
+    return removed
 
 
 # --------------------------------------------------------------------------- records
@@ -334,6 +462,9 @@ def check_writable(
 ) -> Path:
     """Fail early, with one line, if ``path`` may not be written.
 
+    The scratch that killed runs left beside ``path`` is removed first
+    (:func:`remove_stale_scratch`).
+
     Parameters
     ----------
     path : path-like
@@ -367,6 +498,7 @@ def check_writable(
             raise InputError(f"{option} {path} would replace the input {source}")
         if source.is_dir() and _inside(target, source.resolve()):
             raise InputError(f"{option} {path} lies inside the input folder {source}")
+    remove_stale_scratch(path)  # first: it may put an earlier result back
     if path.exists():
         if kind == "file":
             _check_file(path, overwrite, option)
@@ -383,7 +515,7 @@ def _probe(parent: Path, path: Path, option: str) -> None:
     """Fail now, not after the work, if nothing can be written beside ``path``."""
     try:
         with deferred_interrupt():  # a Ctrl-C between the two calls would leave the probe
-            os.rmdir(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+            os.rmdir(tempfile.mkdtemp(prefix=_scratch_prefix(f".{path.name}", "tmp"), dir=parent))
     except OSError as exc:
         raise InputError(
             f"{option} {path} cannot be written: {exc.strerror or exc} in {parent}"
@@ -429,8 +561,19 @@ def _check_dir(path: Path, overwrite: bool, option: str) -> None:
 # --------------------------------------------------------------------------- writing
 
 
+#: errors of a write the disk refused (full, over the quota, a file too large)
+_DISK_FULL = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
 def _hide_scratch(exc: BaseException, scratch: Path, final: Path) -> None:
-    """Name the final output, not the temporary folder, in an error message."""
+    """Name the final output, not the temporary folder, in an error message.
+
+    A write the disk refused names no file when it comes from ``write`` or
+    ``close`` (``[Errno 28] No space left on device``): the output being
+    written is named then.
+    """
+    if isinstance(exc, OSError) and exc.errno in _DISK_FULL and not exc.filename:
+        exc.filename = str(scratch)
     old, new = str(scratch), str(final)
     if isinstance(exc, OSError):
         for attr in ("filename", "filename2"):
@@ -491,7 +634,8 @@ def _record_in_ledger(path: Path) -> None:
     if exact_name(path.name) is not None:
         ledger["exact_names"][key] = exact_name(path.name)
     try:
-        fd, name = tempfile.mkstemp(prefix=f"{LEDGER}.tmp-", dir=path.parent)
+        _clear_stale(path.parent, LEDGER, path.parent / LEDGER)
+        fd, name = tempfile.mkstemp(prefix=_scratch_prefix(LEDGER, "tmp"), dir=path.parent)
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             json.dump(ledger, f, indent=1)
             f.write("\n")
@@ -514,11 +658,17 @@ def replaced_on_success(path: str | os.PathLike, *, record: bool = False) -> Ite
     still holds what was written (a batch's table in the batch folder).
     """
     path = Path(path)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", suffix=path.suffix, dir=path.parent)
+    remove_stale_scratch(path)
+    prefix = _scratch_prefix(f".{path.name}", "tmp")
+    fd, name = tempfile.mkstemp(prefix=prefix, suffix=path.suffix, dir=path.parent)
     os.close(fd)
     tmp = Path(name)
     try:
-        yield tmp
+        try:
+            yield tmp
+        except BaseException as exc:
+            _hide_scratch(exc, tmp, path)
+            raise
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp made it private
         if record:
             with deferred_interrupt():  # Ctrl-C waits until the file and its record are in place
@@ -545,7 +695,7 @@ def atomic_dir(
     """
     path = check_writable(path, overwrite=overwrite, kind="dir", inputs=inputs, option=option)
     parent = path.resolve().parent
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.tmp-", dir=parent))
+    tmp = Path(tempfile.mkdtemp(prefix=_scratch_prefix(f".{path.name}", "tmp"), dir=parent))
     old = None
     try:
         try:
@@ -560,7 +710,9 @@ def atomic_dir(
         raise_if_interrupted()
         with deferred_interrupt():  # Ctrl-C waits until the result is in place, whole
             if path.exists():
-                old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=parent))
+                old = Path(
+                    tempfile.mkdtemp(prefix=_scratch_prefix(f".{path.name}", "old"), dir=parent)
+                )
                 os.replace(path, old / path.name)
                 try:
                     os.replace(tmp, path)
@@ -601,7 +753,8 @@ def atomic_file(
     """
     kwargs = {"overwrite": overwrite, "inputs": inputs, "option": option}
     path = check_writable(path, kind="file", **kwargs)
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.tmp-", dir=path.resolve().parent)
+    prefix = _scratch_prefix(f".{path.name}", "tmp")
+    fd, name = tempfile.mkstemp(prefix=prefix, dir=path.resolve().parent)
     os.close(fd)
     tmp = Path(name)
     try:

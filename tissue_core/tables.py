@@ -9,10 +9,12 @@ the same names in capitals), ``points3d.csv`` and tracks written by other
 tools all have it.  :func:`write_long_table` writes them (one row per frame
 and point, frame by frame); :func:`read_long_table` reads any of them into
 ``(T, N)`` arrays per column and refuses, in one line naming the file and the row,
-what is not such a table: no text, missing columns, values that are not
-numbers, negative or fractional indices, a frame or point missing or given
-twice.  Column names are matched without regard to case or surrounding
-spaces; empty cells and ``nan``/``none``/``null`` are NaN.
+what is not such a table: no text, missing columns, a row with more or fewer
+cells than the header (a decimal comma, ``1,5`` for ``1.5``, makes one too
+many), values that are not numbers, a flag (``visible``) that is not 0 or 1,
+negative or fractional indices, a frame or point missing or given twice.
+Column names are matched without regard to case or surrounding spaces; empty
+cells and ``nan``/``none``/``null`` are NaN.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import numpy as np
 
 from tissue_core.errors import InputError
 
-__all__ = ["LongTable", "read_long_table", "write_long_table"]
+__all__ = ["LongTable", "cell_count_error", "read_long_table", "write_long_table"]
 
 _MISSING = ("", "nan", "none", "null")
 #: rows :func:`write_long_table` formats at a time (whole frames, at least one)
@@ -85,6 +87,7 @@ def read_long_table(
     *,
     required: Sequence[str],
     optional: Sequence[str] = (),
+    flags: Sequence[str] = (),
 ) -> LongTable:
     """Read a long table (one row per frame and point) into ``(T, N)`` arrays.
 
@@ -95,6 +98,9 @@ def read_long_table(
         Columns besides ``frame`` and ``point`` that must be there.
     optional : sequence of str
         Columns read when present.
+    flags : sequence of str
+        Columns among those read that hold 0 or 1 (``visible``): any other
+        number is refused naming its line; an empty cell stays NaN.
 
     Returns
     -------
@@ -103,9 +109,10 @@ def read_long_table(
     Raises
     ------
     InputError
-        The file is missing, not text, empty, lacks a column, holds a value
-        that is not a number, or does not hold exactly one row for each frame
-        and point; the message names the file (and the line).
+        The file is missing, not text, empty, lacks a column, holds a row
+        whose cells do not match the header's columns, a value that is not a
+        number or a flag that is not 0 or 1, or does not hold exactly one row
+        for each frame and point; the message names the file (and the line).
 
     Examples
     --------
@@ -139,6 +146,7 @@ def read_long_table(
         keep = [c.lower() for c in wanted]
         keep += [c.lower() for c in optional if c.lower() in lower]
         index = [lower.index(c) for c in keep]
+        _check_cell_counts(text[1:], path, len(names))
         data, lines = _rows(text[1:], path, index)
     except (UnicodeDecodeError, csv.Error) as exc:
         raise InputError(f"{path} is not a text CSV file ({exc})") from None
@@ -160,6 +168,15 @@ def read_long_table(
             f"{path} is incomplete: it has {n} rows but frame indices up to {frame.max():.6g} "
             f"and point indices up to {point.max():.6g} (one row for each frame and point)"
         )
+    for name in flags:
+        if name.lower() in keep:
+            values = data[:, keep.index(name.lower())]
+            wrong = ~(np.isnan(values) | (values == 0) | (values == 1))
+            if wrong.any():
+                k = int(wrong.argmax())
+                raise InputError(
+                    f"{path}, line {lines[k]}: {name} must be 0 or 1, got {values[k]:g}"
+                )
     frame, point = frame.astype(np.int64), point.astype(np.int64)
     T, N = int(frame.max()) + 1, int(point.max()) + 1
     seen = np.zeros((T, N), np.int64)
@@ -176,6 +193,56 @@ def read_long_table(
         values[frame, point] = data[:, k]
         columns[name] = values
     return LongTable(path, names, columns)
+
+
+def _shown(row: str) -> str:
+    """A row as a message shows it: at most 80 characters."""
+    return row if len(row) <= 80 else row[:77] + "..."
+
+
+def _check_cell_counts(body: list[str], path: Path, n_cells: int) -> None:
+    """Refuse the first row that has more or fewer cells than the header.
+
+    Blank rows (nothing but commas and spaces) are skipped, as the readers
+    skip them.  A row with quotes is split as CSV; the others at their commas.
+    """
+    counts = np.fromiter((row.count(",") for row in body), np.int64, len(body)) + 1
+    for k in np.flatnonzero(counts != n_cells):
+        row = body[k]
+        if not row.strip(", \t"):
+            continue
+        found = len(next(csv.reader([row]))) if '"' in row else int(counts[k])
+        if found == n_cells:
+            continue
+        raise cell_count_error(path, k + 2, found, n_cells, row)
+
+
+def cell_count_error(
+    path: str | os.PathLike,
+    line: int,
+    found: int,
+    expected: int,
+    row: str,
+    *,
+    reference: str = "the header",
+    decimals: bool = True,
+) -> InputError:
+    """The error of a CSV row with ``found`` cells where ``reference`` has ``expected``.
+
+    One wording for every CSV reader of the toolkit (long tables, points,
+    triangles, manifests).  In a table of numbers (``decimals``) a cell too
+    many is most often a decimal comma, and the message says so.
+
+    Examples
+    --------
+    >>> print(cell_count_error("p.csv", 3, 3, 2, "10,5,20"))
+    p.csv, line 3: 3 cells where the header has 2 (a decimal comma?): 10,5,20
+    """
+    hint = " (a decimal comma?)" if decimals and found > expected else ""
+    cells = "1 cell" if found == 1 else f"{found} cells"
+    return InputError(
+        f"{path}, line {line}: {cells} where {reference} has {expected}{hint}: {_shown(row)}"
+    )
 
 
 def _rows(body: list[str], path: Path, index: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -201,10 +268,8 @@ def _rows(body: list[str], path: Path, index: list[int]) -> tuple[np.ndarray, np
         try:
             rows.append([_number(row[i]) for i in index])
         except (ValueError, IndexError):
-            shown = ",".join(row)
-            shown = shown if len(shown) <= 80 else shown[:77] + "..."
             what = "too few values" if len(row) <= max(index) else "not a number"
-            raise InputError(f"{path}, line {line}: {what}: {shown}") from None
+            raise InputError(f"{path}, line {line}: {what}: {_shown(','.join(row))}") from None
         lines.append(line)
     return np.array(rows, dtype=float).reshape(-1, len(index)), np.array(lines, dtype=np.int64)
 

@@ -35,7 +35,8 @@ The figures live in private modules by concern and are imported from here:
 ``_maps`` (maps, tracked grid and error maps over a frame), ``_crosses``,
 ``_curves``, ``_violins``, ``_study`` (the study figures), ``_animation``
 (the video writer), ``_save`` (:func:`save_figure`), ``_style`` (labels,
-colours, colour scales, :func:`strain_limits`) and ``_checks``.
+colours, colour scales, :func:`strain_limits`), ``_checks`` and ``_pool``
+(the worker processes that draw a run's figures while it writes the rest).
 """
 
 from strain2d.figures._animation import write_strain_animation

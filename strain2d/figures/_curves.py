@@ -115,6 +115,7 @@ def plot_strain_curves(
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
     endpoint: int | None = None,
     title: str = "",
+    curves: dict | None = None,
 ) -> Figure:
     """Mean nodal strain over time with a band of +/- one spatial SD (the paper's Fig. 14).
 
@@ -130,12 +131,15 @@ def plot_strain_curves(
         Frame index of the contraction endpoint
         (:func:`strain2d.stats.contraction_endpoint`), marked by a dashed line.
     title : str, keyword-only
+    curves : dict, keyword-only
+        ``mean_strain_curves(field, components)`` when it is at hand already
+        (a streamed field need not be computed again).
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    stats = mean_strain_curves(field, components)
+    stats = mean_strain_curves(field, components) if curves is None else curves
     T = field.n_frames
     t = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
     if t.shape != (T,):

@@ -173,6 +173,11 @@ def _load(
     ckpt = None
     if checkpoint is not None:
         ckpt = Path(checkpoint).expanduser()
+        if ckpt.is_dir():
+            raise InputError(
+                f"--cotracker-checkpoint {ckpt} is a folder; give the weights file in it "
+                "(e.g. scaled_offline.pth)"
+            )
         if not ckpt.is_file():
             raise InputError(
                 f"no such CoTracker3 checkpoint: {ckpt} (download it from {WEIGHTS_URL})"
@@ -371,6 +376,25 @@ def _call(predictor, torch, video, queries, *, autocast) -> tuple[np.ndarray, ..
     return arrays[0], arrays[1], arrays[2] if len(arrays) > 2 else None
 
 
+#: bytes per pixel of each frame of a chunk in this process's memory: the frame scaled to
+#: float32, and the chunk stacked into one array for the model (a lower bound: the model's own
+#: copies, on the CPU, come on top)
+CHUNK_BYTES_PER_PIXEL = 2 * 4
+
+
+def _check_chunk_fits(chunk_frames: int, total: int | None, size: tuple[int, int]) -> None:
+    """Refuse, before the model runs, a chunk of frames that cannot fit the memory."""
+    from tissue_core.resources import check_fits
+
+    frames = chunk_frames if total is None else min(chunk_frames, total)
+    w, h = size
+    check_fits(
+        f"--chunk-frames {chunk_frames} ({frames} frames of {w}x{h} px in each model call)",
+        memory=frames * w * h * CHUNK_BYTES_PER_PIXEL,
+        remedy="use fewer --chunk-frames, or keep the crop around the points",
+    )
+
+
 @register_tracker(
     "cotracker3",
     description="Meta's pretrained CoTracker3 (offline); needs PyTorch and its code and weights",
@@ -532,6 +556,7 @@ def track_cotracker(
         x0, y0, x1, y1 = crop_box(points, (h, w), margin=crop_margin, aspect=interp[1] / interp[0])
     else:
         x0, y0, x1, y1 = 0, 0, w, h
+    _check_chunk_fits(chunk_frames, total, (x1 - x0, y1 - y0))
     offset = np.array([x0, y0], dtype=float)
 
     def prepare(frame: np.ndarray) -> np.ndarray:

@@ -17,14 +17,18 @@ import numpy as np
 import pytest
 import tifffile
 
+import tissue_core.resources as resources
 from mpm3d.cli import main
 from tests.badinput import (
     FAMILIES,
+    WRITING,
     assert_inert,
     assert_refused,
     interrupt,
+    killed,
     scratch_left,
     snapshot,
+    stale_scratch,
     unwritable_folder,
     write,
 )
@@ -335,6 +339,27 @@ def _(s, t):
 # ---- conflicting options
 
 
+# ---- options that size an allocation beyond the stack or the memory
+@case("allocation-smooth-kernel-wider-than-the-field")
+def _(s, t):
+    return {"--smooth": "1e12"}, ["--smooth", "1e+12 um", "wider than the field of view"]
+
+
+@case("allocation-iso-bin-beyond-the-stack")
+def _(s, t):
+    return {"--iso-bin": "1000000"}, ["--iso-bin", "bin 1000000", "at most 48"]
+
+
+@case("allocation-memory-limit-beyond-the-memory", "analyze")
+def _(s, t):
+    said = ["--memory-limit 1024.00GiB reads the stack whole", "of memory", "1 MiB is available"]
+    return {"--memory-limit": "1TiB"}, said
+
+
+#: the memory available, bytes, in the cases that ask for more than there is
+SMALL_MEMORY = {"analyze-allocation-memory-limit-beyond-the-memory": 2**20}
+
+
 @case("conflict-no-surface-with-iso-bin")
 def _(s, t):
     return {"--no-surface": True, "--iso-bin": "2"}, ["--iso-bin", "--no-surface"]
@@ -472,7 +497,10 @@ def _files(options: dict, out: Path) -> list[Path]:
 
 
 @pytest.mark.parametrize(("command", "build"), CASES)
-def test_bad_input(command, build, mpm_small, tmp_path, capsys):
+def test_bad_input(command, build, mpm_small, tmp_path, capsys, monkeypatch, request):
+    memory = SMALL_MEMORY.get(request.node.callspec.id)
+    if memory is not None:
+        monkeypatch.setattr(resources, "available_memory", lambda: memory)
     stack = tmp_path / "data" / "stack.tif"  # a copy: the case may name its folder
     stack.parent.mkdir()
     stack.write_bytes(mpm_small[0].read_bytes())
@@ -504,10 +532,12 @@ def test_every_command_has_cases_of_every_family_that_applies():
     ids = [p.id for p in CASES] + list(NAME_CASES)
     for command in COMMANDS:
         for family in FAMILIES:
-            if family == "csv":  # mpm3d reads no tables
+            if family in ("csv", "calibration"):  # mpm3d reads no tables and no cameras
                 continue
-            if family == "interrupt":
+            if family in ("interrupt", "terminate", "stale"):
                 continue  # test_interrupt below
+            if family == "nonfinite":  # infinite voxels are read: test_stack_types.py
+                continue
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
 
 
@@ -515,12 +545,13 @@ def test_every_command_has_cases_of_every_family_that_applies():
 
 
 #: ``python -c``: run mpm3d with a compiled kernel called over and over for 0.2 s (each call
-#: takes milliseconds) and Ctrl-C sent 1 ms after the first call starts; it prints how long the
-#: calls went on, to show that the signal came while compiled code ran
+#: takes milliseconds) and Ctrl-C (``KERNEL:SIGTERM``: SIGTERM) sent 1 ms after the first call
+#: starts; it prints how long the calls went on, to show that the signal came while compiled
+#: code ran
 IN_KERNEL = """
 import os, signal, sys, threading, time
 import mpm3d._kernels as kernels
-name = sys.argv[1]
+name, _, sent_signal = sys.argv[1].partition(":")
 real = getattr(kernels, name)
 def started(*args):
     # the first call in a process loads the compiled kernel, importing numba's modules: a
@@ -529,7 +560,7 @@ def started(*args):
     result = real(*args)
     sent = threading.Event()
     def ctrl_c():
-        os.kill(os.getpid(), signal.SIGINT)
+        os.kill(os.getpid(), getattr(signal, sent_signal or "SIGINT"))
         sent.set()
     waited = time.perf_counter()
     calls = 0  # calls begun after the Ctrl-C was sent
@@ -561,9 +592,17 @@ STAGES = [
     ("compare", "finding the surface", 0.05, "height-map"),
     ("compare", "writing results", 0.2, "writing"),
 ]
+#: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
+TERMINATE_STAGES = [
+    ("analyze", "writing results", 0.3, signal.SIGTERM, "writing"),
+    ("analyze", "building the isosurface", 0.05, signal.SIGHUP, "sighup-mesh"),
+    ("compare", "writing results", 0.2, signal.SIGTERM, "writing"),
+]
 INTERRUPTS = [
     *(
-        pytest.param(command, after, None, (), when, id=f"{command}-interrupt-{stage}")
+        pytest.param(
+            command, after, None, (), when, signal.SIGINT, id=f"{command}-interrupt-{stage}"
+        )
         for command, when, after, stage in STAGES
     ),
     # Ctrl-C while a numba kernel runs, its threads busy
@@ -573,6 +612,7 @@ INTERRUPTS = [
         "combine_channels",
         (),
         None,
+        signal.SIGINT,
         id="analyze-interrupt-in-combine-channels-kernel",
     ),
     pytest.param(
@@ -581,6 +621,7 @@ INTERRUPTS = [
         "first_crossing",
         (),
         None,
+        signal.SIGINT,
         id="analyze-interrupt-in-first-crossing-kernel",
     ),
     pytest.param(
@@ -589,31 +630,90 @@ INTERRUPTS = [
         "bin_lateral",
         ("--iso-bin", "2"),
         None,
+        signal.SIGINT,
         id="analyze-interrupt-in-bin-kernel",
+    ),
+    *(
+        pytest.param(command, after, None, (), when, signum, id=f"{command}-terminate-{stage}")
+        for command, when, after, signum, stage in TERMINATE_STAGES
+    ),
+    pytest.param(
+        "analyze",
+        120,
+        "first_crossing",
+        (),
+        None,
+        signal.SIGTERM,
+        id="analyze-terminate-in-first-crossing-kernel",
+    ),
+    # mpm3d batch, one run after the other: SIGTERM while a run is written
+    pytest.param("batch", 0.05, None, (), WRITING, signal.SIGTERM, id="batch-terminate-writing"),
+    # the scratch of runs killed outright (SIGKILL), removed by the next run
+    *(
+        pytest.param(command, None, None, (), "stale", None, id=f"{command}-stale-killed-run")
+        for command in ("analyze", "compare", "batch")
     ),
 ]
 
 
-@pytest.mark.parametrize(("command", "after", "kernel", "extra", "when"), INTERRUPTS)
-def test_interrupt(command, after, kernel, extra, when, mpm_pair, tmp_path):
+@pytest.mark.parametrize(("command", "after", "kernel", "extra", "when", "signum"), INTERRUPTS)
+def test_interrupt(command, after, kernel, extra, when, signum, mpm_pair, mpm_small, tmp_path):
     before, later = mpm_pair["before"][0], mpm_pair["after"][0]
     out = tmp_path / "out"
+    if when == "stale":
+        _killed_then_run_again(command, mpm_small[0], tmp_path)
+        return
     if kernel is not None:  # the largest test stack: the kernels run longest
         inputs = [later]
-        argv = ["-c", IN_KERNEL, kernel, "analyze", later, "--out", out, "--no-figures", *extra]
+        name = kernel if signum == signal.SIGINT else f"{kernel}:{signal.Signals(signum).name}"
+        argv = ["-c", IN_KERNEL, name, "analyze", later, "--out", out, "--no-figures", *extra]
     elif command == "analyze":
         inputs = [before]
         argv = ["-m", "mpm3d", "analyze", before, "--out", out]
+    elif command == "batch":  # the signal while its first run is written: watch that run
+        inputs = [before, later]
+        argv = ["-m", "mpm3d", "batch", before, later, "--workers", "1", "--out", tmp_path / "b"]
+        out = tmp_path / "b" / "runs" / "before"
     else:
         inputs = [before, later]
         argv = ["-m", "mpm3d", "compare", before, later, "--out", out, "--no-surface"]
         argv += ["--icp", "off"]
-    status, err = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
+    status, err = interrupt(argv, after=after, when=when, out=out, inputs=inputs, signum=signum)
     if kernel is not None:
-        assert status == 130 and not out.exists(), err
+        assert status == 128 + signum and not out.exists(), err
         assert f"[kernel {kernel} interrupted: " in err, err  # Ctrl-C ended the kernel calls
     elif status == 0:
         assert (out / ("metrics.json" if command == "analyze" else "compare.json")).is_file()
+    if command == "batch":
+        assert status == 143 and not out.exists(), err
+        assert scratch_left(tmp_path / "b") == []
+
+
+def _killed_then_run_again(command: str, stack: Path, tmp_path: Path) -> None:
+    """A run killed (SIGKILL) while it wrote; the next run removes what it left."""
+    out = tmp_path / "out"
+    if command == "analyze":
+        argv = ["analyze", str(stack), "--out", str(out)]
+        assert killed(["-m", "mpm3d", *argv], out=out)  # a real run, killed mid-way
+    elif command == "compare":
+        argv = ["compare", str(stack), str(stack), "--out", str(out), "--no-surface"]
+        stale_scratch(out)
+    else:  # a batch killed while it wrote its first run, and one killed writing metrics.csv
+        argv = ["batch", str(stack), "--workers", "1", "--out", str(out)]  # figures: seconds
+        assert killed(["-m", "mpm3d", *argv], out=out / "runs" / "small")
+        stale_scratch(out / "metrics.csv", "file")
+    assert run(["-q", *argv]) == 0
+    for folder in (tmp_path, out, out / "runs"):
+        if folder.is_dir():
+            assert scratch_left(folder) == [], folder
+    assert not (out / ".batch.lock").exists()
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [p.id for p in INTERRUPTS]
+    for command in (*COMMANDS, "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
 
 
 class _ConvertedByMatplotlib:
@@ -685,6 +785,26 @@ def test_interrupt_lost_in_a_library(how, stage, mpm_small, tmp_path, monkeypatc
         assert (out / "metrics.json").is_file()
     assert [p.name for p in tmp_path.iterdir() if p.name != "out"] == []  # no scratch left
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_compare_reads_both_headers_before_the_first_analysis(
+    mpm_small, tmp_path, capsys, monkeypatch
+):
+    """A truncated after stack, or a channel it lacks, was found only once the before stack
+    had been analysed."""
+    import mpm3d.compare
+
+    analysed = []
+    monkeypatch.setattr(mpm3d.compare, "analyze_stack", lambda *a, **k: analysed.append(a))
+    stack = mpm_small[0]
+    after = cut(stack, tmp_path, 0.5, "after.tif")
+    argv = ["-q", "compare", str(stack), str(after), "--out", str(tmp_path / "out")]
+    assert run(argv) == 2
+    assert "after stack" in capsys.readouterr().err and analysed == []
+    one = imagej(tmp_path, "one.tif", stack_data(stack)[:, :1])  # one channel, named "0"
+    argv = ["-q", "compare", str(stack), str(one), "--channel", "1", "--out", str(tmp_path / "o")]
+    assert run(argv) == 2
+    assert "after stack" in capsys.readouterr().err and analysed == []
 
 
 # --------------------------------------------------------------------------- names

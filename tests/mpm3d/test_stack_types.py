@@ -160,6 +160,26 @@ def test_float_stack_with_nan_voxels(grey, tmp_path):
     assert "count as lumen" in (tmp_path / "out" / "report.html").read_text()
 
 
+@pytest.mark.parametrize("channel", ["1", None])
+def test_infinite_voxels_count_as_the_brightest_and_change_nothing_far_from_them(
+    grey, tmp_path, channel
+):
+    """+inf and -inf voxels (a float stack's overflow) in the corners: the corners are tissue
+    (+inf) or lumen (-inf), as the brightest and the darkest finite values would be, and the
+    metrics are theirs (the thresholds and channel ranges, from the finite voxels, move by
+    the few voxels left out)."""
+    data = grey["data"].astype(np.float32)
+    top, bottom = float(data.max()), float(data.min())
+    extreme, infinite = data.copy(), data.copy()
+    for array, high, low in ((extreme, top, bottom), (infinite, np.inf, -np.inf)):
+        array[:, :, -3:, -3:] = high  # nine columns
+        array[:6, :, :3, :3] = low
+    extra = ("--channel", channel) if channel else ()
+    ref = _analyze(_write(tmp_path / "e.tif", extreme, kind="imagej"), tmp_path / "e", *extra)
+    m = _analyze(_write(tmp_path / "i.tif", infinite, kind="imagej"), tmp_path / "i", *extra)
+    _assert_same(m, ref, 1e-3)
+
+
 def test_bool_stack(grey, tmp_path):
     """A thresholded (1-bit) stack: the surface is found to half a slice."""
     data = grey["data"][:, 1] > 40

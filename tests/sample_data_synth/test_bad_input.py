@@ -5,10 +5,19 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import signal
+
 import pytest
 
+import tissue_core.resources as resources
 from sample_data_synth.cli import main
-from tests.badinput import assert_refused, interrupt, message_lines, parse_case_id, write
+from tests.badinput import (
+    assert_refused,
+    interrupt,
+    parse_case_id,
+    stale_scratch,
+    write,
+)
 from tests.filenames import assert_ran, assert_refused_process, latin1, shown
 
 PROG = "sample_data_synth"
@@ -50,7 +59,61 @@ CASES = [
     ("study-option-heterogeneity", ["study", "--heterogeneity", "1"], ["--heterogeneity"]),
     ("study-option-heterogeneity-nan", ["study", "--heterogeneity", "nan"], ["--heterogeneity"]),
     ("study-option-size-small", ["study", "--size", "32"], ["--size"]),
+    # ---- sizes beyond the memory or the disk: refused before anything is made
+    (
+        "video-allocation-size-100000",
+        ["video", "--size", "100000"],
+        ["--size 100000", "100000x100000 px", "885 GiB of memory", "available"],
+    ),
+    (
+        "video-allocation-frames",
+        ["video", "--frames", "100000000"],
+        ["--frames 100000000", "TiB of memory"],
+    ),
+    (
+        "video-allocation-disk",
+        ["video", "--size", "256", "--formats", "tif"],
+        ["--size 256", "writes 1.94 MiB", "1 MiB free"],
+    ),
+    (
+        "stack-allocation-size-100000",
+        ["stack", "--size", "100000"],
+        ["--size 100000", "26 or more slices", "TiB of memory"],
+    ),
+    (
+        "stack-allocation-slices",
+        ["stack", "--size", "64", "--slices", "100000000"],
+        ["--slices 100000000", "of memory"],
+    ),
+    (
+        "stereo-allocation-size-100000x100000",
+        ["stereo", "--size", "100000x100000"],
+        ["--size 100000x100000", "TiB of memory"],
+    ),
+    (
+        "stereo-allocation-views",
+        ["stereo", "--views", "100000000"],
+        ["--views 100000000", "TiB of memory"],
+    ),
+    (
+        "stereo-allocation-board-corners",
+        ["stereo", "--size", "256x192", "--board", "checkerboard:100000x100000:10"],
+        ["--board checkerboard:100000x100000:10", "at most 64x48", "4 px apart"],
+    ),
+    (
+        "study-allocation-size-100000",
+        ["study", "--size", "100000"],
+        ["--size 100000", "GiB of memory"],
+    ),
+    (
+        "study-allocation-per-group",
+        ["study", "--per-group", "1000000000"],
+        ["--per-group 1000000000", "2000000000 videos", "TiB", "free"],
+    ),
 ]
+
+#: the disk space free, bytes, in the cases that write more than there is
+SMALL_DISK = {"video-allocation-disk": 2**20}
 
 OUTPUT_CASES = [
     (f"{command}-output-{name}", [command, *extra], fragments)
@@ -75,6 +138,8 @@ def test_bad_input(tmp_path, capsys, monkeypatch, case, argv, fragments):
     here.mkdir()
     (here / "data.csv").write_text("x,y\n")
     monkeypatch.chdir(here)
+    if case in SMALL_DISK:
+        monkeypatch.setattr(resources, "free_disk", lambda path: SMALL_DISK[case])
     out = tmp_path / "out"
     where = {"@mine": mine, "@cwd": ".", "@nowhere": tmp_path / "no" / "out"}
     target = next((where[a] for a in argv if a in where), out)
@@ -92,19 +157,54 @@ def test_bad_input_cases_name_their_command_and_family():
     assert len({c[0] for c in ALL}) == len(ALL)
 
 
+#: small but real runs of each command (seconds)
+SMALL = {
+    "video": ["--size", "200", "--frames", "6"],
+    "stack": ["--case", "before", "--size", "96"],
+    "stereo": ["--case", "dome", "--frames", "2", "--size", "320x240"],
+    "study": ["--size", "96", "--frames", "6", "--per-group", "1"],
+}
+#: runs long enough for a signal to land while they render
+LONGER = {
+    "video": ["--size", "300", "--frames", "20"],
+    "stack": ["--case", "before", "--size", "256"],
+    "stereo": ["--case", "dome", "--frames", "3", "--size", "320x240"],
+    "study": ["--size", "128", "--frames", "20"],
+}
+
+INTERRUPTS = [
+    ("study", None, 0.3, signal.SIGINT, "study-interrupt-imports"),
+    ("study", "rendering", 0.2, signal.SIGINT, "study-interrupt-rendering"),
+    ("study", "rendering", 1.0, signal.SIGINT, "study-interrupt-later"),
+    *(
+        (command, "rendering", 0.2, signal.SIGTERM, f"{command}-terminate-rendering")
+        for command in ("video", "stack", "stereo", "study")
+    ),
+    ("video", "rendering", 0.2, signal.SIGHUP, "video-terminate-sighup-rendering"),
+    *(
+        (command, "stale", None, None, f"{command}-stale-killed-run")
+        for command in ("video", "stack", "stereo", "study")
+    ),
+]
+
+
 @pytest.mark.parametrize(
-    ("when", "after"),
-    [(None, 0.3), ("rendering", 0.2), ("rendering", 1.0)],
-    ids=["study-interrupt-imports", "study-interrupt-rendering", "study-interrupt-later"],
+    ("command", "when", "after", "signum"),
+    [c[:4] for c in INTERRUPTS],
+    ids=[c[4] for c in INTERRUPTS],
 )
-def test_interrupt(tmp_path, when, after):
-    out = tmp_path / "study"
-    status, err = interrupt(
-        ["-m", "sample_data_synth", "study", "--size", "128", "--frames", "20", "--out", out],
-        after=after, when=when, out=out,
+def test_interrupt(tmp_path, command, when, after, signum):
+    out = tmp_path / command
+    if when == "stale":  # a run killed (SIGKILL) while it wrote: the next one removes its scratch
+        stale_scratch(out)
+        assert main(["-q", command, *SMALL[command], "--out", str(out)]) == 0
+        assert [p.name for p in tmp_path.iterdir()] == [command]
+        return
+    status, _ = interrupt(
+        ["-m", "sample_data_synth", command, *LONGER[command], "--out", out],
+        after=after, when=when, out=out, signum=signum,
     )  # fmt: skip
-    assert status == 130
-    assert message_lines(err)[-1].endswith(": interrupted; no output written")
+    assert status == 128 + signum
     assert [p.name for p in tmp_path.iterdir()] == []
 
 
@@ -148,3 +248,10 @@ class TestNamesNotUtf8:
         assert main([*argv, "-q", "--out", str(plain)]) == 0
         assert differences(out, plain) == []
         assert sorted(p.name for p in out.parent.iterdir()) == [out.name]
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [c[4] for c in INTERRUPTS]
+    for command in ("video", "stack", "stereo", "study"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)

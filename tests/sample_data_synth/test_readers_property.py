@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -44,3 +45,8 @@ def test_ground_truth(tmp_path, key, value, drop, raw):
     except (InputError, SourceError):
         return
     assert truth.n_frames >= 2 and len(truth.roi) == 4
+
+
+def test_a_folder_given_as_the_ground_truth_is_called_a_folder(tmp_path):
+    with pytest.raises(SourceError, match=r"is a folder, not a ground-truth file$"):
+        load_ground_truth(tmp_path)

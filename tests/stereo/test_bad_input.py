@@ -8,14 +8,26 @@ from __future__ import annotations
 import copy
 import json
 import shutil
+import signal
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import tissue_core.resources as resources
 from stereo.cli import main
-from tests.badinput import FAMILIES, assert_refused, interrupt, scratch_left, snapshot, write
+from tests.badinput import (
+    FAMILIES,
+    WRITING,
+    assert_refused,
+    interrupt,
+    killed,
+    scratch_left,
+    snapshot,
+    stale_scratch,
+    write,
+)
 from tests.filenames import assert_ran, assert_refused_process, latin1, shown, strict_json
 from tests.stereo.conftest import SMALL_SIZE, SmallStereo, write_opencv_yaml
 from tissue_core.outputs import atomic_dir
@@ -397,6 +409,51 @@ def _(s, t):
     return {"--left": t / "left", "--right": t / "right"}, ["differ in size"]
 
 
+# ---- calibrate: calibrations that cannot be physical
+
+
+@case("calibrate-calibration-board-4x4-on-a-9x6-target")
+def _(s, t):
+    """OpenCV finds a 4 x 4 corner pattern inside the 9 x 6 board (the calibration came out
+    at RMS 15 px and a 600 mm baseline for a 120 mm one)."""
+    fragments = ["view_00.png", "--board checkerboard:4x4:10", "the images hold 9x6 inner corners",
+                 "e.g. --board checkerboard:9x6:10"]  # fmt: skip
+    return {"--board": "checkerboard:4x4:10"}, fragments
+
+
+@case("calibrate-calibration-board-one-column-short")
+def _(s, t):
+    return {"--board": "checkerboard:8x6:10"}, ["the images hold 9x6 inner corners"]
+
+
+@case("calibrate-calibration-left-and-right-the-same-folder")
+def _(s, t):
+    return {"--right": s.views_left}, ["--left", "--right", "name the same images", "view_00.png"]
+
+
+@case("calibrate-calibration-left-and-right-globs-sharing-images")
+def _(s, t):
+    changes = {"--left": f"{s.views_left}/view_0[0-4].png", "--right": f"{s.views_left}/*.png"}
+    return changes, ["name the same images", "and 4 more"]
+
+
+@case("calibrate-calibration-copies-of-the-left-images-as-the-right")
+def _(s, t):
+    shutil.copytree(s.views_left, t / "right")
+    return {"--right": t / "right"}, ["view_00.png / view_00.png", "the same picture"]
+
+
+@case("calibrate-calibration-pairs-out-of-step")
+def _(s, t):
+    """The right images listed one place off (renamed, or sorted another way): each camera
+    calibrates, the rig cannot."""
+    files = sorted(s.views_right.glob("*.png"))
+    (t / "right").mkdir()
+    for source, target in zip(files, files[1:] + files[:1], strict=True):
+        shutil.copy(source, t / "right" / target.name)
+    return {"--right": t / "right"}, ["RMS reprojection error", "at most 5 px", "same moment"]
+
+
 # ---- import-calib (and every reader of a calibration)
 
 
@@ -561,6 +618,54 @@ def _(s, t):
     return {"--unit": " "}, ["--unit"]
 
 
+#: calibrations that cannot be physical, as every reader meets them: (name, file, fragments)
+UNPHYSICAL = [
+    ("T-half-a-mm", lambda s, t: calib_json(s, t, setter(("T",), [0.5, 0.0, 0.0]), "rig.json"),
+     ["rig.json", "T gives the baseline |T| = 0.5 mm", "never closer than 1 mm"]),
+    ("T-in-metres-read-as-mm", lambda s, t: calib_yml(
+        s, t, lambda d: d.update(T=(np.asarray(d["T"]) / 1000).tolist())),
+     ["stereo.yml", "T gives the baseline", "--unit"]),
+    ("rms-15-px", lambda s, t: calib_json(s, t, setter(("rms_px",), 15.0), "rig.json"),
+     ["rig.json", "rms_px is 15 px", "no real rig"]),
+]  # fmt: skip
+for name, make, fragments in UNPHYSICAL:
+
+    @case(f"import-calib-calibration-{name}")
+    def _(s, t, make=make, fragments=fragments):
+        return {"_1": make(s, t)}, fragments
+
+    for command in ("match", "reconstruct"):
+
+        @case(f"{command}-calibration-{name}")
+        def _(s, t, make=make, fragments=fragments):
+            return {"--calib": make(s, t)}, fragments
+
+
+@case("import-calib-calibration-unit-um-for-a-rig-in-mm")
+def _(s, t):
+    return {"--unit": "um"}, ["stereo.yml", "|T| = 120 um (0.12 mm)", "never closer than 1 mm"]
+
+
+@case("reconstruct-calibration-cameras-2-mm-apart")
+def _(s, t):
+    """A rig whose cameras are 2 mm apart, 300 mm from the sheet: its calibration is right,
+    but the rays to a point meet at 0.4 degrees and depth is not measured."""
+    import dataclasses
+
+    from sample_data_synth.stereo import default_rig, render_surface_scene, save_stereo_scene
+    from stereo.calibration import load_calibration
+
+    rig = default_rig(image_size=SMALL_SIZE)
+    close = dataclasses.replace(rig, T=rig.T / np.linalg.norm(rig.T) * 2.0)
+    scene = render_surface_scene(close, "stretch", n_frames=2, supersample=1, distance=300.0,
+                                 rng=1)  # fmt: skip
+    save_stereo_scene(t / "scene", scene)
+    load_calibration(t / "scene" / "rig.json").save(t / "calib.json")
+    changes = {"--calib": t / "calib.json", "--left": t / "scene" / "left",
+               "--right": t / "scene" / "right"}  # fmt: skip
+    return changes, ["the cameras are 2 mm apart for the surface", "depth is not measured"]
+
+
 # ---- match and reconstruct: the calibration they read
 
 for command in ("match", "reconstruct"):
@@ -622,6 +727,22 @@ def _(s, t):
 @case("match-truncated-left-png")
 def _(s, t):
     return {"_1": cut(s.left0, t, "left.png")}, ["left.png", "truncated"]
+
+
+def tiff_copy(png: Path, folder: Path, name: str) -> Path:
+    """A PNG's gray image as a TIFF file."""
+    import cv2
+    import tifffile
+
+    folder.mkdir(parents=True, exist_ok=True)
+    tifffile.imwrite(folder / name, cv2.imread(str(png), cv2.IMREAD_GRAYSCALE))
+    return folder / name
+
+
+@case("match-truncated-left-tif")
+def _(s, t):
+    tif = tiff_copy(s.left0, t / "whole", "left.tif")
+    return {"_1": cut(tif, t)}, ["left.tif is truncated", "runs to byte"]
 
 
 @case("match-truncated-right-jpeg")
@@ -691,7 +812,13 @@ BAD_POINTS = [
     ("header-only", "x,y\n", ["no points"]),
     ("outside-the-image", f"x,y\n300,150\n{W + 5},200\n350,220\n", ["point 1", "outside"]),
     ("negative", "x,y\n300,150\n-3,200\n350,220\n", ["point 1", "outside"]),
-]
+    # a decimal comma (320,5 for 320.5) makes one cell too many; a cell missing
+    ("ragged-decimal-comma", "x,y\n300,150\n320,5,200\n350,220\n",
+     ["line 3: 3 cells where the header has 2 (a decimal comma?): 320,5,200"]),
+    ("ragged-first-row", "x,y\n300,5,150\n320,200\n350,220\n", ["line 2: 3 cells"]),
+    ("ragged-short-row", "x,y\n300,150\n320\n350,220\n",
+     ["line 3: 1 cell where the header has 2"]),
+]  # fmt: skip
 for command in ("match", "reconstruct"):
     for name, text, fragments in BAD_POINTS:
 
@@ -746,6 +873,18 @@ def _(s, t):
 @case("reconstruct-truncated-right-video")
 def _(s, t):
     return {"--left": s.left_video, "--right": cut(s.right_video, t)}, ["right.avi"]
+
+
+@case("reconstruct-truncated-tif-movie")
+def _(s, t):
+    import cv2
+    import tifffile
+
+    frames = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in sorted(s.right.glob("*.png"))]
+    tifffile.imwrite(t / "whole.tif", np.stack(frames))
+    data = (t / "whole.tif").read_bytes()
+    right = write(t, "right.tif", data[: len(data) * 3 // 4])  # the first page is whole
+    return {"--right": right}, ["right.tif is truncated"]
 
 
 @case("reconstruct-truncated-png-in-the-left-folder")
@@ -857,13 +996,75 @@ for option, value, fragment in (
         return {"--points": None, option: value}, [option, fragment]
 
 
+def float_frames(source: Path, tmp: Path, name: str, bad: tuple[int, float]) -> Path:
+    """The frames of the folder ``source`` as float32 TIFFs, frame ``bad[0]`` with the value
+    ``bad[1]`` in nine pixels of a corner, far from every point."""
+    import cv2
+    import tifffile
+
+    folder = tmp / name
+    folder.mkdir()
+    for k, png in enumerate(sorted(source.glob("*.png"))):
+        frame = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE).astype(np.float32)
+        if k == bad[0]:
+            frame[-3:, -3:] = bad[1]
+        tifffile.imwrite(folder / f"{png.stem}.tif", frame)
+    return folder
+
+
+@case("reconstruct-nonfinite-inf-in-the-right-view")
+def _(s, t):
+    return {"--right": float_frames(s.right, t, "right", (1, np.inf))}, [
+        "frame_001.tif", "frame 1", "9 infinite pixel values"]  # fmt: skip
+
+
+@case("reconstruct-nonfinite-nan-on-the-left-reference")
+def _(s, t):
+    return {"--left": float_frames(s.left, t, "left", (0, np.nan))}, [
+        "frame_000.tif", "frame 0", "9 NaN pixel values"]  # fmt: skip
+
+
+@case("calibrate-allocation-board-corners")
+def _(s, t):
+    board = "checkerboard:100000x100000:10"
+    return {"--board": board}, [f"--board {board}", "px images can show", "at most"]
+
+
+@case("reconstruct-allocation-grid-300x300")
+def _(s, t):
+    return {"--points": None, "--grid": "300x300"}, ["--grid 300x300", "px apart", "at most"]
+
+
+@case("reconstruct-allocation-tracks-memory")
+def _(s, t):
+    return {}, ["points over 2 frames in each of 2 views", "of memory", "100 bytes", "--grid"]
+
+
+#: the memory available, bytes, in the cases that ask for more than there is
+SMALL_MEMORY = {"reconstruct-allocation-tracks-memory": 100}
+
+
+for name, value, fragment in (
+    ("parallel", "vectors:1,0,0:2,0,0", "parallel"),
+    ("zero-vector", "vectors:0,0,0:0,1,0", "first vector has zero length"),
+    ("zero-axis", "sphere:0,0,450:0,0,0", "axis A has zero length"),
+):
+
+    @case(f"reconstruct-option-directions-{name}")
+    def _(s, t, value=value, fragment=fragment):
+        return {"--strain": True, "--directions": value}, [f"--directions {value}", fragment]
+
+
 @case("reconstruct-option-directions-unknown")
 def _(s, t):
     return {"--strain": True, "--directions": "polar"}, ["--directions", "polar"]
 
 
 @pytest.mark.parametrize(("command", "build"), CASES)
-def test_bad_input(command, build, small_stereo, tmp_path, capsys):
+def test_bad_input(command, build, small_stereo, tmp_path, capsys, monkeypatch, request):
+    memory = SMALL_MEMORY.get(request.node.callspec.id)
+    if memory is not None:
+        monkeypatch.setattr(resources, "available_memory", lambda: memory)
     changes, fragments = build(small_stereo, tmp_path)
     options = base(command, small_stereo, tmp_path)
     options.update(changes)
@@ -877,37 +1078,120 @@ def test_every_command_has_cases_of_every_family_that_applies():
     ids = [p.id for p in CASES]
     for command in ("calibrate", "import-calib", "match", "reconstruct"):
         for family in ("missing", "empty", "truncated", "wrong-type", "option", "conflict",
-                       "output"):  # fmt: skip
+                       "output", "calibration"):  # fmt: skip
             assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
         if command in ("match", "reconstruct"):
             assert any(i.startswith(f"{command}-csv-") for i in ids), command
 
 
-# --------------------------------------------------------------------------- Ctrl-C
+# --------------------------------------------------------------------------- Ctrl-C, SIGTERM
 
 
-#: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start)
+def _stereo_command(command: str, s: SmallStereo, tmp: Path, *, strain: bool = True):
+    """``(argv, out, inputs)`` of a run of ``command`` on the small inputs."""
+    if command == "batch":
+        manifest = tmp / "specimens.csv"
+        manifest.write_text(
+            "specimen,left,right,calib\n"
+            + "".join(f"{name},{s.left},{s.right},{s.calib}\n" for name in ("A", "B"))
+        )
+        argv = ["batch", manifest, "--workers", "1", "--grid", "5x4", "--roi", "280,150,400,240",
+                "--out", tmp / "b"]  # fmt: skip
+        return argv, tmp / "b", [s.left, s.right, s.calib]
+    options = base(command, s, tmp)
+    options.pop("-q", None)
+    if command == "reconstruct" and strain:
+        options["--strain"] = True
+    argv = command_line(command, options)
+    out = Path(options["--out"])
+    return argv, out, [Path(a) for a in argv[1:] if Path(a).exists() and Path(a) != out]
+
+
+#: Ctrl-C (SIGTERM, SIGHUP) ``after`` seconds after the step ``when`` was printed (None: after
+#: the start; WRITING: once its temporary result holds something)
 STAGES = [
-    (None, 0.3, "imports"),
-    ("matching", 0.05, "matching"),
-    ("tracking the left view", 0.05, "tracking"),
-    ("computing strain", 0.02, "strain"),
+    ("reconstruct", None, 0.3, signal.SIGINT, "reconstruct-interrupt-imports"),
+    ("reconstruct", "matching", 0.05, signal.SIGINT, "reconstruct-interrupt-matching"),
+    (
+        "reconstruct",
+        "tracking the left view",
+        0.05,
+        signal.SIGINT,
+        "reconstruct-interrupt-tracking",
+    ),
+    ("reconstruct", "computing strain", 0.02, signal.SIGINT, "reconstruct-interrupt-strain"),
+    ("reconstruct", "computing strain", 0.3, signal.SIGTERM, "reconstruct-terminate-strain"),
+    (
+        "reconstruct",
+        "tracking the left",
+        0.05,
+        signal.SIGHUP,
+        "reconstruct-terminate-sighup-tracking",
+    ),
+    ("calibrate", "detecting the target", 0.1, signal.SIGTERM, "calibrate-terminate-detecting"),
+    ("import-calib", None, 0.3, signal.SIGTERM, "import-calib-terminate-imports"),
+    ("match", None, 1.0, signal.SIGTERM, "match-terminate-start"),
+    ("batch", WRITING, 0.05, signal.SIGTERM, "batch-terminate-first-run"),
+    # the scratch of a run killed outright (SIGKILL), removed by the next run
+    *(
+        (command, "stale", None, None, f"{command}-stale-killed-run")
+        for command in (*COMMANDS, "batch")
+    ),
 ]
 
 
 @pytest.mark.parametrize(
-    ("when", "after"),
-    [s[:2] for s in STAGES],
-    ids=[f"reconstruct-interrupt-{s[2]}" for s in STAGES],
+    ("command", "when", "after", "signum"), [s[:4] for s in STAGES], ids=[s[4] for s in STAGES]
 )
-def test_interrupt(when, after, small_stereo, tmp_path):
-    s = small_stereo
-    out = tmp_path / "rec"
-    inputs = [s.calib, s.left, s.right, s.points]
-    argv = ["-m", "stereo", "reconstruct", "--calib", s.calib, "--left", s.left,
-            "--right", s.right, "--points", s.points, "--strain", "--out", out]  # fmt: skip
-    status, _ = interrupt(argv, after=after, when=when, out=out, inputs=inputs)
-    assert status == 130
+def test_interrupt(command, when, after, signum, small_stereo, tmp_path, capsys):
+    if when == "stale":
+        _killed_then_run_again(command, small_stereo, tmp_path, capsys)
+        return
+    argv, out, inputs = _stereo_command(command, small_stereo, tmp_path)
+    if command == "batch":  # a batch's result is its runs: watch the first one
+        out = tmp_path / "b" / "runs" / "A"
+    status, err = interrupt(["-m", "stereo", *argv], after=after, when=when, out=out,
+                            inputs=inputs, signum=signum)  # fmt: skip
+    assert status == 128 + signum, err
+    if command == "batch":
+        assert scratch_left(tmp_path / "b") == [] and not out.exists()
+
+
+def _killed_then_run_again(command: str, s: SmallStereo, tmp_path: Path, capsys) -> None:
+    """A run killed (SIGKILL) while it wrote; the next run removes what it left."""
+    argv, out, _ = _stereo_command(command, s, tmp_path, strain=False)
+    if command == "batch":  # killed while it wrote a run, and one killed writing its record
+        assert killed(["-m", "stereo", *argv], out=out / "runs" / "A")
+        stale_scratch(out / "batch.json", "replaced")
+    else:
+        stale_scratch(out, "dir" if command == "reconstruct" else "file")
+    assert main(["-q", *map(str, argv)]) == 0, capsys.readouterr().err
+    for folder in (tmp_path, out, out / "runs"):
+        if folder.is_dir():
+            assert scratch_left(folder) == [], folder
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [s[4] for s in STAGES]
+    for command in (*COMMANDS, "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)
+
+
+def test_directions_no_surface_can_use_are_refused_before_the_tracking(
+    small_stereo, tmp_path, capsys, monkeypatch
+):
+    """Zero or parallel vectors were refused only once both videos were tracked."""
+    import stereo.reconstruct
+
+    def not_now(*args, **kwargs):
+        raise AssertionError("reconstruct ran")
+
+    monkeypatch.setattr(stereo.reconstruct, "reconstruct", not_now)
+    options = {**base("reconstruct", small_stereo, tmp_path), "--strain": True,
+               "--directions": "vectors:0,1,0:0,-3,0"}  # fmt: skip
+    assert run(command_line("reconstruct", options)) == 2
+    assert "the two vectors are parallel" in capsys.readouterr().err
 
 
 # --------------------------------------------------------------------------- names

@@ -59,8 +59,12 @@ BAD = [
     ({"T": [float("nan"), 0.0, 0.0]}, "T", "finite"),
     ({"T": [1e300, 1e300, 0.0]}, "T", "baseline"),
     ({"T": [1.0, 2.0]}, "T", "3 numbers"),
+    ({"T": [0.5, 0.1, 0.0]}, "T", "never closer than 1 mm"),  # the same images on both sides
+    ({"T": [0.12, 0.0, 0.01]}, "T", "never closer than 1 mm"),  # metres, said to be mm
+    ({"T": [120.0, 0.0, 0.0], "unit": "um"}, "T", "0.12 mm"),
     ({"rms_px": "small"}, "rms_px", "number"),
     ({"rms_px": -1.0}, "rms_px", "number"),
+    ({"rms_px": 15.0}, "rms_px", "no real rig"),
     ({"unit": 5}, "unit", "name"),
     ({"unit": ""}, "unit", "name"),
 ]
@@ -300,3 +304,145 @@ def test_dot_grids_calibrate_the_rig_at_least_as_well_as_a_checkerboard():
         for name, bar in DOT_GRID_BARS.items():
             assert found[kind][name] <= squares[name], (kind, name, found[kind], squares)
             assert found[kind][name] < bar, (kind, name, found[kind])
+
+
+# --------------------------------------------------------------------------- calibrations that
+# cannot be physical: a board of the wrong size, the same images on both sides, pairs out of
+# step, cameras (nearly) in one place
+
+
+def test_a_baseline_is_judged_in_its_unit_and_unknown_units_are_not_judged(good):
+    assert Calibration.from_dict({**good, "T": [0.12, 0.0, 0.0], "unit": "m"}).baseline == 0.12
+    assert Calibration.from_dict({**good, "T": [0.5, 0.0, 0.0], "unit": "px"}).baseline == 0.5
+    assert Calibration.from_dict({**good, "T": [0.9, 0.0, 0.0], "unit": "cm"}).baseline == 0.9
+
+
+def test_a_calibration_in_metres_is_imported_with_its_unit_and_refused_without(good, tmp_path):
+    """T in metres (as ROS and others write it) read as mm is 0.12 mm: refused, naming --unit."""
+    metres = {**good, "T": (np.asarray(good["T"]) / 1000).tolist()}
+    write_opencv_yaml(tmp_path / "stereo.yml", metres)
+    with pytest.raises(InputError, match=r"stereo\.yml: T gives the baseline .* --unit"):
+        load_calibration(tmp_path / "stereo.yml")
+    calib = load_calibration(tmp_path / "stereo.yml", unit="m")
+    assert calib.unit == "m"
+    assert calib.baseline == pytest.approx(np.linalg.norm(good["T"]) / 1000, rel=1e-12)
+
+
+@pytest.fixture(scope="module")
+def target_views():
+    """Views of a 9 x 6 target (checkerboard, dot grid) by the synthetic rig, one each."""
+    from sample_data_synth.stereo import default_rig, render_calibration_views
+
+    rig = default_rig(image_size=(512, 384))
+    return {
+        kind: render_calibration_views(rig, spec, n_views=1, rng=1, supersample=1).left[0]
+        for kind, spec in (("checkerboard", "checkerboard:9x6:10"), ("circles", "circles:9x6:10:5"))
+    }
+
+
+@pytest.mark.parametrize(
+    "spec",
+    ["checkerboard:4x4:10", "checkerboard:3x3:10", "circles:4x4:10", "circles:8x6:10",
+     "circles:9x5:10", "circles:3x3:10"],
+)  # fmt: skip
+def test_a_board_smaller_than_the_target_is_refused_naming_the_size_the_image_holds(
+    target_views, spec
+):
+    """OpenCV finds a 4 x 4 corner pattern inside a 9 x 6 board as readily as the board: the
+    corners would get wrong board positions (the issue's RMS 15 px, baseline 600 mm)."""
+    from stereo.calibration import BoardSizeError, detect_board, parse_board
+
+    board = parse_board(spec)
+    with pytest.raises(BoardSizeError) as error:
+        detect_board(target_views[board.kind], board)
+    assert error.value.found == (9, 6)
+    assert "the images hold 9x6" in str(error.value)
+    assert f"--board {board.kind}:9x6:10" in str(error.value)
+
+
+@pytest.mark.parametrize("spec", ["checkerboard:9x6:10", "checkerboard:6x9:10", "circles:9x6:10",
+                                  "circles:6x9:10"])  # fmt: skip
+def test_the_board_the_image_holds_is_found_whole(target_views, spec):
+    from stereo.calibration import detect_board, parse_board
+
+    board = parse_board(spec)
+    points, ids = detect_board(target_views[board.kind], board)
+    assert len(points) == 54 and ids.tolist() == list(range(54))
+
+
+@pytest.mark.parametrize(
+    ("spec", "size"),
+    [("checkerboard:10x7:10", (9, 6)), ("checkerboard:5x12:10", (6, 9)),
+     ("circles:10x6:10", (9, 6))],
+)  # fmt: skip
+def test_the_size_an_image_holds_is_told_for_a_board_that_is_not_found(target_views, spec, size):
+    from stereo.calibration import board_size_in, parse_board
+
+    assert board_size_in(target_views[spec.split(":")[0]], parse_board(spec)) == size
+
+
+def _views(folder):
+    from tissue_core.images import read_gray
+
+    return [read_gray(f) for f in sorted(folder.glob("*.png"))]
+
+
+def test_the_same_pictures_on_both_sides_are_refused_before_the_target_is_looked_for(
+    small_stereo, monkeypatch
+):
+    import stereo.calibration as calibration
+
+    def no_detection(*args):
+        raise AssertionError("the target was looked for")
+
+    monkeypatch.setattr(calibration, "detect_board", no_detection)
+    board = calibration.parse_board("checkerboard:9x6:10")
+    left, right = _views(small_stereo.views_left), _views(small_stereo.views_right)
+    with pytest.raises(InputError, match="pair 0: the left and right images are the same picture"):
+        calibration.calibrate_stereo(left, left, board)
+    with pytest.raises(InputError, match="the left image of pair 1 is the right image of pair 3"):
+        calibration.calibrate_stereo(left, [right[0], right[1], right[2], left[1], right[4]], board)
+
+
+def test_pairs_out_of_step_are_refused_by_the_rigs_reprojection_error(small_stereo):
+    """Left view k with right view k + 1: each camera calibrates, the rig cannot."""
+    from stereo.calibration import MAX_RMS_PX, calibrate_stereo, parse_board
+
+    left, right = _views(small_stereo.views_left), _views(small_stereo.views_right)
+    with pytest.raises(InputError) as error:
+        calibrate_stereo(left, right[1:] + right[:1], parse_board("checkerboard:9x6:10"))
+    message = str(error.value)
+    assert "RMS reprojection error" in message and f"at most {MAX_RMS_PX:g} px" in message
+    assert float(message.split("error is ")[1].split(" px")[0]) > MAX_RMS_PX
+
+
+def test_a_poor_calibration_is_warned_of_and_flagged_in_its_file(small_stereo, tmp_path):
+    """Right views taken as the board moved on (20 px): a calibration, but a poor one."""
+    from stereo.calibration import POOR_RMS_PX, calibrate_stereo, parse_board
+
+    left, right = _views(small_stereo.views_left), _views(small_stereo.views_right)
+    moved = [np.roll(r, 20, axis=1) if k % 2 == 0 else r for k, r in enumerate(right)]
+    board = parse_board("checkerboard:9x6:10")
+    with pytest.warns(UserWarning, match=f"above {POOR_RMS_PX:g} px: a poor calibration"):
+        calib = calibrate_stereo(left, moved, board)
+    assert POOR_RMS_PX < calib.rms_px
+    (flag,) = calib.extra["flags"]
+    assert f"{calib.rms_px:.3g} px" in flag
+    calib.save(tmp_path / "calib.json")
+    assert load_calibration(tmp_path / "calib.json").extra["flags"] == [flag]
+
+
+def test_cameras_nearly_in_one_place_are_refused_for_the_targets_distance():
+    """2 mm apart for a target 420 mm away: the rays meet at 0.3 degrees, depth is not measured."""
+    import dataclasses
+
+    from sample_data_synth.stereo import default_rig, render_calibration_views
+    from stereo.calibration import calibrate_stereo, parse_board
+
+    rig = default_rig(image_size=(512, 384))
+    close = dataclasses.replace(rig, T=rig.T / np.linalg.norm(rig.T) * 2.0)
+    views = render_calibration_views(close, "checkerboard:9x6:10", n_views=4, rng=3, supersample=1)
+    with pytest.raises(
+        InputError, match=r"the cameras are 1\.\d+ mm apart for the target 4\d\d mm"
+    ):
+        calibrate_stereo(list(views.left), list(views.right), parse_board("checkerboard:9x6:10"))

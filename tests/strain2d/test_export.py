@@ -41,3 +41,33 @@ def test_pvd_series_reads_back_with_vtk(tmp_path):
             np.testing.assert_allclose(vtk_to_numpy(cd.GetArray(key)), elem[key][t], equal_nan=True)
         np.testing.assert_array_equal(vtk_to_numpy(pd.GetArray("visible")), field.visible[t])
         np.testing.assert_array_equal(vtk_to_numpy(cd.GetArray("valid")), field.element_valid[t])
+
+
+def test_pvd_series_is_written_with_vtk_alone(tmp_path):
+    """The series needs VTK's XML writer, not pyvista (a second of imports per run)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "from strain2d.export import write_pvd\n"
+        "from surface_strain import compute_strain, grid_triangles\n"
+        "X = np.stack(np.meshgrid(np.arange(3.0), np.arange(3.0)), -1).reshape(-1, 2)\n"
+        "field = compute_strain(X, np.stack([X, X * 1.1]), grid_triangles(3, 3))\n"
+        f"write_pvd({str(tmp_path)!r}, field, length_scale=0.5, length_unit='mm')\n"
+        "assert 'pyvista' not in sys.modules\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(tmp_path / "strain" / "strain_0001.vtp"))
+    reader.Update()
+    poly = reader.GetOutput()
+    fields = poly.GetFieldData()
+    unit = fields.GetAbstractArray("length_unit")
+    assert unit.GetValue(0) == "mm"
+    units = fields.GetAbstractArray("array_units")
+    listed = [units.GetValue(i) for i in range(units.GetNumberOfValues())]
+    assert "point displacement: mm" in listed and "cell valid: 1 (flag)" in listed
+    assert poly.GetPointData().GetScalars().GetName() == "displacement"
+    assert poly.GetCellData().GetScalars().GetName() == "Exx"
+    np.testing.assert_allclose(vtk_to_numpy(poly.GetPoints().GetData())[4], [0.55, 0.55, 0])

@@ -1,5 +1,7 @@
+import os
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -8,6 +10,7 @@ from matplotlib.contour import ContourSet
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 
+from strain2d.errors import InputError
 from strain2d.figures import (
     format_p,
     mean_strain_curves,
@@ -115,6 +118,55 @@ def test_save_figure_formats_suffixes_and_sizes(tmp_path):
         save_figure(fig, tmp_path / "x", ("png", "docx"))
     with pytest.raises(ValueError, match="formats is empty"):
         save_figure(fig, tmp_path / "x", ())
+
+
+def _zlib_level(png: bytes) -> int:
+    """FLEVEL of a PNG's image data stream: 0 fastest, 1 fast, 2 default, 3 best."""
+    at = 8
+    while at < len(png):
+        size = int.from_bytes(png[at : at + 4], "big")
+        if png[at + 4 : at + 8] == b"IDAT":
+            return png[at + 9] >> 6  # the zlib header: CMF, then FLG
+        at += size + 12
+    raise AssertionError("no image data")
+
+
+def test_png_figures_are_compressed_quickly_and_losslessly(tmp_path):
+    import io
+
+    from PIL import Image
+
+    (path,) = save_figure(_small_figure(), tmp_path / "f.png", dpi=100)
+    assert _zlib_level(path.read_bytes()) == 0  # zlib's fastest level
+    buffer = io.BytesIO()
+    _small_figure().savefig(buffer, format="png", dpi=100)
+    assert _zlib_level(buffer.getvalue()) == 2  # Pillow's default, which is slower
+    assert (np.asarray(Image.open(path)) == np.asarray(Image.open(buffer))).all()
+
+
+def test_png_figures_are_drawn_once_into_the_file_savefig_writes(tmp_path, monkeypatch):
+    """A figure with a layout engine is drawn once for its PNG (savefig draws it twice, to
+    lay it out, then to render it), into the same bytes."""
+    import io
+
+    import matplotlib
+
+    field = _field(T=3)
+    image = _frames(1)[0]
+    expected = io.BytesIO()
+    strain_maps_figure(image, field, 2).savefig(
+        expected, format="png", dpi=80, pil_kwargs={"compress_level": 1}
+    )
+    draws = []
+    plain = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda fig, r: draws.append(1) or plain(fig, r))
+    (path,) = save_figure(strain_maps_figure(image, field, 2), tmp_path / "m.png", dpi=80)
+    assert len(draws) == 1 and path.read_bytes() == expected.getvalue()
+    # a savefig style of the user's: drawn by savefig, which applies it
+    draws.clear()
+    with matplotlib.rc_context({"savefig.facecolor": "yellow"}):
+        save_figure(strain_maps_figure(image, field, 2), tmp_path / "y.png", dpi=80)
+    assert len(draws) == 2 and imread(tmp_path / "y.png")[0, 0, :3].tolist() == [1, 1, 0]
 
 
 # ------------------------------------------------------------------ colour limits
@@ -273,6 +325,11 @@ def test_mean_curves_and_their_figure(tmp_path):
     assert plot_strain_curves(noisy).axes[0].get_xlabel() == "frame"
     with pytest.raises(ValueError, match="one value per frame"):
         plot_strain_curves(noisy, times=[0, 1])
+    # the curves, when at hand, are drawn as given (a streamed field is not read again)
+    given = mean_strain_curves(noisy)
+    drawn = plot_strain_curves(noisy, curves=given).axes[0].get_lines()[0].get_ydata()
+    assert np.array_equal(drawn, given["mean"]["Exx"])
+    assert np.array_equal(drawn, plot_strain_curves(noisy).axes[0].get_lines()[0].get_ydata())
 
 
 def test_format_p():
@@ -418,6 +475,198 @@ def test_gif_animation_and_mismatched_frame_counts(tmp_path):
         write_strain_animation(tmp_path / "x.avi", _frames(3), field)
     with pytest.raises(ValueError, match="time_labels"):
         write_strain_animation(tmp_path / "x.gif", _frames(3), field, time_labels=["a"])
+
+
+def _wavy_field(T=3, n=7):
+    """A grid over a 120 x 160 frame in a sinusoidal field (every band used), a point lost."""
+    x, y = np.meshgrid(np.linspace(20, 140, n), np.linspace(15, 105, n))
+    X = np.column_stack([x.ravel(), y.ravel()])
+    u = np.stack([4 * np.sin(X[:, 0] / 25) * np.cos(X[:, 1] / 30),
+                  -3 * np.cos(X[:, 0] / 35) * np.sin(X[:, 1] / 20)], -1)  # fmt: skip
+    pts = X + np.linspace(0, 1, T)[:, None, None] * u
+    visible = np.ones((T, n * n), bool)
+    visible[-1, n + 1] = False
+    return compute_strain(X, pts, grid_triangles(n, n), visible=visible)
+
+
+def _drawn_frame(image, field, k, label, components=("Exx", "Eyy")):
+    """(the animation's frame k, the state it was drawn with)."""
+    from strain2d.figures._animation import _animation_figure, _animation_frame
+    from strain2d.figures._style import _colour_scale
+
+    limits = strain_limits(field, components)
+    scales = {c: _colour_scale(c, *limits[c]) for c in components}
+    state = _animation_figure(image, field, components, scales, 0.6, 640, 100, None, label=label)
+    rgb = _animation_frame(state, image, field, k, nodal_scalars(field), components, label)
+    return rgb, state, scales
+
+
+def test_animation_frame_looks_like_matplotlib_drawing_it():
+    """The frame drawn without Matplotlib matches the figure Matplotlib draws with the same
+    image, filled contours and mesh: placement, sampling, colours, bands and title."""
+    from matplotlib.collections import LineCollection
+
+    from strain2d.figures._maps import _draw_contours, _triangulation
+
+    field = _wavy_field()
+    k, label = 2, "frame 2 (t = 0.2 s)"
+    image = np.random.default_rng(4).uniform(30, 220, (120, 160))  # speckle: shifts show
+    rgb, state, scales = _drawn_frame(image, field, k, label)
+    values = nodal_scalars(field)
+    for ax, comp in zip(state["axes"], ("Exx", "Eyy"), strict=True):
+        ax.images[0].set_data(image)
+        tri = _triangulation(field, k, values[comp][k])
+        _draw_contours(ax, tri, values[comp][k], scales[comp], 0.6)
+        edges = np.stack([np.column_stack([tri.x[tri.edges[:, i]], tri.y[tri.edges[:, i]]])
+                          for i in (0, 1)], axis=1)  # fmt: skip
+        ax.add_collection(LineCollection(edges, colors="k", linewidths=0.3, alpha=0.45))
+    state["label"].set_text(label)
+    state["canvas"].draw()
+    reference = np.asarray(state["canvas"].buffer_rgba())[: rgb.shape[0], : rgb.shape[1], :3]
+    rows = state["title_rows"]
+    assert rows > 5 and np.abs(rgb[:rows].astype(int) - reference[:rows]).max() <= 1
+    assert rgb[:rows].min() < 100  # the title is there
+    for panel in state["panels"]:
+        ours = rgb[panel["window"]].astype(int)
+        theirs = reference[panel["window"]].astype(int)
+        diff = np.abs(ours - theirs).max(axis=-1)
+        assert ours.shape[0] > 100 and ours.shape[1] > 150
+        # one band off gives a mean of 10, a sampling half a pixel off 44
+        assert diff.mean() < 7 and np.mean(diff > 40) < 0.06, (diff.mean(), np.mean(diff > 40))
+
+
+def test_animation_frame_shows_each_value_in_its_band_colour_where_it_is():
+    field = _wavy_field()
+    k = 1
+    image = np.full((120, 160), 128, np.uint8)
+    rgb, state, scales = _drawn_frame(image, field, k, "frame 1")
+    values = nodal_scalars(field)
+    pos = field.points[k]
+    for panel, comp in zip(state["panels"], ("Exx", "Eyy"), strict=True):
+        sx, tx, sy, ty = panel["to_window"]
+        scale = scales[comp]
+        checked = 0
+        for tri in field.triangles[field.element_valid[k]]:
+            centre = pos[tri].mean(axis=0)  # the field is linear: its value is the mean
+            corner = values[comp][k][tri]
+            v = corner.mean()
+            edges = np.array([pos[tri[1]] - pos[tri[0]], pos[tri[2]] - pos[tri[0]]])
+            gradient = np.linalg.solve(edges, corner[1:] - corner[0])  # per image pixel
+            if np.min(np.abs(scale.levels - v)) < 3 / sx * np.linalg.norm(gradient):
+                continue  # a band's edge within 3 pixels of the output
+            x = round(centre[0] * sx + tx) + panel["window"][1].start
+            y = round(centre[1] * sy + ty) + panel["window"][0].start
+            colour = np.array(scale.cmap(scale.norm(v))[:3]) * 255
+            expected = 128 * 0.4 + colour * 0.6
+            assert np.abs(rgb[y, x] - expected).max() <= 2, (comp, tri, rgb[y, x], expected)
+            checked += 1
+        assert checked > 20
+
+
+def test_raster_triangles_lists_the_pixels_whose_centres_lie_inside():
+    from strain2d.figures._animation import _raster_triangles
+
+    rng = np.random.default_rng(7)
+    corners = rng.uniform(-5, 45, (40, 3, 2))  # some reach outside the 30 x 40 raster
+    corners[0] = [[3, 3], [3, 3], [9, 3]]  # no area
+    corners[1] = [[10.0, 5.0], [20.0, 5.0], [15.0, 12.0]]  # a horizontal edge on a row
+    rows, cols, tri = _raster_triangles(corners, (30, 40))
+    assert rows.min() >= 0 and rows.max() < 30 and cols.min() >= 0 and cols.max() < 40
+    yy, xx = np.mgrid[0:30, 0:40]
+    for t, (a, b, c) in enumerate(corners):
+        area = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+        if area == 0:
+            continue
+        s = ((b[0] - xx) * (c[1] - yy) - (c[0] - xx) * (b[1] - yy)) / area
+        q = ((c[0] - xx) * (a[1] - yy) - (a[0] - xx) * (c[1] - yy)) / area
+        inside = (s >= -1e-9) & (q >= -1e-9) & (1 - s - q >= -1e-9)
+        strictly = (s > 1e-9) & (q > 1e-9) & (1 - s - q > 1e-9)
+        listed = np.zeros((30, 40), bool)
+        listed[rows[tri == t], cols[tri == t]] = True
+        assert not (listed & ~inside).any() and not (strictly & ~listed).any(), t
+    assert {(r, c) for r, c in zip(rows[tri == 1], cols[tri == 1], strict=True)} >= {
+        (5, c) for c in range(10, 21)
+    }
+
+
+def test_animation_title_is_each_frames_label_over_the_same_figure():
+    field = _wavy_field()
+    image = np.random.default_rng(2).uniform(0, 255, (120, 160)).astype(np.uint8)
+    from strain2d.figures._animation import _animation_frame
+
+    first, state, _ = _drawn_frame(image, field, 0, "frame 0 / 2")
+    values = nodal_scalars(field)
+    second = _animation_frame(state, image, field, 0, values, ("Exx", "Eyy"), "frame 1 / 2")
+    rows = state["title_rows"]
+    assert (first[:rows] != second[:rows]).any()  # another label
+    assert (first[rows:] == second[rows:]).all()  # the same frame and figure below it
+
+
+# ------------------------------------------------------------------ figures drawn by workers
+
+
+def _font_size():
+    import warnings
+
+    import matplotlib
+
+    warnings.warn("drawn elsewhere", UserWarning, stacklevel=1)
+    return matplotlib.rcParams["font.size"], os.getpid()
+
+
+def _refuse():
+    raise InputError("frame 3: no strain")
+
+
+def _wait_for(path):
+    while not os.path.exists(path):
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize("threads", [1, 2], ids=["forked", "from-a-server"])
+def test_figure_pool_runs_tasks_elsewhere_as_they_would_run_here(tmp_path, threads):
+    """Workers forked from this process, or (another thread running here, when forking is
+    unsafe) from a fresh server: the caller's style, its warnings and errors either way."""
+    import threading
+
+    import matplotlib
+
+    from strain2d.figures._pool import FigurePool, _context
+
+    done = threading.Event()
+    others = [threading.Thread(target=done.wait) for _ in range(threads - 1)]
+    for thread in others:
+        thread.start()
+    try:
+        method, alive = _context().get_start_method(), threading.active_count()
+        with matplotlib.rc_context({"font.size": 7.5}), FigurePool(1) as pool:
+            pending = pool.submit(_font_size)
+            with pytest.warns(UserWarning, match="drawn elsewhere"):
+                size, pid = pending.result()  # the caller's style; its warning raised here
+            assert size == 7.5 and pid != os.getpid()
+            with pytest.raises(InputError, match="frame 3: no strain"):
+                pool.submit(_refuse).result()
+    finally:
+        done.set()
+    if sys.platform.startswith("linux"):
+        assert method == ("fork" if alive == 1 else "forkserver")
+    with FigurePool(0) as pool:  # here, at once
+        with pytest.warns(UserWarning, match="drawn elsewhere"):
+            assert pool.submit(_font_size).result()[1] == os.getpid()
+
+
+def test_figure_pool_ends_its_workers_when_left_by_an_error(tmp_path):
+    from strain2d.figures._pool import FigurePool
+
+    with pytest.raises(KeyboardInterrupt), FigurePool(2) as pool:
+        pids = [process.pid for process in pool._processes]
+        for _ in range(3):
+            pool.submit(_wait_for, tmp_path / "never")  # busy until ended, and one waiting
+        raise KeyboardInterrupt
+    assert len(pids) == 2
+    for pid in pids:  # ended and reaped before the caller goes on to remove their folder
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
 
 
 # ------------------------------------------------------------------ study figures

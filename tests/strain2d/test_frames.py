@@ -196,3 +196,65 @@ def test_a_damaged_video_header_is_one_line_on_the_terminal(tmp_path, where, pri
     assert quiet.stderr.splitlines() == [f"strain2d analyze: error: cannot read video {video}"]
     assert printed in verbose.stderr  # OpenCV's own words, in the log
     assert not (tmp_path / "out").exists()
+
+
+def test_float_frames_are_read_while_finite_and_refused_with_nonfinite_pixels(tmp_path):
+    frames = np.random.default_rng(0).uniform(0, 1, (3, 32, 48)).astype(np.float32)
+    frames[1, 0, 0] = np.finfo(np.float32).max  # extreme, but a value
+    frames[2, 5, 7] = -np.finfo(np.float32).max
+    tifffile.imwrite(tmp_path / "ok.tif", frames, photometric="minisblack")
+    np.testing.assert_array_equal(open_frames(tmp_path / "ok.tif").read_all(), frames)
+    frames[2, 30, 40] = np.nan
+    frames[2, 31, 47] = np.inf
+    tifffile.imwrite(tmp_path / "bad.tif", frames, photometric="minisblack")
+    source = open_frames(tmp_path / "bad.tif")  # frame 0 is clean: opened
+    with pytest.raises(SourceError, match=r"bad.tif: frame 2 holds 1 infinite and 1 NaN pixel "
+                       r"values \(the first at x=40, y=30\)"):  # fmt: skip
+        source.read_all()
+
+
+@pytest.mark.parametrize("keep", [0.3, 0.9, 0.99])
+def test_a_tiff_cut_short_is_truncated_not_fewer_frames(tmp_path, smooth_frames, keep):
+    """tifffile reads the pages before the cut and logs the rest: that is not a shorter movie."""
+    write_video(smooth_frames, tmp_path / "whole.tif")
+    data = (tmp_path / "whole.tif").read_bytes()
+    (tmp_path / "cut.tif").write_bytes(data[: int(len(data) * keep)])
+    with pytest.raises(SourceError, match=r"cut\.tif is truncated") as info:
+        open_frames(tmp_path / "cut.tif")
+    assert "frame(s)" not in str(info.value)
+
+
+@pytest.mark.parametrize("where", ["movie", "folder"])
+def test_a_truncated_tiff_is_one_line_on_the_terminal(tmp_path, smooth_frames, where):
+    """tifffile logs ``ERROR: ...`` and OpenCV's libtiff prints warnings on a cut TIFF; the user
+    sees the toolkit's one line, and -v shows what tifffile said."""
+    import subprocess
+    import sys
+
+    if where == "movie":
+        write_video(smooth_frames, tmp_path / "whole.tif")
+        data = (tmp_path / "whole.tif").read_bytes()
+        source = tmp_path / "cut.tif"
+        source.write_bytes(data[: len(data) // 2])
+        named, said = source, "tifffile: "
+    else:
+        source = tmp_path / "frames"
+        source.mkdir()
+        for k, frame in enumerate(smooth_frames[:3]):
+            tifffile.imwrite(source / f"f{k}.tif", frame)
+        data = (source / "f2.tif").read_bytes()
+        (source / "f2.tif").write_bytes(data[: len(data) // 2])
+        named, said = source / "f2.tif", None  # refused before OpenCV's libtiff prints
+    runs = {}
+    for flag in ("-q", "-v"):
+        argv = ["analyze", str(source), "--grid", "3x3", "--out", str(tmp_path / "out"), flag]
+        runs[flag] = subprocess.run(
+            [sys.executable, "-m", "strain2d", *argv], capture_output=True, text=True,
+            errors="replace",
+        )  # fmt: skip
+    quiet, verbose = runs["-q"], runs["-v"]
+    assert quiet.returncode == 2
+    [line] = quiet.stderr.splitlines()
+    assert line.startswith(f"strain2d analyze: error: {named} is truncated"), line
+    assert said is None or said in verbose.stderr
+    assert not (tmp_path / "out").exists()

@@ -67,3 +67,24 @@ def test_write_run_takes_an_analysis_built_by_hand_and_refuses_a_generator(tmp_p
     assert summary["tracker"]["name"] == "klt"
     assert summary["mesh"]["method"] == "given" and summary["source"]["kind"] == "array"
     assert load_run(tmp_path / "a").n_points == 9
+
+
+def test_figures_drawn_by_worker_processes_are_those_drawn_here(small_case, tmp_path):
+    """write_run's workers (the default where there are cores) write the same files, in the
+    caller's Matplotlib style, as drawing every figure in this process."""
+    import matplotlib
+
+    from tissue_core.batch import differences
+
+    folder, _ = small_case
+    frames = open_frames(folder / "eq.tif")
+    result = analyze(frames, make_grid(frames.shape, shape=(4, 4)), tracker="klt")
+    options = {"animation": "mp4", "maps_at": [1], "figure_format": "png,svg"}
+    with matplotlib.rc_context({"svg.fonttype": "none"}):
+        here = write_run(tmp_path / "here", result, frames, workers=0, **options)
+        there = write_run(tmp_path / "there", result, frames, workers=2, **options)
+    assert differences(tmp_path / "here", tmp_path / "there") == []
+    assert here["figures"] == there["figures"] and len(here["figures"]) == 8
+    svg = (tmp_path / "there" / "figures" / "strain_frame0001.svg").read_text()
+    assert "</text>" in svg  # drawn with the caller's svg.fonttype
+    assert set(there["runtime_s"]) >= {"tables", "animation", "figures", "report", "outputs"}

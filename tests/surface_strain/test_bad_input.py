@@ -5,6 +5,7 @@ See tests/badinput.py for the contract and the families.
 
 from __future__ import annotations
 
+import signal
 from types import SimpleNamespace
 
 import numpy as np
@@ -12,8 +13,10 @@ import pytest
 
 from surface_strain.cli import main
 from tests.badinput import (
+    WRITING,
     assert_refused,
     interrupt,
+    killed,
     message_lines,
     parse_case_id,
     scratch_left,
@@ -29,6 +32,11 @@ def _set_column(row: str, k: int, value: str) -> str:
     cells = row.split(",")
     cells[k] = value
     return ",".join(cells)
+
+
+def _decimal_comma(row: str) -> str:
+    """The row with its X written with a decimal comma (``12,5`` for ``12.5``)."""
+    return _set_column(row, 2, row.split(",")[2].replace(".", ","))
 
 
 @pytest.fixture(scope="module")
@@ -53,13 +61,27 @@ def inputs(tmp_path_factory):
         "truncated": good[: len(good) // 2].rsplit(",", 2)[0] + "\n",
         "all_lost": "\n".join([header] + [",".join([*r.split(",")[:-1], "0"]) for r in rows])
         + "\n",
+        # indices that would size (T, N) arrays of 10^16 cells
+        "huge_indices": good + "100000000,100000000," + rows[0].split(",", 2)[2] + "\n",
+        # a decimal comma (1,5 for 1.5) makes one cell too many: on a later frame and on the
+        # reference frame (where it read as a lost point); a cell missing
+        "ragged_decimal_comma": good.replace(rows[40], _decimal_comma(rows[40]), 1),
+        "ragged_reference_frame": good.replace(rows[3], _decimal_comma(rows[3]), 1),
+        "ragged_short_row": good.replace(rows[40], rows[40].rsplit(",", 1)[0], 1),
+        "visible_7": good.replace(rows[40], _set_column(rows[40], -1, "7"), 1),
+        "visible_half": good.replace(rows[3], _set_column(rows[3], -1, "0.5"), 1),
+        "visible_minus_1": good.replace(rows[40], _set_column(rows[40], -1, "-1"), 1),
     }
     for name, text in broken.items():
         (d / f"points_{name}.csv").write_text(text)
     (d / "points_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
     (d / "points.xlsx").write_bytes(b"PK\x03\x04")
     tri = {"outside": "p0,p1,p2\n0,1,99\n", "repeat": "p0,p1,p2\n0,1,1\n",
-           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n"}  # fmt: skip
+           "text": "p0,p1,p2\n0,a,2\n", "empty": "", "two_columns": "p0,p1\n0,1\n",
+           "ragged": "p0,p1,p2\n0,1,5\n1,6,5,2\n", "short": "p0,p1,p2\n0,1,5\n1,6\n",
+           "ragged_no_header": "0,1,5\n1,6,5,2\n",
+           "repeated": "p0,p1,p2\n0,1,5\n1,6,5\n0,1,5\n",
+           "repeated_reordered": "p0,p1,p2\n0,1,5\n1,6,5\n5,0,1\n"}  # fmt: skip
     for name, text in tri.items():
         (d / f"tri_{name}.csv").write_text(text)
     (d / "tri_binary.csv").write_bytes(b"\x00\xff\xfe\x01" * 64)
@@ -96,7 +118,9 @@ CASES = [
     ("compute-wrong-type-xlsx", lambda c, o: _compute(c, "--out", o,
      points=c.dir / "points.xlsx"), ["points.xlsx"]),
     ("compute-wrong-type-folder", lambda c, o: _compute(c, "--out", o, points=c.dir),
-     ["not found"]),
+     ["is a folder, not a points file"]),
+    ("compute-wrong-type-folder-as-triangles", lambda c, o: _compute(c, "--triangles", c.dir,
+     "--out", o), ["is a folder, not a triangles file"]),
     ("compute-wrong-type-binary-triangles", lambda c, o: _compute(c, "--triangles",
      c.dir / "tri_binary.csv", "--out", o), ["tri_binary.csv"]),
     *[(f"compute-csv-{name}", (lambda n: lambda c, o: _compute(
@@ -107,6 +131,26 @@ CASES = [
     *[(f"compute-csv-triangles-{name}", (lambda n: lambda c, o: _compute(
         c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv"])
       for name in ("outside", "repeat", "text", "two_columns")],
+    ("compute-allocation-indices-beyond-the-rows", lambda c, o: _compute(c, "--out", o,
+     points=c.dir / "points_huge_indices.csv"), ["points_huge_indices.csv", "is incomplete",
+                                                 "frame indices up to 1e+08"]),
+    *[(f"compute-csv-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
+        c, "--out", o, points=c.dir / f"points_{n}.csv"))(name),
+        [f"points_{name}.csv, line {line}: {fragment}"]) for name, line, fragment in [
+          ("ragged_decimal_comma", 42, "8 cells where the header has 7 (a decimal comma?)"),
+          ("ragged_reference_frame", 5, "8 cells where the header has 7 (a decimal comma?)"),
+          ("ragged_short_row", 42, "6 cells where the header has 7"),
+          ("visible_7", 42, "visible must be 0 or 1, got 7"),
+          ("visible_half", 5, "visible must be 0 or 1, got 0.5"),
+          ("visible_minus_1", 42, "visible must be 0 or 1, got -1")]],
+    *[(f"compute-csv-triangles-{name.replace('_', '-')}", (lambda n: lambda c, o: _compute(
+        c, "--triangles", c.dir / f"tri_{n}.csv", "--out", o))(name), [f"tri_{name}.csv",
+        fragment]) for name, fragment in [
+          ("ragged", "line 3: 4 cells where the header has 3: 1,6,5,2"),
+          ("short", "line 3: 2 cells where the header has 3"),
+          ("ragged_no_header", "line 2: 4 cells where the first row (line 1) has 3"),
+          ("repeated", "lines 2 and 4 give the same triangle: 0, 1, 5 and 0, 1, 5"),
+          ("repeated_reordered", "lines 2 and 4 give the same triangle: 0, 1, 5 and 5, 0, 1")]],
     ("compute-option-fps-zero", lambda c, o: _compute(c, "--fps", "0", "--out", o), ["--fps"]),
     ("compute-option-fps-inf", lambda c, o: _compute(c, "--fps", "inf", "--out", o), ["--fps"]),
     ("compute-option-grid-1x25", lambda c, o: _compute(c, "--grid", "1x25", "--out", o),
@@ -120,7 +164,12 @@ CASES = [
     ("compute-option-directions-nan", lambda c, o: _compute(c, "--directions",
      "vectors:nan,0,0:0,1,0", "--out", o), ["finite"]),
     ("compute-option-directions-parallel", lambda c, o: _compute(c, "--directions",
-     "vectors:0,0,1:0,0,2", "--grid", "5x5", "--out", o), []),
+     "vectors:0,0,1:0,0,2", "--grid", "5x5", "--out", o),
+     ["--directions vectors:0,0,1:0,0,2", "parallel"]),
+    ("compute-option-directions-zero-vector", lambda c, o: _compute(c, "--directions",
+     "vectors:1,0,0:0,0,0", "--out", o), ["--directions", "second vector has zero length"]),
+    ("compute-option-directions-zero-axis", lambda c, o: _compute(c, "--directions",
+     "cylinder:0,0,0:0,0,0", "--out", o), ["--directions", "axis A has zero length"]),
     ("compute-option-projection", lambda c, o: _compute(c, "--projection", "torus", "--out", o),
      ["--projection"]),
     ("compute-conflict-triangles-and-grid", lambda c, o: _compute(c, "--triangles",
@@ -177,18 +226,40 @@ def test_points_lost_on_the_reference_frame_are_named(inputs, tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    ("when", "after"),
-    [(None, 0.3), ("points over 40 frames", 0.02), ("points over 40 frames", 0.5)],
-    ids=["compute-interrupt-imports", "compute-interrupt-strain", "compute-interrupt-writing"],
+    ("when", "after", "signum"),
+    [
+        (None, 0.3, signal.SIGINT),
+        ("points over 40 frames", 0.02, signal.SIGINT),
+        ("points over 40 frames", 0.5, signal.SIGINT),
+        ("points over 40 frames", 0.02, signal.SIGTERM),
+        (WRITING, 0.0, signal.SIGTERM),
+        ("points over 40 frames", 0.02, signal.SIGHUP),
+        ("stale", None, None),
+    ],
+    ids=[
+        "compute-interrupt-imports",
+        "compute-interrupt-strain",
+        "compute-interrupt-writing",
+        "compute-terminate-strain",
+        "compute-terminate-writing",
+        "compute-terminate-sighup-strain",
+        "compute-stale-killed-run",
+    ],
 )
-def test_interrupt(tmp_path, when, after):
+def test_interrupt(tmp_path, when, after, signum):
     points, *_ = _tilted_sheet_tracks(n=40, frames=40)
     src = tmp_path / "p.csv"
     _write(src, points)
     out = tmp_path / "run"
+    if when == "stale":  # a run killed (SIGKILL) while it wrote: the next one removes its scratch
+        argv = ["compute", str(src), "--out", str(out)]  # the figures: seconds of writing
+        assert killed(["-m", "surface_strain", *argv], out=out)
+        assert main(["-q", *argv]) == 0
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["p.csv", "run"]
+        return
     status, err = interrupt(["-m", "surface_strain", "compute", src, "--out", out], after=after,
-                            when=when, out=out, inputs=[src])  # fmt: skip
-    assert status == 130  # before the command is parsed the line names the program only
+                            when=when, out=out, inputs=[src], signum=signum)  # fmt: skip
+    assert status == 128 + signum  # before the command is parsed the line names the program only
     assert message_lines(err)[-1].startswith("surface_strain")
 
 

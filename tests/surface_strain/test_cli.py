@@ -219,6 +219,6 @@ def test_more_bad_inputs(tmp_path, capsys):
     tri = tmp_path / "tri.csv"
     tri.write_text("p0,p1,p2\n0,1\n")
     assert cli("compute", src, "--triangles", tri, "--out", out) == 2
-    assert "three point indices" in one_line(capsys)
+    assert "line 2: 2 cells where the header has 3" in one_line(capsys)
     (tmp_path / "summary.json").write_text(json.dumps({"points": 25}))  # not a stereo summary
     assert cli("compute", src, "--no-figures", "--out", out, "-q") == 0

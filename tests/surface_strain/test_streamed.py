@@ -145,3 +145,23 @@ def test_replacing_arrays_of_a_streamed_field_is_refused():
     lazy = streamed_strain(X, P, tri, visible=visible)
     with pytest.raises(ValueError, match="frames"):
         dataclasses.replace(lazy, points=P[:1], visible=visible[:1])
+
+
+def test_a_copy_sent_to_another_process_computes_its_own_blocks():
+    """Pickled (for a worker process) without the blocks computed here: a long video's copy
+    is its positions, and it gives the same values."""
+    import pickle
+
+    X, P, tri, visible = _case(2, T=60)
+    lazy = streamed_strain(X, P, tri, visible=visible, block_frames=10)
+    empty = len(pickle.dumps(lazy))
+    for _, _block in iter_blocks(lazy):  # every block computed here (the last two kept)
+        pass
+    assert lazy.seconds_computing > 0
+    sent = pickle.dumps(lazy)
+    assert len(sent) <= empty + 1000  # no computed block travels
+    copy = pickle.loads(sent)
+    assert copy.seconds_computing == 0
+    assert _same(copy.nodal_E[55], lazy.nodal_E[55])
+    assert _same(nodal_scalars(copy)["E1"][3:17], nodal_scalars(lazy)["E1"][3:17])
+    assert copy.seconds_computing > 0  # it computed them there

@@ -10,8 +10,11 @@ import os
 # with it the defaults that importing distributed added inside the block, for later tests
 import dask
 import distributed  # noqa: F401
+import pytest
 
-from tissue_core.batch import Job, run_batch
+import tissue_core.resources as resources
+from tissue_core.batch import Job, check_workers, run_batch
+from tissue_core.errors import InputError
 
 
 def _job(name: str, out, *flags: str) -> Job:
@@ -236,6 +239,14 @@ def test_ctrl_c_after_then_made_its_job_names_it_as_written_and_not_a_stale_one(
     log = (tmp_path / "batch" / "batch.log").read_text()
     assert "after: its worker finished it as the batch stopped" in log
     assert "stale: its worker" not in log
+
+
+def test_more_workers_than_the_memory_holds_are_refused_before_any_starts(monkeypatch):
+    monkeypatch.setattr(resources, "available_memory", lambda: 2**30)
+    assert check_workers(8, None, 20) == 8  # 800 MiB: they fit
+    with pytest.raises(InputError, match=r"--workers 100000 \(worker processes\) needs 9.54 TiB "
+                       r"of memory; 1 GiB is available: use fewer --workers"):  # fmt: skip
+        check_workers(100000, None, 20)
 
 
 def test_a_batch_file_is_written_again_only_while_it_holds_what_a_batch_wrote(tmp_path):

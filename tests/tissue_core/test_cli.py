@@ -4,6 +4,7 @@ import io
 import os
 import re
 import signal
+import time
 import warnings
 
 import numpy as np
@@ -14,6 +15,8 @@ from tissue_core.cli import ArgumentParser, run_command
 from tissue_core.errors import InputError
 from tissue_core.interrupt import deferred_interrupt, is_interrupt
 from tissue_core.progress import Progress, close_open_lines
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def run(handler, capsys, **kwargs) -> tuple[int, str]:
@@ -35,6 +38,21 @@ def test_errors_are_one_line_and_exit_2(capsys):
 
     status, err = run(disk_full, capsys)
     assert status == 2 and err.count("\n") == 1 and "No space left" in err
+
+
+def test_an_allocation_no_check_foresaw_is_one_line_and_exit_2(capsys):
+    def allocate(args):
+        np.empty((10**7, 10**7))  # 728 TiB: NumPy's ArrayMemoryError
+
+    status, err = run(allocate, capsys)
+    assert status == 2 and err.count("\n") == 1
+    assert err.startswith("tool go: error: not enough memory: Unable to allocate 728")
+    assert err.endswith("shape (10000000, 10000000) and data type float64\n")
+
+    def bare(args):
+        raise MemoryError
+
+    assert run(bare, capsys) == (2, "tool go: error: not enough memory: an allocation failed\n")
 
 
 def test_warnings_are_one_line_and_numerical_ones_stay_in_the_log(capsys):
@@ -254,3 +272,187 @@ def test_a_ctrl_c_held_in_a_failing_block_wins_and_is_not_left_behind():
         pass
     raise_if_interrupted()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+# ---- SIGTERM and SIGHUP: the same path as Ctrl-C -----------------------------------------
+
+TERMINATING = [
+    pytest.param(signal.SIGTERM, 143, "SIGTERM", id="sigterm"),
+    pytest.param(signal.SIGHUP, 129, "SIGHUP", id="sighup"),
+]
+
+
+@pytest.mark.parametrize(("signum", "status", "name"), TERMINATING)
+def test_sigterm_and_sighup_end_a_command_as_ctrl_c_does(signum, status, name, tmp_path, capsys):
+    from tissue_core.interrupt import Terminated
+    from tissue_core.outputs import atomic_dir
+
+    caught = []
+
+    def terminated(args):
+        try:
+            with atomic_dir(tmp_path / "run") as tmp:
+                (tmp / "a.csv").write_text("half")
+                os.kill(os.getpid(), signum)  # kill PID, timeout, scancel; a closed terminal
+                time.sleep(5)
+        except KeyboardInterrupt as exc:  # every except KeyboardInterrupt sees it
+            caught.append(exc)
+            raise
+        return 0
+
+    assert run(terminated, capsys) == (status, f"tool go: terminated ({name}); no output written\n")
+    assert isinstance(caught[0], Terminated) and caught[0].signum == signum
+    assert is_interrupt(caught[0])
+    assert list(tmp_path.iterdir()) == []  # no result, no scratch
+    assert signal.getsignal(signum) is signal.SIG_DFL  # Python's own handling is back
+
+
+def test_sigterm_after_the_result_was_written_says_so(tmp_path, capsys):
+    from tissue_core.outputs import atomic_dir
+
+    def finished_then_terminated(args):
+        with atomic_dir(tmp_path / "run") as tmp:
+            (tmp / "a.csv").write_text("x")
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(5)
+        return 0
+
+    status, err = run(finished_then_terminated, capsys)
+    assert status == 143
+    assert err == (
+        f"tool go: terminated (SIGTERM) after the results were written to {tmp_path / 'run'}\n"
+    )
+
+
+def test_sigterm_is_deferred_to_the_end_of_a_compiled_call(capsys):
+    _busy(10)
+    done = []
+
+    def kernel(args):
+        with deferred_interrupt():
+            os.kill(os.getpid(), signal.SIGTERM)  # arrives "inside" the kernel
+            done.append(_busy(1000))
+            done.append("after the kernel")
+        done.append("after the block")
+        return 0
+
+    assert run(kernel, capsys) == (143, "tool go: terminated (SIGTERM); no output written\n")
+    assert done[1:] == ["after the kernel"]  # the block ran to its end, and no further
+
+
+def test_a_sigterm_library_code_swallowed_is_raised_at_the_next_step(capsys):
+    reached = []
+
+    def swallowed(args):
+        try:  # Python code that catches everything and goes on
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        except BaseException:
+            pass
+        reached.append("went on")
+        with Progress(quiet=True).task("work") as task:
+            task(1, 2)  # ... raised again here
+        reached.append("finished")
+        return 0
+
+    assert run(swallowed, capsys) == (143, "tool go: terminated (SIGTERM); no output written\n")
+    assert reached == ["went on"]
+
+
+def test_sigterm_during_an_import_waits_and_is_sent_again_as_sigterm(tmp_path, monkeypatch, capsys):
+    import sys
+
+    (tmp_path / "slow_module_for_sigterm.py").write_text(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGTERM)  # SIGTERM in the middle of the import\n"
+        "time.sleep(0.2)\n"
+        "WHOLE = True\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reached = []
+
+    def handler(args):
+        import slow_module_for_sigterm
+
+        reached.append(slow_module_for_sigterm.WHOLE)
+        time.sleep(5)  # the held SIGTERM is delivered here, once the import is done
+        reached.append("slept")
+        return 0
+
+    try:
+        status, err = run(handler, capsys)
+    finally:
+        sys.modules.pop("slow_module_for_sigterm", None)
+    assert (status, err) == (143, "tool go: terminated (SIGTERM); no output written\n")
+    assert reached == [True]
+
+
+def test_sighup_with_the_terminal_gone_ends_without_a_traceback(monkeypatch):
+    """After SIGHUP stderr may be a closed terminal: writing to it fails (EIO)."""
+
+    class ClosedTerminal(io.StringIO):
+        def write(self, text):
+            raise OSError(5, "Input/output error")
+
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr("sys.stderr", ClosedTerminal())
+
+    def hung_up(args):
+        os.kill(os.getpid(), signal.SIGHUP)
+        time.sleep(5)
+        return 0
+
+    parser = ArgumentParser(prog="tool")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("go").set_defaults(handler=hung_up)
+    assert run_command("tool", parser, ["go"]) == 129
+
+
+def test_an_ignored_sighup_stays_ignored(capsys, request):
+    """``nohup`` ignores SIGHUP so that the command outlives its terminal."""
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    request.addfinalizer(lambda: signal.signal(signal.SIGHUP, previous))
+
+    def hung_up(args):
+        os.kill(os.getpid(), signal.SIGHUP)
+        time.sleep(0.1)
+        return 0
+
+    assert run(hung_up, capsys) == (0, "")
+    assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+
+
+def test_libraries_log_lines_reach_the_terminal_only_with_verbose(tmp_path):
+    """tifffile logs ``ERROR: ...`` on a damaged file and carries on: without -v the toolkit's
+    one error line must stay the only line (in a process of its own: pytest keeps the log)."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "tool.py"
+    script.write_text(
+        "import logging, sys\n"
+        "from tissue_core.cli import CommandLine, run_command\n"
+        "from tissue_core.errors import InputError\n"
+        "def go(args):\n"
+        "    logging.getLogger('tifffile').error('<tifffile.TiffPages @8> invalid page offset')\n"
+        "    logging.getLogger('tissue_core.outputs').warning('the toolkit says this')\n"
+        "    raise InputError('the one line')\n"
+        "cli = CommandLine('tool', 'A test.')\n"
+        "cli.command('go', go)\n"
+        "sys.exit(run_command('tool', cli, sys.argv[1:]))\n"
+    )
+    runs = {
+        flag: subprocess.run(
+            [sys.executable, str(script), "go", *flags], capture_output=True, text=True,
+            cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)},
+        )
+        for flag, flags in (("quiet", []), ("verbose", ["-v"]))
+    }  # fmt: skip
+    assert runs["quiet"].returncode == 2
+    assert runs["quiet"].stderr.splitlines() == [
+        "WARNING: the toolkit says this",
+        "tool go: error: the one line",
+    ]
+    assert "ERROR: <tifffile.TiffPages @8> invalid page offset" in runs["verbose"].stderr

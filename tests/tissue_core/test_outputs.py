@@ -1,5 +1,6 @@
 """Outputs never replace what the toolkit did not write."""
 
+import errno
 import hashlib
 import json
 import os
@@ -17,6 +18,7 @@ from tissue_core.outputs import (
     foreign_content,
     read_marker,
     recorded_command,
+    replaced_on_success,
 )
 
 
@@ -235,6 +237,37 @@ def test_an_error_inside_leaves_nothing_and_names_the_output(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("code", [errno.ENOSPC, errno.EDQUOT, errno.EFBIG])
+def test_a_full_disk_names_the_output_being_written(tmp_path, code):
+    """``write`` and ``close`` raise ENOSPC without a file name: the output is named instead."""
+
+    def fill(path: Path, named: bool) -> None:
+        with open(path, "w") as f:
+            f.write("half a table")
+        args = (code, os.strerror(code), *([str(path)] if named else []))
+        raise OSError(*args)
+
+    out = tmp_path / "run"
+    with pytest.raises(OSError) as info, atomic_dir(out) as tmp:
+        fill(tmp / "tracks.csv", named=False)
+    assert info.value.filename == str(out)
+    assert str(info.value) == f"[Errno {code}] {os.strerror(code)}: '{out}'"
+    with pytest.raises(OSError) as info, atomic_dir(out) as tmp:
+        fill(tmp / "tracks.csv", named=True)  # named, but by its scratch name
+    assert info.value.filename == str(out / "tracks.csv")
+    path = tmp_path / "tracks.csv"
+    with pytest.raises(OSError) as info, atomic_file(path) as tmp:
+        fill(tmp, named=False)
+    assert info.value.filename == str(path)
+    with pytest.raises(OSError) as info, replaced_on_success(path) as tmp:
+        fill(tmp, named=False)
+    assert info.value.filename == str(path)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(OSError) as info, atomic_dir(out):  # not a write: nothing to name
+        raise OSError(errno.EIO, os.strerror(errno.EIO))
+    assert info.value.filename is None
+
+
 def test_a_file_is_replaced_only_when_the_toolkit_wrote_it(tmp_path):
     mine = tmp_path / "tracks.csv"
     mine.write_text("frame,point,x,y,visible,quality\n0,0,1,2,1,1\n")  # the user's own tracks
@@ -269,3 +302,138 @@ def test_finished_outputs_get_the_umask_permissions(tmp_path):
         os.umask(mask)
     assert (tmp_path / "run").stat().st_mode & 0o777 == 0o750
     assert (tmp_path / "t.csv").stat().st_mode & 0o777 == 0o640
+
+
+# ---- scratch that runs killed outright (SIGKILL) left behind --------------------------------
+
+#: a process of its own that writes with the toolkit's writers and is killed (SIGKILL) inside
+#: the block, or between the two renames that replace an earlier result (``between``)
+KILLED_WRITER = """
+import os, signal, sys
+from pathlib import Path
+from tissue_core import outputs
+
+how, target = sys.argv[1], Path(sys.argv[2])
+if how == "between":
+    real = os.replace
+
+    def replace(src, dst):
+        real(src, dst)
+        if Path(dst).parent.name.startswith(f".{target.name}.old-"):  # the earlier result moved
+            os.kill(os.getpid(), signal.SIGKILL)
+
+    os.replace = replace
+    with outputs.atomic_dir(target, overwrite=True) as tmp:
+        (tmp / "new.csv").write_text("the new result")
+elif how == "dir":
+    with outputs.atomic_dir(target) as tmp:
+        (tmp / "half.csv").write_text("half a result")
+        os.kill(os.getpid(), signal.SIGKILL)
+elif how == "file":
+    with outputs.atomic_file(target) as tmp:
+        tmp.write_text("half a file")
+        os.kill(os.getpid(), signal.SIGKILL)
+else:
+    with outputs.replaced_on_success(target) as tmp:
+        tmp.write_text("half a file")
+        os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def killed_while_writing(how: str, target: Path) -> list[str]:
+    """Run KILLED_WRITER; the scratch it left beside ``target``."""
+    import signal
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[2]
+    done = subprocess.run(
+        [sys.executable, "-c", KILLED_WRITER, how, str(target)],
+        env={**os.environ, "PYTHONPATH": str(repo)},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == -signal.SIGKILL, done.stderr
+    return sorted(p.name for p in target.parent.iterdir() if ".tmp-" in p.name or ".old-" in p.name)
+
+
+def test_scratch_names_carry_their_owner(tmp_path):
+    import re
+    import socket
+
+    with open("/proc/self/stat") as f:
+        start = f.read().rsplit(")", 1)[1].split()[19]
+    host = re.sub(r"[^A-Za-z0-9.-]", "_", socket.gethostname())[:32]  # long names cut
+    with atomic_dir(tmp_path / "run") as tmp:
+        (scratch,) = [p.name for p in tmp_path.iterdir()]
+        assert tmp.name == scratch
+    assert scratch.startswith(f".run.tmp-{os.getpid()}-{start}@{host}"), scratch
+
+
+@pytest.mark.parametrize("how", ["dir", "file", "replaced"])
+def test_the_scratch_of_a_killed_run_is_removed_by_the_next_one(how, tmp_path):
+    target = tmp_path / ("run" if how == "dir" else "tracks.csv")
+    left = killed_while_writing(how, target)
+    assert len(left) == 1 and left[0].startswith(f".{target.name}.tmp-"), left
+    if how == "dir":
+        write_result(target)
+    elif how == "file":
+        with atomic_file(target) as tmp:
+            tmp.write_text("whole")
+    else:
+        from tissue_core.outputs import replaced_on_success
+
+        with replaced_on_success(target) as tmp:
+            tmp.write_text("whole")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [target.name, *([LEDGER] if how == "file" else [])]
+    )
+
+
+def test_a_killed_replacement_puts_the_earlier_result_back(tmp_path):
+    out = tmp_path / "run"
+    write_result(out)
+    before = tree(out)
+    left = killed_while_writing("between", out)  # killed with the earlier result set aside
+    assert not out.exists()
+    assert [name.split("-")[0] for name in left] == [".run.old", ".run.tmp"], left
+    # the next command finds the earlier result where it was, and does not replace it unasked
+    with pytest.raises(InputError, match="exists \\(an earlier result\\)"):
+        check_writable(out, overwrite=False)
+    assert tree(out) == before and foreign_content(out) is None
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+def test_scratch_of_a_live_owner_another_host_or_another_form_is_kept(tmp_path):
+    import subprocess
+    import sys
+
+    from tissue_core.outputs import remove_stale_scratch
+
+    with atomic_dir(tmp_path / "mine") as tmp:  # this process's own scratch: alive
+        alive = tmp.name
+    asleep = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        with open(f"/proc/{asleep.pid}/stat") as f:
+            start = f.read().rsplit(")", 1)[1].split()[19]
+        host = alive.split("@")[1]
+        kept = [
+            alive.replace(".mine.", ".run."),  # this process: alive
+            f".run.tmp-{asleep.pid}-{start}@{host}@abcd1234",  # another process, alive
+            ".run.tmp-1-1@another-host@abcd1234",  # another host: cannot be told
+            ".run.tmp-abcd1234",  # not of the toolkit's form
+            ".run.old-12ab",
+        ]
+        gone = [
+            f".run.tmp-{asleep.pid}-{int(start) + 1}@{host}@abcd1234",  # its pid, used again
+            f".run.old-{asleep.pid}-{int(start) - 1}@{host}@abcd1234",
+        ]
+        for name in [*kept, *gone]:
+            (tmp_path / name).mkdir()
+        (tmp_path / kept[0] / "half.csv").write_text("x")
+        assert sorted(p.name for p in remove_stale_scratch(tmp_path / "run")) == sorted(gone)
+        assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*kept, "mine"])
+    finally:
+        asleep.kill()
+        asleep.wait()

@@ -1,0 +1,277 @@
+"""Figures drawn in worker processes while the run goes on with the rest of its outputs.
+
+A run's figures are independent of each other and of the animation, and each
+is mostly Python (Matplotlib's layout and drawing), so threads would take
+turns; :class:`FigurePool` draws them in worker processes, one per core the
+process may use, while the caller writes the tables and the animation.
+Without a second core (or inside a daemonic process, such as a Dask
+worker's, which may not start processes) the same calls run here, one after
+the other, when submitted.
+
+Each worker has a pipe of its own (no shared queues, whose semaphores would
+outlive an interrupted run); a task goes to an idle worker whenever the
+caller submits, polls or waits.  The workers ignore Ctrl-C (the command
+handles it): leaving the pool on an error or an interrupt ends them before
+the caller removes what they were writing into.  A task runs with the
+caller's Matplotlib settings, and its warnings are raised again here: as if
+it had run here.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import multiprocessing
+import os
+import sys
+import threading
+import traceback
+import warnings
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["FigurePool"]
+
+log = logging.getLogger(__name__)
+
+#: modules the workers import before their first task (what every figure needs)
+_PRELOAD = ["strain2d.figures"]
+#: the most workers: a run has about seven figures
+MAX_WORKERS = 4
+
+
+def _available_cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _context():
+    """How the workers start: forked, where that is safe and cheap, else from a fresh server.
+
+    A fork copies the caller's imports for free but is unsafe with other
+    threads running (a lock one holds stays locked in the child) and on
+    macOS; there the workers are forked from a server started afresh.
+    """
+    if sys.platform.startswith("linux") and threading.active_count() == 1:
+        _warm_up()
+        return multiprocessing.get_context("fork")
+    method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+    context = multiprocessing.get_context(method)
+    if method == "forkserver":
+        context.set_forkserver_preload(_PRELOAD)
+    return context
+
+
+def _warm_up() -> None:
+    """Draw a small figure with a mathematical label here, once: the workers forked from this
+    process then start with Matplotlib's fonts and math-text parser loaded."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(1, 1), dpi=72)
+    fig.text(0.5, 0.5, r"$E_{xx}$ (-)")
+    FigureCanvasAgg(fig).draw()
+
+
+def _style() -> dict:
+    """The caller's Matplotlib settings that differ from those read at import (a style, an
+    ``rc_context``): the figures drawn elsewhere look as they would here."""
+    from matplotlib import rcParams, rcParamsOrig
+
+    return {k: v for k, v in rcParams.items() if k != "backend" and rcParamsOrig.get(k) != v}
+
+
+def _call(fn: Callable, args: tuple, kwargs: dict, style: dict) -> tuple[Any, list]:
+    """Run a task in the caller's style; return its value and its warnings (category, text)."""
+    from matplotlib import rc_context
+
+    with warnings.catch_warnings(record=True) as caught, rc_context(style):
+        warnings.simplefilter("always")
+        value = fn(*args, **kwargs)
+    return value, [(w.category, str(w.message)) for w in caught]
+
+
+class _RemoteTraceback(Exception):
+    """Where a worker's error came from (its traceback, as text)."""
+
+    def __str__(self) -> str:
+        return self.args[0]
+
+
+def _serve(connection, inherited: list) -> None:
+    """A worker: run the tasks that come down ``connection`` until told to stop.
+
+    ``inherited`` are the caller's ends of the workers' pipes that a fork
+    copied here: closed, so that each worker sees its pipe end with the caller.
+    """
+    import pickle
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the command's to handle
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the pool ends a worker with SIGTERM
+    for other in inherited:
+        other.close()
+    for name in _PRELOAD:
+        __import__(name)
+    while True:
+        try:
+            task = connection.recv()
+        except EOFError:  # the caller is gone
+            return
+        if task is None:
+            return
+        number, fn, args, kwargs, style = task
+        try:
+            reply = (number, True, _call(fn, args, kwargs, style))
+        except Exception as exc:
+            reply = (number, False, (exc, traceback.format_exc()))
+        try:
+            connection.send(reply)
+        except (pickle.PicklingError, TypeError, AttributeError) as exc:  # cannot travel
+            what = reply[2][0] if not reply[1] else exc
+            error = RuntimeError(f"{type(what).__name__}: {what}")
+            connection.send((number, False, (error, traceback.format_exc())))
+
+
+class _Result:
+    """What :meth:`FigurePool.submit` returns: ``result()`` gives the call's value or raises
+    its error, waiting for it if a worker makes it."""
+
+    def __init__(self, pool: FigurePool | None, number: int, value: Any = None) -> None:
+        self._pool, self._number, self._value = pool, number, value
+
+    def result(self) -> Any:
+        if self._pool is not None:
+            self._value = self._pool._wait(self._number)
+            self._pool = None
+        return self._value
+
+
+class FigurePool:
+    """Worker processes that draw figures; a context manager.
+
+    Parameters
+    ----------
+    workers : int, optional
+        How many processes; default one per core this process may use (at
+        most :data:`MAX_WORKERS`), none with a single core.  0 runs every call
+        here, when it is submitted.
+
+    Examples
+    --------
+    >>> with FigurePool(0) as pool:
+    ...     pending = pool.submit(divmod, 7, 2)
+    >>> pending.result()
+    (3, 1)
+    """
+
+    def __init__(self, workers: int | None = None) -> None:
+        if workers is None:
+            workers = _available_cores()
+            workers = 0 if workers < 2 else min(workers, MAX_WORKERS)
+        if workers < 0:
+            raise ValueError(f"workers must be 0 or more, got {workers}")
+        if workers and multiprocessing.current_process().daemon:
+            workers = 0  # a daemonic process (a Dask worker's) may not start processes
+        self.workers = workers
+        self._processes: list = []
+        self._idle: list = []  # connections of the workers without a task
+        self._busy: dict = {}  # connection -> the number of its task
+        self._queued: collections.deque = collections.deque()
+        self._done: dict[int, tuple[bool, Any]] = {}
+        self._count = 0
+
+    def __enter__(self) -> FigurePool:
+        if self.workers:
+            try:
+                context = _context()
+                forked = context.get_start_method() == "fork"
+                for _ in range(self.workers):
+                    mine, theirs = context.Pipe()
+                    inherited = [*self._idle, mine] if forked else []
+                    process = context.Process(target=_serve, args=(theirs, inherited), daemon=True)
+                    process.start()
+                    theirs.close()
+                    self._processes.append(process)
+                    self._idle.append(mine)
+            except OSError as exc:  # no processes here (a sandbox): draw here instead
+                log.debug("figures drawn in this process: %s", exc)
+                self._stop(kill=True)
+                self.workers = 0
+        return self
+
+    def submit(self, fn: Callable, /, *args, **kwargs) -> _Result:
+        """Call ``fn(*args, **kwargs)`` in a worker, or here without workers."""
+        if not self._processes:
+            return _Result(None, 0, fn(*args, **kwargs))
+        self._count += 1
+        self._queued.append((self._count, fn, args, kwargs, _style()))
+        self.poll()
+        return _Result(self, self._count)
+
+    def poll(self) -> None:
+        """Take in what the workers finished and give the idle ones the next tasks."""
+        self._receive(timeout=0)
+
+    def _receive(self, timeout: float | None) -> None:
+        from multiprocessing.connection import wait
+
+        if self._busy:
+            for connection in wait(list(self._busy), timeout):
+                number = self._busy.pop(connection)
+                try:
+                    _, ok, outcome = connection.recv()
+                except EOFError:  # the worker died (killed, out of memory): not given more
+                    connection.close()
+                    error = RuntimeError("a process drawing the figures ended unexpectedly")
+                    self._done[number] = (False, (error, ""))
+                    continue
+                self._idle.append(connection)
+                self._done[number] = (ok, outcome)
+        while self._idle and self._queued:
+            connection = self._idle.pop()
+            task = self._queued.popleft()
+            connection.send(task)
+            self._busy[connection] = task[0]
+        while self._queued and not (self._idle or self._busy):  # no worker left: here
+            number, fn, args, kwargs, _ = self._queued.popleft()
+            try:
+                self._done[number] = (True, (fn(*args, **kwargs), []))
+            except Exception as exc:
+                self._done[number] = (False, (exc, traceback.format_exc()))
+
+    def _wait(self, number: int) -> Any:
+        while number not in self._done:
+            self._receive(timeout=None)
+        ok, outcome = self._done.pop(number)
+        if not ok:
+            error, where = outcome
+            raise error from _RemoteTraceback(where)
+        value, caught = outcome
+        for category, message in caught:
+            warnings.warn(message, category, stacklevel=3)
+        return value
+
+    def _stop(self, *, kill: bool) -> None:
+        """End the workers: after their tasks, or at once (``kill``)."""
+        for connection in [*self._idle, *self._busy]:
+            if not kill:
+                try:
+                    connection.send(None)
+                except OSError:
+                    pass
+        for process in self._processes:
+            if kill:
+                process.terminate()
+            process.join()
+        for connection in [*self._idle, *self._busy]:
+            connection.close()
+        self._processes, self._idle, self._busy = [], [], {}
+
+    def __exit__(self, kind, error, traceback) -> None:
+        if self._processes and kind is None:
+            while self._busy or self._queued:  # what was submitted and not waited for
+                self._receive(timeout=None)
+        self._stop(kill=kind is not None)
