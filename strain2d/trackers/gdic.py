@@ -34,8 +34,10 @@ order:
    under a specular highlight that stays put while the tissue moves, matched
    by neither its subset nor the field, or when it has no texture: a subset
    of the largest size whose texture cannot pin a match to
-   ``_TEXTURELESS`` px against the noise (a blank background) is never
-   reported as a measurement, whatever the field interpolates there.
+   ``_TEXTURELESS`` px against the noise, or a point farther than half the
+   smallest subset from any texture (a blank background beside textured
+   pieces: :func:`texture_distance`), is never reported as a measurement,
+   whatever a larger subset or the field would extrapolate there.
 
 Each point and frame gets an uncertainty (px, standard deviation per
 coordinate). For a local match it is the noise's: ``sigma_n^2 (J'J)^-1``
@@ -95,6 +97,16 @@ _EDGE_SUBSETS = (15, 21)
 #: the same standard deviation (px) beyond which even the largest subset that fits holds
 #: no texture to measure: the point is never reported as measured (a blank background)
 _TEXTURELESS = 0.5
+
+#: side (px) of the window in which texture is told from noise, and the signal variance
+#: (in units of the window's noise variance) above which it holds texture: about six
+#: standard deviations of the variance a window of pure noise shows
+_TEXTURE_WINDOW = 15
+_TEXTURE_SIGNAL = 0.6
+
+#: a point farther than this (px) from any texture is on blank background, whatever a
+#: larger subset reaches: half the smallest automatic subset
+_TEXTURE_REACH = _SUBSETS[0] // 2
 
 #: bias (px) that an affine subset warp may take from the field's curvature before the
 #: subset is kept smaller: ``curvature half^2 / 6`` (a quadratic field over a square)
@@ -235,6 +247,37 @@ def subset_texture(
         chosen_sigma[grow] = sigma[grow]
         settled |= grow & (sigma <= target)
     return chosen, chosen_sigma
+
+
+def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Per point, the distance (px) to the nearest texture: the nearest pixel whose
+    :data:`_TEXTURE_WINDOW` window holds signal above the noise.
+
+    The window's signal variance is its intensity variance less its noise
+    variance, and the noise variance is measured in the same window (the
+    5-point Laplacian of white noise has 20 times its variance; smooth
+    texture barely adds to it), so a dark background with less shot noise
+    than the tissue is judged against its own noise. A point on blank
+    background a subset's width from a textured edge is far from texture
+    even though a large subset would reach the edge: its displacement
+    there would be extrapolated from the edge, not measured.
+    """
+    image = np.asarray(image, dtype=np.float64)
+    w = _TEXTURE_WINDOW
+    lap = ndimage.laplace(image)
+    noise2 = ndimage.uniform_filter(lap * lap, w) / 20.0
+    mean = ndimage.uniform_filter(image, w)
+    var = ndimage.uniform_filter(image * image, w) - mean * mean
+    texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
+    if texture.all():
+        return np.zeros(len(points))
+    if not texture.any():
+        return np.full(len(points), np.inf)
+    distance = ndimage.distance_transform_edt(~texture)
+    H, W = image.shape
+    c = np.rint(np.nan_to_num(points)).astype(int)
+    c[:, 0], c[:, 1] = np.clip(c[:, 0], 0, W - 1), np.clip(c[:, 1], 0, H - 1)
+    return distance[c[:, 1], c[:, 0]]
 
 
 def subset_sizes(
@@ -653,6 +696,7 @@ class _Run:
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
+        self.textured &= texture_distance(matched, points) <= _TEXTURE_REACH
         self.orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
         self.correlators: dict = {}
         self.ref_coeff = _coefficients(matched)
@@ -864,7 +908,7 @@ class _Run:
         else:
             groups = [(int(i), np.array([i])) for i in need]
         for key, idx in groups:
-            solver = self._field(key, shared, t, p, ok, step)
+            solver = self._field(key, shared, t, p, ok, step, p0)
             u, grad = solver.displacement(self.points[idx])
             start = _warps(self.points[idx], self.points[idx] + u, np.eye(2) + grad)
             result = self._match(coeff, idx, start, sizes, 1)
@@ -993,10 +1037,11 @@ class _Run:
             frame_mask, self.points + p[:, :2], half
         )
 
-    def _field(self, key, frame, t: int, p, ok, step) -> LatticeSolver:
+    def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
         """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
         point ``key`` and its neighbours; from its own last fit when that was on the frame
-        before, from this frame's local matches otherwise."""
+        before, from this frame's local matches otherwise (and the motion ``guess`` of the
+        points that failed, where fewer than 3 matched)."""
         if key not in self.fields:
             if key == "all":
                 cover = self.textured
@@ -1021,7 +1066,9 @@ class _Run:
         if last == t - 1 and before is not None:
             state = _extrapolate(nodes, before, previous)
         else:
-            state[:, :2] = _displacement_at(nodes, self.points[ok], p[ok, :2], step)
+            use = ok if ok.sum() >= 3 else self.textured
+            u = np.where(ok[:, None], p[:, :2], guess[:, :2])
+            state[:, :2] = _displacement_at(nodes, self.points[use], u[use], step)
         solver._static |= self.static  # the highlights found on the frames it did not see
         coarse, _ = solver.coarse(frame, state)
         solver.refine(frame, coarse)
