@@ -682,9 +682,10 @@ class _Run:
         self.noise = max(noise_sigma(reference), 0.5)
         self.auto = subset == "auto"
         self.candidates = _SUBSETS if self.auto else (int(subset),)
-        # bright smooth blobs (specular highlights, which stay where the lamp puts them, or
-        # bright tissue) are filled in smoothly for the subsets, on the reference and on
-        # every frame: a subset then follows the tissue's texture, never the light
+        # bright smooth blobs: specular highlights (which stay where the lamp puts them) or
+        # bright tissue (saturated speckle, fat). A subset is matched on the images as they
+        # are; one that holds a blob found to stay put while the tissue moves (a highlight)
+        # is not kept, and the field (which leaves highlights out of its fit) decides there
         self.blobs = bright_blobs(reference, self.noise)
         # only a blob that a subset could hold matters
         reach = max(self.candidates) // 2 + 2
@@ -692,8 +693,9 @@ class _Run:
         near = np.zeros(self.shape, bool)
         near[max(int(y0), 0) : max(int(y1) + 1, 0), max(int(x0), 0) : max(int(x1) + 1, 0)] = True
         self.blobs &= near
-        matched = _filled(reference, self.blobs) if self.blobs.any() else reference
+        matched = reference
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
+        self.frame_highlights = np.zeros(self.shape, bool)  # and those of the last frame
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
         self.textured &= texture_distance(matched, points) <= _TEXTURE_REACH
@@ -707,8 +709,6 @@ class _Run:
         mean_gain = np.mean(_spline_noise_gain(np.linspace(0, 1, 32, endpoint=False)))
         self.gain = _spline_noise_gain(frac[:, 0]) * _spline_noise_gain(frac[:, 1]) + mean_gain**2
         self.intensity = _box_mean(reference, points, self.candidates[0])
-        # a subset that holds a bright blob may follow the light: the field decides there
-        self.risky = _touches(self.blobs, points, self.wanted // 2)
         k = min(_NEIGHBOURS + 1, n)
         self.near = (
             cKDTree(points).query(points, k)[1].reshape(n, k)[:, 1:]
@@ -780,7 +780,10 @@ class _Run:
         ref = self.cached[key]
         return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
 
-    def _match(self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int):
+    def _match(
+        self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int,
+        ref_coeff=None,
+    ):  # fmt: skip
         """IC-GN of ``rows`` from warps ``p0`` (6 or 12 columns): the warps, their ZNCC,
         whether each is accepted, and per row the residual variance per pixel, the two
         diagonal entries of ``(J'J)^-1`` and the subset's pixel count (for the
@@ -803,8 +806,11 @@ class _Run:
             chunk = len(sel) if self.cache_all else max(64, _CACHE_BYTES // (2 * per_row))
             for part in _chunks(len(sel), chunk):
                 k = sel[part]
-                ref = self._reference(int(size), order, rows[k])
                 corr = self._correlator(int(size), order)
+                if ref_coeff is None:
+                    ref = self._reference(int(size), order, rows[k])
+                else:  # another reference image (highlights filled in): not cached
+                    ref = corr.reference(ref_coeff, self.points[rows[k]], 0)
                 pk, zk, ck = corr.match(coeff, ref, np.arange(len(k)), start[k])
                 inside = _inside(corr, self.points[rows[k]], pk, self.shape)
                 p[k], z[k], ok[k] = pk, zk, ck & (zk >= self.zncc_min) & inside
@@ -825,10 +831,7 @@ class _Run:
             raise InputError(f"frame {t} is {frame.shape[1]}x{frame.shape[0]}, not {W}x{H}")
         n = len(self.points)
         shared = Frame(frame)  # what the fields compute from the frame, computed once
-        if self.blobs.any():
-            coeff = _coefficients(_filled(frame, shared.blobs(self.noise)))
-        else:
-            coeff = _coefficients(frame)
+        coeff = _coefficients(frame)
         sizes = self.wanted
         if self.auto:  # no larger than the field's curvature (at the last frame) allows
             sizes = np.minimum(self.wanted, _curvature_cap(self.second))
@@ -895,7 +898,10 @@ class _Run:
         lit = np.zeros(n, bool)
         if self.blobs.any():
             lit = self._highlights(shared, p, ok, sizes)
-            ok &= ~(lit | self.risky)
+            ok &= ~lit
+            if lit.any():  # matched again with the highlights filled in on both images
+                take(*self._around_highlights(frame, lit & active, p0, p, ok, sizes))
+                lit &= ~ok
 
         # 4. the global field, for the points still failing
         from_field = np.zeros(n, bool)
@@ -926,6 +932,9 @@ class _Run:
             field_quality[hold] = np.clip(solver.cell_zncc(self.points[hold]), 0.0, 1.0)
         if need.size:
             self.field_frames.append(t)
+            # a field's value that its measured neighbours do not predict is not reported
+            off = _inconsistent(self.points, p[:, :2], ok, self.near, judge=from_field)
+            from_field &= ~off
 
         # the noise the residuals show, and the field's curvature from the matches
         noise2 = _noise_model(s2 / self.gain, self.intensity, ok)
@@ -1030,12 +1039,29 @@ class _Run:
                 self.blobs, frame.blobs(self.noise), lambda x: _apply(motion, x) - x
             )
             self.static |= ref_mask  # once found to stay put, a highlight stays one
+        self.frame_highlights = frame_mask
         if not self.static.any() and not frame_mask.any():
             return np.zeros(n, bool)
         half = sizes // 2
         return _touches(self.static, self.points, half) | _touches(
             frame_mask, self.points + p[:, :2], half
         )
+
+    def _around_highlights(self, frame, rows, guess, p, ok, sizes):
+        """Rows of points whose subsets hold a highlight, and their IC-GN matched on both
+        images with every highlight (of the reference and of this frame: they stay put)
+        filled in smoothly: the subset follows the tissue's texture around it, not the
+        light. From their own match where they had one, from the motion guess otherwise;
+        their neighbours' test follows (a filled subset that drifted is not kept)."""
+        idx = np.flatnonzero(rows)
+        mask = ndimage.binary_dilation(self.static | self.frame_highlights, iterations=2)
+        start = np.where(np.isfinite(p[idx, :1]) & (p[idx, :2] != 0).any(axis=1)[:, None],
+                         p[idx], guess[idx])  # fmt: skip
+        result = self._match(
+            _coefficients(_filled(frame, mask)), idx, start, sizes, 1,
+            ref_coeff=_coefficients(_filled(self.reference, mask)),
+        )  # fmt: skip
+        return idx, result
 
     def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
         """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
@@ -1063,7 +1089,7 @@ class _Run:
         nodes = solver.lattice.nodes()
         previous = solver.state.copy()  # its fit of the last frame it was fitted to
         state = previous.copy()
-        if last == t - 1 and before is not None:
+        if key == "all" and last == t - 1 and before is not None:
             state = _extrapolate(nodes, before, previous)
         else:
             use = ok if ok.sum() >= 3 else self.textured
@@ -1099,16 +1125,22 @@ def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -
 
 
 def _inconsistent(
-    points: np.ndarray, u: np.ndarray, valid: np.ndarray, near: np.ndarray
+    points: np.ndarray,
+    u: np.ndarray,
+    valid: np.ndarray,
+    near: np.ndarray,
+    judge: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Valid points whose displacement ``u`` the best-fit affine field of their valid
-    neighbours does not predict: off by more than 4 times the neighbours' own such misfit
-    (at least 0.3 px). A subset that slowly drifted (following a highlight or a shadow)
-    still moves like its neighbours from frame to frame, not in all."""
+    """Points (of ``judge``, the valid ones by default) whose displacement ``u`` the
+    best-fit affine field of their valid neighbours does not predict: off by more than 4
+    times the neighbours' own such misfit (at least 0.3 px). A subset that slowly drifted
+    (following a highlight or a shadow) still moves like its neighbours from frame to
+    frame, not in all; a field's value is held to its measured neighbours the same way."""
     n = len(points)
     out = np.zeros(n, bool)
     if n < 5 or near.shape[1] < 4:
         return out
+    judge = valid if judge is None else judge
     d = points[near] - points[:, None, :]  # (N, k, 2)
     scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
     d = d / scale
@@ -1116,15 +1148,16 @@ def _inconsistent(
     w = valid[near].astype(float)[..., None]
     normal = np.einsum("nki,nkj->nij", basis * w, basis)
     rhs = np.einsum("nki,nkc->nic", basis * w, u[near])
-    enough = valid & (valid[near].sum(axis=1) >= 4)
+    enough = (valid | judge) & (valid[near].sum(axis=1) >= 4)
     enough[enough] &= np.linalg.cond(normal[enough]) < 1e8
     misfit = np.full(n, np.nan)
     if enough.any():
         coef = np.linalg.solve(normal[enough], rhs[enough])  # (m, 3, 2): value at the point
         misfit[enough] = np.linalg.norm(u[enough] - coef[:, 0, :], axis=1)
-    typical = np.nanmedian(np.where(valid[near], misfit[near], np.nan), axis=1)
+    own = np.where(valid, misfit, np.nan)
+    typical = np.nanmedian(np.where(valid[near], own[near], np.nan), axis=1)
     typical = np.nan_to_num(typical, nan=0.0)
-    out = enough & (misfit > np.maximum(4 * typical, 0.3))
+    out = judge & enough & (misfit > np.maximum(4 * typical, 0.3))
     return out
 
 
