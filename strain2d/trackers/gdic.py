@@ -28,7 +28,7 @@ order:
    that start gives no local match, the field's own value is reported if the
    lattice cell under the point counted in its fit.
 4. **Quadratic warp** where the field curves enough under a subset to bias
-   an affine warp beyond its noise: the Bayesian information criterion
+   an affine warp by half its noise or more: the Bayesian information criterion
    ``n ln(SSD / n) + k ln n`` picks the warp per point and frame.
 5. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
    under a specular highlight that stays put while the tissue moves, matched
@@ -40,17 +40,22 @@ order:
    whatever a larger subset or the field would extrapolate there.
 
 Each point and frame gets an uncertainty (px, standard deviation per
-coordinate). For a local match it is the noise's: ``sigma_n^2 (J'J)^-1``
-of IC-GN, with the gradients' own noise taken out of ``J'J`` and
-``sigma_n^2`` the pixel noise of both frames, as the subsets' residuals
-show it once the interpolation's smoothing is taken out (the spline smooths
-the noise of each sample, but its weights sum to one: over texture whose
-gradients vary slowly from pixel to pixel, the displacement sees the full
-pixel noise, not the smoothed one), plus an affine warp's bias from the field's curvature
-(``laplacian(u) L^2 / 6`` over a subset of half-side ``L``). Residual that
-the tissue's changing appearance leaves is not position noise: it shows in
-``quality`` (the ZNCC), not in the uncertainty. For the field's value it is
-the posterior standard deviation of the lattice fit.
+coordinate). For a local match it is the noise's, ``c 2 sigma_n^2 (J'J)^-1``
+of IC-GN: ``sigma_n^2`` the pixel noise as the subsets' residuals show it
+(intensity-dependent, the interpolation's smoothing of the residual taken
+out), the gradients' own noise taken out of ``J'J``, and ``c`` measured on
+the video's own reference by matching two copies of it with fresh noise of
+that level (the formula assumes a matcher that moves along the gradients it
+uses; this one uses central differences while it moves along the spline, so
+its scatter is smaller by a texture-dependent factor: :meth:`_Run._noise_scale`).
+To it adds an affine warp's bias over a curving field: ``laplacian(u)
+L^2 / 6`` over a subset of half-side ``L`` (the curvature from the
+neighbours' quadratic fit, its share of their noise taken out), or, where
+the quadratic warp was tried and not kept, the quadratic warp's shift from
+the affine one, if larger. Residual that the tissue's changing appearance
+leaves is not position noise: it shows in ``quality`` (the ZNCC), not in the
+uncertainty. For the field's value it is the posterior standard deviation
+of the lattice fit.
 
 Tracking is always against the reference frame, so errors do not accumulate.
 The tracks do not depend on the number of threads (``threads``).
@@ -131,7 +136,7 @@ _FEATURES_BELOW = 0.5
 _LOCAL_FIELDS_UP_TO = 0.1
 
 #: the quadratic warp is tried where the affine one's bias from the curvature exceeds this
-#: fraction of the match's noise, and the affine residual exceeds the noise by 20 %
+#: fraction of the match's noise
 _QUADRATIC_BIAS = 0.5
 
 
