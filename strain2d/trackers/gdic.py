@@ -1021,7 +1021,8 @@ class _Run:
 
         # the noise the residuals show, and the field's curvature from the matches
         noise2 = _noise_model(s2 / self.gain, self.intensity, ok)
-        level = np.nanmedian(noise2[ok]) if ok.any() else np.nan
+        known = noise2[ok & np.isfinite(noise2)]
+        level = np.median(known) if known.size else np.nan
         self.noise2 = float(level) if np.isfinite(level) else self.noise2
         # both frames' pixel noise (the model, never the residual: beyond the noise, the
         # residual is appearance, not noise), as the matches' own scatter scales it
@@ -1250,8 +1251,10 @@ def _inconsistent(
         coef = np.linalg.solve(normal[enough], rhs[enough])  # (m, 3, 2): value at the point
         misfit[enough] = np.linalg.norm(u[enough] - coef[:, 0, :], axis=1)
     own = np.where(valid, misfit, np.nan)
-    typical = np.nanmedian(np.where(valid[near], own[near], np.nan), axis=1)
-    typical = np.nan_to_num(typical, nan=0.0)
+    around = np.where(valid[near], own[near], np.nan)
+    has = np.isfinite(around).any(axis=1)
+    typical = np.zeros(n)
+    typical[has] = np.nanmedian(around[has], axis=1)
     out = judge & enough & (misfit > np.maximum(4 * typical, 0.3))
     return out
 
