@@ -74,6 +74,7 @@ from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._lattice import (
     Frame,
     LatticeSolver,
+    blob_window,
     bright_blobs,
     noise_sigma,
     static_highlights,
@@ -112,8 +113,12 @@ _TEXTURELESS = 0.5
 _TEXTURE_WINDOW = 15
 _TEXTURE_SIGNAL = 0.6
 
+#: frames (with motion enough to tell) on which a bright blob of the reference did not
+#: stay put, after which it is no longer a candidate highlight
+_NOT_HIGHLIGHT_AFTER = 3
+
 #: draws of noise, and their seed, that measure how the matches scatter against the noise
-_NOISE_DRAWS = 4
+_NOISE_DRAWS = 2
 _NOISE_SEED = 20261126
 
 #: a point farther than this (px) from any texture is on blank background, whatever a
@@ -413,9 +418,13 @@ def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarra
     """Whether the square subsets at ``centers`` hold any pixel of ``mask``."""
     if mask is None or not mask.any():
         return np.zeros(len(centers), bool)
-    table = np.pad(mask.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
-    H, W = mask.shape
-    c = np.rint(np.nan_to_num(centers)).astype(int)
+    # the sums over the mask's own box (a few highlights: a small part of the frame)
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    top, left = rows[0], cols[0]
+    box = mask[top : rows[-1] + 1, left : cols[-1] + 1]
+    table = np.pad(box.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    H, W = box.shape
+    c = np.rint(np.nan_to_num(centers)).astype(int) - [left, top]
     x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
     y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
     return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
@@ -738,6 +747,8 @@ class _Run:
         matched = reference
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
         self.frame_highlights = np.zeros(self.shape, bool)  # and those of the last frame
+        self.undecided = self.blobs.copy()  # the blobs not yet seen to stay put or to move
+        self.unlike = np.zeros(self.shape, np.uint8)  # frames on which each did not stay put
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
         self.textured &= texture_distance(matched, points) <= _TEXTURE_REACH
@@ -1126,22 +1137,46 @@ class _Run:
 
     def _highlights(self, frame: Frame, p, ok, sizes) -> np.ndarray:
         """Points whose subset holds a specular highlight (a blob that stays put in the image
-        while the tissue moves), on the reference or on this frame."""
+        while the tissue moves), where they were on the reference or are on this frame.
+
+        Each blob of the reference is decided once: a highlight when it is seen to stay
+        put, bright tissue when it is seen to move with the tissue; the frame's blobs are
+        looked for only around the blobs not yet decided (none, once all are)."""
         n = len(self.points)
         motion = _affine_fit(self.points[ok], self.points[ok] + p[ok, :2])
         frame_mask = np.zeros(self.shape, bool)
-        if motion is not None:
-            ref_mask, frame_mask = static_highlights(
-                self.blobs, frame.blobs(self.noise), lambda x: _apply(motion, x) - x
+        def moving(x: np.ndarray) -> np.ndarray:
+            return _apply(motion, x) - x
+
+        if motion is not None and self.undecided.any() and self._can_tell(moving):
+            ref_mask, frame_mask, tissue, unlike = static_highlights(
+                self.undecided,
+                frame.blobs(self.noise, blob_window(self.undecided, moving)),
+                moving,
+                with_tissue=True,
             )
             self.static |= ref_mask  # once found to stay put, a highlight stays one
-        self.frame_highlights = frame_mask
+            self.unlike += unlike  # a blob that did not stay put on 3 frames is no highlight
+            self.undecided &= ~(ref_mask | tissue | (self.unlike >= _NOT_HIGHLIGHT_AFTER))
+        # a highlight stays where it is in the image: on this frame as on the reference
+        self.frame_highlights = frame_mask | self.static
         if not self.static.any() and not frame_mask.any():
             return np.zeros(n, bool)
         half = sizes // 2
         return _touches(self.static, self.points, half) | _touches(
-            frame_mask, self.points + p[:, :2], half
+            self.frame_highlights, self.points + p[:, :2], half
         )
+
+    def _can_tell(self, moving) -> bool:
+        """Whether the tissue moved enough (2 px) anywhere over the undecided blobs for
+        :func:`static_highlights` to tell a highlight from tissue (before looking for
+        the frame's blobs)."""
+        rows = np.flatnonzero(self.undecided.any(axis=1))
+        cols = np.flatnonzero(self.undecided.any(axis=0))
+        x = np.linspace(cols[0], cols[-1], 5)
+        y = np.linspace(rows[0], rows[-1], 5)
+        grid = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
+        return bool(np.any(np.hypot(*moving(grid).T) >= 2.0))
 
     def _around_highlights(self, frame, rows, guess, p, ok, sizes):
         """Rows of points whose subsets hold a highlight, and their IC-GN matched on both
