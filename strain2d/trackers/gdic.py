@@ -1002,11 +1002,12 @@ class _Run:
         field_sigma = np.full(n, np.nan)
         field_quality = np.zeros(n)
         need = np.flatnonzero(active & ~ok)
-        # a few points: a small field around each (with its neighbours); many: one field
+        # a few points: a small field around each group of neighbours (with their own
+        # neighbours); many: one field
         if need.size > _LOCAL_FIELDS_UP_TO * max(rows.size, 1):
             groups = [("all", need)]
         else:
-            groups = [(int(i), np.array([i])) for i in need]
+            groups = [(tuple(g.tolist()), g) for g in _neighbour_groups(need, self.near)]
         for key, idx in groups:
             solver = self._field(key, shared, t, p, ok, step, p0)
             u, grad = solver.displacement(self.points[idx])
@@ -1196,15 +1197,16 @@ class _Run:
 
     def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
         """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
-        point ``key`` and its neighbours; from its own last fit when that was on the frame
-        before, from this frame's local matches otherwise (and the motion ``guess`` of the
-        points that failed, where fewer than 3 matched)."""
+        the points of ``key`` (a tuple) and their neighbours; from its own last fit when
+        that was on the frame before, from this frame's local matches otherwise (and the
+        motion ``guess`` of the points that failed, where fewer than 3 matched)."""
         if key not in self.fields:
             if key == "all":
                 cover = self.textured
             else:
                 cover = np.zeros(len(self.points), bool)
-                cover[[key, *self.near[key]]] = True
+                cover[list(key)] = True
+                cover[self.near[list(key)].ravel()] = True
                 cover &= self.in_frame0
             solver = LatticeSolver(
                 self.reference,
@@ -1253,6 +1255,24 @@ def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -
     fits = (sizes[None, :] // 2) <= np.nan_to_num(half, nan=-1.0)[:, None]
     best = np.where(fits.any(axis=1), fits.shape[1] - 1 - np.argmax(fits[:, ::-1], axis=1), 0)
     return sizes[best]
+
+
+def _neighbour_groups(idx: np.ndarray, near: np.ndarray) -> list[np.ndarray]:
+    """``idx`` split into groups that are neighbours of one another (connected through
+    ``near``), each sorted: one small field serves each group."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    idx = np.asarray(idx)
+    if idx.size <= 1:
+        return [idx] if idx.size else []
+    where = {int(i): k for k, i in enumerate(idx)}
+    pairs = [(where[int(i)], where[int(j)]) for i in idx for j in near[i] if int(j) in where]
+    a = np.array([i for i, _ in pairs], int)
+    b = np.array([j for _, j in pairs], int)
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(idx.size, idx.size))
+    _, label = connected_components(graph, directed=False)
+    return [np.sort(idx[label == k]) for k in np.unique(label)]
 
 
 def _inconsistent(
