@@ -197,7 +197,12 @@ class _Correlator:
         return _Subsets(centers.copy(), np.full(n, frame), fm / norm, norm, Hinv @ J, template)
 
     def match(
-        self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
+        self,
+        coefficients: np.ndarray,
+        ref: _Subsets,
+        idx: np.ndarray,
+        p0: np.ndarray,
+        tolerance: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged).
 
@@ -206,7 +211,7 @@ class _Correlator:
         columns). ``zncc`` is measured at the last iterate before the final
         (sub-tolerance) update.  A point whose correlation is still below
         ``zncc_min`` after 8 iterations is abandoned: it is not converging to
-        the right match.
+        the right match. ``tolerance`` (per point, px) replaces the correlator's.
         """
         from strain2d.trackers._icgn_kernel import icgn  # numba: compiled on first use
 
@@ -226,7 +231,9 @@ class _Correlator:
                 self.ex,
                 self.ey,
                 self.half,
-                self.tolerance,
+                np.full(len(p0), self.tolerance)
+                if tolerance is None
+                else np.ascontiguousarray(tolerance, dtype=np.float64),
                 self.max_iterations,
                 self.zncc_min,
             )

@@ -113,9 +113,12 @@ _TEXTURELESS = 0.5
 _TEXTURE_WINDOW = 15
 _TEXTURE_SIGNAL = 0.6
 
-#: frames (with motion enough to tell) on which a bright blob of the reference did not
-#: stay put, after which it is no longer a candidate highlight
-_NOT_HIGHLIGHT_AFTER = 3
+#: the lowest ZNCC at which a match that its measured neighbours predict is kept
+_WEAK_ZNCC = 0.5
+
+#: IC-GN's per-point tolerance, as a fraction of its subset's noise-limited standard
+#: deviation (when that exceeds the fixed tolerance)
+_SETTLE = 0.2
 
 #: draws of noise, and their seed, that measure how the matches scatter against the noise
 _NOISE_DRAWS = 2
@@ -748,10 +751,17 @@ class _Run:
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
         self.frame_highlights = np.zeros(self.shape, bool)  # and those of the last frame
         self.undecided = self.blobs.copy()  # the blobs not yet seen to stay put or to move
-        self.unlike = np.zeros(self.shape, np.uint8)  # frames on which each did not stay put
+        self.bright_tissue = np.zeros(self.shape, bool)  # the blobs seen to move with it
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
         self.textured &= texture_distance(matched, points) <= _TEXTURE_REACH
+        # IC-GN need not settle a subset's pixels more finely than its texture can place
+        # them: a fifth of the noise-limited standard deviation (the fixed tolerance on
+        # strong texture; weak texture's updates wander at the noise's scale and would
+        # never meet it)
+        self.tolerances = np.maximum(
+            tolerance, _SETTLE * np.nan_to_num(texture, nan=0.0, posinf=0.0)
+        )
         self.orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
         self.correlators: dict = {}
         self.ref_coeff = _coefficients(matched)
@@ -828,7 +838,9 @@ class _Run:
                 k = rows[sizes[rows] == size]
                 corr = self._correlator(int(size), 1)
                 ref = corr.reference(copies[0], self.points[k], 0)
-                pk, _, ck = corr.match(copies[1], ref, np.arange(len(k)), np.zeros((len(k), 6)))
+                pk, _, ck = corr.match(
+                    copies[1], ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
+                )
                 good = ck & (np.abs(pk[:, :2]) < 1.0).all(axis=1)
                 hinv = np.einsum("nks,nks->nk", ref.G[good, :2], ref.G[good, :2])
                 use = np.isfinite(hinv).all(axis=1)
@@ -905,7 +917,9 @@ class _Run:
                     ref = self._reference(int(size), order, rows[k])
                 else:  # another reference image (highlights filled in): not cached
                     ref = corr.reference(ref_coeff, self.points[rows[k]], 0)
-                pk, zk, ck = corr.match(coeff, ref, np.arange(len(k)), start[k])
+                pk, zk, ck = corr.match(
+                    coeff, ref, np.arange(len(k)), start[k], self.tolerances[rows[k]]
+                )
                 inside = _inside(corr, self.points[rows[k]], pk, self.shape)
                 p[k], z[k], ok[k] = pk, zk, ck & (zk >= self.zncc_min) & inside
                 n_px[k] = size * size
@@ -959,6 +973,7 @@ class _Run:
         # failures keep their correlation too (for the restart order)
         z[rows] = result[1]
         take(rows, result)
+        first = {"rows": rows, "result": result}  # each point's own match from the guess
         # a match whose motion since the last frame disagrees with its neighbours' is suspect
         moved = self.points + p[:, :2] - self.last
         usable = ok & self.matched
@@ -996,6 +1011,33 @@ class _Run:
             if lit.any():  # matched again with the highlights filled in on both images
                 take(*self._around_highlights(frame, lit & active, p0, p, ok, sizes))
                 lit &= ~ok
+
+        # 3b. a point whose own match fell short of convergence or of zncc_min (weak texture,
+        # fading light) is kept where it still correlates (ZNCC >= _WEAK_ZNCC) and its
+        # measured neighbours' affine motion predicts it: it is measured, and the field
+        # (far dearer) is left to the points that no local match explains
+        weak = np.zeros(n, bool)
+        fr, (pf, zf, _, s2f, hf, nf) = first["rows"], first["result"]
+        near_miss = np.zeros(n, bool)
+        near_miss[fr] = (zf >= _WEAK_ZNCC) & np.isfinite(s2f)
+        near_miss &= active & ~ok & ~lit
+        # not where a subset holds a bright blob that may be a highlight: a match that
+        # follows the light is smooth and its neighbours may follow it too
+        if near_miss.any() and self.blobs.any():
+            near_miss &= ~_touches(self.blobs & ~self.bright_tissue, self.points + p0[:, :2],
+                                   sizes // 2)  # fmt: skip
+        if near_miss.any() and ok.sum() >= 5:
+            u = p[:, :2].copy()
+            at = np.searchsorted(fr, np.flatnonzero(near_miss))
+            u[near_miss] = pf[at, :2]
+            predicted = ~_inconsistent(self.points, u, ok, self.near, judge=near_miss)
+            fits = np.zeros(n, bool)
+            fits[np.flatnonzero(near_miss)] = _predictable(self.points, ok, self.near)[near_miss]
+            weak = near_miss & predicted & fits
+            i = np.flatnonzero(weak)
+            k = np.searchsorted(fr, i)
+            p[i], z[i], ok[i] = pf[k, :6], zf[k], True
+            s2[i], hinv[i], n_px[i] = s2f[k], hf[k], nf[k]
 
         # 4. the global field, for the points still failing
         from_field = np.zeros(n, bool)
@@ -1150,15 +1192,18 @@ class _Run:
             return _apply(motion, x) - x
 
         if motion is not None and self.undecided.any() and self._can_tell(moving):
-            ref_mask, frame_mask, tissue, unlike = static_highlights(
+            ref_mask, frame_mask, tissue, _ = static_highlights(
                 self.undecided,
                 frame.blobs(self.noise, blob_window(self.undecided, moving)),
                 moving,
                 with_tissue=True,
             )
             self.static |= ref_mask  # once found to stay put, a highlight stays one
-            self.unlike += unlike  # a blob that did not stay put on 3 frames is no highlight
-            self.undecided &= ~(ref_mask | tissue | (self.unlike >= _NOT_HIGHLIGHT_AFTER))
+            self.bright_tissue |= tissue
+            # a blob seen to move with the tissue is tissue; one not yet seen to do either
+            # may still show itself a highlight on a later frame (its outline on the
+            # frame can differ while the light and the tissue move)
+            self.undecided &= ~(ref_mask | tissue)
         # a highlight stays where it is in the image: on this frame as on the reference
         self.frame_highlights = frame_mask | self.static
         if not self.static.any() and not frame_mask.any():
@@ -1255,6 +1300,15 @@ def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -
     fits = (sizes[None, :] // 2) <= np.nan_to_num(half, nan=-1.0)[:, None]
     best = np.where(fits.any(axis=1), fits.shape[1] - 1 - np.argmax(fits[:, ::-1], axis=1), 0)
     return sizes[best]
+
+
+def _predictable(points: np.ndarray, valid: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Whether each point has at least 4 valid neighbours that span an affine field
+    (so :func:`_inconsistent` can judge it)."""
+    n = len(points)
+    if n < 5 or near.shape[1] < 4:
+        return np.zeros(n, bool)
+    return valid[near].sum(axis=1) >= 4
 
 
 def _neighbour_groups(idx: np.ndarray, near: np.ndarray) -> list[np.ndarray]:
