@@ -44,6 +44,7 @@ from tissue_core.filenames import readable, utf8_output
 from tissue_core.html import input_records
 from tissue_core.jsonio import write_json
 from tissue_core.outputs import recorded_command
+from tissue_core.vtkio import write_polydata
 
 __all__ = ["Analysis", "analyze_stack", "write_analysis"]
 
@@ -474,16 +475,7 @@ def _write_table(path: Path, table: dict) -> None:
 
 def _save_vtp(mesh, path: Path) -> None:
     """XML PolyData, binary, LZ4-compressed (fast to write, read by ParaView 5.6+)."""
-    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
-
-    writer = vtkXMLPolyDataWriter()
-    writer.SetInputData(mesh)
-    writer.SetDataModeToAppended()
-    writer.SetCompressorTypeToLZ4()
-    with utf8_output(path) as target:  # VTK takes UTF-8 names only
-        writer.SetFileName(str(target))
-        if not writer.Write():
-            raise OSError(f"could not write {path}")
+    write_polydata(mesh, path, compressor="lz4", appended=True)
 
 
 def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bool = True) -> None:

@@ -49,7 +49,7 @@ import numpy as np
 
 from surface_strain.field import StrainField, element_scalars, nodal_scalars
 from surface_strain.streamed import iter_blocks
-from tissue_core.filenames import utf8_output
+from tissue_core.vtkio import write_polydata
 
 __all__ = [
     "ELEMENT_COLUMNS",
@@ -207,7 +207,6 @@ def _write_vtp(
     from vtkmodules.util.numpy_support import numpy_to_vtk
     from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
     from vtkmodules.vtkCommonDataModel import vtkPolyData
-    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
     mesh = vtkPolyData()
     vtk_points = vtkPoints()
@@ -227,14 +226,7 @@ def _write_vtp(
         for text in texts:
             strings.InsertNextValue(text)
         mesh.GetFieldData().AddArray(strings)
-    writer = vtkXMLPolyDataWriter()
-    writer.SetInputData(mesh)
-    writer.SetDataModeToBinary()
-    writer.SetCompressorTypeToZLib()
-    with utf8_output(path) as target:  # VTK takes UTF-8 names only
-        writer.SetFileName(str(target))
-        if not writer.Write():
-            raise OSError(f"could not write {path}")
+    write_polydata(mesh, path, compressor="zlib")
 
 
 def _triangle_cells(triangles: np.ndarray):
