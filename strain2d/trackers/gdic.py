@@ -753,6 +753,15 @@ class _Run:
         self.undecided = self.blobs.copy()  # the blobs not yet seen to stay put or to move
         self.bright_tissue = np.zeros(self.shape, bool)  # the blobs seen to move with it
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
+        if self.auto:  # a point too near the edge for every size: a smaller subset, if it fits
+            H, W = self.shape
+            c = np.rint(np.nan_to_num(points)).astype(int)
+            room = np.minimum.reduce([c[:, 0], W - 1 - c[:, 0], c[:, 1], H - 1 - c[:, 1]]) - 2
+            edge = np.flatnonzero(room < self.candidates[0] // 2)
+            if edge.size:
+                size, sigma = subset_texture(matched, points[edge], self.noise, _EDGE_SUBSETS)
+                fits = room[edge] >= size // 2
+                self.wanted[edge[fits]], texture[edge[fits]] = size[fits], sigma[fits]
         self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
         self.textured &= texture_distance(matched, points) <= _TEXTURE_REACH
         # IC-GN need not settle a subset's pixels more finely than its texture can place
