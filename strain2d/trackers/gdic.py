@@ -32,12 +32,11 @@ order:
    ``n ln(SSD / n) + k ln n`` picks the warp per point and frame.
 5. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
    under a specular highlight that stays put while the tissue moves, matched
-   by neither its subset nor the field, or when it has no texture: a subset
-   of the largest size whose texture cannot pin a match to
-   ``_TEXTURELESS`` px against the noise, or a point farther than half the
-   smallest subset from any texture (a blank background beside textured
-   pieces: :func:`texture_distance`), is never reported as a measurement,
-   whatever a larger subset or the field would extrapolate there.
+   by neither its subset nor the field, or when it has no texture: a point
+   farther than half the smallest subset from any texture (a blank
+   background beside textured pieces: :func:`texture_distance`) is never
+   reported as a measurement, whatever a larger subset or the field would
+   extrapolate there.
 
 Each point and frame gets an uncertainty (px, standard deviation per
 coordinate). For a local match it is the noise's, ``c 2 sigma_n^2 (J'J)^-1``
@@ -102,10 +101,6 @@ _SUBSETS = (31, 41, 51, 61, 81)
 _SIGMA_TARGET = 0.04
 #: the smaller subsets a point near the frame's edge falls back to (its subset would leave)
 _EDGE_SUBSETS = (15, 21)
-
-#: the same standard deviation (px) beyond which even the largest subset that fits holds
-#: no texture to measure: the point is never reported as measured (a blank background)
-_TEXTURELESS = 0.5
 
 #: side (px) of the window in which texture is told from noise, and the signal variance
 #: (in units of the window's noise variance) above which it holds texture: about six
@@ -271,33 +266,52 @@ def subset_texture(
 
 def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Per point, the distance (px) to the nearest texture: the nearest pixel whose
-    :data:`_TEXTURE_WINDOW` window holds signal above the noise.
+    :data:`_TEXTURE_WINDOW` window holds signal above the noise, on the image and on
+    copies of it halved and quartered in size.
 
     The window's signal variance is its intensity variance less its noise
     variance, and the noise variance is measured in the same window (the
     5-point Laplacian of white noise has 20 times its variance; smooth
     texture barely adds to it), so a dark background with less shot noise
-    than the tissue is judged against its own noise. A point on blank
-    background a subset's width from a textured edge is far from texture
-    even though a large subset would reach the edge: its displacement
-    there would be extrapolated from the edge, not measured.
+    than the tissue is judged against its own noise. Halving the image
+    halves the noise's standard deviation and keeps smooth texture: weak,
+    blurry texture that no window shows at full size shows there. A
+    detection on a copy ``k`` times smaller places the texture only within
+    the window's reach there, so its distance counts ``(k - 1)`` half-windows
+    more. A point on blank background a subset's width from a textured edge is
+    far from texture at every size even though a large subset would reach
+    the edge: its displacement there would be extrapolated, not measured.
     """
+    import cv2
+
     image = np.asarray(image, dtype=np.float64)
-    w = _TEXTURE_WINDOW
-    lap = ndimage.laplace(image)
-    noise2 = ndimage.uniform_filter(lap * lap, w) / 20.0
-    mean = ndimage.uniform_filter(image, w)
-    var = ndimage.uniform_filter(image * image, w) - mean * mean
-    texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
-    if texture.all():
-        return np.zeros(len(points))
-    if not texture.any():
-        return np.full(len(points), np.inf)
-    distance = ndimage.distance_transform_edt(~texture)
     H, W = image.shape
     c = np.rint(np.nan_to_num(points)).astype(int)
     c[:, 0], c[:, 1] = np.clip(c[:, 0], 0, W - 1), np.clip(c[:, 1], 0, H - 1)
-    return distance[c[:, 1], c[:, 0]]
+    best = np.full(len(points), np.inf)
+    w = _TEXTURE_WINDOW
+    for k in (1, 2, 4):
+        if min(H, W) // k < 2 * w:
+            break
+        small = (
+            image if k == 1 else cv2.resize(image, (W // k, H // k), interpolation=cv2.INTER_AREA)
+        )
+        lap = ndimage.laplace(small)
+        noise2 = ndimage.uniform_filter(lap * lap, w) / 20.0
+        mean = ndimage.uniform_filter(small, w)
+        var = ndimage.uniform_filter(small * small, w) - mean * mean
+        texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
+        if not texture.any():
+            continue
+        if texture.all():
+            distance = np.zeros(len(points))
+        else:
+            field = ndimage.distance_transform_edt(~texture)
+            h, wd = texture.shape
+            ck = np.minimum(c // k, [wd - 1, h - 1])
+            distance = field[ck[:, 1], ck[:, 0]] * k
+        best = np.minimum(best, distance + (k - 1) * (w // 2))
+    return best
 
 
 def subset_sizes(
@@ -762,8 +776,10 @@ class _Run:
                 size, sigma = subset_texture(matched, points[edge], self.noise, _EDGE_SUBSETS)
                 fits = room[edge] >= size // 2
                 self.wanted[edge[fits]], texture[edge[fits]] = size[fits], sigma[fits]
-        self.textured = self.in_frame0 & (texture <= _TEXTURELESS)
-        self.textured &= texture_distance(matched, points) <= _TEXTURE_REACH
+        # a point with texture near it is tracked: by its subset where that holds texture
+        # enough, by the field where it does not (a subset along one straight edge, weak
+        # blurry texture); one far from any texture is on blank background, never measured
+        self.textured = self.in_frame0 & (texture_distance(matched, points) <= _TEXTURE_REACH)
         # IC-GN need not settle a subset's pixels more finely than its texture can place
         # them: a fifth of the noise-limited standard deviation (the fixed tolerance on
         # strong texture; weak texture's updates wander at the noise's scale and would
@@ -1079,7 +1095,10 @@ class _Run:
         if need.size:
             self.field_frames.append(t)
             # a field's value that its measured neighbours do not predict is not reported
-            off = _inconsistent(self.points, p[:, :2], ok, self.near, judge=from_field)
+            # (by more than the field's own 3 sigma, and 1 px: the field is smooth where the
+            # local matches scatter, so it is held to a coarser bar than they are)
+            bar = np.maximum(1.0, 3 * np.nan_to_num(field_sigma, nan=0.0))
+            off = _inconsistent(self.points, p[:, :2], ok, self.near, judge=from_field, floor=bar)
             from_field &= ~off
 
         # the noise the residuals show, and the field's curvature from the matches
@@ -1197,6 +1216,7 @@ class _Run:
         n = len(self.points)
         motion = _affine_fit(self.points[ok], self.points[ok] + p[ok, :2])
         frame_mask = np.zeros(self.shape, bool)
+
         def moving(x: np.ndarray) -> np.ndarray:
             return _apply(motion, x) - x
 
@@ -1344,10 +1364,11 @@ def _inconsistent(
     valid: np.ndarray,
     near: np.ndarray,
     judge: np.ndarray | None = None,
+    floor: float | np.ndarray = 0.3,
 ) -> np.ndarray:
     """Points (of ``judge``, the valid ones by default) whose displacement ``u`` the
     best-fit affine field of their valid neighbours does not predict: off by more than 4
-    times the neighbours' own such misfit (at least 0.3 px). A subset that slowly drifted
+    times the neighbours' own such misfit (at least ``floor`` px). A subset that slowly drifted
     (following a highlight or a shadow) still moves like its neighbours from frame to
     frame, not in all; a field's value is held to its measured neighbours the same way."""
     n = len(points)
@@ -1373,7 +1394,7 @@ def _inconsistent(
     has = np.isfinite(around).any(axis=1)
     typical = np.zeros(n)
     typical[has] = np.nanmedian(around[has], axis=1)
-    out = judge & enough & (misfit > np.maximum(4 * typical, 0.3))
+    out = judge & enough & (misfit > np.maximum(4 * typical, floor))
     return out
 
 
