@@ -34,9 +34,10 @@ order:
    under a specular highlight that stays put while the tissue moves, matched
    by neither its subset nor the field, or when it has no texture: a point
    farther than half the smallest subset from any texture (a blank
-   background beside textured pieces: :func:`texture_distance`) is never
-   reported as a measurement, whatever a larger subset or the field would
-   extrapolate there.
+   background beside textured pieces: :func:`texture_distance`), or whose
+   largest subset cannot pin a match to ``_TEXTURELESS`` px against the
+   noise, is never reported as a measurement, whatever a larger subset or
+   the field would extrapolate there.
 
 Each point and frame gets an uncertainty (px, standard deviation per
 coordinate). For a local match it is the noise's, ``c 2 sigma_n^2 (J'J)^-1``
@@ -101,6 +102,10 @@ _SUBSETS = (31, 41, 51, 61, 81)
 _SIGMA_TARGET = 0.04
 #: the smaller subsets a point near the frame's edge falls back to (its subset would leave)
 _EDGE_SUBSETS = (15, 21)
+
+#: standard deviation (px) that the largest subset's texture allows, beyond which the point
+#: holds no texture to measure (its subsets see nothing above the noise)
+_TEXTURELESS = 0.5
 
 #: side (px) of the window in which texture is told from noise, and the signal variance
 #: (in units of the window's noise variance) above which it holds texture: about six
@@ -776,10 +781,12 @@ class _Run:
                 size, sigma = subset_texture(matched, points[edge], self.noise, _EDGE_SUBSETS)
                 fits = room[edge] >= size // 2
                 self.wanted[edge[fits]], texture[edge[fits]] = size[fits], sigma[fits]
-        # a point with texture near it is tracked: by its subset where that holds texture
-        # enough, by the field where it does not (a subset along one straight edge, weak
-        # blurry texture); one far from any texture is on blank background, never measured
+        # a point is tracked where texture lies near it and its largest subset holds texture
+        # enough to pin a match; one far from any texture is on blank background, and one
+        # whose subsets hold nothing above the noise would only be interpolated: never
+        # reported as measured
         self.textured = self.in_frame0 & (texture_distance(matched, points) <= _TEXTURE_REACH)
+        self.textured &= texture <= _TEXTURELESS
         # IC-GN need not settle a subset's pixels more finely than its texture can place
         # them: a fifth of the noise-limited standard deviation (the fixed tolerance on
         # strong texture; weak texture's updates wander at the noise's scale and would
