@@ -280,8 +280,9 @@ def icgn(
         Pixel offsets of the subset from its centre.
     half : int
         Half the subset side, pixels.
-    tolerance : float
-        Convergence when the update moves every subset pixel by less (pixels).
+    tolerance : (n,) float
+        Convergence when the update moves every subset pixel by less (pixels), per
+        subset.
     max_iterations : int
     zncc_min : float
         A point still below this correlation after 8 iterations is abandoned.
@@ -313,12 +314,12 @@ def icgn(
         if n_params == 12:
             zncc, converged = _match_point(
                 coeff, cx, cy, p, np.empty(12), g, ex, ey, f_row, norm_i, G_row,
-                half, tolerance, max_iterations, zncc_min,
+                half, tolerance[i], max_iterations, zncc_min,
             )  # fmt: skip
         else:
             zncc, converged = _match_point(
                 coeff, cx, cy, p, np.empty(6), g, ex, ey, f_row, norm_i, G_row,
-                half, tolerance, max_iterations, zncc_min,
+                half, tolerance[i], max_iterations, zncc_min,
             )  # fmt: skip
         zncc_out[i] = zncc
         conv_out[i] = converged

@@ -74,6 +74,7 @@ from scipy.spatial import cKDTree
 
 from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
+from strain2d.trackers._threads import THREADS_OPTION, prefetched, using_threads, worker_count
 from strain2d.tracks import Tracks
 from tissue_core.interrupt import deferred_interrupt
 
@@ -81,13 +82,11 @@ from tissue_core.interrupt import deferred_interrupt
 # x' = x0 + u + (1 + ux) dx + uy dy [+ uxx dx^2 / 2 + uxy dx dy + uyy dy^2 / 2], etc.
 
 
-_WORKERS = max(1, min(os.cpu_count() or 1, 8))
-
-
 @functools.cache
 def _pool() -> ThreadPoolExecutor:
-    """Threads for SciPy's spline routines, which release the GIL (made on first use)."""
-    return ThreadPoolExecutor(_WORKERS, thread_name_prefix="dic")
+    """Threads for SciPy's spline routines, which release the GIL (made on first use; the
+    work is split into :func:`~strain2d.trackers._threads.worker_count` parts)."""
+    return ThreadPoolExecutor(max(os.cpu_count() or 1, 2), thread_name_prefix="dic")
 
 
 def _blocks(n: int, parts: int) -> list[slice]:
@@ -103,15 +102,18 @@ def _coefficients(frame: np.ndarray) -> np.ndarray:
     ``scipy.ndimage.spline_filter(frame, order=3, mode="mirror")``.
     """
     c = np.array(frame, dtype=np.float64)
-    if _WORKERS == 1:
-        return ndimage.spline_filter(c, order=3, mode="mirror")
-    for axis in (1, 0):
+    workers = worker_count()
+    for axis in (1, 0):  # the same order of operations for any number of threads
 
         def run(block: slice, axis: int = axis) -> None:
             view = c[block] if axis == 1 else c[:, block]
             ndimage.spline_filter1d(view, order=3, axis=axis, mode="mirror", output=view)
 
-        list(_pool().map(run, _blocks(c.shape[1 - axis], _WORKERS)))
+        blocks = _blocks(c.shape[1 - axis], workers)
+        if len(blocks) == 1:
+            run(blocks[0])
+        else:
+            list(_pool().map(run, blocks))
     return c
 
 
@@ -123,9 +125,10 @@ def _sample(coefficients: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarra
             coefficients, [y[rows], x[rows]], order=3, mode="mirror", prefilter=False
         )
 
-    if _WORKERS == 1 or x.size < 20_000:
+    workers = worker_count()
+    if workers == 1 or x.size < 20_000:
         return run(slice(None))
-    return np.concatenate(list(_pool().map(run, _blocks(len(x), _WORKERS))))
+    return np.concatenate(list(_pool().map(run, _blocks(len(x), workers))))
 
 
 @dataclass
@@ -194,7 +197,12 @@ class _Correlator:
         return _Subsets(centers.copy(), np.full(n, frame), fm / norm, norm, Hinv @ J, template)
 
     def match(
-        self, coefficients: np.ndarray, ref: _Subsets, idx: np.ndarray, p0: np.ndarray
+        self,
+        coefficients: np.ndarray,
+        ref: _Subsets,
+        idx: np.ndarray,
+        p0: np.ndarray,
+        tolerance: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """IC-GN for points ``idx`` from warps ``p0``: (p, zncc, converged).
 
@@ -203,7 +211,7 @@ class _Correlator:
         columns). ``zncc`` is measured at the last iterate before the final
         (sub-tolerance) update.  A point whose correlation is still below
         ``zncc_min`` after 8 iterations is abandoned: it is not converging to
-        the right match.
+        the right match. ``tolerance`` (per point, px) replaces the correlator's.
         """
         from strain2d.trackers._icgn_kernel import icgn  # numba: compiled on first use
 
@@ -223,7 +231,9 @@ class _Correlator:
                 self.ex,
                 self.ey,
                 self.half,
-                self.tolerance,
+                np.full(len(p0), self.tolerance)
+                if tolerance is None
+                else np.ascontiguousarray(tolerance, dtype=np.float64),
                 self.max_iterations,
                 self.zncc_min,
             )
@@ -673,6 +683,7 @@ def _subset_option(text: str) -> int:
             "correlation below which the point is lost",
             type=float,
         ),
+        THREADS_OPTION,
     ],
 )
 def track_dic(
@@ -687,6 +698,7 @@ def track_dic(
     neighbours: int = 8,
     max_iterations: int = 30,
     tolerance: float = 1e-3,
+    threads: int | None = None,
     progress: Callable[[int, int | None], None] | None = None,
 ) -> Tracks:
     """Track points by subset correlation (see the module docstring).
@@ -718,6 +730,9 @@ def track_dic(
     max_iterations, tolerance : keyword-only
         IC-GN stops when the warp update moves every subset pixel by less than
         ``tolerance`` pixels, or after ``max_iterations``.
+    threads : int, keyword-only
+        Threads to use (default: the environment's ``NUMBA_NUM_THREADS`` or
+        ``OMP_NUM_THREADS``, else the cores); the tracks do not depend on it.
     progress : callable(done, total), keyword-only
 
     Returns
@@ -726,10 +741,41 @@ def track_dic(
         ``meta["reference_updates"]`` is the number of incremental reference
         updates per point.
     """
+    with using_threads(threads):
+        return _track_dic(
+            frames,
+            points,
+            subset=subset,
+            shape_function=shape_function,
+            zncc_min=zncc_min,
+            update_below=update_below,
+            search_radius=search_radius,
+            neighbours=neighbours,
+            max_iterations=max_iterations,
+            tolerance=tolerance,
+            progress=progress,
+        )
+
+
+def _track_dic(
+    frames,
+    points,
+    *,
+    subset,
+    shape_function,
+    zncc_min,
+    update_below,
+    search_radius,
+    neighbours,
+    max_iterations,
+    tolerance,
+    progress,
+) -> Tracks:
     _check_options(shape_function, subset, zncc_min, update_below, max_iterations, tolerance)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     radius = subset if search_radius is None else int(search_radius)
     ref_frame, rest, total = _read_reference(frames, subset)
+    rest = prefetched(rest)  # the next frames are decoded while this one is tracked
     order = 1 if shape_function == "affine" else 2
     corr = _Correlator(subset, max_iterations, tolerance, zncc_min, order=order)
     state = _start(corr, ref_frame, points, neighbours)

@@ -1,43 +1,64 @@
-"""``gdic``: global correlation over the whole surface, refined by local subsets.
+"""``gdic``: subsets where the texture carries them, the global field where it does not.
 
 Built for natural tissue texture (smooth mucosa, sparse vessels, fibres,
-uneven and fading light) where a subset around each point alone may hold too
-little texture to be matched. Every frame, in order:
+uneven and fading light) as well as speckle. The effort follows the data,
+point by point and frame by frame: where a subset around a point holds
+texture enough, the point costs what it costs in ``dic``; the global field is
+fitted only on the frames, and for the points, that need it. Every frame, in
+order:
 
-1. **Initial guess.** The previous frame's field plus its velocity. On the
-   first frame, and whenever that guess leaves a large residual at the
-   coarsest level, a global one too: SIFT features of the reference matched
-   to the frame (Lowe's ratio test) and a RANSAC affine transform (OpenCV);
-   the guess with the lower residual wins. So a 20-degree turn or a jump
-   between frames does not lose the grid.
-2. **Global correlation** (:mod:`strain2d.trackers._lattice`): one
-   displacement field over the region, bilinear on a lattice of nodes
-   ``spacing`` px apart, with a brightness gain and offset per node, fitted
-   to every pixel coarse-to-fine; a thin-plate penalty weighted by the
-   measured image noise fills in where texture is weak; occluded cells stop
-   counting.
-3. **Local refinement.** From the global field, each point's subset (sized
-   per point from its texture against the noise, and no larger than the
-   field's curvature allows: :func:`subset_sizes`) is matched by IC-GN
-   (:mod:`strain2d.trackers.dic`'s kernel) with an affine and with a
-   quadratic warp; the Bayesian information criterion
-   ``n ln(SSD / n) + k ln n`` picks the warp per point and frame. A local
-   match is kept when it converged, correlates at least ``zncc_min``, and
-   agrees with the global field within its uncertainty (at most
-   ``max(2 px, 5 sigma)``); otherwise the global field's value is used.
-4. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
-   or when its local match failed *and* the lattice cell under it stopped
-   counting (an occluder, a blank patch): the field there is the penalty's
-   interpolation, not a measurement, and is not reported as one.
+1. **Initial guess.** Each point from its own last match, moved as the last
+   step's best-fit affine motion of the whole grid moved it (exact for steady
+   rotation and stretch), plus the rest of its own last step.
+2. **Local match.** Each point's subset (sized per point from its texture
+   against the noise, no larger than the field's curvature allows:
+   :func:`subset_sizes`) is matched by IC-GN (:mod:`strain2d.trackers.dic`'s
+   compiled kernel, in parallel over points) with an affine warp. A match is
+   kept when it converged, correlates at least ``zncc_min``, stays in the
+   frame, and moved as its neighbours did (the normalized median test).
+3. **Where it failed:** if most points failed (a jump, a turn of tens of
+   degrees between frames), SIFT features of the reference matched to the
+   frame and a RANSAC affine transform give every failed point a new start;
+   then a failed point restarts from its best matched neighbour's warp, round
+   after round while the matched region grows; the points still failing
+   take their start from the **global field** (:mod:`strain2d.trackers._lattice`:
+   one regularized displacement field over the region, fitted to every
+   pixel coarse to fine, with a brightness gain and offset per node), built
+   the first time it is needed and fitted only on those frames. Where even
+   that start gives no local match, the field's own value is reported if the
+   lattice cell under the point counted in its fit.
+4. **Quadratic warp** where the field curves enough under a subset to bias
+   an affine warp by half its noise or more: the Bayesian information criterion
+   ``n ln(SSD / n) + k ln n`` picks the warp per point and frame.
+5. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
+   under a specular highlight that stays put while the tissue moves, matched
+   by neither its subset nor the field, or when it has no texture: a point
+   farther than half the smallest subset from any texture (a blank
+   background beside textured pieces: :func:`texture_distance`), or whose
+   largest subset cannot pin a match to ``_TEXTURELESS`` px against the
+   noise, is never reported as a measurement, whatever a larger subset or
+   the field would extrapolate there.
 
 Each point and frame gets an uncertainty (px, standard deviation per
-coordinate): for a local match ``sqrt(s^2 (J'J)^-1)`` of IC-GN with ``s^2``
-the residual variance of its subset, plus an affine warp's bias from the
-field's curvature; for the global field the posterior
-standard deviation of the lattice fit. ``quality`` is the ZNCC of the local
-match (of the lattice cell's fit where only the global value is used).
+coordinate). For a local match it is the noise's, ``c 2 sigma_n^2 (J'J)^-1``
+of IC-GN: ``sigma_n^2`` the pixel noise as the subsets' residuals show it
+(intensity-dependent, the interpolation's smoothing of the residual taken
+out), the gradients' own noise taken out of ``J'J``, and ``c`` measured on
+the video's own reference by matching two copies of it with fresh noise of
+that level (the formula assumes a matcher that moves along the gradients it
+uses; this one uses central differences while it moves along the spline, so
+its scatter is smaller by a texture-dependent factor: :meth:`_Run._noise_scale`).
+To it adds an affine warp's bias over a curving field: ``laplacian(u)
+L^2 / 6`` over a subset of half-side ``L`` (the curvature from the
+neighbours' quadratic fit, its share of their noise taken out), or, where
+the quadratic warp was tried and not kept, the quadratic warp's shift from
+the affine one, if larger. Residual that the tissue's changing appearance
+leaves is not position noise: it shows in ``quality`` (the ZNCC), not in the
+uncertainty. For the field's value it is the posterior standard deviation
+of the lattice fit.
 
 Tracking is always against the reference frame, so errors do not accumulate.
+The tracks do not depend on the number of threads (``threads``).
 """
 
 from __future__ import annotations
@@ -46,17 +67,29 @@ from collections.abc import Callable, Iterable
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
-from strain2d.trackers._lattice import LatticeSolver
+from strain2d.trackers._lattice import (
+    Frame,
+    LatticeSolver,
+    blob_window,
+    bright_blobs,
+    noise_sigma,
+    static_highlights,
+)
 from strain2d.trackers._series import FrameSeries
-from strain2d.trackers.dic import _coefficients, _Correlator, _first_frame, _inside, _Subsets
+from strain2d.trackers._threads import THREADS_OPTION, prefetched, using_threads
+from strain2d.trackers.dic import (
+    _coefficients,
+    _Correlator,
+    _first_frame,
+    _inside,
+    _median_outliers,
+    _Subsets,
+)
 from strain2d.tracks import Tracks
-
-#: noise part of the local uncertainty (px) above which the field's estimate is blended in
-#: (weak texture; a large misfit alone says the warp is imperfect, not that the field is better)
-_FUSE_ABOVE = 0.1
 
 #: budget for cached reference subsets (bytes); beyond it they are rebuilt each frame
 _CACHE_BYTES = 256 * 2**20
@@ -67,17 +100,52 @@ _SUBSETS = (31, 41, 51, 61, 81)
 #: noise-limited standard deviation (px, along the subset's weakest direction) that
 #: ``subset="auto"`` asks of a subset before it stops growing
 _SIGMA_TARGET = 0.04
+#: the smaller subsets a point near the frame's edge falls back to (its subset would leave)
+_EDGE_SUBSETS = (15, 21)
+
+#: standard deviation (px) that the largest subset's texture allows, beyond which the point
+#: holds no texture to measure (its subsets see nothing above the noise)
+_TEXTURELESS = 0.5
+
+#: side (px) of the window in which texture is told from noise, and the signal variance
+#: (in units of the window's noise variance) above which it holds texture: about six
+#: standard deviations of the variance a window of pure noise shows
+_TEXTURE_WINDOW = 15
+_TEXTURE_SIGNAL = 0.6
+
+#: the lowest ZNCC at which a match that its measured neighbours predict is kept
+_WEAK_ZNCC = 0.5
+
+#: IC-GN's per-point tolerance, as a fraction of its subset's noise-limited standard
+#: deviation (when that exceeds the fixed tolerance)
+_SETTLE = 0.2
+
+#: draws of noise, and their seed, that measure how the matches scatter against the noise
+_NOISE_DRAWS = 2
+_NOISE_SEED = 20261126
+
+#: a point farther than this (px) from any texture is on blank background, whatever a
+#: larger subset reaches: half the smallest automatic subset
+_TEXTURE_REACH = _SUBSETS[0] // 2
 
 #: bias (px) that an affine subset warp may take from the field's curvature before the
 #: subset is kept smaller: ``curvature half^2 / 6`` (a quadratic field over a square)
 _BIAS_TARGET = 0.05
 
-#: fraction of points matched locally in the last frame from which the global field
-#: is fitted at the coarsest level only where the texture is strong (the subsets refine it)
-_LOCAL_HOLDS = 0.98
+#: neighbours of each point for the median test, the restarts and the field's curvature
+_NEIGHBOURS = 8
 
-#: lattice spacings over which the field's curvature is measured for ``_BIAS_TARGET``
-_CURVATURE_SPAN = 4
+#: fraction of the textured points in view that must match from the motion guess; below
+#: it the frame's features are matched to the reference for a new start (a jump, a turn)
+_FEATURES_BELOW = 0.5
+
+#: fraction of the textured points above which the points still failing share one field
+#: over the whole region; fewer get a small field each, around them and their neighbours
+_LOCAL_FIELDS_UP_TO = 0.1
+
+#: the quadratic warp is tried where the affine one's bias from the curvature exceeds this
+#: fraction of the match's noise
+_QUADRATIC_BIAS = 0.5
 
 
 def _gray8(a: np.ndarray) -> np.ndarray:
@@ -87,27 +155,28 @@ def _gray8(a: np.ndarray) -> np.ndarray:
 
 
 class _FeatureGuess:
-    """Node displacements of an affine fit (RANSAC) to SIFT matches between the reference
-    and a frame; the reference's features are found once, inside the lattice's box."""
+    """The affine map (RANSAC) of SIFT matches from the reference to a frame; the
+    reference's features are found once, inside the box of the points (with a margin)."""
 
-    def __init__(self, reference: np.ndarray, nodes: np.ndarray) -> None:
-        import cv2
-
-        self.nodes = nodes
-        self.sift = cv2.SIFT_create(nfeatures=4000)
-        mask = np.zeros(reference.shape, np.uint8)
-        (x0, y0), (x1, y1) = nodes.min(axis=0).astype(int), nodes.max(axis=0).astype(int)
-        mask[max(y0, 0) : y1, max(x0, 0) : x1] = 255
+    def __init__(self, reference: np.ndarray, points: np.ndarray, margin: float) -> None:
+        self._image = reference
+        H, W = reference.shape
+        (x0, y0), (x1, y1) = points.min(axis=0) - margin, points.max(axis=0) + margin
+        self._box = (max(int(x0), 0), max(int(y0), 0), min(int(x1) + 1, W), min(int(y1) + 1, H))
         self._reference = None
-        self._image, self._mask = reference, mask
 
     def __call__(self, frame: np.ndarray) -> np.ndarray | None:
+        """``(2, 3)`` affine map ``x = A X + b`` as ``[A | b]``, or None when it cannot be told."""
         import cv2
 
-        if self._reference is None:  # on first use: most videos never need it again
-            self._reference = self.sift.detectAndCompute(_gray8(self._image), self._mask)
+        sift = cv2.SIFT_create(nfeatures=4000)
+        if self._reference is None:  # on first use: most videos never need it
+            mask = np.zeros(self._image.shape, np.uint8)
+            x0, y0, x1, y1 = self._box
+            mask[y0:y1, x0:x1] = 255
+            self._reference = sift.detectAndCompute(_gray8(self._image), mask)
         k1, d1 = self._reference
-        k2, d2 = self.sift.detectAndCompute(_gray8(frame), None)
+        k2, d2 = sift.detectAndCompute(_gray8(frame), None)
         if d1 is None or d2 is None or len(k1) < 8 or len(k2) < 8:
             return None
         pairs = cv2.BFMatcher(cv2.NORM_L2).knnMatch(d1, d2, k=2)
@@ -119,29 +188,48 @@ class _FeatureGuess:
         A, inliers = cv2.estimateAffine2D(src, dst, ransacReprojThreshold=3.0, maxIters=4000)
         if A is None or inliers is None or inliers.sum() < 8:
             return None
-        return self.nodes @ A[:, :2].T + A[:, 2] - self.nodes
+        return A.astype(np.float64)
 
 
-def _extrapolate(nodes: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.ndarray:
-    """Node states one frame ahead: the last step's best-fit affine motion applied again
-    (exact for steady rotation and stretch), plus the rest of the step's motion."""
-    x0, x1 = nodes + before[:, :2], nodes + now[:, :2]
-    A = np.column_stack([x0, np.ones(len(x0))])
-    M, *_ = np.linalg.lstsq(A, x1, rcond=None)  # x1 ~ [x0 1] @ M
-    rest = x1 - A @ M
-    guess = now.copy()
-    guess[:, :2] = np.column_stack([x1, np.ones(len(x1))]) @ M + rest - nodes
-    return guess
+def _affine_fit(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
+    """Least-squares ``(2, 3)`` affine map ``[A | b]`` with ``dst ~ A src + b``, or None
+    when fewer than 3 pairs (or collinear ones) are given."""
+    if len(src) < 3:
+        return None
+    M = np.column_stack([src, np.ones(len(src))])
+    if np.linalg.matrix_rank(M) < 3:
+        return None
+    coef, *_ = np.linalg.lstsq(M, dst, rcond=None)  # dst ~ M @ coef
+    return coef.T
 
 
-def subset_sizes(
+def _apply(affine: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return x @ affine[:, :2].T + affine[:, 2]
+
+
+def _warps(points: np.ndarray, positions: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Affine IC-GN warps ``(N, 6)`` that move ``points`` to ``positions`` with gradients
+    ``F`` ``(N, 2, 2)``: ``(u, v, du/dx, du/dy, dv/dx, dv/dy)``."""
+    p = np.empty((len(points), 6))
+    p[:, :2] = positions - points
+    p[:, 2:] = (F - np.eye(2)).reshape(-1, 4)
+    return p
+
+
+def _gradient(p: np.ndarray) -> np.ndarray:
+    """The deformation gradient ``(N, 2, 2)`` of affine warps ``(N, 6)``."""
+    return np.eye(2) + p[:, 2:6].reshape(-1, 2, 2)
+
+
+def subset_texture(
     reference: np.ndarray,
     points: np.ndarray,
     noise: float,
     sizes: tuple[int, ...] = _SUBSETS,
     target: float = _SIGMA_TARGET,
-) -> np.ndarray:
-    """Per point, the smallest subset side whose texture pins the match to ``target`` px.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per point, the smallest subset side whose texture pins the match to ``target`` px,
+    and the standard deviation (px) that subset's texture allows.
 
     The sum of squared intensity gradients (SSSIG) over a subset against the
     noise sets how precisely IC-GN can match it: the standard deviation of
@@ -151,7 +239,9 @@ def subset_sizes(
     tensor), so a subset crossed by one vessel or fibre (the aperture
     problem) grows too. The gradients' own noise (a central difference of
     noise has variance ``noise^2 / 2``) is subtracted first. A point keeps
-    the largest side that fits in the frame when none reaches ``target``.
+    the largest side that fits in the frame when none reaches ``target``;
+    its standard deviation is infinite where no texture is left (a blank
+    background: nothing above the noise).
     """
     image = np.asarray(reference, dtype=np.float64)
     H, W = image.shape
@@ -160,6 +250,7 @@ def subset_sizes(
     c = np.rint(np.nan_to_num(points)).astype(int)
     room = np.minimum.reduce([c[:, 0], W - 1 - c[:, 0], c[:, 1], H - 1 - c[:, 1]]) - 2
     chosen = np.full(len(points), sizes[0])
+    chosen_sigma = np.full(len(points), np.inf)
     settled = np.zeros(len(points), bool)
     for size in sizes:
         half = size // 2
@@ -170,70 +261,164 @@ def subset_sizes(
         own = size * size * noise**2 / 2
         sxx, syy = sxx - own, syy - own
         weakest = 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
-        sigma = np.sqrt(2 * noise**2 / np.maximum(weakest, 1e-12))
+        sigma = np.where(weakest > 0, np.sqrt(2 * noise**2 / np.maximum(weakest, 1e-300)), np.inf)
         grow = ~settled & fits
         chosen[grow] = size
+        chosen_sigma[grow] = sigma[grow]
         settled |= grow & (sigma <= target)
-    return chosen
+    return chosen, chosen_sigma
 
 
-def _second_derivatives(solver: LatticeSolver, span: int) -> tuple[np.ndarray, np.ndarray]:
-    """``d2u/dx2`` and ``d2u/dy2`` (1/px) at the lattice nodes, ``(ny + 1, nx + 1, 2)``
-    each, from second differences over ``span`` spacings (longer spans read less of the
-    nodes' noise). Past the edges the field is extrapolated linearly, so a homogeneous
-    field has no curvature there."""
-    lat, k = solver.lattice, span
-    U = solver.state[:, :2].reshape(lat.ny + 1, lat.nx + 1, 2)
-    P = np.pad(U, ((k, k), (k, k), (0, 0)), mode="reflect", reflect_type="odd")
-    c = P[k:-k, k:-k]
-    scale = (k * lat.h) ** 2
-    uxx = (P[k:-k, 2 * k :] - 2 * c + P[k:-k, : -2 * k]) / scale
-    uyy = (P[2 * k :, k:-k] - 2 * c + P[: -2 * k, k:-k]) / scale
-    return uxx, uyy
+def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Per point, the distance (px) to the nearest texture: the nearest pixel whose
+    :data:`_TEXTURE_WINDOW` window holds signal above the noise, on the image and on
+    copies of it halved and quartered in size.
+
+    The window's signal variance is its intensity variance less its noise
+    variance, and the noise variance is measured in the same window (the
+    5-point Laplacian of white noise has 20 times its variance; smooth
+    texture barely adds to it), so a dark background with less shot noise
+    than the tissue is judged against its own noise. Halving the image
+    halves the noise's standard deviation and keeps smooth texture: weak,
+    blurry texture that no window shows at full size shows there. A
+    detection on a copy ``k`` times smaller places the texture only within
+    the window's reach there, so its distance counts ``(k - 1)`` half-windows
+    more. A point on blank background a subset's width from a textured edge is
+    far from texture at every size even though a large subset would reach
+    the edge: its displacement there would be extrapolated, not measured.
+    """
+    import cv2
+
+    image = np.asarray(image, dtype=np.float64)
+    H, W = image.shape
+    c = np.rint(np.nan_to_num(points)).astype(int)
+    c[:, 0], c[:, 1] = np.clip(c[:, 0], 0, W - 1), np.clip(c[:, 1], 0, H - 1)
+    best = np.full(len(points), np.inf)
+    w = _TEXTURE_WINDOW
+    for k in (1, 2, 4):
+        if min(H, W) // k < 2 * w:
+            break
+        small = (
+            image if k == 1 else cv2.resize(image, (W // k, H // k), interpolation=cv2.INTER_AREA)
+        )
+        lap = ndimage.laplace(small)
+        noise2 = ndimage.uniform_filter(lap * lap, w) / 20.0
+        mean = ndimage.uniform_filter(small, w)
+        var = ndimage.uniform_filter(small * small, w) - mean * mean
+        texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
+        if not texture.any():
+            continue
+        if texture.all():
+            distance = np.zeros(len(points))
+        else:
+            field = ndimage.distance_transform_edt(~texture)
+            h, wd = texture.shape
+            ck = np.minimum(c // k, [wd - 1, h - 1])
+            distance = field[ck[:, 1], ck[:, 0]] * k
+        best = np.minimum(best, distance + (k - 1) * (w // 2))
+    return best
 
 
-def _curvature_cap(solver: LatticeSolver, points: np.ndarray) -> np.ndarray:
-    """Per point, the largest subset side (of ``_SUBSETS``) over which the global field's
-    curvature would bias an affine warp by at most ``_BIAS_TARGET`` px.
+def subset_sizes(
+    reference: np.ndarray,
+    points: np.ndarray,
+    noise: float,
+    sizes: tuple[int, ...] = _SUBSETS,
+    target: float = _SIGMA_TARGET,
+) -> np.ndarray:
+    """Per point, the smallest subset side whose texture pins the match to ``target`` px
+    (see :func:`subset_texture`)."""
+    return subset_texture(reference, points, noise, sizes, target)[0]
+
+
+def _quadratic_fits(
+    points: np.ndarray,
+    displacement: np.ndarray,
+    valid: np.ndarray,
+    near: np.ndarray,
+    *,
+    with_noise: bool = False,
+):
+    """Per point, the second derivatives ``(N, 2, 3)`` of the displacement (1/px):
+    ``(d2u/dx2, d2u/dxdy, d2u/dy2)`` per component, from a least-squares quadratic
+    through the displacements of the point and its valid neighbours (NaN where fewer
+    than 6 are valid, or they do not span a quadratic).
+
+    With ``with_noise``, also per point the variance of the fitted Laplacian
+    (``d2/dx2 + d2/dy2``, 1/px^2) per unit variance of the displacements: what
+    their noise alone puts into the curvature (NaN where not fitted).
+    """
+    n = len(points)
+    out = np.full((n, 2, 3), np.nan)
+    lap_var = np.full(n, np.nan)
+    if n < 6 or near.shape[1] < 5:
+        return (out, lap_var) if with_noise else out
+    group = np.column_stack([np.arange(n), near])  # (N, k + 1)
+    d = points[group] - points[:, None, :]  # (N, k + 1, 2)
+    scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
+    d = d / scale
+    dx, dy = d[..., 0], d[..., 1]
+    basis = np.stack([np.ones_like(dx), dx, dy, 0.5 * dx * dx, dx * dy, 0.5 * dy * dy], axis=-1)
+    w = valid[group].astype(float)[..., None]  # (N, k + 1, 1)
+    Bw = basis * w
+    normal = np.einsum("nki,nkj->nij", Bw, basis)  # (N, 6, 6)
+    rhs = np.einsum("nki,nkc->nic", Bw, displacement[group])  # (N, 6, 2)
+    enough = valid[group].sum(axis=1) >= 6
+    cond = np.full(n, np.inf)
+    cond[enough] = np.linalg.cond(normal[enough])
+    good = enough & (cond < 1e8)
+    if good.any():
+        inverse = np.linalg.inv(normal[good])  # (n_good, 6, 6)
+        coef = np.einsum("nij,njc->nic", inverse, rhs[good])  # (n_good, 6, 2)
+        out[good] = np.swapaxes(coef[:, 3:6, :], 1, 2) / scale[good] ** 2
+        lap_var[good] = (inverse[:, 3, 3] + inverse[:, 5, 5] + 2 * inverse[:, 3, 5]) / scale[
+            good, 0, 0
+        ] ** 4
+    return (out, lap_var) if with_noise else out
+
+
+def _curvature_cap(second: np.ndarray) -> np.ndarray:
+    """Per point, the largest subset side (of ``_SUBSETS``) over which the field's
+    curvature (``second``, :func:`_quadratic_fits`) would bias an affine warp by at most
+    ``_BIAS_TARGET`` px (every size where the curvature is not known).
 
     A subset that grows for texture must not grow across a heterogeneous
-    field. The curvature is the largest second difference of the field over
-    ``_CURVATURE_SPAN`` lattice spacings (shorter spans measure the nodes'
-    noise more than the field), the largest within reach of the biggest
-    subset around the point.
+    field: its affine warp takes up ``curvature half^2 / 6``.
     """
-    lat = solver.lattice
-    uxx, uyy = _second_derivatives(solver, _CURVATURE_SPAN)
-    kappa = np.max(np.abs(np.stack([uxx, uyy])), axis=(0, 3))
-    reach = 2 * int(np.ceil(_SUBSETS[-1] / 2 / lat.h)) + 1
-    kappa = ndimage.maximum_filter(kappa, size=reach, mode="nearest").ravel()
-    around = kappa[lat.cell_nodes()[lat.cell_of(points)]].max(axis=1)
-    cap = np.full(len(points), _SUBSETS[0])
+    kappa = np.nan_to_num(np.abs(second[:, :, [0, 2]]).max(axis=(1, 2)), nan=0.0)
+    cap = np.full(len(second), _SUBSETS[0])
     for size in _SUBSETS[1:]:
-        cap[around * (size // 2) ** 2 / 6 <= _BIAS_TARGET] = size
+        cap[kappa * (size // 2) ** 2 / 6 <= _BIAS_TARGET] = size
     return cap
 
 
-def _affine_bias(solver: LatticeSolver, points: np.ndarray, half: np.ndarray) -> np.ndarray:
+def _affine_bias(
+    second: np.ndarray, half: np.ndarray, lap_noise2: np.ndarray | None = None
+) -> np.ndarray:
     """Per point, the bias (px, root mean square of the two components) of an affine
-    subset warp of half-side ``half`` over the global field's curvature.
+    subset warp of half-side ``half`` over the field's curvature ``second``.
 
     For a displacement with second derivatives, an affine warp fitted over a
     square of half-side ``L`` takes up the mean of the second-order term,
     ``laplacian(u) L^2 / 6`` per component (the mixed derivative averages
-    out). The Laplacian is the field's, over two lattice spacings, the
-    largest at the nodes of the point's cell.
+    out). Zero where the curvature is not known. ``lap_noise2`` (per point,
+    1/px^4) is the variance the displacements' noise puts into each fitted
+    Laplacian: taken out of its square (an unbiased estimate of the true
+    curvature's square), so that noisy fits of a field that does not curve
+    (a still video) add no bias.
     """
-    lat = solver.lattice
-    uxx, uyy = _second_derivatives(solver, 2)
-    lap = np.sqrt(np.mean((uxx + uyy) ** 2, axis=2)).ravel()
-    around = lap[lat.cell_nodes()[lat.cell_of(points)]].max(axis=1)
-    return around * half.astype(float) ** 2 / 6
+    lap = second[:, :, 0] + second[:, :, 2]  # (N, 2)
+    lap2 = lap**2
+    if lap_noise2 is not None:
+        lap2 = np.maximum(lap2 - np.nan_to_num(lap_noise2, nan=0.0)[:, None], 0.0)
+    rms = np.nan_to_num(np.sqrt(np.mean(lap2, axis=1)), nan=0.0)
+    return rms * np.asarray(half, float) ** 2 / 6
 
 
-def _spline_noise_gain(offset: np.ndarray) -> np.ndarray:
-    """Variance of white noise after cubic B-spline interpolation at sub-pixel ``offset``
-    (1-D, in [0, 1)), relative to the noise's own: 1 on the pixels, 0.756 halfway."""
+def _spline_kernel(offset: np.ndarray) -> np.ndarray:
+    """The cubic B-spline interpolator (prefilter and weights) at sub-pixel ``offset``
+    (1-D, in [0, 1)) as taps on the pixels: row ``k`` gives the value at ``offset[k]``
+    as ``kernel[k] @ pixels``, with pixel ``24`` the one just before the offset."""
     n = 48
     impulses = ndimage.spline_filter1d(np.eye(n), order=3, axis=1, mode="mirror")
     x = n // 2 + np.asarray(offset, dtype=float).ravel()
@@ -242,17 +427,26 @@ def _spline_noise_gain(offset: np.ndarray) -> np.ndarray:
     # the cubic B-spline's weights for the 4 coefficients around x
     w = np.stack([(1 - t) ** 3, 3 * t**3 - 6 * t**2 + 4, -3 * t**3 + 3 * t**2 + 3 * t + 1, t**3])
     w /= 6.0
-    kernel = sum(w[k][:, None] * impulses[:, i + k - 1].T for k in range(4))  # (m, n)
-    return np.sum(kernel**2, axis=1).reshape(np.shape(offset))
+    return sum(w[k][:, None] * impulses[:, i + k - 1].T for k in range(4))  # (m, n)
+
+
+def _spline_noise_gain(offset: np.ndarray) -> np.ndarray:
+    """Variance of white noise after cubic B-spline interpolation at sub-pixel ``offset``
+    (1-D, in [0, 1)), relative to the noise's own: 1 on the pixels, 0.756 halfway."""
+    return np.sum(_spline_kernel(offset) ** 2, axis=1).reshape(np.shape(offset))
 
 
 def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarray) -> np.ndarray:
     """Whether the square subsets at ``centers`` hold any pixel of ``mask``."""
     if mask is None or not mask.any():
         return np.zeros(len(centers), bool)
-    table = np.pad(mask.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
-    H, W = mask.shape
-    c = np.rint(np.nan_to_num(centers)).astype(int)
+    # the sums over the mask's own box (a few highlights: a small part of the frame)
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    top, left = rows[0], cols[0]
+    box = mask[top : rows[-1] + 1, left : cols[-1] + 1]
+    table = np.pad(box.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    H, W = box.shape
+    c = np.rint(np.nan_to_num(centers)).astype(int) - [left, top]
     x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
     y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
     return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
@@ -295,47 +489,58 @@ def _bic_choice(ssd1, ssd2, n, ok1, ok2):
 
 
 def _local_sigma(
-    corr: _Correlator, ref, rows, zncc, noise: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """IC-GN standard deviation (px per coordinate) of (u, v) at ``rows``.
+    hinv: np.ndarray, n_px: np.ndarray, s2: np.ndarray, noise2: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """IC-GN standard deviation (px per coordinate) of (u, v) for subsets of ``n_px``
+    pixels with ``(J'J)^-1`` diagonal ``hinv`` ``(n, 2)`` (of u and v) and a residual
+    that shows the noise variance ``s2`` ``(n,)`` per pixel (both frames' noise after
+    interpolation), with ``noise2`` the frame's noise variance.
 
-    ``s^2 (J'J)^-1`` with ``s^2`` the subset's residual variance. On weak
-    texture the reference's gradients are partly noise (a central difference
-    of noise of variance ``noise^2`` has variance ``noise^2 / 2``), which
-    inflates ``J'J``: that part is taken out, so the uncertainty grows as the
-    texture fades into the noise instead of staying optimistic. Residual
-    beyond the noise (``s^2 - 2 noise^2``, both frames' noise) is a misfit of
-    the warp, and its size in pixels (residual over the mean squared
-    gradient) is added as a bias term. Returns the standard deviation, the
-    factor (>= 1) by which the noise correction raised the variance (the
-    global field's uncertainty at the point shares it), and the noise part
-    of the standard deviation alone (how weak the subset's texture is).
+    ``s2 (J'J)^-1``, with the gradients' own noise taken out of ``J'J``: on
+    weak texture the reference's gradients are partly noise (a central
+    difference of noise of variance ``noise2`` has variance ``noise2 / 2``),
+    which inflates ``J'J``, so the uncertainty grows as the texture fades into
+    the noise instead of staying optimistic. Returns the standard deviation
+    and the factor (>= 1) by which the correction raised the variance.
     """
-    G = ref.G[rows]  # H^-1 J^T, so G G^T = H^-1
-    n = G.shape[2]
-    noise_energy = n * noise**2 / 2
-    variances, plain = [], []
-    for k in (0, 1):
-        hinv = np.einsum("nk,nk->n", G[:, k], G[:, k])
-        var = np.full(len(hinv), np.inf)  # a textureless subset (singular Hessian) says nothing
-        has = hinv > 0
-        signal = 1.0 / hinv[has] - noise_energy
-        var[has] = np.where(
-            signal * hinv[has] > 0.1, 1.0 / np.maximum(signal, 1e-30), 10 * hinv[has]
-        )
-        variances.append(var)
-        plain.append(hinv)
-    norm2 = ref.norm[rows, 0] ** 2
-    s2 = np.maximum(2 * (1 - zncc), 0) * norm2 / max(n - corr.n_params, 1)
-    variance = 0.5 * (variances[0] + variances[1])
-    hinv = 0.5 * (plain[0] + plain[1])
-    # residual beyond the noise is misfit of the warp (model error, interpolation bias):
-    # a residual r over gradients g is a misregistration of about r / g, added as a bias
-    misfit = np.maximum(s2 - 2 * noise**2, 0.0) * n * hinv
-    inflation = np.ones(len(hinv))
-    has = np.isfinite(variance) & (hinv > 0)
-    inflation[has] = np.maximum(variance[has] / hinv[has], 1.0)
-    return np.sqrt(variance * s2 + misfit), inflation, np.sqrt(variance * s2)
+    noise_energy = (n_px * noise2 / 2)[:, None]
+    var = np.full(hinv.shape, np.inf)  # a textureless subset (singular Hessian) says nothing
+    has = np.isfinite(hinv) & (hinv > 0)
+    signal = np.where(has, 1.0 / np.where(has, hinv, 1.0) - noise_energy, 0.0)
+    var[has] = np.where(
+        signal[has] * hinv[has] > 0.1, 1.0 / np.maximum(signal[has], 1e-30), 10 * hinv[has]
+    )
+    variance = var.mean(axis=1)
+    plain = hinv.mean(axis=1)
+    inflation = np.ones(len(plain))
+    good = np.isfinite(variance) & (plain > 0)
+    inflation[good] = np.maximum(variance[good] / plain[good], 1.0)
+    return np.sqrt(variance * s2), inflation
+
+
+def _noise_model(variance: np.ndarray, intensity: np.ndarray, use: np.ndarray) -> np.ndarray:
+    """Per subset, the noise variance that sensor noise alone would leave, ``a + b I``
+    (Poisson-Gaussian: read noise plus shot noise growing with the intensity ``I``),
+    fitted to the ``variance`` the residuals of the ``use``d subsets show with the
+    subsets whose residual lies far above the fit (the tissue changed its appearance
+    there, or the warp does not fit) left out, in turn."""
+    keep = use & np.isfinite(variance)
+    if keep.sum() < 3:
+        level = np.nanmedian(variance[keep]) if keep.any() else np.nan
+        return np.full(len(variance), level)
+    fit = np.full(len(variance), np.median(variance[keep]))
+    for _ in range(4):
+        level, v = intensity[keep], variance[keep]
+        A = np.column_stack([np.ones_like(level), level])
+        (a, b), *_ = np.linalg.lstsq(A, v, rcond=None)
+        if b < 0 or a < 0:  # no growth with the intensity to be seen: one level
+            a, b = float(np.median(v)), 0.0
+        fit = a + b * intensity
+        within = use & np.isfinite(variance) & (variance <= 1.5 * fit)
+        if within.sum() < 3 or np.array_equal(within, keep):
+            break
+        keep = within
+    return np.maximum(fit, 1e-12)
 
 
 def _subset_option(text: str) -> int | str:
@@ -350,9 +555,9 @@ def _subset_option(text: str) -> int | str:
 
 @register_tracker(
     "gdic",
-    description="global DIC over the surface (regularized finite-element lattice, brightness "
-    "per node, feature-based initial guess), refined by local subsets with the warp "
-    "chosen per point; reports an uncertainty per point",
+    description="subset correlation where the texture carries the points, a global "
+    "regularized field (brightness per node, feature-based guess) for the points and "
+    "frames that need it; warp chosen per point; reports an uncertainty per point",
     options=[
         TrackerOption(
             "subset",
@@ -386,6 +591,7 @@ def _subset_option(text: str) -> int | str:
             "stands in",
             type=float,
         ),
+        THREADS_OPTION,
     ],
 )
 def track_gdic(
@@ -399,9 +605,11 @@ def track_gdic(
     zncc_min: float = 0.75,
     max_iterations: int = 30,
     tolerance: float = 1e-3,
+    threads: int | None = None,
     progress: Callable[[int, int | None], None] | None = None,
 ) -> Tracks:
-    """Track points by global and local correlation (see the module docstring).
+    """Track points by local subsets and, where they need it, the global field (see the
+    module docstring).
 
     Parameters
     ----------
@@ -417,7 +625,7 @@ def track_gdic(
     spacing : int, keyword-only
         Lattice spacing of the global field in pixels (a multiple of 4, >= 8).
     curvature : float, keyword-only
-        Prior scale of the field's second derivatives (1/px); the
+        Prior scale of the global field's second derivatives (1/px); the
         regularization weight is ``2 noise^2 / (curvature spacing^2)^2`` with
         the noise measured on the reference frame. Smaller is smoother.
     shape_function : {"auto", "affine", "quadratic"}, keyword-only
@@ -426,13 +634,19 @@ def track_gdic(
         Correlation below which a local match is not used.
     max_iterations, tolerance : keyword-only
         Of the local IC-GN.
+    threads : int, keyword-only
+        Threads to use (default: the environment's ``NUMBA_NUM_THREADS`` or
+        ``OMP_NUM_THREADS``, else the cores); the tracks do not depend on it.
     progress : callable(done, total), keyword-only
 
     Returns
     -------
     Tracks
         With ``uncertainty`` (px); ``meta["local_fraction"]`` is the fraction
-        of point-frames whose position is a local subset match.
+        of point-frames whose position is a local subset match,
+        ``meta["field_frames"]`` the frames on which the global field was
+        fitted, ``meta["textureless_points"]`` the points without texture to
+        measure (never visible).
     """
     if shape_function not in ("auto", "affine", "quadratic"):
         raise InputError(
@@ -449,246 +663,37 @@ def track_gdic(
     if not -1 < zncc_min < 1:
         raise InputError(f"--zncc-min must lie between -1 and 1, got {zncc_min}")
     points = np.asarray(points, dtype=float).reshape(-1, 2)
-    n = len(points)
-    reference, it, total = _first_frame(frames)
-    shape = reference.shape
-    smallest = _SUBSETS[0] if subset == "auto" else subset
-    if smallest >= min(shape) or 2 * spacing >= min(shape):
-        raise InputError(
-            f"--subset {smallest} and 2 x --lattice-spacing {spacing} must be smaller than the "
-            f"{shape[1]}x{shape[0]} frames"
-        )
-    H, W = shape
-    in_frame0 = (points[:, 0] >= 0) & (points[:, 0] <= W - 1) & (points[:, 1] >= 0)
-    in_frame0 &= points[:, 1] <= H - 1
-    solver = LatticeSolver(
-        reference,
-        points[in_frame0] if in_frame0.any() else points,
-        spacing=spacing,
-        curvature=curvature,
-    )
-    nodes = solver.lattice.nodes()
-    feature_guess = _FeatureGuess(reference, nodes)
-
-    orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
-    # each point's subset: as large as its texture needs (fixed), but no larger than the
-    # field's curvature allows (every frame)
-    if subset == "auto":
-        wanted = subset_sizes(reference, points, solver.noise)
-    else:
-        wanted = np.full(n, int(subset))
-    # the points that may use each size (the curvature only ever makes a subset smaller)
-    candidates = _SUBSETS if subset == "auto" else (int(subset),)
-    capped = subset == "auto" and bool((wanted > _SUBSETS[0]).any())  # the cap can bind
-    groups = {size: np.flatnonzero(wanted >= size) for size in candidates if (wanted >= size).any()}
-    correlators = {
-        (size, o): _Correlator(size, max_iterations, tolerance, zncc_min, order=o)
-        for size in groups
-        for o in (1, 2)
-    }
-    ref_coeff = _coefficients(reference)
-    # per point, the residual variance that noise alone leaves in a matched subset: the
-    # B-spline interpolation of both frames smooths it, the reference's at the point's
-    # fixed sub-pixel offset, the frame's over offsets spread by the deformation
-    frac = points - np.floor(points)
-    noise_floor = solver.noise**2 * (
-        _spline_noise_gain(frac[:, 0]) * _spline_noise_gain(frac[:, 1])
-        + np.mean(_spline_noise_gain(np.linspace(0, 1, 32, endpoint=False))) ** 2
-    )
-
-    # reference subsets are kept in float32 while both warps' fit the budget; otherwise
-    # (dense grids) they are rebuilt every frame in chunks, so memory stays bounded
-    def per_point(size: int) -> int:
-        return 4 * size * size * sum(correlators[size, o].n_params + 1 for o in orders)
-
-    cache_all = sum(per_point(size) * len(m) for size, m in groups.items()) <= _CACHE_BYTES
-    cached = {}
-    built = dict.fromkeys(correlators, 0)  # subsets built outside the cache so far
-
-    def _reference(size: int, order: int, rows: np.ndarray):
-        corr = correlators[size, order]
-        members = groups[size]
-        # the quadratic warp is tried where the affine one leaves model error: on a
-        # homogeneous field a handful of points, so it is cached for the whole grid only
-        # once building it point by point would have cost as much
-        if not cache_all:
-            return corr.reference(ref_coeff, points[rows], 0)
-        if (size, order) not in cached and built[size, order] + len(rows) < len(members):
-            built[size, order] += len(rows)
-            return corr.reference(ref_coeff, points[rows], 0)
-        if (size, order) not in cached:
-            cached[size, order] = _reference_subsets(corr, ref_coeff, points[members])
-        ref = cached[size, order]
-        return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
-
-    def _local(corr, ref, rows, u, grad):
-        p0 = np.zeros((len(rows), corr.n_params))
-        p0[:, :2] = u[rows]
-        p0[:, 2:6] = grad[rows].reshape(len(rows), 4)  # du/dx, du/dy, dv/dx, dv/dy
-        # a point matched locally last frame continues from its own warp, moved as the
-        # field moved since (the field alone can be a less precise start on fine texture)
-        before = rows[carried[rows]]
-        if before.size:
-            k = np.flatnonzero(carried[rows])
-            p0[k, :6] = last_p[before] + np.column_stack(
-                [u[before] - last_u[before], (grad[before] - last_grad[before]).reshape(-1, 4)]
+    with using_threads(threads):
+        reference, rest, total = _first_frame(frames)
+        shape = reference.shape
+        smallest = _SUBSETS[0] if subset == "auto" else subset
+        if smallest >= min(shape) or 2 * spacing >= min(shape):
+            raise InputError(
+                f"--subset {smallest} and 2 x --lattice-spacing {spacing} must be smaller "
+                f"than the {shape[1]}x{shape[0]} frames"
             )
-        p, z, conv = corr.match(coeff, ref, np.arange(len(rows)), p0)
-        ok = conv & (z >= zncc_min) & _inside(corr, points[rows], p, shape)
-        sd, infl, noisy = _local_sigma(corr, ref, np.arange(len(rows)), z, solver.noise)
-        ssd = np.maximum(2 * (1 - z), 1e-12) * ref.norm[:, 0] ** 2
-        return p, z, ok, sd, infl, ssd, noisy
-
-    carried = np.zeros(n, bool)  # matched locally (affine) on the last frame
-    last_p = np.zeros((n, 6))
-    last_u, last_grad = np.zeros((n, 2)), np.zeros((n, 2, 2))
-    local_last = 0.0  # fraction of points matched locally in the last frame
-
-    done = FrameSeries(
-        total,
-        positions=points,
-        visible=in_frame0,
-        quality=np.where(in_frame0, 1.0, 0.0),
-        sigma=np.where(in_frame0, 0.0, np.nan),
-    )
-    local_count = quadratic_count = 0
-    state = np.zeros((solver.lattice.n_nodes, 4))
-    previous_state = state.copy()
-    typical_cost = None
-    if progress:
-        progress(1, total)
-    for t, frame in enumerate(it, start=1):
-        frame = np.asarray(frame, dtype=np.float64)
-        if frame.shape != shape:
-            raise InputError(f"frame {t} is {frame.shape[1]}x{frame.shape[0]}, not {W}x{H}")
-        # 1. initial guess
-        guess = _extrapolate(nodes, previous_state, state)
-        coarse, cost = solver.coarse(frame, guess) if t > 1 else (None, np.inf)
-        if typical_cost is None or cost > 4 * typical_cost:
-            moved = feature_guess(frame)
-            if moved is not None:
-                alternative = state.copy()
-                alternative[:, :2] = moved
-                other_state, other = solver.coarse(frame, alternative)
-                if other < cost:
-                    coarse, cost = other_state, other
-                else:
-                    coarse, cost = solver.coarse(frame, guess)  # its weights and residuals
-            elif coarse is None:  # first frame, no features: start from rest
-                coarse, cost = solver.coarse(frame, guess)
-        # 2. global correlation, as fine as the local subsets need: all levels where they
-        # could not carry the grid in the last frame (weak texture). Where they carried
-        # nearly all of it on strong texture (no subset grown, so none for the field's
-        # curvature to cap), the coarse field is start enough: they give full resolution
-        if local_last >= _LOCAL_HOLDS and not capped:
-            depth = 1
-        else:
-            depth = 2 if local_last >= 0.9 else None
-        solver.refine(frame, coarse, levels=depth)
-        typical_cost = cost if typical_cost is None else min(max(cost, 1e-9), 4 * typical_cost)
-        previous_state, state = state, solver.state.copy()
-        u, grad = solver.displacement(points)
-
-        # 3. local refinement from the global field: affine everywhere, quadratic where
-        #    the affine warp leaves more residual than the noise explains
-        coeff = _coefficients(frame)
-        p_loc = np.zeros((n, 6))
-        z_loc = np.full(n, -1.0)
-        s_loc = np.full(n, np.nan)
-        quadratic = np.zeros(n, bool)
-        ok_loc = np.zeros(n, bool)
-        inflation = np.ones(n)
-        s_noise = np.full(n, np.nan)  # the noise part of the local uncertainty
-        sizes = np.minimum(wanted, _curvature_cap(solver, points)) if subset == "auto" else wanted
-        for size in groups:
-            members = np.flatnonzero(sizes == size)
-            n_px = size * size
-            chunk = len(members) if cache_all else max(64, _CACHE_BYTES // (8 * per_point(size)))
-            for part in _chunks(len(members), chunk):
-                rows = members[part]
-                first = _reference(size, orders[0], rows)
-                corr = correlators[size, orders[0]]
-                p, z, ok, sd, infl, ssd, noisy = _local(corr, first, rows, u, grad)
-                p_loc[rows], z_loc[rows], ok_loc[rows], s_loc[rows] = p[:, :6], z, ok, sd
-                s_noise[rows], inflation[rows] = noisy, infl
-                if len(orders) < 2:
-                    continue
-                # the BIC can prefer 12 parameters only where the 6 leave model error:
-                # residual beyond what the noise leaves after interpolation (by 20 %: on a
-                # uniform stretch 99 % of subsets stay below 1.16 times it, so none is tried)
-                excess = ssd / max(n_px - 6, 1) > 1.2 * noise_floor[rows]
-                try_rows = rows[excess | ~ok]
-                if try_rows.size:
-                    ref2 = _reference(size, 2, try_rows)
-                    corr2 = correlators[size, 2]
-                    p2, z2, ok2, sd2, _, ssd2, _ = _local(corr2, ref2, try_rows, u, grad)
-                    in_rows = np.searchsorted(rows, try_rows)
-                    quad = _bic_choice(ssd[in_rows], ssd2, n_px, ok_loc[try_rows], ok2)
-                    take = try_rows[quad]
-                    p_loc[take], z_loc[take], s_loc[take] = p2[quad, :6], z2[quad], sd2[quad]
-                    ok_loc[take] = True
-                    quadratic[take] = True
-        # a local match far from the global field must agree with it within its uncertainty
-        gap = np.linalg.norm(p_loc[:, :2] - u, axis=1)
-        far = np.flatnonzero(ok_loc & (gap > 2.0))
-        if far.size:
-            sigma_far = solver.uncertainty(points[far]) * np.sqrt(inflation[far])
-            ok_loc[far[gap[far] > 5 * np.nan_to_num(sigma_far, nan=0.2)]] = False
-        carried = ok_loc.copy()
-        last_p = np.where(ok_loc[:, None], p_loc, last_p)
-        last_u, last_grad = u.copy(), grad.copy()
-        # a subset under a highlight would follow the light, not the tissue
-        half = sizes // 2
-        lit = _touches(solver.reference_highlights, points, half)
-        lit |= _touches(solver.frame_highlights, points + u, half)
-        ok_loc &= ~lit
-        local_count += int(ok_loc.sum())
-        quadratic_count += int((quadratic & ok_loc).sum())
-        local_last = float(ok_loc.mean()) if n else 1.0
-        # where a local match failed, the field's own value is reported: after a coarse
-        # fit alone that needs the finer levels too (the coarse field is a start, not a
-        # measurement: 0.1-0.6 px off where subsets leave a stretching frame)
-        if depth == 1 and (in_frame0 & ~ok_loc).any():
-            solver.refine(frame, coarse)
-            u, grad = solver.displacement(points)
-
-        # an affine warp over a curved field is biased by the mean of its second-order
-        # term over the subset: laplacian(u) half^2 / 6 per component
-        affine = ok_loc & ~quadratic
-        if affine.any():
-            bias = _affine_bias(solver, points[affine], sizes[affine] // 2)
-            s_loc[affine] = np.sqrt(s_loc[affine] ** 2 + bias**2)
-        disp = np.where(ok_loc[:, None], p_loc[:, :2], u)
-        # where the subset's texture is weak, the field (which also draws on the
-        # neighbours through the prior) adds information: inverse-variance weighting
-        weak = np.flatnonzero(ok_loc & (s_noise > _FUSE_ABOVE) & solver.seen(points))
-        if weak.size:
-            s_g = solver.uncertainty(points[weak]) * np.sqrt(inflation[weak])
-            good = np.isfinite(s_g) & (s_g > 0)
-            weak, s_g = weak[good], s_g[good]
-            w_l, w_g = 1 / s_loc[weak] ** 2, 1 / s_g**2
-            disp[weak] = (w_l[:, None] * disp[weak] + w_g[:, None] * u[weak]) / (w_l + w_g)[:, None]
-            # both estimates draw on the same pixels, so the blend is not trusted beyond
-            # the better of the two
-            s_loc[weak] = np.minimum(s_loc[weak], s_g)
-        pos = points + disp
-        inside = (pos[:, 0] >= 0) & (pos[:, 0] <= W - 1) & (pos[:, 1] >= 0) & (pos[:, 1] <= H - 1)
-        vis = inside & in_frame0 & (ok_loc | solver.seen(points))
-        cell_quality = np.clip(solver.cell_zncc(points), 0.0, 1.0)
-        sigma_g = np.full(n, np.nan)
-        need = np.flatnonzero(vis & ~ok_loc)
-        if need.size:
-            sigma_g[need] = solver.uncertainty(points[need]) * np.sqrt(inflation[need])
-        done.append(
-            positions=pos,
-            visible=vis,
-            quality=np.where(vis, np.where(ok_loc, np.clip(z_loc, 0, 1), cell_quality), 0.0),
-            sigma=np.where(vis, np.where(ok_loc, s_loc, sigma_g), np.nan),
+        run = _Run(
+            reference,
+            points,
+            subset=subset,
+            spacing=spacing,
+            curvature=curvature,
+            shape_function=shape_function,
+            zncc_min=zncc_min,
+            max_iterations=max_iterations,
+            tolerance=tolerance,
         )
+        done = FrameSeries(total, **run.first_row())
         if progress:
-            progress(len(done), total)
+            progress(1, total)
+        for t, frame in enumerate(prefetched(rest), start=1):
+            done.append(**run.frame(frame, t))
+            if progress:
+                progress(len(done), total)
     if len(done) < 2:
         raise InputError("tracking needs at least 2 frames")
+    T, n = len(done), len(points)
+    series = done.arrays()
     options = {
         "subset": subset,
         "spacing": spacing,
@@ -697,11 +702,9 @@ def track_gdic(
         "zncc_min": zncc_min,
         "max_iterations": max_iterations,
         "tolerance": tolerance,
-        "noise_gray_levels": solver.noise,
+        "noise_gray_levels": run.noise,
         "interpolation": "cubic B-spline",
     }
-    T = len(done)
-    series = done.arrays()
     return Tracks(
         series["positions"],
         series["visible"],
@@ -709,9 +712,761 @@ def track_gdic(
         {
             "tracker": "gdic",
             "options": options,
-            "local_fraction": local_count / max(n * (T - 1), 1),
-            "quadratic_fraction": quadratic_count / max(n * (T - 1), 1),
-            "subset_sizes": {str(size): int((wanted == size).sum()) for size in groups},
+            "local_fraction": run.local_count / max(n * (T - 1), 1),
+            "quadratic_fraction": run.quadratic_count / max(n * (T - 1), 1),
+            "field_frames": run.field_frames,
+            "feature_frames": run.feature_frames,
+            "textureless_points": np.flatnonzero(run.in_frame0 & ~run.textured).tolist(),
+            "subset_sizes": {
+                str(size): int((run.wanted[run.textured] == size).sum())
+                for size in run.candidates
+                if (run.wanted[run.textured] == size).any()
+            },
         },
         series["sigma"],
     )
+
+
+class _Run:
+    """One video's tracking state: the reference's subsets and the last frame's matches."""
+
+    def __init__(
+        self,
+        reference: np.ndarray,
+        points: np.ndarray,
+        *,
+        subset,
+        spacing: int,
+        curvature: float,
+        shape_function: str,
+        zncc_min: float,
+        max_iterations: int,
+        tolerance: float,
+    ) -> None:
+        self.reference = reference
+        self.points = points
+        self.shape = H, W = reference.shape
+        n = len(points)
+        self.spacing, self.curvature = spacing, curvature
+        self.zncc_min = zncc_min
+        self.max_iterations, self.tolerance = max_iterations, tolerance
+        x, y = points[:, 0], points[:, 1]
+        self.in_frame0 = (x >= 0) & (x <= W - 1) & (y >= 0) & (y <= H - 1)
+        self.noise = max(noise_sigma(reference), 0.5)
+        self.auto = subset == "auto"
+        self.candidates = _SUBSETS if self.auto else (int(subset),)
+        # bright smooth blobs: specular highlights (which stay where the lamp puts them) or
+        # bright tissue (saturated speckle, fat). A subset is matched on the images as they
+        # are; one that holds a blob found to stay put while the tissue moves (a highlight)
+        # is not kept, and the field (which leaves highlights out of its fit) decides there
+        self.blobs = bright_blobs(reference, self.noise)
+        # only a blob that a subset could hold matters
+        reach = max(self.candidates) // 2 + 2
+        (x0, y0), (x1, y1) = points.min(axis=0) - reach, points.max(axis=0) + reach
+        near = np.zeros(self.shape, bool)
+        near[max(int(y0), 0) : max(int(y1) + 1, 0), max(int(x0), 0) : max(int(x1) + 1, 0)] = True
+        self.blobs &= near
+        matched = reference
+        self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
+        self.frame_highlights = np.zeros(self.shape, bool)  # and those of the last frame
+        self.undecided = self.blobs.copy()  # the blobs not yet seen to stay put or to move
+        self.bright_tissue = np.zeros(self.shape, bool)  # the blobs seen to move with it
+        self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
+        if self.auto:  # a point too near the edge for every size: a smaller subset, if it fits
+            H, W = self.shape
+            c = np.rint(np.nan_to_num(points)).astype(int)
+            room = np.minimum.reduce([c[:, 0], W - 1 - c[:, 0], c[:, 1], H - 1 - c[:, 1]]) - 2
+            edge = np.flatnonzero(room < self.candidates[0] // 2)
+            if edge.size:
+                size, sigma = subset_texture(matched, points[edge], self.noise, _EDGE_SUBSETS)
+                fits = room[edge] >= size // 2
+                self.wanted[edge[fits]], texture[edge[fits]] = size[fits], sigma[fits]
+        # a point is tracked where texture lies near it and its largest subset holds texture
+        # enough to pin a match; one far from any texture is on blank background, and one
+        # whose subsets hold nothing above the noise would only be interpolated: never
+        # reported as measured
+        self.textured = self.in_frame0 & (texture_distance(matched, points) <= _TEXTURE_REACH)
+        self.textured &= texture <= _TEXTURELESS
+        # IC-GN need not settle a subset's pixels more finely than its texture can place
+        # them: a fifth of the noise-limited standard deviation (the fixed tolerance on
+        # strong texture; weak texture's updates wander at the noise's scale and would
+        # never meet it)
+        self.tolerances = np.maximum(
+            tolerance, _SETTLE * np.nan_to_num(texture, nan=0.0, posinf=0.0)
+        )
+        self.orders = {"auto": (1, 2), "affine": (1,), "quadratic": (2,)}[shape_function]
+        self.correlators: dict = {}
+        self.ref_coeff = _coefficients(matched)
+        # per point, the residual variance noise leaves per unit noise variance: the B-spline
+        # interpolation smooths it, the reference's at the point's fixed sub-pixel offset,
+        # the frame's over offsets spread by the deformation
+        frac = points - np.floor(points)
+        mean_gain = np.mean(_spline_noise_gain(np.linspace(0, 1, 32, endpoint=False)))
+        self.gain = _spline_noise_gain(frac[:, 0]) * _spline_noise_gain(frac[:, 1]) + mean_gain**2
+        self.intensity = _box_mean(reference, points, self.candidates[0])
+        k = min(_NEIGHBOURS + 1, n)
+        self.near = (
+            cKDTree(points).query(points, k)[1].reshape(n, k)[:, 1:]
+            if n > 1
+            else np.zeros((n, 0), int)
+        )
+        self.features = _FeatureGuess(
+            reference, points[self.in_frame0] if self.in_frame0.any() else points, _SUBSETS[-1]
+        )
+        # the global fields: made the first time a point needs one
+        self.fields: dict = {}
+        # reference subsets kept for the whole video while they fit the budget
+        members = {size: np.flatnonzero(self.textured & (self.wanted >= size)) for size in
+                   self.candidates}  # fmt: skip
+        self.members = {size: m for size, m in members.items() if m.size}
+        per_point = {
+            size: 4 * size * size * sum(6 * o + 1 for o in self.orders) for size in self.members
+        }
+        self.cache_all = (
+            sum(per_point[size] * len(m) for size, m in self.members.items()) <= _CACHE_BYTES
+        )
+        self.cached: dict = {}
+        self.built: dict = {}
+        # state carried from frame to frame
+        self.p = np.zeros((n, 6))  # each point's last affine warp (relative to its reference)
+        self.last = points.copy()  # each point's last position where it was measured
+        self.before = points.copy()  # and the one before (for the motion of the last step)
+        self.matched = self.textured.copy()  # measured on the last frame
+        self.matched_before = np.zeros(n, bool)
+        self.second = np.full((n, 2, 3), np.nan)  # the field's curvature at the last frame
+        self.noise2 = self.noise**2
+        self.local_count = self.quadratic_count = 0
+        self.field_frames: list[int] = []
+        self.feature_frames: list[int] = []
+        self.noise_scale = self._noise_scale()
+
+    def _noise_scale(self) -> float:
+        """How the matches' own scatter compares with ``2 sigma_n^2 (J'J)^-1``, measured.
+
+        The IC-GN formula is exact for a matcher whose gradients are those it
+        moves along; this one takes central differences of the pixels while it
+        moves along the spline, whose slope is steeper on fine texture, so its
+        scatter is smaller than the formula's by a factor that depends on the
+        texture's spectrum (0.63-0.73 in variance on photographs). It is
+        measured on this video's own reference: up to 256 of its textured
+        points are matched :data:`_NOISE_DRAWS` times between two copies of the
+        reference with fresh noise of the frame's level (seeded: the result is
+        the same run after run), and the mean square displacement over the
+        formula's variance is the factor (1 where too few points match).
+        """
+        rows = np.flatnonzero(self.textured)
+        if rows.size < 8:
+            return 1.0
+        rows = rows[np.linspace(0, rows.size - 1, min(rows.size, 256)).astype(int)]
+        sizes = self.wanted
+        rng = np.random.default_rng(_NOISE_SEED)
+        moved, expected = 0.0, 0.0
+        for _ in range(_NOISE_DRAWS):
+            copies = [
+                _coefficients(self.reference + rng.normal(0.0, self.noise, self.shape))
+                for _ in range(2)
+            ]
+            for size in np.unique(sizes[rows]):
+                k = rows[sizes[rows] == size]
+                corr = self._correlator(int(size), 1)
+                ref = corr.reference(copies[0], self.points[k], 0)
+                pk, _, ck = corr.match(
+                    copies[1], ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
+                )
+                good = ck & (np.abs(pk[:, :2]) < 1.0).all(axis=1)
+                hinv = np.einsum("nks,nks->nk", ref.G[good, :2], ref.G[good, :2])
+                use = np.isfinite(hinv).all(axis=1)
+                moved += float(np.sum(pk[good][use, :2] ** 2))
+                expected += float(np.sum(2 * self.noise**2 * hinv[use]))
+        if expected <= 0:
+            return 1.0
+        return float(np.clip(moved / expected, 0.25, 1.5))
+
+    def first_row(self) -> dict:
+        vis = self.in_frame0 & self.textured
+        return {
+            "positions": self.points,
+            "visible": vis,
+            "quality": np.where(vis, 1.0, 0.0),
+            "sigma": np.where(vis, 0.0, np.nan),
+        }
+
+    # ------------------------------------------------------------------ subsets
+
+    def _correlator(self, size: int, order: int) -> _Correlator:
+        key = (size, order)
+        if key not in self.correlators:
+            self.correlators[key] = _Correlator(
+                size, self.max_iterations, self.tolerance, self.zncc_min, order=order
+            )
+        return self.correlators[key]
+
+    def _reference(self, size: int, order: int, rows: np.ndarray) -> _Subsets:
+        """Reference subsets of ``rows`` (sorted), from the cache when it pays."""
+        corr = self._correlator(size, order)
+        members = self.members.get(size)
+        if not self.cache_all or members is None or not np.isin(rows, members).all():
+            return corr.reference(self.ref_coeff, self.points[rows], 0)
+        key = (size, order)
+        # a warp tried on few points (the quadratic one, on a homogeneous field) is cached
+        # for all only once building it point by point would have cost as much
+        if key not in self.cached and self.built.get(key, 0) + len(rows) < len(members):
+            self.built[key] = self.built.get(key, 0) + len(rows)
+            return corr.reference(self.ref_coeff, self.points[rows], 0)
+        if key not in self.cached:
+            self.cached[key] = _reference_subsets(corr, self.ref_coeff, self.points[members])
+        ref = self.cached[key]
+        return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
+
+    def _match(
+        self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int,
+        ref_coeff=None,
+    ):  # fmt: skip
+        """IC-GN of ``rows`` from warps ``p0`` (6 or 12 columns): the warps, their ZNCC,
+        whether each is accepted, and per row the residual variance per pixel, the two
+        diagonal entries of ``(J'J)^-1`` and the subset's pixel count (for the
+        uncertainty)."""
+        m = len(rows)
+        n_params = 6 if order == 1 else 12
+        p = np.zeros((m, n_params))
+        z = np.full(m, -1.0)
+        ok = np.zeros(m, bool)
+        s2 = np.full(m, np.nan)
+        hinv = np.full((m, 2), np.nan)
+        n_px = np.zeros(m)
+        if m == 0:
+            return p, z, ok, s2, hinv, n_px
+        start = np.zeros((m, n_params))
+        start[:, : min(p0.shape[1], n_params)] = p0[:, :n_params]
+        for size in np.unique(sizes[rows]):
+            sel = np.flatnonzero(sizes[rows] == size)
+            per_row = 4 * size * size * (n_params + 1)
+            chunk = len(sel) if self.cache_all else max(64, _CACHE_BYTES // (2 * per_row))
+            for part in _chunks(len(sel), chunk):
+                k = sel[part]
+                corr = self._correlator(int(size), order)
+                if ref_coeff is None:
+                    ref = self._reference(int(size), order, rows[k])
+                else:  # another reference image (highlights filled in): not cached
+                    ref = corr.reference(ref_coeff, self.points[rows[k]], 0)
+                pk, zk, ck = corr.match(
+                    coeff, ref, np.arange(len(k)), start[k], self.tolerances[rows[k]]
+                )
+                inside = _inside(corr, self.points[rows[k]], pk, self.shape)
+                p[k], z[k], ok[k] = pk, zk, ck & (zk >= self.zncc_min) & inside
+                n_px[k] = size * size
+                norm2 = ref.norm[:, 0].astype(float) ** 2
+                s2[k] = np.maximum(2 * (1 - zk), 1e-12) * norm2 / max(size * size - n_params, 1)
+                G = ref.G[:, :2].astype(float)
+                hinv[k] = np.einsum("nks,nks->nk", G, G)
+        return p, z, ok, s2, hinv, n_px
+
+    # ------------------------------------------------------------------ one frame
+
+    def frame(self, frame: np.ndarray, t: int) -> dict:
+        """Track every point on frame ``t``; the frame's row of the tracks."""
+        frame = np.asarray(frame, dtype=np.float64)
+        H, W = self.shape
+        if frame.shape != self.shape:
+            raise InputError(f"frame {t} is {frame.shape[1]}x{frame.shape[0]}, not {W}x{H}")
+        n = len(self.points)
+        shared = Frame(frame)  # what the fields compute from the frame, computed once
+        coeff = _coefficients(frame)
+        sizes = self.wanted
+        if self.auto:  # no larger than the field's curvature (at the last frame) allows
+            sizes = np.minimum(self.wanted, _curvature_cap(self.second))
+        active = self.textured
+        rows = np.flatnonzero(active)
+        step = _last_step(self.before, self.last, self.matched_before & self.matched)
+        p0 = self._guess(step)
+        # no larger than fits in the frame where the guess puts the point (a point near the
+        # edge of a stretching frame keeps a subset, a smaller one)
+        if self.auto:
+            edge = (*_EDGE_SUBSETS, *self.candidates)
+            sizes = np.minimum(sizes, _fitting(self.points, p0, self.shape, edge))
+
+        # 1. every textured point from the motion guess (affine warp)
+        p = np.zeros((n, 6))
+        z = np.full(n, -1.0)
+        ok = np.zeros(n, bool)
+        s2 = np.full(n, np.nan)
+        hinv = np.full((n, 2), np.nan)
+        n_px = np.zeros(n)
+
+        def take(idx, result, better=None):
+            pk, zk, okk, s2k, hk, nk = result
+            use = okk if better is None else okk & better
+            i = idx[use]
+            p[i], z[i], ok[i] = pk[use, :6], zk[use], True
+            s2[i], hinv[i], n_px[i] = s2k[use], hk[use], nk[use]
+            return use
+
+        result = self._match(coeff, rows, p0[rows], sizes, 1)
+        # failures keep their correlation too (for the restart order)
+        z[rows] = result[1]
+        take(rows, result)
+        first = {"rows": rows, "result": result}  # each point's own match from the guess
+        # a match whose motion since the last frame disagrees with its neighbours' is suspect
+        moved = self.points + p[:, :2] - self.last
+        usable = ok & self.matched
+        suspect = np.flatnonzero(usable & _median_outliers(moved, usable, self.near))
+        own = (p[suspect].copy(), z[suspect].copy(), s2[suspect].copy(), hinv[suspect].copy(),
+               n_px[suspect].copy())  # fmt: skip
+        ok[suspect] = False
+
+        # 2. a jump or a turn between frames: the frame's features give a new start
+        if rows.size and ok[rows].mean() < _FEATURES_BELOW:
+            affine = self.features(frame)
+            if affine is not None:
+                self.feature_frames.append(t)
+                failed = rows[~ok[rows]]
+                start = _warps(
+                    self.points[failed],
+                    _apply(affine, self.points[failed]),
+                    np.broadcast_to(affine[:, :2], (len(failed), 2, 2)),
+                )
+                take(failed, self._match(coeff, failed, start, sizes, 1))
+        # 3. restarts from the best matched neighbour, round after round
+        self._propagate(coeff, active, sizes, p, z, ok, take)
+        keep = ~ok[suspect] | (own[1] > z[suspect])
+        keep &= np.isfinite(own[2])
+        i = suspect[keep]
+        p[i], z[i], s2[i], hinv[i], n_px[i] = (a[keep] for a in own)
+        ok[i] = True
+        # a match whose displacement the neighbours' does not predict has drifted
+        ok &= ~_inconsistent(self.points, p[:, :2], ok, self.near)
+        # highlights: blobs that stay put in the image while the tissue moves
+        lit = np.zeros(n, bool)
+        if self.blobs.any():
+            lit = self._highlights(shared, p, ok, sizes)
+            ok &= ~lit
+            if lit.any():  # matched again with the highlights filled in on both images
+                take(*self._around_highlights(frame, lit & active, p0, p, ok, sizes))
+                lit &= ~ok
+
+        # 3b. a point whose own match fell short of convergence or of zncc_min (weak texture,
+        # fading light) is kept where it still correlates (ZNCC >= _WEAK_ZNCC) and its
+        # measured neighbours' affine motion predicts it: it is measured, and the field
+        # (far dearer) is left to the points that no local match explains
+        weak = np.zeros(n, bool)
+        fr, (pf, zf, _, s2f, hf, nf) = first["rows"], first["result"]
+        near_miss = np.zeros(n, bool)
+        near_miss[fr] = (zf >= _WEAK_ZNCC) & np.isfinite(s2f)
+        near_miss &= active & ~ok & ~lit
+        # not where a subset holds a bright blob that may be a highlight: a match that
+        # follows the light is smooth and its neighbours may follow it too
+        if near_miss.any() and self.blobs.any():
+            near_miss &= ~_touches(self.blobs & ~self.bright_tissue, self.points + p0[:, :2],
+                                   sizes // 2)  # fmt: skip
+        if near_miss.any() and ok.sum() >= 5:
+            u = p[:, :2].copy()
+            at = np.searchsorted(fr, np.flatnonzero(near_miss))
+            u[near_miss] = pf[at, :2]
+            predicted = ~_inconsistent(self.points, u, ok, self.near, judge=near_miss)
+            fits = np.zeros(n, bool)
+            fits[np.flatnonzero(near_miss)] = _predictable(self.points, ok, self.near)[near_miss]
+            weak = near_miss & predicted & fits
+            i = np.flatnonzero(weak)
+            k = np.searchsorted(fr, i)
+            p[i], z[i], ok[i] = pf[k, :6], zf[k], True
+            s2[i], hinv[i], n_px[i] = s2f[k], hf[k], nf[k]
+
+        # 4. the global field, for the points still failing
+        from_field = np.zeros(n, bool)
+        field_sigma = np.full(n, np.nan)
+        field_quality = np.zeros(n)
+        need = np.flatnonzero(active & ~ok)
+        # a few points: a small field around each group of neighbours (with their own
+        # neighbours); many: one field
+        if need.size > _LOCAL_FIELDS_UP_TO * max(rows.size, 1):
+            groups = [("all", need)]
+        else:
+            groups = [(tuple(g.tolist()), g) for g in _neighbour_groups(need, self.near)]
+        for key, idx in groups:
+            solver = self._field(key, shared, t, p, ok, step, p0)
+            u, grad = solver.displacement(self.points[idx])
+            start = _warps(self.points[idx], self.points[idx] + u, np.eye(2) + grad)
+            result = self._match(coeff, idx, start, sizes, 1)
+            gap = np.linalg.norm(result[0][:, :2] - u, axis=1)
+            sigma_u = solver.uncertainty(self.points[idx])
+            agrees = gap <= np.maximum(2.0, 5 * np.nan_to_num(sigma_u, nan=0.2))
+            took = take(idx, result, agrees & ~lit[idx])
+            rest = idx[~took]
+            seen = solver.seen(self.points[rest])
+            hold = rest[seen]
+            from_field[hold] = True
+            uh, gh = solver.displacement(self.points[hold])
+            p[hold] = _warps(self.points[hold], self.points[hold] + uh, np.eye(2) + gh)
+            field_sigma[hold] = solver.uncertainty(self.points[hold])
+            field_quality[hold] = np.clip(solver.cell_zncc(self.points[hold]), 0.0, 1.0)
+        if need.size:
+            self.field_frames.append(t)
+            # a field's value that its measured neighbours do not predict is not reported
+            # (by more than the field's own 3 sigma, and 1 px: the field is smooth where the
+            # local matches scatter, so it is held to a coarser bar than they are)
+            bar = np.maximum(1.0, 3 * np.nan_to_num(field_sigma, nan=0.0))
+            off = _inconsistent(self.points, p[:, :2], ok, self.near, judge=from_field, floor=bar)
+            from_field &= ~off
+
+        # the noise the residuals show, and the field's curvature from the matches
+        noise2 = _noise_model(s2 / self.gain, self.intensity, ok)
+        known = noise2[ok & np.isfinite(noise2)]
+        level = np.median(known) if known.size else np.nan
+        self.noise2 = float(level) if np.isfinite(level) else self.noise2
+        # both frames' pixel noise (the model, never the residual: beyond the noise, the
+        # residual is appearance, not noise), as the matches' own scatter scales it
+        noise_s2 = 2 * self.noise_scale * noise2
+        sigma, _ = _local_sigma(hinv, n_px, noise_s2, self.noise2)
+        second, lap_var = _quadratic_fits(
+            self.points, p[:, :2], ok | from_field, self.near, with_noise=True
+        )
+        # the displacements' noise in the curvature: each fit's from the typical sigma
+        noise_sigma2 = np.where(ok, sigma, np.where(from_field, field_sigma, np.nan)) ** 2
+        typical2 = np.nanmedian(noise_sigma2) if np.isfinite(noise_sigma2).any() else 0.0
+        lap_noise2 = lap_var * typical2
+
+        # 5. the quadratic warp, where the curvature biases an affine warp beyond its noise
+        quadratic = np.zeros(n, bool)
+        half = sizes // 2
+        bias = _affine_bias(second, half, lap_noise2)
+        if 2 in self.orders:
+            if self.orders == (2,):
+                tries = np.flatnonzero(active & (ok | from_field))
+            else:
+                tries = np.flatnonzero(ok & (bias > _QUADRATIC_BIAS * sigma))
+            if tries.size:
+                pq, zq, okq, s2q, hq, nq = self._match(coeff, tries, p[tries], sizes, 2)
+                if self.orders == (2,):
+                    better = okq
+                else:
+                    better = _bic_choice(s2[tries] * n_px[tries], s2q * nq, nq, ok[tries], okq)
+                    # where the affine warp stays, the quadratic one's shift from it measures
+                    # the affine one's bias (per coordinate)
+                    kept = ~better & okq & ok[tries]
+                    shift = np.linalg.norm(pq[kept, :2] - p[tries[kept], :2], axis=1) / np.sqrt(2)
+                    bias[tries[kept]] = np.maximum(bias[tries[kept]], shift)
+                i = tries[better]
+                p[i] = pq[better, :6]
+                z[i], ok[i], quadratic[i] = zq[better], True, True
+                from_field[i] = False
+                s2[i], hinv[i], n_px[i] = s2q[better], hq[better], nq[better]
+                noise_s2 = 2 * self.noise_scale * noise2
+                sigma, _ = _local_sigma(hinv, n_px, noise_s2, self.noise2)
+        affine = ok & ~quadratic
+        sigma = np.where(affine, np.sqrt(sigma**2 + bias**2), sigma)
+
+        pos = self.points + p[:, :2]
+        inside = (pos[:, 0] >= 0) & (pos[:, 0] <= W - 1) & (pos[:, 1] >= 0) & (pos[:, 1] <= H - 1)
+        measured = ok | from_field
+        vis = inside & active & measured
+        pos = np.where(measured[:, None], pos, self.last)
+        # the state for the next frame
+        self.before = np.where(measured[:, None], self.last, self.before)
+        self.matched_before = self.matched & measured
+        self.last = pos.copy()
+        self.matched = measured
+        self.p[measured] = p[measured]
+        if np.isfinite(second).any():
+            self.second = second
+        self.local_count += int((ok & vis).sum())
+        self.quadratic_count += int((quadratic & ok & vis).sum())
+        return {
+            "positions": pos,
+            "visible": vis,
+            "quality": np.where(vis, np.where(ok, np.clip(z, 0.0, 1.0), field_quality), 0.0),
+            "sigma": np.where(vis, np.where(ok, sigma, field_sigma), np.nan),
+        }
+
+    def _guess(self, step: np.ndarray | None) -> np.ndarray:
+        """Each point's starting warp: its last one, moved as the last step's best-fit affine
+        motion of the grid moved it, plus the rest of its own last step."""
+        F = _gradient(self.p)
+        if step is None:
+            return _warps(self.points, self.last, F)
+        moved = _apply(step, self.last)
+        both = self.matched_before & self.matched
+        own = np.where(both[:, None], self.last - _apply(step, self.before), 0.0)
+        return _warps(self.points, moved + own, step[:, :2] @ F)
+
+    def _propagate(self, coeff, active, sizes, p, z, ok, take) -> None:
+        """Restart failed points from their best matched neighbour's warp, evaluated at
+        the point (exact for a homogeneous deformation), while the matched region grows."""
+        from strain2d.trackers.dic import _best_neighbours
+
+        tried = np.zeros(len(p), bool)
+        for _ in range(len(p)):
+            failed = np.flatnonzero(active & ~ok & ~tried)
+            if failed.size == 0 or not ok.any():
+                break
+            f_idx, b_idx = _best_neighbours(self.near, failed, ok, z)
+            if f_idx.size == 0:
+                break
+            d = self.points[f_idx] - self.points[b_idx]
+            F = _gradient(p[b_idx])
+            start = _warps(
+                self.points[f_idx],
+                self.points[b_idx] + p[b_idx, :2] + np.einsum("nij,nj->ni", F, d),
+                F,
+            )
+            use = take(f_idx, self._match(coeff, f_idx, start, sizes, 1))
+            tried[f_idx[~use]] = True
+            if not use.any():  # the matched region stopped growing
+                break
+
+    def _highlights(self, frame: Frame, p, ok, sizes) -> np.ndarray:
+        """Points whose subset holds a specular highlight (a blob that stays put in the image
+        while the tissue moves), where they were on the reference or are on this frame.
+
+        Each blob of the reference is decided once: a highlight when it is seen to stay
+        put, bright tissue when it is seen to move with the tissue; the frame's blobs are
+        looked for only around the blobs not yet decided (none, once all are)."""
+        n = len(self.points)
+        motion = _affine_fit(self.points[ok], self.points[ok] + p[ok, :2])
+        frame_mask = np.zeros(self.shape, bool)
+
+        def moving(x: np.ndarray) -> np.ndarray:
+            return _apply(motion, x) - x
+
+        if motion is not None and self.undecided.any() and self._can_tell(moving):
+            ref_mask, frame_mask, tissue, _ = static_highlights(
+                self.undecided,
+                frame.blobs(self.noise, blob_window(self.undecided, moving)),
+                moving,
+                with_tissue=True,
+            )
+            self.static |= ref_mask  # once found to stay put, a highlight stays one
+            self.bright_tissue |= tissue
+            # a blob seen to move with the tissue is tissue; one not yet seen to do either
+            # may still show itself a highlight on a later frame (its outline on the
+            # frame can differ while the light and the tissue move)
+            self.undecided &= ~(ref_mask | tissue)
+        # a highlight stays where it is in the image: on this frame as on the reference
+        self.frame_highlights = frame_mask | self.static
+        if not self.static.any() and not frame_mask.any():
+            return np.zeros(n, bool)
+        half = sizes // 2
+        return _touches(self.static, self.points, half) | _touches(
+            self.frame_highlights, self.points + p[:, :2], half
+        )
+
+    def _can_tell(self, moving) -> bool:
+        """Whether the tissue moved enough (2 px) anywhere over the undecided blobs for
+        :func:`static_highlights` to tell a highlight from tissue (before looking for
+        the frame's blobs)."""
+        rows = np.flatnonzero(self.undecided.any(axis=1))
+        cols = np.flatnonzero(self.undecided.any(axis=0))
+        x = np.linspace(cols[0], cols[-1], 5)
+        y = np.linspace(rows[0], rows[-1], 5)
+        grid = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
+        return bool(np.any(np.hypot(*moving(grid).T) >= 2.0))
+
+    def _around_highlights(self, frame, rows, guess, p, ok, sizes):
+        """Rows of points whose subsets hold a highlight, and their IC-GN matched on both
+        images with every highlight (of the reference and of this frame: they stay put)
+        filled in smoothly: the subset follows the tissue's texture around it, not the
+        light. From their own match where they had one, from the motion guess otherwise;
+        their neighbours' test follows (a filled subset that drifted is not kept)."""
+        idx = np.flatnonzero(rows)
+        mask = ndimage.binary_dilation(self.static | self.frame_highlights, iterations=2)
+        start = np.where(np.isfinite(p[idx, :1]) & (p[idx, :2] != 0).any(axis=1)[:, None],
+                         p[idx], guess[idx])  # fmt: skip
+        result = self._match(
+            _coefficients(_filled(frame, mask)), idx, start, sizes, 1,
+            ref_coeff=_coefficients(_filled(self.reference, mask)),
+        )  # fmt: skip
+        return idx, result
+
+    def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
+        """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
+        the points of ``key`` (a tuple) and their neighbours; from its own last fit when
+        that was on the frame before, from this frame's local matches otherwise (and the
+        motion ``guess`` of the points that failed, where fewer than 3 matched)."""
+        if key not in self.fields:
+            if key == "all":
+                cover = self.textured
+            else:
+                cover = np.zeros(len(self.points), bool)
+                cover[list(key)] = True
+                cover[self.near[list(key)].ravel()] = True
+                cover &= self.in_frame0
+            solver = LatticeSolver(
+                self.reference,
+                self.points[cover] if cover.any() else self.points,
+                spacing=self.spacing,
+                curvature=self.curvature,
+                noise=self.noise,
+                blobs=self.blobs,
+            )
+            self.fields[key] = [solver, -1, None]  # the solver, its last frame, the state before
+        field = self.fields[key]
+        solver, last, before = field
+        nodes = solver.lattice.nodes()
+        previous = solver.state.copy()  # its fit of the last frame it was fitted to
+        state = previous.copy()
+        if key == "all" and last == t - 1 and before is not None:
+            state = _extrapolate(nodes, before, previous)
+        else:
+            use = ok if ok.sum() >= 3 else self.textured
+            u = np.where(ok[:, None], p[:, :2], guess[:, :2])
+            state[:, :2] = _displacement_at(nodes, self.points[use], u[use], step)
+        solver._static |= self.static  # the highlights found on the frames it did not see
+        coarse, _ = solver.coarse(frame, state)
+        solver.refine(frame, coarse)
+        field[1], field[2] = t, (previous if last == t - 1 else None)
+        return solver
+
+
+#: px the warped subset keeps from the frame's edge beyond the spline margin (the motion
+#: between the guess and the match)
+_EDGE_ROOM = 3.0
+
+
+def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -> np.ndarray:
+    """Per point, the largest subset side among ``sizes`` (ascending) whose square, warped
+    by ``p`` (affine, ``(N, 6)``), lies in the frame with :data:`_EDGE_ROOM` px to spare;
+    the smallest where none does."""
+    H, W = shape
+    x = points + p[:, :2]
+    F = _gradient(p)
+    reach = np.abs(F).sum(axis=2)  # per axis, how far a corner at (h, h) reaches, per unit h
+    room = np.stack([x[:, 0] - 1, W - 2 - x[:, 0], x[:, 1] - 1, H - 2 - x[:, 1]], axis=1)
+    room = room - _EDGE_ROOM
+    half = np.min(room / np.repeat(np.maximum(reach, 1e-6), 2, axis=1), axis=1)
+    sizes = np.asarray(sizes)
+    fits = (sizes[None, :] // 2) <= np.nan_to_num(half, nan=-1.0)[:, None]
+    best = np.where(fits.any(axis=1), fits.shape[1] - 1 - np.argmax(fits[:, ::-1], axis=1), 0)
+    return sizes[best]
+
+
+def _predictable(points: np.ndarray, valid: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Whether each point has at least 4 valid neighbours that span an affine field
+    (so :func:`_inconsistent` can judge it)."""
+    n = len(points)
+    if n < 5 or near.shape[1] < 4:
+        return np.zeros(n, bool)
+    return valid[near].sum(axis=1) >= 4
+
+
+def _neighbour_groups(idx: np.ndarray, near: np.ndarray) -> list[np.ndarray]:
+    """``idx`` split into groups that are neighbours of one another (connected through
+    ``near``), each sorted: one small field serves each group."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    idx = np.asarray(idx)
+    if idx.size <= 1:
+        return [idx] if idx.size else []
+    where = {int(i): k for k, i in enumerate(idx)}
+    pairs = [(where[int(i)], where[int(j)]) for i in idx for j in near[i] if int(j) in where]
+    a = np.array([i for i, _ in pairs], int)
+    b = np.array([j for _, j in pairs], int)
+    graph = coo_matrix((np.ones(len(a)), (a, b)), shape=(idx.size, idx.size))
+    _, label = connected_components(graph, directed=False)
+    return [np.sort(idx[label == k]) for k in np.unique(label)]
+
+
+def _inconsistent(
+    points: np.ndarray,
+    u: np.ndarray,
+    valid: np.ndarray,
+    near: np.ndarray,
+    judge: np.ndarray | None = None,
+    floor: float | np.ndarray = 0.3,
+) -> np.ndarray:
+    """Points (of ``judge``, the valid ones by default) whose displacement ``u`` the
+    best-fit affine field of their valid neighbours does not predict: off by more than 4
+    times the neighbours' own such misfit (at least ``floor`` px). A subset that slowly drifted
+    (following a highlight or a shadow) still moves like its neighbours from frame to
+    frame, not in all; a field's value is held to its measured neighbours the same way."""
+    n = len(points)
+    out = np.zeros(n, bool)
+    if n < 5 or near.shape[1] < 4:
+        return out
+    judge = valid if judge is None else judge
+    d = points[near] - points[:, None, :]  # (N, k, 2)
+    scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
+    d = d / scale
+    basis = np.concatenate([np.ones((*d.shape[:2], 1)), d], axis=-1)  # (N, k, 3)
+    w = valid[near].astype(float)[..., None]
+    normal = np.einsum("nki,nkj->nij", basis * w, basis)
+    rhs = np.einsum("nki,nkc->nic", basis * w, u[near])
+    enough = (valid | judge) & (valid[near].sum(axis=1) >= 4)
+    enough[enough] &= np.linalg.cond(normal[enough]) < 1e8
+    misfit = np.full(n, np.nan)
+    if enough.any():
+        coef = np.linalg.solve(normal[enough], rhs[enough])  # (m, 3, 2): value at the point
+        misfit[enough] = np.linalg.norm(u[enough] - coef[:, 0, :], axis=1)
+    own = np.where(valid, misfit, np.nan)
+    around = np.where(valid[near], own[near], np.nan)
+    has = np.isfinite(around).any(axis=1)
+    typical = np.zeros(n)
+    typical[has] = np.nanmedian(around[has], axis=1)
+    out = judge & enough & (misfit > np.maximum(4 * typical, floor))
+    return out
+
+
+def _last_step(before: np.ndarray, last: np.ndarray, both: np.ndarray) -> np.ndarray | None:
+    """The best-fit affine map of the last step, ``before -> last``, over the points
+    measured on both frames (None when fewer than 3 were)."""
+    return _affine_fit(before[both], last[both])
+
+
+def _extrapolate(nodes: np.ndarray, before: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """Node states one frame ahead: the last step's best-fit affine motion applied again
+    (exact for steady rotation and stretch), plus the rest of the step's motion."""
+    x0, x1 = nodes + before[:, :2], nodes + now[:, :2]
+    A = _affine_fit(x0, x1)
+    guess = now.copy()
+    if A is None:
+        return guess
+    rest = x1 - _apply(A, x0)
+    guess[:, :2] = _apply(A, x1) + rest - nodes
+    return guess
+
+
+def _displacement_at(
+    where: np.ndarray, points: np.ndarray, u: np.ndarray, step: np.ndarray | None
+) -> np.ndarray:
+    """Displacements ``(M, 2)`` at ``where`` from those ``u`` of ``points``: their best-fit
+    affine field plus the rest, weighted by inverse squared distance over the 4 nearest
+    points."""
+    if len(points) < 3:
+        if step is None:
+            return np.zeros((len(where), 2))
+        return _apply(step, where) - where
+    affine = _affine_fit(points, points + u)
+    if affine is None:
+        return np.broadcast_to(np.median(u, axis=0), (len(where), 2)).copy()
+    rest = points + u - _apply(affine, points)
+    k = min(4, len(points))
+    distance, nearest = cKDTree(points).query(where, k)
+    distance, nearest = distance.reshape(len(where), k), nearest.reshape(len(where), k)
+    w = 1.0 / np.maximum(distance, 1e-6) ** 2
+    inner = np.einsum("mk,mkc->mc", w, rest[nearest]) / w.sum(axis=1)[:, None]
+    return _apply(affine, where) - where + inner
+
+
+def _filled(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``image`` with the pixels of ``mask`` replaced by the mean of their surroundings
+    (a normalized Gaussian convolution of the other pixels, 10 px): smooth, no texture."""
+    from strain2d.trackers._lattice import _blur
+
+    keep = (~mask).astype(float)
+    weight = _blur(keep, 10.0)
+    smooth = _blur(image * keep, 10.0)
+    fill = smooth / np.maximum(weight, 1e-6)
+    far = weight < 1e-6  # a mask wider than the blur's reach: the image's mean
+    fill[far] = image[~mask].mean() if (~mask).any() else image.mean()
+    return np.where(mask, fill, image)
+
+
+def _box_mean(image: np.ndarray, points: np.ndarray, size: int) -> np.ndarray:
+    """Mean of ``image`` over the square of side ``size`` around each point (clipped)."""
+    H, W = image.shape
+    table = np.pad(image.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    c = np.rint(np.nan_to_num(points)).astype(int)
+    half = size // 2
+    x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
+    y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
+    area = np.maximum((x1 - x0) * (y1 - y0), 1)
+    return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) / area

@@ -132,7 +132,7 @@ def test_compiled_kernel_takes_the_warp_order_from_the_parameters():
 
     # one 3 x 3 subset at (10, 10) of a 20 x 20 frame
     frame_and_subset = (np.zeros((20, 20)), np.full((1, 2), 10.0), np.zeros((1, 9)), np.ones(1))
-    offsets_and_options = (np.zeros(9), np.zeros(9), 1, 1e-3, 30, 0.75)
+    offsets_and_options = (np.zeros(9), np.zeros(9), 1, np.full(1, 1e-3), 30, 0.75)
     with pytest.raises(ValueError, match=r"6 \(affine\) or 12 \(quadratic\)"):
         icgn(*frame_and_subset, np.zeros((1, 8, 9)), np.zeros((1, 8)), *offsets_and_options)
     with pytest.raises(ValueError, match="one row per warp parameter"):

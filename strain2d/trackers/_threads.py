@@ -1,0 +1,173 @@
+"""How many threads the trackers use, and frames decoded ahead of the tracker.
+
+The compiled kernels (numba ``prange`` over points), the spline prefilter and
+sampling (SciPy in a thread pool) and OpenCV all run on several threads. Their
+number is, in order:
+
+1. the ``threads`` option of a tracker (``--threads`` on the command line);
+2. the usual environment variables: ``NUMBA_NUM_THREADS``, then
+   ``OMP_NUM_THREADS`` (set by SLURM, PBS and most job schedulers);
+3. the cores this process may run on (``os.sched_getaffinity``).
+
+Results do not depend on it: every parallel loop runs over independent
+points, rows or lines, each computed whole by one thread.
+
+:func:`prefetched` reads (decodes) the next frames in a background thread
+while the tracker works on the current one.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import os
+import queue
+import threading
+from collections.abc import Iterable, Iterator
+
+from strain2d.errors import InputError
+
+__all__ = [
+    "THREADS_OPTION",
+    "available_threads",
+    "prefetched",
+    "threads_option",
+    "using_threads",
+    "worker_count",
+]
+
+#: the thread count set by :func:`using_threads` for the code it runs
+_threads: contextvars.ContextVar[int | None] = contextvars.ContextVar("threads", default=None)
+
+
+def available_threads() -> int:
+    """The default thread count: the environment's (see the module docstring), or the cores."""
+    for name in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS"):
+        text = os.environ.get(name, "").strip()
+        if text.isdigit() and int(text) > 0:
+            return int(text)
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def worker_count() -> int:
+    """Threads the code running now may use (the option, or :func:`available_threads`)."""
+    n = _threads.get()
+    return n if n is not None else available_threads()
+
+
+def threads_option(text: str) -> int:
+    """``--threads``: a whole number of threads >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise ValueError(f"must be a whole number of threads, got {text!r}") from None
+    if value < 1:
+        raise ValueError(f"must be at least 1, got {value}")
+    return value
+
+
+def _threads_option_factory():
+    from strain2d.trackers import TrackerOption
+
+    return TrackerOption(
+        "threads",
+        "--threads",
+        "threads to use (default: NUMBA_NUM_THREADS or OMP_NUM_THREADS if set, else every "
+        "core this process may run on); the tracks do not depend on it",
+        type=threads_option,
+    )
+
+
+@contextlib.contextmanager
+def using_threads(threads: int | None) -> Iterator[int]:
+    """Run the block with ``threads`` threads (None: :func:`available_threads`); yields the count.
+
+    Sets numba's thread count and OpenCV's for the block and restores them
+    after.  numba cannot use more threads than it started with
+    (``NUMBA_NUM_THREADS``): more is refused with one line.
+    """
+    import cv2
+    import numba
+
+    if threads is not None and (isinstance(threads, bool) or int(threads) != threads):
+        raise InputError(f"--threads must be a whole number, got {threads!r}")
+    n = available_threads() if threads is None else int(threads)
+    most = numba.config.NUMBA_NUM_THREADS
+    if n < 1:
+        raise InputError(f"--threads must be at least 1, got {n}")
+    if threads is not None and n > most:
+        raise InputError(
+            f"--threads {n} is more than the {most} threads available to this process "
+            "(NUMBA_NUM_THREADS, or the cores it may run on)"
+        )
+    n = min(n, most)
+    token = _threads.set(n)
+    old_numba, old_cv = numba.get_num_threads(), cv2.getNumThreads()
+    numba.set_num_threads(n)
+    cv2.setNumThreads(n)
+    try:
+        yield n
+    finally:
+        numba.set_num_threads(old_numba)
+        cv2.setNumThreads(old_cv)
+        _threads.reset(token)
+
+
+class _Ended:
+    """What the reader thread hands over last: the end of the frames, or the error raised."""
+
+    def __init__(self, error: BaseException | None = None) -> None:
+        self.error = error
+
+
+def prefetched(frames: Iterable, depth: int = 2) -> Iterator:
+    """The items of ``frames``, read up to ``depth`` ahead in a background thread.
+
+    A video's decoding (OpenCV and FFmpeg release the GIL) then overlaps the
+    tracking of the frame before.  An error raised while reading is raised
+    here, at the item where it happened.  When the consumer stops early (an
+    error, Ctrl-C), the reader stops after the item it is reading.
+    """
+    items: queue.Queue = queue.Queue(maxsize=max(int(depth), 1))
+    stop = threading.Event()
+
+    def read() -> None:
+        try:
+            for item in frames:
+                while not stop.is_set():
+                    try:
+                        items.put(item, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            ended = _Ended()
+        except BaseException as exc:  # handed to the consumer, raised there
+            ended = _Ended(exc)
+        while not stop.is_set():
+            try:
+                items.put(ended, timeout=0.1)
+                return
+            except queue.Full:
+                continue
+
+    reader = threading.Thread(target=read, name="frames-ahead", daemon=True)
+    reader.start()
+    try:
+        while True:
+            item = items.get()
+            if isinstance(item, _Ended):
+                if item.error is not None:
+                    raise item.error
+                return
+            yield item
+    finally:
+        stop.set()
+
+
+#: the ``--threads`` option that the trackers which run in parallel offer
+THREADS_OPTION = _threads_option_factory()
