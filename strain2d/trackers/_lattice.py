@@ -208,16 +208,15 @@ def static_highlights(
     of its area) than the blob would if it had moved with the tissue (``motion(points) -> (N, 2)``
     displacements); where the tissue moved less than 2 px, nothing is decided.
     Returns the reference's and the frame's highlight masks, and with
-    ``with_tissue`` two more of the reference's blobs: those seen to move with
-    the tissue (the other way round: bright tissue, never a highlight), and
-    those that the frame showed, moving enough to tell, not to stay put.
+    ``with_tissue`` the reference's blobs seen to move with the tissue (the
+    other way round: bright tissue, never a highlight).
     """
     empty = np.zeros(reference_blobs.shape, bool)
     if not reference_blobs.any() or not frame_blobs.any():
-        return (empty, empty, empty.copy(), empty.copy()) if with_tissue else (empty, empty)
+        return (empty, empty, empty.copy()) if with_tissue else (empty, empty)
     H, W = reference_blobs.shape
     labels, _ = ndimage.label(reference_blobs)
-    ref_mask, frame_mask, tissue, unlike = empty.copy(), empty.copy(), empty.copy(), empty.copy()
+    ref_mask, frame_mask, tissue = empty.copy(), empty.copy(), empty.copy()
     frame_labels, _ = ndimage.label(frame_blobs)
     for k, box in enumerate(ndimage.find_objects(labels), start=1):
         yy, xx = np.nonzero(labels[box] == k)
@@ -233,11 +232,9 @@ def static_highlights(
             ref_mask[yy, xx] = True
             hit = np.unique(frame_labels[yy, xx])
             frame_mask |= np.isin(frame_labels, hit[hit > 0])
-        else:
-            unlike[yy, xx] = True
-            if moved > 0.6 and moved > same + 0.1:
-                tissue[yy, xx] = True
-    return (ref_mask, frame_mask, tissue, unlike) if with_tissue else (ref_mask, frame_mask)
+        elif moved > 0.6 and moved > same + 0.1:
+            tissue[yy, xx] = True
+    return (ref_mask, frame_mask, tissue) if with_tissue else (ref_mask, frame_mask)
 
 
 #: at the finer levels, how far (px) the field may stray from the coarser level's answer

@@ -1228,7 +1228,7 @@ class _Run:
             return _apply(motion, x) - x
 
         if motion is not None and self.undecided.any() and self._can_tell(moving):
-            ref_mask, frame_mask, tissue, _ = static_highlights(
+            ref_mask, frame_mask, tissue = static_highlights(
                 self.undecided,
                 frame.blobs(self.noise, blob_window(self.undecided, moving)),
                 moving,

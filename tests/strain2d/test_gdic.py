@@ -98,8 +98,8 @@ def test_gdic_is_not_biased_by_a_light_gradient_and_a_fade():
 def test_gdic_uncertainty_is_calibrated():
     """The reported sigma follows the error on known truth: point-frames with the largest
     sigma have larger errors, and about 95 % of the errors lie within 2 sigma per
-    coordinate, as a Gaussian error's would (0.959 measured over these four cases; per
-    case 0.945-0.996), neither overconfident nor uselessly wide."""
+    coordinate, as a Gaussian error's would (about 0.95 measured over these four cases; per
+    case 0.92-0.98), neither overconfident nor uselessly wide."""
     errors, sigmas = [], []
     for video in (
         make_case("gaussian", size=400, n_frames=6, rng=5),
