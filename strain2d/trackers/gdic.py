@@ -1039,9 +1039,10 @@ class _Run:
         lit = np.zeros(n, bool)
         if self.blobs.any():
             lit = self._highlights(shared, p, ok, sizes)
+            matched_here = ok & lit  # their own match, a start for the filled subsets
             ok &= ~lit
             if lit.any():  # matched again with the highlights filled in on both images
-                take(*self._around_highlights(frame, lit & active, p0, p, ok, sizes))
+                take(*self._around_highlights(frame, lit & active, p0, p, matched_here, sizes))
                 lit &= ~ok
 
         # 3b. a point whose own match fell short of convergence or of zncc_min (weak texture,
@@ -1268,8 +1269,7 @@ class _Run:
         their neighbours' test follows (a filled subset that drifted is not kept)."""
         idx = np.flatnonzero(rows)
         mask = ndimage.binary_dilation(self.static | self.frame_highlights, iterations=2)
-        start = np.where(np.isfinite(p[idx, :1]) & (p[idx, :2] != 0).any(axis=1)[:, None],
-                         p[idx], guess[idx])  # fmt: skip
+        start = np.where(ok[idx, None], p[idx], guess[idx])
         result = self._match(
             _coefficients(_filled(frame, mask)), idx, start, sizes, 1,
             ref_coeff=_coefficients(_filled(self.reference, mask)),
