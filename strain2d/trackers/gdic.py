@@ -115,6 +115,9 @@ _TEXTURE_SIGNAL = 0.6
 
 #: the lowest ZNCC at which a match that its measured neighbours predict is kept
 _WEAK_ZNCC = 0.5
+#: a match whose residual variance (over the noise model's, per pixel) is at most this is
+#: clean: no blob under its subset disturbs it, and none needs deciding there
+_CLEAN_RESIDUAL = 3.0
 
 #: IC-GN's per-point tolerance, as a fraction of its subset's noise-limited standard
 #: deviation (when that exceeds the fixed tolerance)
@@ -295,25 +298,32 @@ def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     c[:, 0], c[:, 1] = np.clip(c[:, 0], 0, W - 1), np.clip(c[:, 1], 0, H - 1)
     best = np.full(len(points), np.inf)
     w = _TEXTURE_WINDOW
+
+    def box(a: np.ndarray) -> np.ndarray:  # the w x w mean, mirror boundaries
+        return cv2.boxFilter(a, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
+
     for k in (1, 2, 4):
         if min(H, W) // k < 2 * w:
+            break
+        if np.all(best <= (k - 1) * (w // 2)):  # no smaller copy can bring a point nearer
             break
         small = (
             image if k == 1 else cv2.resize(image, (W // k, H // k), interpolation=cv2.INTER_AREA)
         )
-        lap = ndimage.laplace(small)
-        noise2 = ndimage.uniform_filter(lap * lap, w) / 20.0
-        mean = ndimage.uniform_filter(small, w)
-        var = ndimage.uniform_filter(small * small, w) - mean * mean
+        lap = cv2.Laplacian(small, cv2.CV_64F, ksize=1, borderType=cv2.BORDER_REFLECT)
+        noise2 = box(lap * lap) / 20.0
+        mean = box(small)
+        var = box(small * small) - mean * mean
         texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
         if not texture.any():
             continue
-        if texture.all():
+        h, wd = texture.shape
+        ck = np.minimum(c // k, [wd - 1, h - 1])
+        on = texture[ck[:, 1], ck[:, 0]]
+        if on.all():  # every point on texture: no distance to measure
             distance = np.zeros(len(points))
         else:
             field = ndimage.distance_transform_edt(~texture)
-            h, wd = texture.shape
-            ck = np.minimum(c // k, [wd - 1, h - 1])
             distance = field[ck[:, 1], ck[:, 0]] * k
         best = np.minimum(best, distance + (k - 1) * (w // 2))
     return best
@@ -770,6 +780,7 @@ class _Run:
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
         self.frame_highlights = np.zeros(self.shape, bool)  # and those of the last frame
         self.undecided = self.blobs.copy()  # the blobs not yet seen to stay put or to move
+        self.blob_labels, self.n_blobs = ndimage.label(self.blobs)
         self.bright_tissue = np.zeros(self.shape, bool)  # the blobs seen to move with it
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         if self.auto:  # a point too near the edge for every size: a smaller subset, if it fits
@@ -849,10 +860,12 @@ class _Run:
         scatter is smaller than the formula's by a factor that depends on the
         texture's spectrum (0.63-0.73 in variance on photographs). It is
         measured on this video's own reference: up to 256 of its textured
-        points are matched :data:`_NOISE_DRAWS` times between two copies of the
-        reference with fresh noise of the frame's level (seeded: the result is
-        the same run after run), and the mean square displacement over the
-        formula's variance is the factor (1 where too few points match).
+        points are matched :data:`_NOISE_DRAWS` times from the reference to a
+        copy of it with fresh noise of twice the frame's variance (seeded: the
+        result is the same run after run). That is a frame's case exactly: the
+        reference's own noise in the template, the two images' noise in their
+        difference. The mean square displacement over the formula's variance
+        is the factor (1 where too few points match).
         """
         rows = np.flatnonzero(self.textured)
         if rows.size < 8:
@@ -862,16 +875,14 @@ class _Run:
         rng = np.random.default_rng(_NOISE_SEED)
         moved, expected = 0.0, 0.0
         for _ in range(_NOISE_DRAWS):
-            copies = [
-                _coefficients(self.reference + rng.normal(0.0, self.noise, self.shape))
-                for _ in range(2)
-            ]
+            copy = _coefficients(self.reference + rng.normal(0.0, np.sqrt(2) * self.noise,
+                                                             self.shape))  # fmt: skip
             for size in np.unique(sizes[rows]):
                 k = rows[sizes[rows] == size]
                 corr = self._correlator(int(size), 1)
-                ref = corr.reference(copies[0], self.points[k], 0)
+                ref = self._reference(int(size), 1, k)
                 pk, _, ck = corr.match(
-                    copies[1], ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
+                    copy, ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
                 )
                 good = ck & (np.abs(pk[:, :2]) < 1.0).all(axis=1)
                 hinv = np.einsum("nks,nks->nk", ref.G[good, :2], ref.G[good, :2])
@@ -1038,7 +1049,10 @@ class _Run:
         # highlights: blobs that stay put in the image while the tissue moves
         lit = np.zeros(n, bool)
         if self.blobs.any():
-            lit = self._highlights(shared, p, ok, sizes)
+            # a match whose residual is the noise's is not disturbed by a blob: only the
+            # blobs under the other subsets need deciding on this frame
+            clean = ok & (s2 / self.gain <= _CLEAN_RESIDUAL * self.noise2)
+            lit = self._highlights(shared, p, ok, sizes, clean)
             matched_here = ok & lit  # their own match, a start for the filled subsets
             ok &= ~lit
             if lit.any():  # matched again with the highlights filled in on both images
@@ -1214,13 +1228,15 @@ class _Run:
             if not use.any():  # the matched region stopped growing
                 break
 
-    def _highlights(self, frame: Frame, p, ok, sizes) -> np.ndarray:
+    def _highlights(self, frame: Frame, p, ok, sizes, clean) -> np.ndarray:
         """Points whose subset holds a specular highlight (a blob that stays put in the image
         while the tissue moves), where they were on the reference or are on this frame.
 
         Each blob of the reference is decided once: a highlight when it is seen to stay
         put, bright tissue when it is seen to move with the tissue; the frame's blobs are
-        looked for only around the blobs not yet decided (none, once all are)."""
+        looked for only around the blobs not yet decided (none, once all are) that touch
+        a subset whose match is not ``clean`` (a highlight that the tissue moved over
+        leaves a residual well above the noise in every subset that holds it)."""
         n = len(self.points)
         motion = _affine_fit(self.points[ok], self.points[ok] + p[ok, :2])
         frame_mask = np.zeros(self.shape, bool)
@@ -1228,10 +1244,11 @@ class _Run:
         def moving(x: np.ndarray) -> np.ndarray:
             return _apply(motion, x) - x
 
-        if motion is not None and self.undecided.any() and self._can_tell(moving):
+        deciding = self._deciding(p, clean, sizes) if motion is not None else None
+        if deciding is not None and self._can_tell(deciding, moving):
             ref_mask, frame_mask, tissue = static_highlights(
-                self.undecided,
-                frame.blobs(self.noise, blob_window(self.undecided, moving)),
+                deciding,
+                frame.blobs(self.noise, blob_window(deciding, moving)),
                 moving,
                 with_tissue=True,
             )
@@ -1250,12 +1267,36 @@ class _Run:
             self.frame_highlights, self.points + p[:, :2], half
         )
 
-    def _can_tell(self, moving) -> bool:
-        """Whether the tissue moved enough (2 px) anywhere over the undecided blobs for
+    def _deciding(self, p, clean, sizes) -> np.ndarray | None:
+        """The undecided blobs that touch the subset of a point whose match is not clean,
+        where it was on the reference or is on this frame (None where there are none)."""
+        if not self.undecided.any():
+            return None
+        suspect = np.flatnonzero(self.textured & ~clean)
+        if suspect.size == 0:
+            return None
+        H, W = self.shape
+        near = np.zeros(self.shape, bool)
+        half = sizes[suspect] // 2
+        for at in (self.points[suspect], self.points[suspect] + p[suspect, :2]):
+            c = np.rint(np.nan_to_num(at)).astype(int)
+            x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
+            y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
+            for a, b, e, f in zip(y0, y1, x0, x1):
+                near[a:b, e:f] = True
+        chosen = np.unique(self.blob_labels[near & self.undecided])
+        if chosen.size == 0:
+            return None
+        lut = np.zeros(self.n_blobs + 1, bool)
+        lut[chosen] = True
+        return lut[self.blob_labels] & self.undecided
+
+    def _can_tell(self, blobs: np.ndarray, moving) -> bool:
+        """Whether the tissue moved enough (2 px) anywhere over ``blobs`` for
         :func:`static_highlights` to tell a highlight from tissue (before looking for
         the frame's blobs)."""
-        rows = np.flatnonzero(self.undecided.any(axis=1))
-        cols = np.flatnonzero(self.undecided.any(axis=0))
+        rows = np.flatnonzero(blobs.any(axis=1))
+        cols = np.flatnonzero(blobs.any(axis=0))
         x = np.linspace(cols[0], cols[-1], 5)
         y = np.linspace(rows[0], rows[-1], 5)
         grid = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
