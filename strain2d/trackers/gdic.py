@@ -123,8 +123,10 @@ _CLEAN_RESIDUAL = 3.0
 #: deviation (when that exceeds the fixed tolerance)
 _SETTLE = 0.2
 
-#: draws of noise, and their seed, that measure how the matches scatter against the noise
+#: the most copies with fresh noise, the matches enough, and their seed, that measure how
+#: the matches scatter against the noise
 _NOISE_DRAWS = 2
+_NOISE_MATCHES = 400
 _NOISE_SEED = 20261126
 
 #: a point farther than this (px) from any texture is on blank background, whatever a
@@ -249,7 +251,7 @@ def subset_texture(
     image = np.asarray(reference, dtype=np.float64)
     H, W = image.shape
     gy, gx = np.gradient(image)
-    tables = [np.pad(a.cumsum(0).cumsum(1), ((1, 0), (1, 0))) for a in (gx * gx, gy * gy, gx * gy)]
+    tables = [_integral(a) for a in (gx * gx, gy * gy, gx * gy)]
     c = np.rint(np.nan_to_num(points)).astype(int)
     room = np.minimum.reduce([c[:, 0], W - 1 - c[:, 0], c[:, 1], H - 1 - c[:, 1]]) - 2
     chosen = np.full(len(points), sizes[0])
@@ -363,28 +365,50 @@ def _quadratic_fits(
     lap_var = np.full(n, np.nan)
     if n < 6 or near.shape[1] < 5:
         return (out, lap_var) if with_noise else out
-    group = np.column_stack([np.arange(n), near])  # (N, k + 1)
-    d = points[group] - points[:, None, :]  # (N, k + 1, 2)
-    scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
-    d = d / scale
-    dx, dy = d[..., 0], d[..., 1]
-    basis = np.stack([np.ones_like(dx), dx, dy, 0.5 * dx * dx, dx * dy, 0.5 * dy * dy], axis=-1)
-    w = valid[group].astype(float)[..., None]  # (N, k + 1, 1)
-    Bw = basis * w
-    normal = np.einsum("nki,nkj->nij", Bw, basis)  # (N, 6, 6)
-    rhs = np.einsum("nki,nkc->nic", Bw, displacement[group])  # (N, 6, 2)
-    enough = valid[group].sum(axis=1) >= 6
-    cond = np.full(n, np.inf)
-    cond[enough] = np.linalg.cond(normal[enough])
-    good = enough & (cond < 1e8)
+
+    def build():  # what depends on the geometry and on which points are valid
+        group = np.column_stack([np.arange(n), near])  # (N, k + 1)
+        d = points[group] - points[:, None, :]  # (N, k + 1, 2)
+        scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
+        d = d / scale
+        dx, dy = d[..., 0], d[..., 1]
+        basis = np.stack([np.ones_like(dx), dx, dy, 0.5 * dx * dx, dx * dy, 0.5 * dy * dy], -1)
+        Bw = basis * valid[group].astype(float)[..., None]  # (N, k + 1, 6)
+        normal = np.einsum("nki,nkj->nij", Bw, basis)  # (N, 6, 6)
+        enough = valid[group].sum(axis=1) >= 6
+        cond = np.full(n, np.inf)
+        cond[enough] = np.linalg.cond(normal[enough])
+        good = enough & (cond < 1e8)
+        inverse = np.linalg.inv(normal[good]) if good.any() else None  # (n_good, 6, 6)
+        return group, scale, Bw, good, inverse
+
+    group, scale, Bw, good, inverse = _geometry("quadratic", points, near, valid, build)
     if good.any():
-        inverse = np.linalg.inv(normal[good])  # (n_good, 6, 6)
-        coef = np.einsum("nij,njc->nic", inverse, rhs[good])  # (n_good, 6, 2)
+        rhs = np.einsum("nki,nkc->nic", Bw[good], displacement[group[good]])  # (n_good, 6, 2)
+        coef = np.einsum("nij,njc->nic", inverse, rhs)  # (n_good, 6, 2)
         out[good] = np.swapaxes(coef[:, 3:6, :], 1, 2) / scale[good] ** 2
         lap_var[good] = (inverse[:, 3, 3] + inverse[:, 5, 5] + 2 * inverse[:, 3, 5]) / scale[
             good, 0, 0
         ] ** 4
     return (out, lap_var) if with_noise else out
+
+
+#: the last few neighbourhood fits' geometry (:func:`_geometry`)
+_GEOMETRY: dict = {}
+
+
+def _geometry(kind: str, points: np.ndarray, near: np.ndarray, valid: np.ndarray, build):
+    """``build()``, remembered for the same points, neighbours and valid points: from
+    frame to frame the same points are mostly matched, and the neighbourhood fits'
+    normal matrices and their inverses are the same."""
+    key = (kind, points.shape, near.shape, hash(points.tobytes()), hash(near.tobytes()),
+           hash(np.packbits(valid).tobytes()))  # fmt: skip
+    hit = _GEOMETRY.get(key)
+    if hit is None:
+        while len(_GEOMETRY) >= 8:
+            _GEOMETRY.pop(next(iter(_GEOMETRY)), None)
+        hit = _GEOMETRY[key] = build()
+    return hit
 
 
 def _curvature_cap(second: np.ndarray) -> np.ndarray:
@@ -454,12 +478,22 @@ def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarra
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     top, left = rows[0], cols[0]
     box = mask[top : rows[-1] + 1, left : cols[-1] + 1]
-    table = np.pad(box.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    table = _integral(box.astype(np.uint8))
     H, W = box.shape
     c = np.rint(np.nan_to_num(centers)).astype(int) - [left, top]
     x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
     y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
     return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
+
+
+def _integral(image: np.ndarray) -> np.ndarray:
+    """The summed-area table with a leading row and column of zeros (``(H + 1, W + 1)``;
+    OpenCV's: int32 sums of a uint8 mask, float64 sums otherwise)."""
+    import cv2
+
+    if image.dtype == np.uint8:
+        return cv2.integral(image, sdepth=cv2.CV_32S)
+    return cv2.integral(np.ascontiguousarray(image, dtype=np.float64), sdepth=cv2.CV_64F)
 
 
 def _chunks(n: int, size: int) -> list[np.ndarray]:
@@ -859,10 +893,11 @@ class _Run:
         moves along the spline, whose slope is steeper on fine texture, so its
         scatter is smaller than the formula's by a factor that depends on the
         texture's spectrum (0.63-0.73 in variance on photographs). It is
-        measured on this video's own reference: up to 256 of its textured
-        points are matched :data:`_NOISE_DRAWS` times from the reference to a
-        copy of it with fresh noise of twice the frame's variance (seeded: the
-        result is the same run after run). That is a frame's case exactly: the
+        measured on this video's own reference: up to 512 of its textured
+        points are matched from the reference to a copy of it with fresh
+        noise of twice the frame's variance, again with another copy (up to
+        :data:`_NOISE_DRAWS` copies) while fewer than :data:`_NOISE_MATCHES`
+        matches were made (seeded: the result is the same run after run). That is a frame's case exactly: the
         reference's own noise in the template, the two images' noise in their
         difference. The mean square displacement over the formula's variance
         is the factor (1 where too few points match).
@@ -870,13 +905,15 @@ class _Run:
         rows = np.flatnonzero(self.textured)
         if rows.size < 8:
             return 1.0
-        rows = rows[np.linspace(0, rows.size - 1, min(rows.size, 256)).astype(int)]
+        rows = rows[np.linspace(0, rows.size - 1, min(rows.size, 512)).astype(int)]
         sizes = self.wanted
         rng = np.random.default_rng(_NOISE_SEED)
-        moved, expected = 0.0, 0.0
+        moved, expected, matches = 0.0, 0.0, 0
         for _ in range(_NOISE_DRAWS):
-            copy = _coefficients(self.reference + rng.normal(0.0, np.sqrt(2) * self.noise,
-                                                             self.shape))  # fmt: skip
+            if matches >= _NOISE_MATCHES:
+                break
+            noise = rng.standard_normal(self.shape, dtype=np.float32)
+            copy = _coefficients(self.reference + np.sqrt(2) * self.noise * noise)
             for size in np.unique(sizes[rows]):
                 k = rows[sizes[rows] == size]
                 corr = self._correlator(int(size), 1)
@@ -888,6 +925,7 @@ class _Run:
                 hinv = np.einsum("nks,nks->nk", ref.G[good, :2], ref.G[good, :2])
                 use = np.isfinite(hinv).all(axis=1)
                 moved += float(np.sum(pk[good][use, :2] ** 2))
+                matches += int(use.sum())
                 expected += float(np.sum(2 * self.noise**2 * hinv[use]))
         if expected <= 0:
             return 1.0
@@ -1424,19 +1462,29 @@ def _inconsistent(
     if n < 5 or near.shape[1] < 4:
         return out
     judge = valid if judge is None else judge
-    d = points[near] - points[:, None, :]  # (N, k, 2)
-    scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
-    d = d / scale
-    basis = np.concatenate([np.ones((*d.shape[:2], 1)), d], axis=-1)  # (N, k, 3)
-    w = valid[near].astype(float)[..., None]
-    normal = np.einsum("nki,nkj->nij", basis * w, basis)
-    rhs = np.einsum("nki,nkc->nic", basis * w, u[near])
-    enough = (valid | judge) & (valid[near].sum(axis=1) >= 4)
-    enough[enough] &= np.linalg.cond(normal[enough]) < 1e8
+
+    def build():  # what depends on the geometry and on which points are valid
+        d = points[near] - points[:, None, :]  # (N, k, 2)
+        scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
+        d = d / scale
+        basis = np.concatenate([np.ones((*d.shape[:2], 1)), d], axis=-1)  # (N, k, 3)
+        Bw = basis * valid[near].astype(float)[..., None]
+        normal = np.einsum("nki,nkj->nij", Bw, basis)
+        fits = valid[near].sum(axis=1) >= 4
+        fits[fits] &= np.linalg.cond(normal[fits]) < 1e8
+        # the fitted value at the point: row 0 of the inverse, per point
+        first = np.zeros((n, 3))
+        if fits.any():
+            first[fits] = np.linalg.inv(normal[fits])[:, 0, :]
+        return Bw, fits, first
+
+    Bw, fits, first = _geometry("affine", points, near, valid, build)
+    enough = (valid | judge) & fits
     misfit = np.full(n, np.nan)
     if enough.any():
-        coef = np.linalg.solve(normal[enough], rhs[enough])  # (m, 3, 2): value at the point
-        misfit[enough] = np.linalg.norm(u[enough] - coef[:, 0, :], axis=1)
+        rhs = np.einsum("nki,nkc->nic", Bw[enough], u[near[enough]])  # (m, 3, 2)
+        value = np.einsum("ni,nic->nc", first[enough], rhs)  # the fit's value at the point
+        misfit[enough] = np.linalg.norm(u[enough] - value, axis=1)
     own = np.where(valid, misfit, np.nan)
     around = np.where(valid[near], own[near], np.nan)
     has = np.isfinite(around).any(axis=1)
@@ -1504,7 +1552,7 @@ def _filled(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def _box_mean(image: np.ndarray, points: np.ndarray, size: int) -> np.ndarray:
     """Mean of ``image`` over the square of side ``size`` around each point (clipped)."""
     H, W = image.shape
-    table = np.pad(image.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    table = _integral(image)
     c = np.rint(np.nan_to_num(points)).astype(int)
     half = size // 2
     x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
