@@ -894,13 +894,15 @@ class _Run:
         scatter is smaller than the formula's by a factor that depends on the
         texture's spectrum (0.63-0.73 in variance on photographs). It is
         measured on this video's own reference: up to 512 of its textured
-        points are matched from the reference to a copy of it with fresh
-        noise of twice the frame's variance, again with another copy (up to
-        :data:`_NOISE_DRAWS` copies) while fewer than :data:`_NOISE_MATCHES`
-        matches were made (seeded: the result is the same run after run). That is a frame's case exactly: the
-        reference's own noise in the template, the two images' noise in their
-        difference. The mean square displacement over the formula's variance
-        is the factor (1 where too few points match).
+        points are matched between two copies of the reference with fresh
+        noise of the frame's level, again with two more (up to
+        :data:`_NOISE_DRAWS` pairs) while fewer than :data:`_NOISE_MATCHES`
+        matches were made (seeded: the result is the same run after run), and
+        the mean square displacement over the formula's variance is the factor
+        (1 where too few points match). Both copies need fresh noise: matched
+        against the reference itself, a copy shares the reference's own noise
+        as if it were texture, and on weak texture the factor comes out half
+        what the frames show.
         """
         rows = np.flatnonzero(self.textured)
         if rows.size < 8:
@@ -912,14 +914,16 @@ class _Run:
         for _ in range(_NOISE_DRAWS):
             if matches >= _NOISE_MATCHES:
                 break
-            noise = rng.standard_normal(self.shape, dtype=np.float32)
-            copy = _coefficients(self.reference + np.sqrt(2) * self.noise * noise)
+            copies = [
+                _coefficients(self.reference + rng.normal(0.0, self.noise, self.shape))
+                for _ in range(2)
+            ]
             for size in np.unique(sizes[rows]):
                 k = rows[sizes[rows] == size]
                 corr = self._correlator(int(size), 1)
-                ref = self._reference(int(size), 1, k)
+                ref = corr.reference(copies[0], self.points[k], 0)
                 pk, _, ck = corr.match(
-                    copy, ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
+                    copies[1], ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
                 )
                 good = ck & (np.abs(pk[:, :2]) < 1.0).all(axis=1)
                 hinv = np.einsum("nks,nks->nk", ref.G[good, :2], ref.G[good, :2])
