@@ -80,7 +80,13 @@ from strain2d.trackers._lattice import (
     static_highlights,
 )
 from strain2d.trackers._series import FrameSeries
-from strain2d.trackers._threads import THREADS_OPTION, prefetched, using_threads
+from strain2d.trackers._threads import (
+    THREADS_OPTION,
+    parallel_map,
+    prefetched,
+    using_threads,
+    worker_count,
+)
 from strain2d.trackers.dic import (
     _coefficients,
     _Correlator,
@@ -501,21 +507,32 @@ def _chunks(n: int, size: int) -> list[np.ndarray]:
 
 
 def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
-    """Reference subsets of many points, built 1024 at a time into float32 arrays (the
-    float64 ones of a whole dense grid would not fit the cache budget twice)."""
+    """Reference subsets of many points, built 256 at a time (on every thread allowed)
+    into float32 arrays (the float64 ones of a whole dense grid would not fit the cache
+    budget twice)."""
     fields = ("centers", "frame", "f", "norm", "G", "template")
     out = None
-    for rows in _chunks(len(centers), 1024):
-        part = corr.reference(coefficients, centers[rows], 0)
-        if out is None:
-            out = {}
-            for k in fields:
-                a = getattr(part, k)
-                dtype = np.float32 if k in ("f", "G") else a.dtype
-                out[k] = np.empty((len(centers), *a.shape[1:]), dtype)
-        for k in fields:
-            out[k][rows] = getattr(part, k)
+    chunks = _chunks(len(centers), 256)
+    workers = worker_count()
+    for group in range(0, len(chunks), 4 * workers):  # a few chunks in float64 at a time
+        batch = chunks[group : group + 4 * workers]
+        parts = parallel_map(lambda rows: corr.reference(coefficients, centers[rows], 0), batch)
+        for rows, part in zip(batch, parts, strict=True):
+            out = _store(out, fields, rows, part, len(centers))
     return _Subsets(*(out[k] for k in fields))
+
+
+def _store(out: dict | None, fields, rows, part, n: int) -> dict:
+    """``part``'s subsets into rows ``rows`` of ``out`` (made on the first part)."""
+    if out is None:
+        out = {}
+        for k in fields:
+            a = getattr(part, k)
+            dtype = np.float32 if k in ("f", "G") else a.dtype
+            out[k] = np.empty((n, *a.shape[1:]), dtype)
+    for k in fields:
+        out[k][rows] = getattr(part, k)
+    return out
 
 
 def _take(ref, rows: np.ndarray):
@@ -1324,7 +1341,7 @@ class _Run:
             c = np.rint(np.nan_to_num(at)).astype(int)
             x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
             y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
-            for a, b, e, f in zip(y0, y1, x0, x1):
+            for a, b, e, f in zip(y0, y1, x0, x1, strict=True):
                 near[a:b, e:f] = True
         chosen = np.unique(self.blob_labels[near & self.undecided])
         if chosen.size == 0:
