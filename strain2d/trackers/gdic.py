@@ -157,6 +157,8 @@ _LOCAL_FIELDS_UP_TO = 0.1
 #: the quadratic warp is tried where the affine one's bias from the curvature exceeds this
 #: fraction of the match's noise
 _QUADRATIC_BIAS = 0.5
+#: and where the fitted curvature stands this many of its noise's standard deviations out
+_CURVES = 2.0
 
 
 def _gray8(a: np.ndarray) -> np.ndarray:
@@ -453,6 +455,14 @@ def _affine_bias(
         lap2 = np.maximum(lap2 - np.nan_to_num(lap_noise2, nan=0.0)[:, None], 0.0)
     rms = np.nan_to_num(np.sqrt(np.mean(lap2, axis=1)), nan=0.0)
     return rms * np.asarray(half, float) ** 2 / 6
+
+
+def _curves(second: np.ndarray, lap_noise2: np.ndarray) -> np.ndarray:
+    """Per point, whether the fitted Laplacian (root mean square of the two components)
+    exceeds :data:`_CURVES` times what the displacements' noise puts into it."""
+    lap = second[:, :, 0] + second[:, :, 2]
+    rms2 = np.nan_to_num(np.mean(lap**2, axis=1), nan=0.0)
+    return rms2 > _CURVES**2 * np.nan_to_num(lap_noise2, nan=np.inf)
 
 
 def _spline_kernel(offset: np.ndarray) -> np.ndarray:
@@ -1207,7 +1217,10 @@ class _Run:
             if self.orders == (2,):
                 tries = np.flatnonzero(active & (ok | from_field))
             else:
-                tries = np.flatnonzero(ok & (bias > _QUADRATIC_BIAS * sigma))
+                # where the bias is large and the curvature that makes it stands out of
+                # the displacements' noise (a flat field's noisy fits do not pass)
+                tries = np.flatnonzero(ok & (bias > _QUADRATIC_BIAS * sigma) &
+                                       _curves(second, lap_noise2))  # fmt: skip
             if tries.size:
                 pq, zq, okq, s2q, hq, nq = self._match(coeff, tries, p[tries], sizes, 2)
                 if self.orders == (2,):
