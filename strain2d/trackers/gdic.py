@@ -898,6 +898,7 @@ class _Run:
             sum(per_point[size] * len(m) for size, m in self.members.items()) <= _CACHE_BYTES
         )
         self.cached: dict = {}
+        self.cached_hinv: dict = {}
         self.built: dict = {}
         # state carried from frame to frame
         self.p = np.zeros((n, 6))  # each point's last affine warp (relative to its reference)
@@ -998,6 +999,18 @@ class _Run:
         ref = self.cached[key]
         return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
 
+    def _hinv(self, size: int, order: int, rows: np.ndarray, ref, own: bool) -> np.ndarray:
+        """The two diagonal entries of ``(J'J)^-1`` of ``rows``' subsets ``ref`` (once per
+        point for the cached reference subsets: they do not change from frame to frame)."""
+        key, members = (size, order), self.members.get(size)
+        if own and key in self.cached and np.isin(rows, members).all():
+            if key not in self.cached_hinv:
+                G = self.cached[key].G[:, :2]
+                self.cached_hinv[key] = np.einsum("nks,nks->nk", G, G, dtype=float)
+            return self.cached_hinv[key][np.searchsorted(members, rows)]
+        G = ref.G[:, :2]
+        return np.einsum("nks,nks->nk", G, G, dtype=float)
+
     def _match(
         self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int,
         ref_coeff=None,
@@ -1037,8 +1050,7 @@ class _Run:
                 n_px[k] = size * size
                 norm2 = ref.norm[:, 0].astype(float) ** 2
                 s2[k] = np.maximum(2 * (1 - zk), 1e-12) * norm2 / max(size * size - n_params, 1)
-                G = ref.G[:, :2].astype(float)
-                hinv[k] = np.einsum("nks,nks->nk", G, G)
+                hinv[k] = self._hinv(int(size), order, rows[k], ref, ref_coeff is None)
         return p, z, ok, s2, hinv, n_px
 
     # ------------------------------------------------------------------ one frame
