@@ -66,6 +66,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's 
 PARTS = ("speed", "threads", "variants", "rotation", "still", "real")
 WEAK_CASES = ("closeup-gaussian", "vessels-contraction", "fur-gaussian", "retina-contraction")
 DEFAULT = "gdic"
+#: s: a run shorter than this is repeated (the fastest of the repeats counts)
+_REPEAT_UNDER = 15.0
 
 
 def _run(tracker: str, frames, points, options: dict | None = None):
@@ -123,10 +125,15 @@ def _dense_speckle():
 # ----------------------------------------------------------------------------- parts
 
 
-def part_speed(trackers: list[str], sheet_frames: int) -> None:
+def part_speed(trackers: list[str], sheet_frames: int, repeats: int = 3) -> None:
     from sample_data_synth.measures import score_tracks
 
     print("## Speed\n")
+    print(
+        f"Each tracker run up to {repeats} times per case, the trackers alternating; the "
+        f"fastest run counts (a tracker whose run took over {_REPEAT_UNDER:.0f} s runs once: "
+        "the machine's noise is small beside it).\n"
+    )
     print(
         "| case | points x frames | tracker | time (s) | point-frames/s | time / dic | kept | "
         "final RMSE (px) | RMSE all frames (px) |"
@@ -134,11 +141,15 @@ def part_speed(trackers: list[str], sheet_frames: int) -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     for case, frames, points, true in _speed_cases(sheet_frames):
         seconds, scores = {}, {}
-        for name in trackers:
-            tracks, seconds[name] = _run(name, frames, points)
-            scores[name] = score_tracks(
-                tracks.positions, tracks.visible, true, shape=frames.shape[1:]
-            )
+        for k in range(repeats):
+            for name in trackers:
+                if k and seconds[name] > _REPEAT_UNDER:
+                    continue
+                tracks, took = _run(name, frames, points)
+                seconds[name] = min(took, seconds.get(name, np.inf))
+                scores[name] = score_tracks(
+                    tracks.positions, tracks.visible, true, shape=frames.shape[1:]
+                )
         n = len(points) * len(frames)
         for name in trackers:
             ratio = seconds[name] / seconds["dic"] if "dic" in seconds else float("nan")
@@ -168,8 +179,12 @@ def _thread_worker(tracker: str, cores: int, source: str, target: str) -> None:
     np.savez(target, positions=tracks.positions, visible=tracks.visible, seconds=seconds)
 
 
-def part_threads(trackers: list[str]) -> None:
+def part_threads(trackers: list[str], repeats: int = 3) -> None:
     print("## One thread against two (dense speckle, 50x50 points x 31 frames)\n")
+    print(
+        f"Each count run {repeats} times, alternating, each in a fresh process; the fastest "
+        "run of each counts (this machine is shared: the slower runs measure the others).\n"
+    )
     frames, points, _ = _dense_speckle()
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     if cores < 2:
@@ -181,14 +196,16 @@ def part_threads(trackers: list[str]) -> None:
         source = Path(folder) / "speckle.npz"
         np.savez(source, frames=frames, points=points)
         for name in trackers:
-            result = {}
-            for n in (1, 2):
-                target = Path(folder) / f"{name}_{n}.npz"
-                env = dict(os.environ, NUMBA_NUM_THREADS=str(n), OMP_NUM_THREADS=str(n))
-                env.update(OPENBLAS_NUM_THREADS=str(n), MKL_NUM_THREADS=str(n))
-                command = [sys.executable, __file__, "--thread-worker", name, str(n)]
-                subprocess.run([*command, str(source), str(target)], env=env, check=True)
-                result[n] = np.load(target)
+            result, best = {}, {1: np.inf, 2: np.inf}
+            for _ in range(repeats):
+                for n in (1, 2):
+                    target = Path(folder) / f"{name}_{n}.npz"
+                    env = dict(os.environ, NUMBA_NUM_THREADS=str(n), OMP_NUM_THREADS=str(n))
+                    env.update(OPENBLAS_NUM_THREADS=str(n), MKL_NUM_THREADS=str(n))
+                    command = [sys.executable, __file__, "--thread-worker", name, str(n)]
+                    subprocess.run([*command, str(source), str(target)], env=env, check=True)
+                    result[n] = dict(np.load(target))
+                    best[n] = min(best[n], float(result[n]["seconds"]))
             a, b = result[1], result[2]
             same = np.array_equal(a["positions"], b["positions"], equal_nan=True) and (
                 np.array_equal(a["visible"], b["visible"])
@@ -198,7 +215,7 @@ def part_threads(trackers: list[str]) -> None:
                 same_text = f"no (largest difference {gap:.2e} px)"
             else:
                 same_text = "yes"
-            t1, t2 = float(a["seconds"]), float(b["seconds"])
+            t1, t2 = best[1], best[2]
             print(f"| {name} | {t1:.1f} | {t2:.1f} | {t1 / t2:.2f} | {same_text} |", flush=True)
     print()
 
@@ -393,6 +410,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="seed of the variants (0)")
     parser.add_argument("--sheet-frames", type=int, default=41, help="muscle sheet frames (41)")
     parser.add_argument("--real", type=Path, default=None, help="cardiomyocyte recordings")
+    parser.add_argument(
+        "--repeats", type=int, default=3, help="runs of each timing; the fastest counts (3)"
+    )
     parser.add_argument("--thread-worker", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.thread_worker:
@@ -414,9 +434,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     _warm_up(trackers)
     if "speed" in parts:
-        part_speed(trackers, args.sheet_frames)
+        part_speed(trackers, args.sheet_frames, max(args.repeats, 1))
     if "threads" in parts:
-        part_threads(trackers)
+        part_threads(trackers, max(args.repeats, 1))
     if "variants" in parts:
         part_variants(trackers, args.variants, args.seed)
     if "rotation" in parts:

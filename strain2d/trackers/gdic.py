@@ -80,7 +80,13 @@ from strain2d.trackers._lattice import (
     static_highlights,
 )
 from strain2d.trackers._series import FrameSeries
-from strain2d.trackers._threads import THREADS_OPTION, prefetched, using_threads
+from strain2d.trackers._threads import (
+    THREADS_OPTION,
+    parallel_map,
+    prefetched,
+    using_threads,
+    worker_count,
+)
 from strain2d.trackers.dic import (
     _coefficients,
     _Correlator,
@@ -115,13 +121,18 @@ _TEXTURE_SIGNAL = 0.6
 
 #: the lowest ZNCC at which a match that its measured neighbours predict is kept
 _WEAK_ZNCC = 0.5
+#: a match whose residual variance (over the noise model's, per pixel) is at most this is
+#: clean: no blob under its subset disturbs it, and none needs deciding there
+_CLEAN_RESIDUAL = 3.0
 
 #: IC-GN's per-point tolerance, as a fraction of its subset's noise-limited standard
 #: deviation (when that exceeds the fixed tolerance)
 _SETTLE = 0.2
 
-#: draws of noise, and their seed, that measure how the matches scatter against the noise
+#: the most copies with fresh noise, the matches enough, and their seed, that measure how
+#: the matches scatter against the noise
 _NOISE_DRAWS = 2
+_NOISE_MATCHES = 400
 _NOISE_SEED = 20261126
 
 #: a point farther than this (px) from any texture is on blank background, whatever a
@@ -146,6 +157,8 @@ _LOCAL_FIELDS_UP_TO = 0.1
 #: the quadratic warp is tried where the affine one's bias from the curvature exceeds this
 #: fraction of the match's noise
 _QUADRATIC_BIAS = 0.5
+#: and where the fitted curvature stands this many of its noise's standard deviations out
+_CURVES = 2.0
 
 
 def _gray8(a: np.ndarray) -> np.ndarray:
@@ -246,7 +259,7 @@ def subset_texture(
     image = np.asarray(reference, dtype=np.float64)
     H, W = image.shape
     gy, gx = np.gradient(image)
-    tables = [np.pad(a.cumsum(0).cumsum(1), ((1, 0), (1, 0))) for a in (gx * gx, gy * gy, gx * gy)]
+    tables = [_integral(a) for a in (gx * gx, gy * gy, gx * gy)]
     c = np.rint(np.nan_to_num(points)).astype(int)
     room = np.minimum.reduce([c[:, 0], W - 1 - c[:, 0], c[:, 1], H - 1 - c[:, 1]]) - 2
     chosen = np.full(len(points), sizes[0])
@@ -295,25 +308,32 @@ def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     c[:, 0], c[:, 1] = np.clip(c[:, 0], 0, W - 1), np.clip(c[:, 1], 0, H - 1)
     best = np.full(len(points), np.inf)
     w = _TEXTURE_WINDOW
+
+    def box(a: np.ndarray) -> np.ndarray:  # the w x w mean, mirror boundaries
+        return cv2.boxFilter(a, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
+
     for k in (1, 2, 4):
         if min(H, W) // k < 2 * w:
+            break
+        if np.all(best <= (k - 1) * (w // 2)):  # no smaller copy can bring a point nearer
             break
         small = (
             image if k == 1 else cv2.resize(image, (W // k, H // k), interpolation=cv2.INTER_AREA)
         )
-        lap = ndimage.laplace(small)
-        noise2 = ndimage.uniform_filter(lap * lap, w) / 20.0
-        mean = ndimage.uniform_filter(small, w)
-        var = ndimage.uniform_filter(small * small, w) - mean * mean
+        lap = cv2.Laplacian(small, cv2.CV_64F, ksize=1, borderType=cv2.BORDER_REFLECT)
+        noise2 = box(lap * lap) / 20.0
+        mean = box(small)
+        var = box(small * small) - mean * mean
         texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
         if not texture.any():
             continue
-        if texture.all():
+        h, wd = texture.shape
+        ck = np.minimum(c // k, [wd - 1, h - 1])
+        on = texture[ck[:, 1], ck[:, 0]]
+        if on.all():  # every point on texture: no distance to measure
             distance = np.zeros(len(points))
         else:
             field = ndimage.distance_transform_edt(~texture)
-            h, wd = texture.shape
-            ck = np.minimum(c // k, [wd - 1, h - 1])
             distance = field[ck[:, 1], ck[:, 0]] * k
         best = np.minimum(best, distance + (k - 1) * (w // 2))
     return best
@@ -353,28 +373,50 @@ def _quadratic_fits(
     lap_var = np.full(n, np.nan)
     if n < 6 or near.shape[1] < 5:
         return (out, lap_var) if with_noise else out
-    group = np.column_stack([np.arange(n), near])  # (N, k + 1)
-    d = points[group] - points[:, None, :]  # (N, k + 1, 2)
-    scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
-    d = d / scale
-    dx, dy = d[..., 0], d[..., 1]
-    basis = np.stack([np.ones_like(dx), dx, dy, 0.5 * dx * dx, dx * dy, 0.5 * dy * dy], axis=-1)
-    w = valid[group].astype(float)[..., None]  # (N, k + 1, 1)
-    Bw = basis * w
-    normal = np.einsum("nki,nkj->nij", Bw, basis)  # (N, 6, 6)
-    rhs = np.einsum("nki,nkc->nic", Bw, displacement[group])  # (N, 6, 2)
-    enough = valid[group].sum(axis=1) >= 6
-    cond = np.full(n, np.inf)
-    cond[enough] = np.linalg.cond(normal[enough])
-    good = enough & (cond < 1e8)
+
+    def build():  # what depends on the geometry and on which points are valid
+        group = np.column_stack([np.arange(n), near])  # (N, k + 1)
+        d = points[group] - points[:, None, :]  # (N, k + 1, 2)
+        scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
+        d = d / scale
+        dx, dy = d[..., 0], d[..., 1]
+        basis = np.stack([np.ones_like(dx), dx, dy, 0.5 * dx * dx, dx * dy, 0.5 * dy * dy], -1)
+        Bw = basis * valid[group].astype(float)[..., None]  # (N, k + 1, 6)
+        normal = np.einsum("nki,nkj->nij", Bw, basis)  # (N, 6, 6)
+        enough = valid[group].sum(axis=1) >= 6
+        cond = np.full(n, np.inf)
+        cond[enough] = np.linalg.cond(normal[enough])
+        good = enough & (cond < 1e8)
+        inverse = np.linalg.inv(normal[good]) if good.any() else None  # (n_good, 6, 6)
+        return group, scale, Bw, good, inverse
+
+    group, scale, Bw, good, inverse = _geometry("quadratic", points, near, valid, build)
     if good.any():
-        inverse = np.linalg.inv(normal[good])  # (n_good, 6, 6)
-        coef = np.einsum("nij,njc->nic", inverse, rhs[good])  # (n_good, 6, 2)
+        rhs = np.einsum("nki,nkc->nic", Bw[good], displacement[group[good]])  # (n_good, 6, 2)
+        coef = np.einsum("nij,njc->nic", inverse, rhs)  # (n_good, 6, 2)
         out[good] = np.swapaxes(coef[:, 3:6, :], 1, 2) / scale[good] ** 2
         lap_var[good] = (inverse[:, 3, 3] + inverse[:, 5, 5] + 2 * inverse[:, 3, 5]) / scale[
             good, 0, 0
         ] ** 4
     return (out, lap_var) if with_noise else out
+
+
+#: the last few neighbourhood fits' geometry (:func:`_geometry`)
+_GEOMETRY: dict = {}
+
+
+def _geometry(kind: str, points: np.ndarray, near: np.ndarray, valid: np.ndarray, build):
+    """``build()``, remembered for the same points, neighbours and valid points: from
+    frame to frame the same points are mostly matched, and the neighbourhood fits'
+    normal matrices and their inverses are the same."""
+    key = (kind, points.shape, near.shape, hash(points.tobytes()), hash(near.tobytes()),
+           hash(np.packbits(valid).tobytes()))  # fmt: skip
+    hit = _GEOMETRY.get(key)
+    if hit is None:
+        while len(_GEOMETRY) >= 8:
+            _GEOMETRY.pop(next(iter(_GEOMETRY)), None)
+        hit = _GEOMETRY[key] = build()
+    return hit
 
 
 def _curvature_cap(second: np.ndarray) -> np.ndarray:
@@ -415,6 +457,14 @@ def _affine_bias(
     return rms * np.asarray(half, float) ** 2 / 6
 
 
+def _curves(second: np.ndarray, lap_noise2: np.ndarray) -> np.ndarray:
+    """Per point, whether the fitted Laplacian (root mean square of the two components)
+    exceeds :data:`_CURVES` times what the displacements' noise puts into it."""
+    lap = second[:, :, 0] + second[:, :, 2]
+    rms2 = np.nan_to_num(np.mean(lap**2, axis=1), nan=0.0)
+    return rms2 > _CURVES**2 * np.nan_to_num(lap_noise2, nan=np.inf)
+
+
 def _spline_kernel(offset: np.ndarray) -> np.ndarray:
     """The cubic B-spline interpolator (prefilter and weights) at sub-pixel ``offset``
     (1-D, in [0, 1)) as taps on the pixels: row ``k`` gives the value at ``offset[k]``
@@ -444,7 +494,7 @@ def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarra
     rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
     top, left = rows[0], cols[0]
     box = mask[top : rows[-1] + 1, left : cols[-1] + 1]
-    table = np.pad(box.astype(np.int32).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    table = _integral(box.astype(np.uint8))
     H, W = box.shape
     c = np.rint(np.nan_to_num(centers)).astype(int) - [left, top]
     x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
@@ -452,26 +502,47 @@ def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarra
     return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
 
 
+def _integral(image: np.ndarray) -> np.ndarray:
+    """The summed-area table with a leading row and column of zeros (``(H + 1, W + 1)``;
+    OpenCV's: int32 sums of a uint8 mask, float64 sums otherwise)."""
+    import cv2
+
+    if image.dtype == np.uint8:
+        return cv2.integral(image, sdepth=cv2.CV_32S)
+    return cv2.integral(np.ascontiguousarray(image, dtype=np.float64), sdepth=cv2.CV_64F)
+
+
 def _chunks(n: int, size: int) -> list[np.ndarray]:
     return [np.arange(a, min(a + size, n)) for a in range(0, n, max(size, 1))]
 
 
 def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
-    """Reference subsets of many points, built 1024 at a time into float32 arrays (the
-    float64 ones of a whole dense grid would not fit the cache budget twice)."""
+    """Reference subsets of many points, built 256 at a time (on every thread allowed)
+    into float32 arrays (the float64 ones of a whole dense grid would not fit the cache
+    budget twice)."""
     fields = ("centers", "frame", "f", "norm", "G", "template")
     out = None
-    for rows in _chunks(len(centers), 1024):
-        part = corr.reference(coefficients, centers[rows], 0)
-        if out is None:
-            out = {}
-            for k in fields:
-                a = getattr(part, k)
-                dtype = np.float32 if k in ("f", "G") else a.dtype
-                out[k] = np.empty((len(centers), *a.shape[1:]), dtype)
-        for k in fields:
-            out[k][rows] = getattr(part, k)
+    chunks = _chunks(len(centers), 256)
+    workers = worker_count()
+    for group in range(0, len(chunks), 4 * workers):  # a few chunks in float64 at a time
+        batch = chunks[group : group + 4 * workers]
+        parts = parallel_map(lambda rows: corr.reference(coefficients, centers[rows], 0), batch)
+        for rows, part in zip(batch, parts, strict=True):
+            out = _store(out, fields, rows, part, len(centers))
     return _Subsets(*(out[k] for k in fields))
+
+
+def _store(out: dict | None, fields, rows, part, n: int) -> dict:
+    """``part``'s subsets into rows ``rows`` of ``out`` (made on the first part)."""
+    if out is None:
+        out = {}
+        for k in fields:
+            a = getattr(part, k)
+            dtype = np.float32 if k in ("f", "G") else a.dtype
+            out[k] = np.empty((n, *a.shape[1:]), dtype)
+    for k in fields:
+        out[k][rows] = getattr(part, k)
+    return out
 
 
 def _take(ref, rows: np.ndarray):
@@ -770,6 +841,7 @@ class _Run:
         self.static = np.zeros(self.shape, bool)  # the blobs found to stay put: highlights
         self.frame_highlights = np.zeros(self.shape, bool)  # and those of the last frame
         self.undecided = self.blobs.copy()  # the blobs not yet seen to stay put or to move
+        self.blob_labels, self.n_blobs = ndimage.label(self.blobs)
         self.bright_tissue = np.zeros(self.shape, bool)  # the blobs seen to move with it
         self.wanted, texture = subset_texture(matched, points, self.noise, self.candidates)
         if self.auto:  # a point too near the edge for every size: a smaller subset, if it fits
@@ -826,6 +898,7 @@ class _Run:
             sum(per_point[size] * len(m) for size, m in self.members.items()) <= _CACHE_BYTES
         )
         self.cached: dict = {}
+        self.cached_hinv: dict = {}
         self.built: dict = {}
         # state carried from frame to frame
         self.p = np.zeros((n, 6))  # each point's last affine warp (relative to its reference)
@@ -848,20 +921,27 @@ class _Run:
         moves along the spline, whose slope is steeper on fine texture, so its
         scatter is smaller than the formula's by a factor that depends on the
         texture's spectrum (0.63-0.73 in variance on photographs). It is
-        measured on this video's own reference: up to 256 of its textured
-        points are matched :data:`_NOISE_DRAWS` times between two copies of the
-        reference with fresh noise of the frame's level (seeded: the result is
-        the same run after run), and the mean square displacement over the
-        formula's variance is the factor (1 where too few points match).
+        measured on this video's own reference: up to 512 of its textured
+        points are matched between two copies of the reference with fresh
+        noise of the frame's level, again with two more (up to
+        :data:`_NOISE_DRAWS` pairs) while fewer than :data:`_NOISE_MATCHES`
+        matches were made (seeded: the result is the same run after run), and
+        the mean square displacement over the formula's variance is the factor
+        (1 where too few points match). Both copies need fresh noise: matched
+        against the reference itself, a copy shares the reference's own noise
+        as if it were texture, and on weak texture the factor comes out half
+        what the frames show.
         """
         rows = np.flatnonzero(self.textured)
         if rows.size < 8:
             return 1.0
-        rows = rows[np.linspace(0, rows.size - 1, min(rows.size, 256)).astype(int)]
+        rows = rows[np.linspace(0, rows.size - 1, min(rows.size, 512)).astype(int)]
         sizes = self.wanted
         rng = np.random.default_rng(_NOISE_SEED)
-        moved, expected = 0.0, 0.0
+        moved, expected, matches = 0.0, 0.0, 0
         for _ in range(_NOISE_DRAWS):
+            if matches >= _NOISE_MATCHES:
+                break
             copies = [
                 _coefficients(self.reference + rng.normal(0.0, self.noise, self.shape))
                 for _ in range(2)
@@ -877,6 +957,7 @@ class _Run:
                 hinv = np.einsum("nks,nks->nk", ref.G[good, :2], ref.G[good, :2])
                 use = np.isfinite(hinv).all(axis=1)
                 moved += float(np.sum(pk[good][use, :2] ** 2))
+                matches += int(use.sum())
                 expected += float(np.sum(2 * self.noise**2 * hinv[use]))
         if expected <= 0:
             return 1.0
@@ -918,6 +999,18 @@ class _Run:
         ref = self.cached[key]
         return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
 
+    def _hinv(self, size: int, order: int, rows: np.ndarray, ref, own: bool) -> np.ndarray:
+        """The two diagonal entries of ``(J'J)^-1`` of ``rows``' subsets ``ref`` (once per
+        point for the cached reference subsets: they do not change from frame to frame)."""
+        key, members = (size, order), self.members.get(size)
+        if own and key in self.cached and np.isin(rows, members).all():
+            if key not in self.cached_hinv:
+                G = self.cached[key].G[:, :2]
+                self.cached_hinv[key] = np.einsum("nks,nks->nk", G, G, dtype=float)
+            return self.cached_hinv[key][np.searchsorted(members, rows)]
+        G = ref.G[:, :2]
+        return np.einsum("nks,nks->nk", G, G, dtype=float)
+
     def _match(
         self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int,
         ref_coeff=None,
@@ -957,8 +1050,7 @@ class _Run:
                 n_px[k] = size * size
                 norm2 = ref.norm[:, 0].astype(float) ** 2
                 s2[k] = np.maximum(2 * (1 - zk), 1e-12) * norm2 / max(size * size - n_params, 1)
-                G = ref.G[:, :2].astype(float)
-                hinv[k] = np.einsum("nks,nks->nk", G, G)
+                hinv[k] = self._hinv(int(size), order, rows[k], ref, ref_coeff is None)
         return p, z, ok, s2, hinv, n_px
 
     # ------------------------------------------------------------------ one frame
@@ -1038,7 +1130,10 @@ class _Run:
         # highlights: blobs that stay put in the image while the tissue moves
         lit = np.zeros(n, bool)
         if self.blobs.any():
-            lit = self._highlights(shared, p, ok, sizes)
+            # a match whose residual is the noise's is not disturbed by a blob: only the
+            # blobs under the other subsets need deciding on this frame
+            clean = ok & (s2 / self.gain <= _CLEAN_RESIDUAL * self.noise2)
+            lit = self._highlights(shared, p, ok, sizes, clean)
             matched_here = ok & lit  # their own match, a start for the filled subsets
             ok &= ~lit
             if lit.any():  # matched again with the highlights filled in on both images
@@ -1134,7 +1229,10 @@ class _Run:
             if self.orders == (2,):
                 tries = np.flatnonzero(active & (ok | from_field))
             else:
-                tries = np.flatnonzero(ok & (bias > _QUADRATIC_BIAS * sigma))
+                # where the bias is large and the curvature that makes it stands out of
+                # the displacements' noise (a flat field's noisy fits do not pass)
+                tries = np.flatnonzero(ok & (bias > _QUADRATIC_BIAS * sigma) &
+                                       _curves(second, lap_noise2))  # fmt: skip
             if tries.size:
                 pq, zq, okq, s2q, hq, nq = self._match(coeff, tries, p[tries], sizes, 2)
                 if self.orders == (2,):
@@ -1214,13 +1312,15 @@ class _Run:
             if not use.any():  # the matched region stopped growing
                 break
 
-    def _highlights(self, frame: Frame, p, ok, sizes) -> np.ndarray:
+    def _highlights(self, frame: Frame, p, ok, sizes, clean) -> np.ndarray:
         """Points whose subset holds a specular highlight (a blob that stays put in the image
         while the tissue moves), where they were on the reference or are on this frame.
 
         Each blob of the reference is decided once: a highlight when it is seen to stay
         put, bright tissue when it is seen to move with the tissue; the frame's blobs are
-        looked for only around the blobs not yet decided (none, once all are)."""
+        looked for only around the blobs not yet decided (none, once all are) that touch
+        a subset whose match is not ``clean`` (a highlight that the tissue moved over
+        leaves a residual well above the noise in every subset that holds it)."""
         n = len(self.points)
         motion = _affine_fit(self.points[ok], self.points[ok] + p[ok, :2])
         frame_mask = np.zeros(self.shape, bool)
@@ -1228,10 +1328,11 @@ class _Run:
         def moving(x: np.ndarray) -> np.ndarray:
             return _apply(motion, x) - x
 
-        if motion is not None and self.undecided.any() and self._can_tell(moving):
+        deciding = self._deciding(p, clean, sizes) if motion is not None else None
+        if deciding is not None and self._can_tell(deciding, moving):
             ref_mask, frame_mask, tissue = static_highlights(
-                self.undecided,
-                frame.blobs(self.noise, blob_window(self.undecided, moving)),
+                deciding,
+                frame.blobs(self.noise, blob_window(deciding, moving)),
                 moving,
                 with_tissue=True,
             )
@@ -1250,12 +1351,36 @@ class _Run:
             self.frame_highlights, self.points + p[:, :2], half
         )
 
-    def _can_tell(self, moving) -> bool:
-        """Whether the tissue moved enough (2 px) anywhere over the undecided blobs for
+    def _deciding(self, p, clean, sizes) -> np.ndarray | None:
+        """The undecided blobs that touch the subset of a point whose match is not clean,
+        where it was on the reference or is on this frame (None where there are none)."""
+        if not self.undecided.any():
+            return None
+        suspect = np.flatnonzero(self.textured & ~clean)
+        if suspect.size == 0:
+            return None
+        H, W = self.shape
+        near = np.zeros(self.shape, bool)
+        half = sizes[suspect] // 2
+        for at in (self.points[suspect], self.points[suspect] + p[suspect, :2]):
+            c = np.rint(np.nan_to_num(at)).astype(int)
+            x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
+            y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
+            for a, b, e, f in zip(y0, y1, x0, x1, strict=True):
+                near[a:b, e:f] = True
+        chosen = np.unique(self.blob_labels[near & self.undecided])
+        if chosen.size == 0:
+            return None
+        lut = np.zeros(self.n_blobs + 1, bool)
+        lut[chosen] = True
+        return lut[self.blob_labels] & self.undecided
+
+    def _can_tell(self, blobs: np.ndarray, moving) -> bool:
+        """Whether the tissue moved enough (2 px) anywhere over ``blobs`` for
         :func:`static_highlights` to tell a highlight from tissue (before looking for
         the frame's blobs)."""
-        rows = np.flatnonzero(self.undecided.any(axis=1))
-        cols = np.flatnonzero(self.undecided.any(axis=0))
+        rows = np.flatnonzero(blobs.any(axis=1))
+        cols = np.flatnonzero(blobs.any(axis=0))
         x = np.linspace(cols[0], cols[-1], 5)
         y = np.linspace(rows[0], rows[-1], 5)
         grid = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
@@ -1383,19 +1508,29 @@ def _inconsistent(
     if n < 5 or near.shape[1] < 4:
         return out
     judge = valid if judge is None else judge
-    d = points[near] - points[:, None, :]  # (N, k, 2)
-    scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
-    d = d / scale
-    basis = np.concatenate([np.ones((*d.shape[:2], 1)), d], axis=-1)  # (N, k, 3)
-    w = valid[near].astype(float)[..., None]
-    normal = np.einsum("nki,nkj->nij", basis * w, basis)
-    rhs = np.einsum("nki,nkc->nic", basis * w, u[near])
-    enough = (valid | judge) & (valid[near].sum(axis=1) >= 4)
-    enough[enough] &= np.linalg.cond(normal[enough]) < 1e8
+
+    def build():  # what depends on the geometry and on which points are valid
+        d = points[near] - points[:, None, :]  # (N, k, 2)
+        scale = np.maximum(np.abs(d).max(axis=(1, 2)), 1e-9)[:, None, None]
+        d = d / scale
+        basis = np.concatenate([np.ones((*d.shape[:2], 1)), d], axis=-1)  # (N, k, 3)
+        Bw = basis * valid[near].astype(float)[..., None]
+        normal = np.einsum("nki,nkj->nij", Bw, basis)
+        fits = valid[near].sum(axis=1) >= 4
+        fits[fits] &= np.linalg.cond(normal[fits]) < 1e8
+        # the fitted value at the point: row 0 of the inverse, per point
+        first = np.zeros((n, 3))
+        if fits.any():
+            first[fits] = np.linalg.inv(normal[fits])[:, 0, :]
+        return Bw, fits, first
+
+    Bw, fits, first = _geometry("affine", points, near, valid, build)
+    enough = (valid | judge) & fits
     misfit = np.full(n, np.nan)
     if enough.any():
-        coef = np.linalg.solve(normal[enough], rhs[enough])  # (m, 3, 2): value at the point
-        misfit[enough] = np.linalg.norm(u[enough] - coef[:, 0, :], axis=1)
+        rhs = np.einsum("nki,nkc->nic", Bw[enough], u[near[enough]])  # (m, 3, 2)
+        value = np.einsum("ni,nic->nc", first[enough], rhs)  # the fit's value at the point
+        misfit[enough] = np.linalg.norm(u[enough] - value, axis=1)
     own = np.where(valid, misfit, np.nan)
     around = np.where(valid[near], own[near], np.nan)
     has = np.isfinite(around).any(axis=1)
@@ -1463,7 +1598,7 @@ def _filled(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def _box_mean(image: np.ndarray, points: np.ndarray, size: int) -> np.ndarray:
     """Mean of ``image`` over the square of side ``size`` around each point (clipped)."""
     H, W = image.shape
-    table = np.pad(image.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    table = _integral(image)
     c = np.rint(np.nan_to_num(points)).astype(int)
     half = size // 2
     x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
