@@ -1076,6 +1076,12 @@ class _Run:
         if self.auto:
             edge = (*_EDGE_SUBSETS, *self.candidates)
             sizes = np.minimum(sizes, _fitting(self.points, p0, self.shape, edge))
+        # a point that the motion takes out of the frame (where the guess puts it) is out of
+        # view on this frame: no restart, feature guess or field is spent on it, and it
+        # does not count among the points that failed
+        leaving = _room(self.points, p0, self.shape) < -_EDGE_ROOM
+        active = active & ~leaving
+        rows = np.flatnonzero(active)
 
         # 1. every textured point from the motion guess (affine warp)
         p = np.zeros((n, 6))
@@ -1262,9 +1268,11 @@ class _Run:
         # the state for the next frame
         self.before = np.where(measured[:, None], self.last, self.before)
         self.matched_before = self.matched & measured
-        self.last = pos.copy()
+        # a point not measured moves on with the guess (the tissue's motion), so that one
+        # the tissue carries out of the frame is seen to leave it
+        self.last = np.where(measured[:, None], pos, self.points + p0[:, :2])
         self.matched = measured
-        self.p[measured] = p[measured]
+        self.p = np.where(measured[:, None], p, p0)
         if np.isfinite(second).any():
             self.second = second
         self.local_count += int((ok & vis).sum())
@@ -1446,10 +1454,10 @@ class _Run:
 _EDGE_ROOM = 3.0
 
 
-def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -> np.ndarray:
-    """Per point, the largest subset side among ``sizes`` (ascending) whose square, warped
-    by ``p`` (affine, ``(N, 6)``), lies in the frame with :data:`_EDGE_ROOM` px to spare;
-    the smallest where none does."""
+def _room(points: np.ndarray, p: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """Per point, the largest half-side (px) of a square subset that, warped by ``p``
+    (affine, ``(N, 6)``), lies in the frame with :data:`_EDGE_ROOM` px to spare (-1
+    where the warp is not finite)."""
     H, W = shape
     x = points + p[:, :2]
     F = _gradient(p)
@@ -1457,8 +1465,15 @@ def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -
     room = np.stack([x[:, 0] - 1, W - 2 - x[:, 0], x[:, 1] - 1, H - 2 - x[:, 1]], axis=1)
     room = room - _EDGE_ROOM
     half = np.min(room / np.repeat(np.maximum(reach, 1e-6), 2, axis=1), axis=1)
+    return np.nan_to_num(half, nan=-1.0)
+
+
+def _fitting(points: np.ndarray, p: np.ndarray, shape: tuple[int, int], sizes) -> np.ndarray:
+    """Per point, the largest subset side among ``sizes`` (ascending) whose square, warped
+    by ``p`` (affine, ``(N, 6)``), lies in the frame with :data:`_EDGE_ROOM` px to spare;
+    the smallest where none does."""
     sizes = np.asarray(sizes)
-    fits = (sizes[None, :] // 2) <= np.nan_to_num(half, nan=-1.0)[:, None]
+    fits = (sizes[None, :] // 2) <= _room(points, p, shape)[:, None]
     best = np.where(fits.any(axis=1), fits.shape[1] - 1 - np.argmax(fits[:, ::-1], axis=1), 0)
     return sizes[best]
 
