@@ -308,10 +308,6 @@ def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     c[:, 0], c[:, 1] = np.clip(c[:, 0], 0, W - 1), np.clip(c[:, 1], 0, H - 1)
     best = np.full(len(points), np.inf)
     w = _TEXTURE_WINDOW
-
-    def box(a: np.ndarray) -> np.ndarray:  # the w x w mean, mirror boundaries
-        return cv2.boxFilter(a, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
-
     for k in (1, 2, 4):
         if min(H, W) // k < 2 * w:
             break
@@ -320,11 +316,7 @@ def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
         small = (
             image if k == 1 else cv2.resize(image, (W // k, H // k), interpolation=cv2.INTER_AREA)
         )
-        lap = cv2.Laplacian(small, cv2.CV_64F, ksize=1, borderType=cv2.BORDER_REFLECT)
-        noise2 = box(lap * lap) / 20.0
-        mean = box(small)
-        var = box(small * small) - mean * mean
-        texture = var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
+        texture = _texture_mask(small)
         if not texture.any():
             continue
         h, wd = texture.shape
@@ -337,6 +329,48 @@ def texture_distance(image: np.ndarray, points: np.ndarray) -> np.ndarray:
             distance = field[ck[:, 1], ck[:, 0]] * k
         best = np.minimum(best, distance + (k - 1) * (w // 2))
     return best
+
+
+def _texture_mask(image: np.ndarray) -> np.ndarray:
+    """Pixels whose :data:`_TEXTURE_WINDOW` window holds signal above its own noise (see
+    :func:`texture_distance`)."""
+    import cv2
+
+    w = _TEXTURE_WINDOW
+
+    def box(a: np.ndarray) -> np.ndarray:  # the w x w mean, mirror boundaries
+        return cv2.boxFilter(a, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
+
+    lap = cv2.Laplacian(image, cv2.CV_64F, ksize=1, borderType=cv2.BORDER_REFLECT)
+    noise2 = box(lap * lap) / 20.0
+    mean = box(image)
+    var = box(image * image) - mean * mean
+    return var - noise2 > _TEXTURE_SIGNAL * np.maximum(noise2, 1e-12)
+
+
+def surrounded(image: np.ndarray, points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """Per point, whether each quarter of its square subset (side ``sizes``) holds texture
+    (:func:`_texture_mask`): a point on a plain patch with texture all round it (a brick's
+    face inside its mortar) is measured by the subset from all sides, not extrapolated
+    from one edge as a point on blank background beside a textured piece would be."""
+    image = np.asarray(image, dtype=np.float64)
+    H, W = image.shape
+    table = _integral(_texture_mask(image).astype(np.uint8))
+    c = np.rint(np.nan_to_num(points)).astype(int)
+    half = np.asarray(sizes) // 2
+    x, y = c[:, 0], c[:, 1]
+
+    def any_in(x0, x1, y0, y1):  # texture in [x0, x1) x [y0, y1), clipped to the frame
+        x0, x1 = np.clip(x0, 0, W), np.clip(x1, 0, W)
+        y0, y1 = np.clip(y0, 0, H), np.clip(y1, 0, H)
+        return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
+
+    return (
+        any_in(x - half, x, y - half, y)
+        & any_in(x + 1, x + half + 1, y - half, y)
+        & any_in(x - half, x, y + 1, y + half + 1)
+        & any_in(x + 1, x + half + 1, y + 1, y + half + 1)
+    )
 
 
 def subset_sizes(
@@ -853,12 +887,15 @@ class _Run:
                 size, sigma = subset_texture(matched, points[edge], self.noise, _EDGE_SUBSETS)
                 fits = room[edge] >= size // 2
                 self.wanted[edge[fits]], texture[edge[fits]] = size[fits], sigma[fits]
-        # a point is tracked where texture lies near it and its largest subset holds texture
-        # enough to pin a match; one far from any texture is on blank background, and one
-        # whose subsets hold nothing above the noise would only be interpolated: never
-        # reported as measured
-        self.textured = self.in_frame0 & (texture_distance(matched, points) <= _TEXTURE_REACH)
-        self.textured &= texture <= _TEXTURELESS
+        # a point is tracked where texture lies near it (or all round it in its subset) and
+        # its largest subset holds texture enough to pin a match; one far from any texture
+        # is on blank background, and one whose subsets hold nothing above the noise would
+        # only be interpolated: never reported as measured
+        near_texture = texture_distance(matched, points) <= _TEXTURE_REACH
+        far = ~near_texture
+        if far.any():  # or texture all round it within its subset
+            near_texture[far] = surrounded(matched, points[far], self.wanted[far])
+        self.textured = self.in_frame0 & near_texture & (texture <= _TEXTURELESS)
         # IC-GN need not settle a subset's pixels more finely than its texture can place
         # them: a fifth of the noise-limited standard deviation (the fixed tolerance on
         # strong texture; weak texture's updates wander at the noise's scale and would

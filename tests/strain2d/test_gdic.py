@@ -10,6 +10,7 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from sample_data_synth import make_case
 from sample_data_synth.measures import sigma_against_scatter
@@ -33,6 +34,8 @@ from strain2d.trackers.gdic import (
     _quadratic_fits,
     _reference_subsets,
     subset_sizes,
+    surrounded,
+    texture_distance,
 )
 from strain2d.tracks import read_tracks, write_tracks_csv
 from tests.tolerances import DIC_QUICK_STRAIN_RMSE, DIC_QUICK_TRACK_RMSE_PX
@@ -363,3 +366,18 @@ def test_gdic_sigma_matches_the_scatter_on_a_still_video_of_a_photograph(photogr
     assert tracks.visible.all()
     check = sigma_against_scatter(tracks.positions, tracks.visible, tracks.uncertainty, points)
     assert 1 / 1.5 <= check.median_ratio <= 1.5
+
+
+def test_a_plain_patch_inside_texture_is_surrounded_and_blank_background_beside_it_is_not():
+    """A point on a plain 50 px patch framed by speckle (a brick's face in its mortar) is
+    over 15 px from texture but its 81 px subset holds texture in every quarter: measured
+    from all sides. A point on plain background beside a textured piece is not."""
+    rng = np.random.default_rng(4)
+    speckle = ndimage.gaussian_filter(rng.normal(128, 60, (300, 600)), 2.0)
+    image = speckle.copy()
+    image[125:175, 125:175] = 128.0  # the plain patch, framed by speckle
+    image[:, 350:] = 128.0  # blank background right of a textured piece
+    image += rng.normal(0, 2.0, image.shape)
+    points = np.array([[150.0, 150.0], [400.0, 150.0]])
+    assert np.all(texture_distance(image, points) > 15)
+    assert surrounded(image, points, np.array([81, 81])).tolist() == [True, False]
