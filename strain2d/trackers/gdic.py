@@ -158,7 +158,7 @@ _LOCAL_FIELDS_UP_TO = 0.1
 #: fraction of the match's noise
 _QUADRATIC_BIAS = 0.5
 #: and where the fitted curvature stands this many of its noise's standard deviations out
-_CURVES = 2.0
+_CURVES = 1.5
 
 
 def _gray8(a: np.ndarray) -> np.ndarray:
