@@ -171,26 +171,25 @@ def prefetched(frames: Iterable, depth: int = 2) -> Iterator:
     items: queue.Queue = queue.Queue(maxsize=max(int(depth), 1))
     stop = threading.Event()
 
+    def put(item) -> bool:
+        """Hand ``item`` over, waiting for room; False once the consumer stopped."""
+        while not stop.is_set():
+            try:
+                items.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
     def read() -> None:
         try:
             for item in frames:
-                while not stop.is_set():
-                    try:
-                        items.put(item, timeout=0.1)
-                        break
-                    except queue.Full:
-                        continue
-                if stop.is_set():
+                if not put(item):
                     return
             ended = _Ended()
         except BaseException as exc:  # handed to the consumer, raised there
             ended = _Ended(exc)
-        while not stop.is_set():
-            try:
-                items.put(ended, timeout=0.1)
-                return
-            except queue.Full:
-                continue
+        put(ended)
 
     reader = threading.Thread(target=read, name="frames-ahead", daemon=True)
     reader.start()

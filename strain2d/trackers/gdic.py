@@ -1116,7 +1116,8 @@ class _Run:
         # a point that the motion takes out of the frame (where the guess puts it) is out of
         # view on this frame: no restart, feature guess or field is spent on it, and it
         # does not count among the points that failed
-        leaving = _room(self.points, p0, self.shape) < -_EDGE_ROOM
+        guess = self.points + p0[:, :2]
+        leaving = ~((guess >= 0) & (guess <= [W - 1, H - 1])).all(axis=1)
         active = active & ~leaving
         rows = np.flatnonzero(active)
 
