@@ -14,9 +14,10 @@ speed
     RMSE over all frames (px).
 threads
     Each tracker on the dense speckle grid in a fresh process on 1 and on 2
-    CPU cores (affinity, ``NUMBA_NUM_THREADS`` and ``OMP_NUM_THREADS``, and
-    the tracker's ``threads`` option where it has one): the speed-up and
-    whether the tracks are identical.
+    CPU cores, or the counts ``--thread-counts`` names (affinity,
+    ``NUMBA_NUM_THREADS`` and ``OMP_NUM_THREADS``, and the tracker's
+    ``threads`` option where it has one): the speed-ups, the point-frames per
+    second at the largest count, and whether the tracks are identical.
 variants
     The randomised variants of the tissue suite (:mod:`sample_data_synth.variants`):
     per variant dic's and the default's final-frame RMSE and points kept, the
@@ -40,7 +41,7 @@ real
 
     python bench/bench_default_tracker.py [--only speed,threads,variants,rotation,still,real]
         [--trackers gdic,dic,klt] [--variants 32] [--seed 0] [--sheet-frames 41]
-        [--real DIR]
+        [--real DIR] [--thread-counts 1,2]
 
 Times are wall-clock on a machine that may be shared: compare ratios taken in
 the same run.
@@ -179,26 +180,31 @@ def _thread_worker(tracker: str, cores: int, source: str, target: str) -> None:
     np.savez(target, positions=tracks.positions, visible=tracks.visible, seconds=seconds)
 
 
-def part_threads(trackers: list[str], repeats: int = 3) -> None:
-    print("## One thread against two (dense speckle, 50x50 points x 31 frames)\n")
+def part_threads(trackers: list[str], repeats: int = 3, counts: tuple[int, ...] = (1, 2)) -> None:
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    counts = tuple(n for n in counts if n <= cores)
+    words = " against ".join(f"{n} thread{'s' * (n > 1)}" for n in counts)
+    print(f"## {words.capitalize()} (dense speckle, 50x50 points x 31 frames)\n")
     print(
         f"Each count run {repeats} times, alternating, each in a fresh process; the fastest "
         "run of each counts (this machine is shared: the slower runs measure the others).\n"
     )
-    frames, points, _ = _dense_speckle()
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    if cores < 2:
+    if len(counts) < 2:
         print(f"only {cores} CPU core available: no speed-up to measure\n")
         return
-    print("| tracker | 1 thread (s) | 2 threads (s) | speed-up | identical tracks |")
-    print("|---|---|---|---|---|")
+    frames, points, _ = _dense_speckle()
+    point_frames = len(points) * len(frames)
+    head = " | ".join(f"{n} thr. (s)" for n in counts)
+    ups = " | ".join(f"{n}/1" for n in counts[1:])
+    print(f"| tracker | {head} | {ups} | point-frames/s at {counts[-1]} | identical tracks |")
+    print("|---|" + "---|" * (2 * len(counts) + 1))
     with tempfile.TemporaryDirectory() as folder:
         source = Path(folder) / "speckle.npz"
         np.savez(source, frames=frames, points=points)
         for name in trackers:
-            result, best = {}, {1: np.inf, 2: np.inf}
+            result, best = {}, dict.fromkeys(counts, np.inf)
             for _ in range(repeats):
-                for n in (1, 2):
+                for n in counts:
                     target = Path(folder) / f"{name}_{n}.npz"
                     env = dict(os.environ, NUMBA_NUM_THREADS=str(n), OMP_NUM_THREADS=str(n))
                     env.update(OPENBLAS_NUM_THREADS=str(n), MKL_NUM_THREADS=str(n))
@@ -206,17 +212,21 @@ def part_threads(trackers: list[str], repeats: int = 3) -> None:
                     subprocess.run([*command, str(source), str(target)], env=env, check=True)
                     result[n] = dict(np.load(target))
                     best[n] = min(best[n], float(result[n]["seconds"]))
-            a, b = result[1], result[2]
-            same = np.array_equal(a["positions"], b["positions"], equal_nan=True) and (
-                np.array_equal(a["visible"], b["visible"])
+            a = result[counts[0]]
+            gap = max(
+                float(np.nanmax(np.abs(a["positions"] - result[n]["positions"]), initial=0.0))
+                for n in counts[1:]
             )
-            if not same:
-                gap = np.nanmax(np.abs(a["positions"] - b["positions"]))
-                same_text = f"no (largest difference {gap:.2e} px)"
-            else:
-                same_text = "yes"
-            t1, t2 = best[1], best[2]
-            print(f"| {name} | {t1:.1f} | {t2:.1f} | {t1 / t2:.2f} | {same_text} |", flush=True)
+            same = all(
+                np.array_equal(a["positions"], result[n]["positions"], equal_nan=True)
+                and np.array_equal(a["visible"], result[n]["visible"])
+                for n in counts[1:]
+            )
+            same_text = "yes" if same else f"no (largest difference {gap:.2e} px)"
+            times = " | ".join(f"{best[n]:.1f}" for n in counts)
+            speedups = " | ".join(f"{best[counts[0]] / best[n]:.2f}" for n in counts[1:])
+            rate = point_frames / best[counts[-1]]
+            print(f"| {name} | {times} | {speedups} | {rate:,.0f} | {same_text} |", flush=True)
     print()
 
 
@@ -413,6 +423,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--repeats", type=int, default=3, help="runs of each timing; the fastest counts (3)"
     )
+    parser.add_argument(
+        "--thread-counts", default="1,2", help="thread counts of the threads part (1,2)"
+    )
     parser.add_argument("--thread-worker", nargs=4, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.thread_worker:
@@ -436,7 +449,8 @@ def main(argv: list[str] | None = None) -> int:
     if "speed" in parts:
         part_speed(trackers, args.sheet_frames, max(args.repeats, 1))
     if "threads" in parts:
-        part_threads(trackers, max(args.repeats, 1))
+        counts = tuple(int(n) for n in args.thread_counts.split(","))
+        part_threads(trackers, max(args.repeats, 1), counts)
     if "variants" in parts:
         part_variants(trackers, args.variants, args.seed)
     if "rotation" in parts:
