@@ -285,6 +285,16 @@ def _search(
     return np.array([x0 + ix + h, y0 + iy + h], dtype=float), float(score[iy, ix])
 
 
+def _nanmedian(values: np.ndarray) -> np.ndarray:
+    """``np.nanmedian(values, axis=1)`` of ``(N, k, c)`` values with at least one finite
+    value per row and component, by one sort (NaN sorts last) instead of masked arrays."""
+    ordered = np.sort(values, axis=1)
+    count = np.sum(~np.isnan(values), axis=1)  # (N, c)
+    low = np.take_along_axis(ordered, ((count - 1) // 2)[:, None, :], axis=1)[:, 0]
+    high = np.take_along_axis(ordered, (count // 2)[:, None, :], axis=1)[:, 0]
+    return np.where(count % 2 == 1, low, (low + high) / 2)
+
+
 def _median_outliers(
     step: np.ndarray,
     valid: np.ndarray,
@@ -308,8 +318,8 @@ def _median_outliers(
     if not enough.any():
         return out
     nb = neighbour[enough]
-    median = np.nanmedian(nb, axis=1)
-    spread = np.nanmedian(np.abs(nb - median[:, None, :]), axis=1)
+    median = _nanmedian(nb)
+    spread = _nanmedian(np.abs(nb - median[:, None, :]))
     residual = np.abs(step[enough] - median) / (spread + epsilon)
     out[enough] = valid[enough] & (residual.max(axis=1) > threshold)
     return out

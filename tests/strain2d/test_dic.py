@@ -152,6 +152,20 @@ def test_coefficients_equal_scipys_spline_filter():
     )
 
 
+@pytest.mark.parametrize("k", [3, 4, 8, 9])
+def test_nanmedian_equals_numpys(k):
+    """The median test's one-sort median: NumPy's nanmedian to the bit, odd and even
+    counts of valid neighbours, NaNs anywhere in the row."""
+    from strain2d.trackers.dic import _nanmedian
+
+    rng = np.random.default_rng(k)
+    values = rng.normal(size=(2000, k, 2))
+    gone = rng.random((2000, k)) < 0.4
+    gone[np.arange(2000), rng.integers(0, k, 2000)] = False  # one valid value at least
+    values[gone] = np.nan
+    np.testing.assert_array_equal(_nanmedian(values), np.nanmedian(values, axis=1))
+
+
 def test_false_matches_are_caught_by_the_median_test():
     """Small subsets and 7 px first steps invite false matches (once locked in by a
     reference update): the normalized median test sends them back to their neighbours."""
