@@ -566,6 +566,22 @@ def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
     return _Subsets(*(out[k] for k in fields))
 
 
+def _subsets(corr: _Correlator, coefficients, centers: np.ndarray):
+    """Reference subsets (float64) of a few points, split over the threads allowed; the
+    same subsets whatever the thread count (each point's are built alone)."""
+    workers = worker_count()
+    if workers == 1 or len(centers) < 64:
+        return corr.reference(coefficients, centers, 0)
+    parts = np.array_split(np.arange(len(centers)), workers)
+    built = parallel_map(lambda rows: corr.reference(coefficients, centers[rows], 0), parts)
+    return _Subsets(
+        *(
+            np.concatenate([getattr(b, k) for b in built])
+            for k in ("centers", "frame", "f", "norm", "G", "template")
+        )
+    )
+
+
 def _store(out: dict | None, fields, rows, part, n: int) -> dict:
     """``part``'s subsets into rows ``rows`` of ``out`` (made on the first part)."""
     if out is None:
@@ -1024,13 +1040,13 @@ class _Run:
         corr = self._correlator(size, order)
         members = self.members.get(size)
         if not self.cache_all or members is None or not np.isin(rows, members).all():
-            return corr.reference(self.ref_coeff, self.points[rows], 0)
+            return _subsets(corr, self.ref_coeff, self.points[rows])
         key = (size, order)
         # a warp tried on few points (the quadratic one, on a homogeneous field) is cached
         # for all only once building it point by point would have cost as much
         if key not in self.cached and self.built.get(key, 0) + len(rows) < len(members):
             self.built[key] = self.built.get(key, 0) + len(rows)
-            return corr.reference(self.ref_coeff, self.points[rows], 0)
+            return _subsets(corr, self.ref_coeff, self.points[rows])
         if key not in self.cached:
             self.cached[key] = _reference_subsets(corr, self.ref_coeff, self.points[members])
         ref = self.cached[key]
@@ -1078,7 +1094,7 @@ class _Run:
                 if ref_coeff is None:
                     ref = self._reference(int(size), order, rows[k])
                 else:  # another reference image (highlights filled in): not cached
-                    ref = corr.reference(ref_coeff, self.points[rows[k]], 0)
+                    ref = _subsets(corr, ref_coeff, self.points[rows[k]])
                 pk, zk, ck = corr.match(
                     coeff, ref, np.arange(len(k)), start[k], self.tolerances[rows[k]]
                 )
