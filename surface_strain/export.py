@@ -49,7 +49,7 @@ import numpy as np
 
 from surface_strain.field import StrainField, element_scalars, nodal_scalars
 from surface_strain.streamed import iter_blocks
-from tissue_core.vtkio import write_polydata
+from tissue_core.vtkio import write_triangles
 
 __all__ = [
     "ELEMENT_COLUMNS",
@@ -196,51 +196,6 @@ def _array_units(point_data: dict, cell_data: dict, length_unit: str) -> list[st
     return units
 
 
-def _write_vtp(
-    path: Path, points: np.ndarray, polys, point_data: dict, cell_data: dict, field_data: dict
-) -> None:
-    """One VTK XML PolyData file: binary, zlib-compressed, the first array of each kind active.
-
-    ``polys`` is a ``vtkCellArray`` (shared by the frames of a series);
-    ``field_data`` maps names to lists of strings.
-    """
-    from vtkmodules.util.numpy_support import numpy_to_vtk
-    from vtkmodules.vtkCommonCore import vtkPoints, vtkStringArray
-    from vtkmodules.vtkCommonDataModel import vtkPolyData
-
-    mesh = vtkPolyData()
-    vtk_points = vtkPoints()
-    vtk_points.SetData(numpy_to_vtk(np.ascontiguousarray(points, np.float64), deep=True))
-    mesh.SetPoints(vtk_points)
-    mesh.SetPolys(polys)
-    for data, arrays in ((mesh.GetPointData(), point_data), (mesh.GetCellData(), cell_data)):
-        for name, values in arrays.items():
-            array = numpy_to_vtk(np.ascontiguousarray(values), deep=True)
-            array.SetName(name)
-            data.AddArray(array)
-        if arrays:
-            data.SetActiveScalars(next(iter(arrays)))
-    for name, texts in field_data.items():
-        strings = vtkStringArray()
-        strings.SetName(name)
-        for text in texts:
-            strings.InsertNextValue(text)
-        mesh.GetFieldData().AddArray(strings)
-    write_polydata(mesh, path, compressor="zlib")
-
-
-def _triangle_cells(triangles: np.ndarray):
-    """The triangles as a ``vtkCellArray`` (64-bit offsets and connectivity)."""
-    from vtkmodules.util.numpy_support import numpy_to_vtk
-    from vtkmodules.vtkCommonDataModel import vtkCellArray
-
-    offsets = np.arange(0, 3 * len(triangles) + 1, 3, dtype=np.int64)
-    connectivity = np.ascontiguousarray(triangles, dtype=np.int64).ravel()
-    cells = vtkCellArray()
-    cells.SetData(numpy_to_vtk(offsets, deep=True), numpy_to_vtk(connectivity, deep=True))
-    return cells
-
-
 def write_pvd(
     folder: str | os.PathLike,
     field: StrainField,
@@ -268,7 +223,6 @@ def write_pvd(
     sub.mkdir(parents=True, exist_ok=True)
     T = field.n_frames
     times = np.arange(T, dtype=float) if times is None else np.asarray(times, dtype=float)
-    polys = _triangle_cells(field.triangles)
     factor = 1.0 if length_scale is None else float(length_scale)
     unit = length_unit or ("px" if field.points.shape[-1] == 2 else "input units")
     ref = _xyz(field.reference) * factor
@@ -299,10 +253,10 @@ def write_pvd(
                 "array_units": _array_units(point_data, cell_data, unit),
             }
             fname = f"{name}_{t:04d}.vtp"
-            _write_vtp(
+            write_triangles(
                 sub / fname,
                 np.where(np.isfinite(cur), cur, ref),
-                polys,
+                field.triangles,
                 point_data,
                 cell_data,
                 units,

@@ -4,15 +4,34 @@ VTK's writers take UTF-8 file names only and report failure by a return
 value; :func:`write_polydata` reaches names that are not UTF-8 through
 :func:`tissue_core.filenames.utf8_output` and turns a failed write into an
 ``OSError`` naming the file.
+
+:func:`write_triangles` writes a triangle mesh with its arrays from NumPy
+alone, in the file VTK's own writer makes of it (XML PolyData, inline
+base64 binary, zlib blocks): a time series of a few hundred frames need not
+load VTK nor build a ``vtkPolyData`` per frame.
 """
 
 from __future__ import annotations
 
+import base64
+import zlib
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+
+import numpy as np
 
 from tissue_core.filenames import utf8_output
 
-__all__ = ["write_polydata"]
+__all__ = ["write_polydata", "write_triangles"]
+
+#: VTK's names of the NumPy types an array may have
+_VTK_TYPES = {
+    "int8": "Int8", "uint8": "UInt8", "int16": "Int16", "uint16": "UInt16",
+    "int32": "Int32", "uint32": "UInt32", "int64": "Int64", "uint64": "UInt64",
+    "float32": "Float32", "float64": "Float64",
+}  # fmt: skip
+#: bytes of uncompressed data per zlib block (VTK's default)
+_BLOCK = 32768
 
 #: compressors VTK's XML writers offer, by the name used here
 _COMPRESSORS = {"zlib": "SetCompressorTypeToZLib", "lz4": "SetCompressorTypeToLZ4"}
@@ -47,3 +66,113 @@ def write_polydata(mesh, path: Path, *, compressor: str = "zlib", appended: bool
         writer.SetFileName(str(target))
         if not writer.Write():
             raise OSError(f"could not write {path}")
+
+
+def _encoded(data: bytes, level: int) -> str:
+    """``data`` as VTK's inline binary with zlib: the base64 of the block header
+    (UInt32: blocks, block size, size of the last block, compressed sizes), then the
+    base64 of the compressed blocks."""
+    blocks = [zlib.compress(data[i : i + _BLOCK], level) for i in range(0, len(data), _BLOCK)]
+    last = len(data) - _BLOCK * (len(blocks) - 1) if blocks else 0
+    header = np.array([len(blocks), _BLOCK, last, *map(len, blocks)], dtype="<u4")
+    return (base64.b64encode(header.tobytes()) + base64.b64encode(b"".join(blocks))).decode()
+
+
+def _data_array(name: str, values: np.ndarray, level: int) -> str:
+    values = np.asarray(values)
+    if values.dtype == bool:
+        values = values.astype(np.uint8)
+    kind = _VTK_TYPES.get(values.dtype.name)
+    if kind is None or values.ndim not in (1, 2):
+        raise ValueError(f"array {name!r}: {values.dtype} of {values.ndim} dimensions")
+    components = f' NumberOfComponents="{values.shape[1]}"' if values.ndim == 2 else ""
+    data = np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("<")).tobytes()
+    return (
+        f'<DataArray type="{kind}" Name="{_attribute(name)}"{components} format="binary">\n'
+        f"{_encoded(data, level)}\n</DataArray>\n"
+    )
+
+
+def _attribute(text: str) -> str:
+    return (
+        text.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;").replace(">", "&gt;")
+    )
+
+
+def _strings(name: str, texts: Sequence[str], level: int) -> str:
+    """A ``vtkStringArray`` as VTK writes one: the UTF-8 strings, each ended by a 0 byte."""
+    data = b"".join(t.encode("utf-8") + b"\0" for t in texts)
+    return (
+        f'<Array type="String" Name="{_attribute(name)}" NumberOfTuples="{len(texts)}" '
+        f'format="binary">\n{_encoded(data, level)}\n</Array>\n'
+    )
+
+
+def write_triangles(
+    path: str | Path,
+    points: np.ndarray,
+    triangles: np.ndarray,
+    point_data: Mapping[str, np.ndarray] | None = None,
+    cell_data: Mapping[str, np.ndarray] | None = None,
+    field_data: Mapping[str, Sequence[str]] | None = None,
+    *,
+    level: int = 1,
+) -> None:
+    """Write a triangle mesh as VTK XML PolyData (``.vtp``), binary and zlib-compressed.
+
+    Parameters
+    ----------
+    path : path
+        The file (any name the file system takes); its folder must exist.
+    points : (N, 3) float
+    triangles : (M, 3) int
+        Indices into ``points``.
+    point_data, cell_data : dict of name -> (N,) / (M,) or (N, k) / (M, k) arrays
+        Numbers (bool is written as UInt8); the first array of each is the active one
+        (VTK's ``Scalars``).
+    field_data : dict of name -> list of str
+        String arrays of the whole mesh (units, say).
+    level : int, keyword-only
+        zlib's compression level (1, the fastest, by default).
+    """
+    point_data, cell_data, field_data = point_data or {}, cell_data or {}, field_data or {}
+    points = np.asarray(points, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ValueError(f"points must be (N, 3), got {points.shape}")
+    n, m = len(points), len(triangles)
+    empty = "".join(
+        f"<{kind}>\n" + _data_array("connectivity", np.zeros(0, np.int64), level)
+        + _data_array("offsets", np.zeros(0, np.int64), level) + f"</{kind}>\n"
+        for kind in ("Verts", "Lines", "Strips")
+    )  # fmt: skip
+    parts = [
+        '<?xml version="1.0"?>\n<VTKFile type="PolyData" version="0.1" '
+        'byte_order="LittleEndian" header_type="UInt32" compressor="vtkZLibDataCompressor">\n'
+        "<PolyData>\n"
+    ]
+    if field_data:
+        parts.append("<FieldData>\n")
+        parts += [_strings(k, list(v), level) for k, v in field_data.items()]
+        parts.append("</FieldData>\n")
+    parts.append(
+        f'<Piece NumberOfPoints="{n}" NumberOfVerts="0" NumberOfLines="0" '
+        f'NumberOfStrips="0" NumberOfPolys="{m}">\n'
+    )
+    for tag, arrays, count in (("PointData", point_data, n), ("CellData", cell_data, m)):
+        active = f' Scalars="{_attribute(next(iter(arrays)))}"' if arrays else ""
+        parts.append(f"<{tag}{active}>\n")
+        for name, values in arrays.items():
+            if len(values) != count:
+                raise ValueError(f"{tag} {name!r} has {len(values)} values for {count}")
+            parts.append(_data_array(name, values, level))
+        parts.append(f"</{tag}>\n")
+    parts.append("<Points>\n" + _data_array("Points", points, level) + "</Points>\n")
+    parts.append(empty)
+    parts.append(
+        "<Polys>\n"
+        + _data_array("connectivity", triangles.ravel(), level)
+        + _data_array("offsets", np.arange(3, 3 * m + 1, 3, dtype=np.int64), level)
+        + "</Polys>\n</Piece>\n</PolyData>\n</VTKFile>\n"
+    )
+    Path(path).write_text("".join(parts), encoding="ascii", errors="xmlcharrefreplace")

@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from tissue_core.vtkio import write_polydata
+from tissue_core.vtkio import write_polydata, write_triangles
 
 
 def _triangle():
@@ -69,3 +69,67 @@ def test_an_unknown_compressor_and_a_failed_write_are_errors(tmp_path):
         write_polydata(_triangle(), tmp_path / "m.vtp", compressor="lzma")
     with pytest.raises(OSError, match="could not write"):
         write_polydata(_triangle(), tmp_path / "no such folder" / "m.vtp")
+
+
+def _read_all(path):
+    """Points, triangles, and every point, cell and field array of a VTP, read by VTK."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    reader = vtkXMLPolyDataReader()
+    reader.SetFileName(str(path))
+    reader.Update()
+    out = reader.GetOutput()
+    arrays = {}
+    for kind, data in (("point", out.GetPointData()), ("cell", out.GetCellData())):
+        for i in range(data.GetNumberOfArrays()):
+            arrays[kind, data.GetArrayName(i)] = vtk_to_numpy(data.GetArray(i))
+        arrays[kind, "active"] = data.GetScalars().GetName() if data.GetScalars() else None
+    fields = out.GetFieldData()
+    for i in range(fields.GetNumberOfArrays()):
+        a = fields.GetAbstractArray(i)
+        arrays["field", a.GetName()] = [a.GetValue(k) for k in range(a.GetNumberOfValues())]
+    cells = vtk_to_numpy(out.GetPolys().GetConnectivityArray()).reshape(-1, 3)
+    return vtk_to_numpy(out.GetPoints().GetData()), cells, arrays
+
+
+@pytest.mark.parametrize("n", [3, 5000])
+def test_triangles_written_without_vtk_read_back_by_vtk(tmp_path, n):
+    """The NumPy writer's file, read by VTK's own reader: every value, type and string back
+    (5,000 points: arrays of several zlib blocks)."""
+    rng = np.random.default_rng(n)
+    points = rng.random((n, 3))
+    triangles = rng.integers(0, n, (2 * n, 3))
+    point_data = {
+        "displacement": rng.random((n, 3)),
+        "visible": rng.random(n) < 0.5,
+        "count": rng.integers(-9, 9, n).astype(np.int32),
+    }
+    cell_data = {"Exx": rng.random(2 * n).astype(np.float32), "valid": np.ones(2 * n, np.uint8)}
+    field_data = {"length_unit": ["\u00b5m"], "array_units": ["point a: 1", 'x <&"> y', ""]}
+    path = tmp_path / "mesh.vtp"
+    write_triangles(path, points, triangles, point_data, cell_data, field_data)
+    got_points, got_triangles, arrays = _read_all(path)
+    np.testing.assert_array_equal(got_points, points)
+    np.testing.assert_array_equal(got_triangles, triangles)
+    for kind, data in (("point", point_data), ("cell", cell_data)):
+        assert arrays[kind, "active"] == next(iter(data))
+        for name, values in data.items():
+            got = arrays[kind, name]
+            assert got.dtype == (np.uint8 if values.dtype == bool else values.dtype)
+            np.testing.assert_array_equal(got, values)
+    for name, texts in field_data.items():
+        assert arrays["field", name] == texts
+
+
+def test_triangles_take_any_name_and_refuse_what_vtk_cannot_hold(tmp_path):
+    name = os.fsencode(tmp_path) + b"/caf\xe9.vtp"
+    write_triangles(os.fsdecode(name), np.eye(3), [[0, 1, 2]], {"E": np.zeros(3)})
+    os.rename(name, tmp_path / "plain.vtp")
+    assert _read_all(tmp_path / "plain.vtp")[1].tolist() == [[0, 1, 2]]
+    with pytest.raises(ValueError, match="has 2 values for 3"):
+        write_triangles(tmp_path / "m.vtp", np.eye(3), [[0, 1, 2]], {"E": np.zeros(2)})
+    with pytest.raises(ValueError, match="complex"):
+        write_triangles(tmp_path / "m.vtp", np.eye(3), [[0, 1, 2]], {"E": np.zeros(3, complex)})
+    with pytest.raises(OSError):
+        write_triangles(tmp_path / "no such folder" / "m.vtp", np.eye(3), [[0, 1, 2]])
