@@ -320,7 +320,47 @@ def run_outputs(
     noise = fg.principal_noise_floor(field, sigma, frame=k_end) if sigma is not None else 0.0
     noise = noise if np.isfinite(noise) else 0.0
 
-    # the figures that need no frame of the video go to the pool first
+    # the figures on a frame of the video, as soon as the frame is at hand
+    drawn: dict[int, object] = {}
+    crosses = None
+
+    def draw_on(k: int, image: np.ndarray) -> None:
+        nonlocal crosses
+        if k in drawn:
+            return
+        what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
+        drawn[k] = pool.submit(
+            _saved,
+            fg.strain_maps_figure,
+            figdir / f"strain_frame{k:04d}",
+            formats,
+            image,
+            field,
+            k,
+            components=components,
+            limits=limits,
+            title=f"{when(k)}: {what}" if what else when(k),
+            length=length,
+        )
+        if k == k_end:
+            crosses = pool.submit(
+                _saved,
+                fg.plot_principal_crosses,
+                figdir / f"principal_directions_frame{k_end:04d}",
+                formats,
+                image,
+                field,
+                k_end,
+                noise=noise,
+                length=length,
+                title=f"principal strains at {when(k_end)}\n{end_name}",
+            )
+
+    # the maps on frames at hand first: they take longest
+    for k, image in (images or {}).items():
+        if k in maps:
+            draw_on(k, np.asarray(image))
+    # then the figures that need no frame of the video
     node = nodal_scalars(field)
     a, b = "Exx", "Eyy"
     at_end = {c: np.asarray(node[c][k_end]) for c in (a, b, "Exy")}
@@ -360,45 +400,6 @@ def run_outputs(
         length=length,
     )
 
-    # the figures on a frame of the video, as soon as the frame is at hand
-    drawn: dict[int, object] = {}
-    crosses = None
-
-    def draw_on(k: int, image: np.ndarray) -> None:
-        nonlocal crosses
-        if k in drawn:
-            return
-        what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
-        drawn[k] = pool.submit(
-            _saved,
-            fg.strain_maps_figure,
-            figdir / f"strain_frame{k:04d}",
-            formats,
-            image,
-            field,
-            k,
-            components=components,
-            limits=limits,
-            title=f"{when(k)}: {what}" if what else when(k),
-            length=length,
-        )
-        if k == k_end:
-            crosses = pool.submit(
-                _saved,
-                fg.plot_principal_crosses,
-                figdir / f"principal_directions_frame{k_end:04d}",
-                formats,
-                image,
-                field,
-                k_end,
-                noise=noise,
-                length=length,
-                title=f"principal strains at {when(k_end)}\n{end_name}",
-            )
-
-    for k, image in (images or {}).items():
-        if k in maps:
-            draw_on(k, np.asarray(image))
     if meanwhile is not None:
         meanwhile()
     # one pass over the video: the animation, and the frames under the maps not yet at hand
