@@ -268,9 +268,8 @@ def subset_texture(
     for size in sizes:
         half = size // 2
         fits = half <= room
-        x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
-        y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
-        sxx, syy, sxy = (t[y1, x1] - t[y0, x1] - t[y1, x0] + t[y0, x0] for t in tables)
+        box = (c[:, 0] - half, c[:, 0] + half + 1, c[:, 1] - half, c[:, 1] + half + 1)
+        sxx, syy, sxy = (_box_sum(t, *box) for t in tables)
         own = size * size * noise**2 / 2
         sxx, syy = sxx - own, syy - own
         weakest = 0.5 * (sxx + syy) - np.sqrt(0.25 * (sxx - syy) ** 2 + sxy**2)
@@ -354,16 +353,13 @@ def surrounded(image: np.ndarray, points: np.ndarray, sizes: np.ndarray) -> np.n
     face inside its mortar) is measured by the subset from all sides, not extrapolated
     from one edge as a point on blank background beside a textured piece would be."""
     image = np.asarray(image, dtype=np.float64)
-    H, W = image.shape
     table = _integral(_texture_mask(image).astype(np.uint8))
     c = np.rint(np.nan_to_num(points)).astype(int)
     half = np.asarray(sizes) // 2
     x, y = c[:, 0], c[:, 1]
 
     def any_in(x0, x1, y0, y1):  # texture in [x0, x1) x [y0, y1), clipped to the frame
-        x0, x1 = np.clip(x0, 0, W), np.clip(x1, 0, W)
-        y0, y1 = np.clip(y0, 0, H), np.clip(y1, 0, H)
-        return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
+        return _box_sum(table, x0, x1, y0, y1) > 0
 
     return (
         any_in(x - half, x, y - half, y)
@@ -529,11 +525,8 @@ def _touches(mask: np.ndarray | None, centers: np.ndarray, half: int | np.ndarra
     top, left = rows[0], cols[0]
     box = mask[top : rows[-1] + 1, left : cols[-1] + 1]
     table = _integral(box.astype(np.uint8))
-    H, W = box.shape
-    c = np.rint(np.nan_to_num(centers)).astype(int) - [left, top]
-    x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
-    y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
-    return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) > 0
+    x, y = (np.rint(np.nan_to_num(centers)).astype(int) - [left, top]).T
+    return _box_sum(table, x - half, x + half + 1, y - half, y + half + 1) > 0
 
 
 def _integral(image: np.ndarray) -> np.ndarray:
@@ -544,6 +537,15 @@ def _integral(image: np.ndarray) -> np.ndarray:
     if image.dtype == np.uint8:
         return cv2.integral(image, sdepth=cv2.CV_32S)
     return cv2.integral(np.ascontiguousarray(image, dtype=np.float64), sdepth=cv2.CV_64F)
+
+
+def _box_sum(table: np.ndarray, x0, x1, y0, y1) -> np.ndarray:
+    """Sums over the boxes ``[x0, x1) x [y0, y1)`` (integer arrays), clipped to the image,
+    from its summed-area table (:func:`_integral`)."""
+    H, W = table.shape[0] - 1, table.shape[1] - 1
+    x0, x1 = np.clip(x0, 0, W), np.clip(x1, 0, W)
+    y0, y1 = np.clip(y0, 0, H), np.clip(y1, 0, H)
+    return table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]
 
 
 def _chunks(n: int, size: int) -> list[np.ndarray]:
@@ -1667,10 +1669,9 @@ def _filled(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
 def _box_mean(image: np.ndarray, points: np.ndarray, size: int) -> np.ndarray:
     """Mean of ``image`` over the square of side ``size`` around each point (clipped)."""
     H, W = image.shape
-    table = _integral(image)
-    c = np.rint(np.nan_to_num(points)).astype(int)
+    x, y = np.rint(np.nan_to_num(points)).astype(int).T
     half = size // 2
-    x0, x1 = np.clip(c[:, 0] - half, 0, W), np.clip(c[:, 0] + half + 1, 0, W)
-    y0, y1 = np.clip(c[:, 1] - half, 0, H), np.clip(c[:, 1] + half + 1, 0, H)
+    x0, x1 = np.clip(x - half, 0, W), np.clip(x + half + 1, 0, W)
+    y0, y1 = np.clip(y - half, 0, H), np.clip(y + half + 1, 0, H)
     area = np.maximum((x1 - x0) * (y1 - y0), 1)
-    return (table[y1, x1] - table[y0, x1] - table[y1, x0] + table[y0, x0]) / area
+    return _box_sum(_integral(image), x0, x1, y0, y1) / area
