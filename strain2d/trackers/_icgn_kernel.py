@@ -326,3 +326,81 @@ def icgn(
         for k in range(n_params):
             p_out[i, k] = p[k] if np.isfinite(p[k]) else 0.0
     return p_out, zncc_out, conv_out
+
+
+#: the pole of the cubic B-spline's direct filter, and the filter's gain
+_POLE = np.sqrt(3.0) - 2.0
+_GAIN = (1.0 - _POLE) * (1.0 - 1.0 / _POLE)
+
+
+@njit(cache=True)
+def _causal_start(line: np.ndarray, z: float) -> float:
+    """The causal filter's first value for mirror boundaries (exact; SciPy's formula)."""
+    n = line.shape[0]
+    z_n1 = z ** (n - 1)
+    c0 = line[0] + z_n1 * line[n - 1]
+    z_i = z
+    for i in range(1, n - 1):
+        c0 += z_i * (line[i] + z_n1 * line[n - 1 - i])
+        z_i *= z
+    return c0 / (1.0 - z_n1 * z_n1)
+
+
+@njit(cache=True, parallel=True)
+def prefilter(image: np.ndarray) -> np.ndarray:
+    """Cubic B-spline coefficients of ``image`` (mirror boundaries), rows and columns in
+    parallel: ``scipy.ndimage.spline_filter(image, order=3, mode="mirror")`` to round-off.
+
+    The direct filter of Unser et al. (one pole ``sqrt(3) - 2``, a causal and an
+    anticausal pass) along x on every row, then along y on every column; the
+    columns run in blocks of adjacent columns, so each pass reads rows of memory.
+    Each line is filtered whole, so the result does not depend on the thread count.
+    """
+    z = _POLE
+    h, w = image.shape
+    c = np.empty((h, w))
+    for r in prange(h):
+        line = c[r]
+        gain = _GAIN if w > 1 else 1.0  # a line of one value is left as it is
+        for j in range(w):
+            line[j] = image[r, j] * gain
+        if w > 1:
+            line[0] = _causal_start(line, z)
+            for j in range(1, w):
+                line[j] += z * line[j - 1]
+            line[w - 1] = (z * line[w - 2] + line[w - 1]) * z / (z * z - 1.0)
+            for j in range(w - 2, -1, -1):
+                line[j] = z * (line[j + 1] - line[j])
+    if h > 1:  # the columns, a block of adjacent ones at a time, row by row in memory
+        block = 64
+        z_n1 = z ** (h - 1)
+        for b in prange((w + block - 1) // block):
+            j0 = b * block
+            cols = min(j0 + block, w) - j0
+            B = np.empty((h, cols))
+            for i in range(h):
+                for j in range(cols):
+                    B[i, j] = c[i, j0 + j] * _GAIN
+            # the causal start of each column (as _causal_start, in the same order)
+            start = np.empty(cols)
+            for j in range(cols):
+                start[j] = B[0, j] + z_n1 * B[h - 1, j]
+            z_i = z
+            for i in range(1, h - 1):
+                for j in range(cols):
+                    start[j] += z_i * (B[i, j] + z_n1 * B[h - 1 - i, j])
+                z_i *= z
+            for j in range(cols):
+                B[0, j] = start[j] / (1.0 - z_n1 * z_n1)
+            for i in range(1, h):
+                for j in range(cols):
+                    B[i, j] += z * B[i - 1, j]
+            for j in range(cols):
+                B[h - 1, j] = (z * B[h - 2, j] + B[h - 1, j]) * z / (z * z - 1.0)
+            for i in range(h - 2, -1, -1):
+                for j in range(cols):
+                    B[i, j] = z * (B[i + 1, j] - B[i, j])
+            for i in range(h):
+                for j in range(cols):
+                    c[i, j0 + j] = B[i, j]
+    return c

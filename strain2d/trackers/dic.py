@@ -97,24 +97,18 @@ def _blocks(n: int, parts: int) -> list[slice]:
 def _coefficients(frame: np.ndarray) -> np.ndarray:
     """Cubic B-spline coefficients of a frame (mirror boundaries).
 
-    The 1D filter runs along x on blocks of rows, then along y on blocks of
-    columns, in threads; every line is filtered whole, so the result equals
-    ``scipy.ndimage.spline_filter(frame, order=3, mode="mirror")``.
+    The compiled filter (:func:`strain2d.trackers._icgn_kernel.prefilter`) runs
+    the rows, then the columns, on the threads allowed (SciPy's
+    ``spline_filter1d`` keeps the GIL: threads calling it take turns); every
+    line is filtered whole, so the result is the same for any number of
+    threads and equals ``scipy.ndimage.spline_filter(frame, order=3,
+    mode="mirror")`` to round-off.
     """
-    c = np.array(frame, dtype=np.float64)
-    workers = worker_count()
-    for axis in (1, 0):  # the same order of operations for any number of threads
+    from strain2d.trackers._icgn_kernel import prefilter  # numba: compiled on first use
 
-        def run(block: slice, axis: int = axis) -> None:
-            view = c[block] if axis == 1 else c[:, block]
-            ndimage.spline_filter1d(view, order=3, axis=axis, mode="mirror", output=view)
-
-        blocks = _blocks(c.shape[1 - axis], workers)
-        if len(blocks) == 1:
-            run(blocks[0])
-        else:
-            list(_pool().map(run, blocks))
-    return c
+    image = np.ascontiguousarray(frame, dtype=np.float64)
+    with deferred_interrupt():  # Ctrl-C inside the kernel would surface as SystemError
+        return prefilter(image)
 
 
 def _sample(coefficients: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -139,17 +139,35 @@ def test_compiled_kernel_takes_the_warp_order_from_the_parameters():
         icgn(*frame_and_subset, np.zeros((1, 6, 9)), np.zeros((1, 12)), *offsets_and_options)
 
 
-def test_coefficients_equal_scipys_spline_filter():
+@pytest.mark.parametrize("shape", [(97, 131), (300, 65), (1, 50), (50, 1), (2, 3), (1, 1)])
+def test_coefficients_equal_scipys_spline_filter(shape):
+    """The compiled prefilter against SciPy's, column blocks of 64 and a partial one, and
+    lines of one and two values."""
     from scipy import ndimage
 
     from strain2d.trackers import dic
 
-    image = np.random.default_rng(13).uniform(0, 255, (97, 131))
+    image = np.random.default_rng(13).uniform(0, 255, shape)
     np.testing.assert_allclose(
         dic._coefficients(image),
         ndimage.spline_filter(image, order=3, mode="mirror"),
         atol=1e-9,
     )
+
+
+def test_coefficients_do_not_depend_on_the_thread_count():
+    import numba
+
+    from strain2d.trackers import dic
+    from strain2d.trackers._threads import using_threads
+
+    image = np.random.default_rng(5).uniform(0, 255, (130, 200))
+    results = []
+    for n in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+        with using_threads(n):
+            results.append(dic._coefficients(image))
+    for other in results[1:]:
+        np.testing.assert_array_equal(other, results[0])
 
 
 @pytest.mark.parametrize("k", [3, 4, 8, 9])
