@@ -9,6 +9,9 @@ Gauss-Newton step and the inverse-compositional update; points run in
 parallel. The tests check it against a vectorized NumPy oracle
 (``tests/strain2d/icgn_oracle.py``).
 
+:func:`prefilter` computes the cubic B-spline coefficients that the kernel
+interpolates (rows and columns in parallel; SciPy's filter keeps the GIL).
+
 Only the two innermost helpers (:func:`_mirror`, :func:`_bspline`) are
 inlined in numba's IR; inlining the larger ones too gave the same speed and
 the same results but took numba four times as long to compile (about 40 s
