@@ -407,3 +407,112 @@ def prefilter(image: np.ndarray) -> np.ndarray:
                 for j in range(cols):
                     c[i, j0 + j] = B[i, j]
     return c
+
+
+@njit(cache=True, parallel=True)
+def lattice_residual(
+    coeff: np.ndarray,
+    state: np.ndarray,
+    cells: np.ndarray,
+    origins: np.ndarray,
+    offsets: np.ndarray,
+    N: np.ndarray,
+    f: np.ndarray,
+    mean: float,
+    mask: np.ndarray,
+):
+    """The lattice field's residual at every sampled pixel of every cell, fused.
+
+    Parameters
+    ----------
+    coeff : (H, W) float
+        Cubic B-spline coefficients of the frame (mirror boundaries).
+    state : (nodes, 4) float
+        Per node: displacement (u, v), gain and offset.
+    cells : (cells, 4) int
+        Each cell's corner nodes.
+    origins : (cells, 2) float
+        Each cell's reference corner (x, y), pixels.
+    offsets : (m, 2) float
+        The sampled pixels' offsets in a cell.
+    N : (m, 4) float
+        The corners' bilinear shape functions at those pixels.
+    f : (cells, m) float
+        The reference's values there.
+    mean : float
+        The reference's mean (the gain multiplies the image about it).
+    mask : (H, W) bool
+        The frame's highlight pixels (a 0 x 0 array for none).
+
+    Returns
+    -------
+    r : (cells, m) float
+        ``f - (1 + a)(g - mean) - mean - b`` with ``g`` the frame at the pixel's current
+        position; 0 where the position is within 1 px of the frame's edge or beyond.
+    out : (cells, m) bool
+        Where the position is that close to the edge.
+    hidden : (cells, m) bool
+        Where the nearest pixel of the position (clipped to the frame) is in ``mask``.
+    """
+    H, W = coeff.shape
+    n_cells, m = f.shape
+    has_mask = mask.shape[0] == H and mask.shape[1] == W
+    r = np.zeros((n_cells, m))
+    out = np.zeros((n_cells, m), dtype=np.bool_)
+    hidden = np.zeros((n_cells, m), dtype=np.bool_)
+    for c in prange(n_cells):
+        corners = cells[c]
+        for p in range(m):
+            u = 0.0
+            v = 0.0
+            a = 0.0
+            b = 0.0
+            for i in range(4):
+                w = N[p, i]
+                node = corners[i]
+                u += w * state[node, 0]
+                v += w * state[node, 1]
+                a += w * state[node, 2]
+                b += w * state[node, 3]
+            x = origins[c, 0] + offsets[p, 0] + u
+            y = origins[c, 1] + offsets[p, 1] + v
+            if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(a) and np.isfinite(b)):
+                r[c, p] = np.nan  # a state gone wrong: the solver sees it and stops
+                continue
+            if has_mask:  # the nearest pixel, clipped to the frame (also once outside it)
+                xi = min(max(int(np.rint(x)), 0), W - 1)
+                yi = min(max(int(np.rint(y)), 0), H - 1)
+                hidden[c, p] = mask[yi, xi]
+            if x < 1 or x > W - 2 or y < 1 or y > H - 2:
+                out[c, p] = True
+                continue
+            r[c, p] = f[c, p] - (1 + a) * (_bspline(coeff, x, y) - mean) - mean - b
+    return r, out, hidden
+
+
+@njit(cache=True, parallel=True)
+def lattice_gradient(
+    N: np.ndarray, r: np.ndarray, w: np.ndarray, q: np.ndarray, T: np.ndarray, scale: float
+) -> np.ndarray:
+    """Per cell, the lattice field's gradient ``scale * T_c (sum_p w_c r_cp N_p (x) q_cp)``
+    as ``(cells, 4 corners, 4 components)``: ``N`` (m, 4), ``r`` (cells, m), ``w`` (cells,),
+    ``q`` (cells, m, 4), ``T`` (cells, 4, 4)."""
+    n_cells, m = r.shape
+    out = np.zeros((n_cells, 4, 4))
+    for c in prange(n_cells):
+        if w[c] == 0.0:
+            continue
+        g = np.zeros((4, 4))
+        for p in range(m):
+            s = r[c, p] * w[c]
+            for i in range(4):
+                t = N[p, i] * s
+                for k in range(4):
+                    g[i, k] += t * q[c, p, k]
+        for i in range(4):
+            for k in range(4):
+                acc = 0.0
+                for K in range(4):
+                    acc += T[c, k, K] * g[i, K]
+                out[c, i, k] = acc * scale
+    return out

@@ -55,7 +55,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg, ndimage, sparse
 
-from strain2d.trackers.dic import _coefficients, _sample
+from strain2d.trackers.dic import _coefficients
+from tissue_core.interrupt import deferred_interrupt
 
 __all__ = ["Frame", "Lattice", "LatticeSolver", "noise_sigma"]
 
@@ -89,6 +90,9 @@ def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
 
 #: px around a window that :func:`bright_blobs` reads for the surroundings and the growth
 _BLOB_MARGIN = 100
+
+#: the kernel's "no highlight mask"
+_NO_MASK = np.zeros((0, 0), dtype=bool)
 
 
 def blob_window(reference_blobs: np.ndarray, motion, reach: int = 48) -> tuple | None:
@@ -547,24 +551,27 @@ class LatticeSolver:
         return T
 
     def _residual(self, k: int, coefficients, state: np.ndarray):
+        """Per sampled pixel of every cell, the residual, whether it left the frame, and
+        per cell the share of its pixels under a highlight (None without highlights);
+        computed by :func:`strain2d.trackers._icgn_kernel.lattice_residual`."""
+        from strain2d.trackers._icgn_kernel import lattice_residual
+
         level = self.levels[k]
-        C = state[self.cells]  # (cells, 4, 4)
-        pix = np.einsum("mi,cik->cmk", level.N, C)  # (cells, m, 4)
-        x = self.origins[:, None, 0] + level.offsets[None, :, 0] + pix[..., 0]
-        y = self.origins[:, None, 1] + level.offsets[None, :, 1] + pix[..., 1]
-        H, W = self.shape
-        out = (x < 1) | (x > W - 2) | (y < 1) | (y > H - 2)
         coefficients, mask = coefficients
-        g = _sample(coefficients, x.ravel(), y.ravel()).reshape(x.shape)
-        r = level.f - (1 + pix[..., 2]) * (g - self.mean) - self.mean - pix[..., 3]
-        r[out] = 0.0
-        hidden = np.zeros(r.shape, bool)
+        with deferred_interrupt():  # Ctrl-C inside the kernel would surface as SystemError
+            r, out, hidden = lattice_residual(
+                coefficients,
+                np.ascontiguousarray(state, dtype=np.float64),
+                self.cells,
+                self.origins,
+                level.offsets,
+                level.N,
+                level.f,
+                self.mean,
+                _NO_MASK if mask is None else mask,
+            )
         if self._hidden_reference is not None:  # a highlight on the reference
             hidden |= self._hidden_reference[k]
-        if mask is not None:  # a highlight in this frame where the pixel now is
-            xi = np.clip(np.rint(x), 0, W - 1).astype(int)
-            yi = np.clip(np.rint(y), 0, H - 1).astype(int)
-            hidden |= mask[yi, xi]
         r[hidden] = 0.0
         masked = hidden.mean(axis=1) if hidden.any() else None
         return r, out.mean(axis=1) > 0.25, masked
@@ -616,6 +623,8 @@ class LatticeSolver:
         self, k: int, coefficients: np.ndarray, state: np.ndarray, tolerance: float
     ) -> tuple[np.ndarray, bool]:
         """Gauss-Newton at level k; the Hessian is refactorized only when stale."""
+        from strain2d.trackers._icgn_kernel import lattice_gradient
+
         level = self.levels[k]
         n = self.lattice.n_nodes
         converged = False
@@ -630,8 +639,7 @@ class LatticeSolver:
             T = self._transforms(state)
             if self._stale(k, T, w):
                 self._factorize(k, level, T, w)
-            g0 = np.einsum("mi,cm,cmk->cik", level.N, r * w[:, None], level.q, optimize=True)
-            g0 = np.einsum("ckK,ciK->cik", T, g0) * float(level.stride**2)
+            g0 = lattice_gradient(level.N, r, w, level.q, T, float(level.stride**2))
             rhs = np.bincount(self._dof.ravel(), weights=g0.ravel(), minlength=4 * n)
             rhs -= self.prior @ state.ravel() - ridge + leash * (state.ravel() - start)
             step = self._solve(k, rhs).reshape(n, 4)

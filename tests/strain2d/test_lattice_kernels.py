@@ -1,0 +1,85 @@
+"""The lattice field's compiled residual and gradient against NumPy and SciPy oracles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from sample_data_synth.tissue import make_tissue_case
+from strain2d.trackers._icgn_kernel import lattice_gradient, lattice_residual
+from strain2d.trackers._lattice import _NO_MASK, Frame, LatticeSolver
+
+
+def _oracle(solver, k, coefficients, mask, state):
+    """The residual as the NumPy version computed it: SciPy's spline at every pixel."""
+    level = solver.levels[k]
+    pix = np.einsum("mi,cik->cmk", level.N, state[solver.cells])
+    x = solver.origins[:, None, 0] + level.offsets[None, :, 0] + pix[..., 0]
+    y = solver.origins[:, None, 1] + level.offsets[None, :, 1] + pix[..., 1]
+    H, W = solver.shape
+    out = (x < 1) | (x > W - 2) | (y < 1) | (y > H - 2)
+    g = ndimage.map_coordinates(coefficients, [y, x], order=3, mode="mirror", prefilter=False)
+    r = level.f - (1 + pix[..., 2]) * (g - solver.mean) - solver.mean - pix[..., 3]
+    r[out] = 0.0
+    hidden = np.zeros(r.shape, bool)
+    if mask is not None:
+        xi = np.clip(np.rint(x), 0, W - 1).astype(int)
+        yi = np.clip(np.rint(y), 0, H - 1).astype(int)
+        hidden = mask[yi, xi]
+    return r, out, hidden
+
+
+@pytest.fixture(scope="module")
+def solver():
+    video = make_tissue_case("vessels-contraction", size=240, rng=0)
+    return LatticeSolver(video.frames[0], video.truth.grid((5, 5)), spacing=16), video
+
+
+@pytest.mark.parametrize("shift", [0.0, 150.0])
+def test_the_residual_is_the_numpy_one(solver, shift):
+    """Every level, with and without a highlight mask, inside the frame and (shifted) partly
+    beyond its edge."""
+    solver, video = solver
+    rng = np.random.default_rng(int(shift))
+    frame = Frame.of(video.frames[3])
+    state = np.zeros_like(solver.state)
+    state[:, :2] = rng.normal(0, 2, (len(state), 2)) + shift
+    state[:, 2] = rng.normal(0, 0.05, len(state))
+    state[:, 3] = rng.normal(0, 2, len(state))
+    for k, level in enumerate(solver.levels):
+        coefficients = frame.coefficients(level.blur)
+        for mask in (None, rng.random(solver.shape) < 0.02):
+            r, out, hidden = lattice_residual(
+                coefficients, state, solver.cells, solver.origins, level.offsets, level.N,
+                level.f, solver.mean, _NO_MASK if mask is None else mask,
+            )  # fmt: skip
+            r0, out0, hidden0 = _oracle(solver, k, coefficients, mask, state)
+            np.testing.assert_array_equal(out, out0)
+            np.testing.assert_array_equal(hidden, hidden0)
+            np.testing.assert_allclose(r, r0, rtol=0, atol=1e-9)
+    assert out.any() == (shift > 0)
+
+
+def test_a_state_gone_wrong_gives_nan_not_a_number_from_elsewhere(solver):
+    solver, video = solver
+    state = np.zeros_like(solver.state)
+    state[0, 0] = np.nan
+    level = solver.levels[-1]
+    r, _, _ = lattice_residual(
+        Frame.of(video.frames[1]).coefficients(0.0), state, solver.cells, solver.origins,
+        level.offsets, level.N, level.f, solver.mean, _NO_MASK,
+    )  # fmt: skip
+    touched = (solver.cells == 0).any(axis=1)
+    assert np.isnan(r[touched]).any() and np.isfinite(r[~touched]).all()
+
+
+def test_the_gradient_is_the_einsum_one():
+    rng = np.random.default_rng(2)
+    cells, m = 300, 64
+    N, r, q = rng.random((m, 4)), rng.normal(size=(cells, m)), rng.normal(size=(cells, m, 4))
+    w, T = rng.random(cells), rng.normal(size=(cells, 4, 4))
+    w[::5] = 0.0
+    g0 = np.einsum("mi,cm,cmk->cik", N, r * w[:, None], q)
+    expected = np.einsum("ckK,ciK->cik", T, g0) * 4.0
+    np.testing.assert_allclose(lattice_gradient(N, r, w, q, T, 4.0), expected, atol=1e-10)
