@@ -91,6 +91,10 @@ def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
 #: px around a window that :func:`bright_blobs` reads for the surroundings and the growth
 _BLOB_MARGIN = 100
 
+#: iterations without a step 10 % smaller than the smallest so far after which a level's
+#: Gauss-Newton stops, unconverged
+_STALLED = 5
+
 #: the kernel's "no highlight mask"
 _NO_MASK = np.zeros((0, 0), dtype=bool)
 
@@ -630,6 +634,7 @@ class LatticeSolver:
         converged = False
         ridge = np.tile(self.ridge, n) * self._anchor.ravel()
         leash, start = self._leash(k), state.ravel().copy()
+        best, since = np.inf, 0  # the smallest step so far, and the iterations since
         for _ in range(self.max_iterations):
             r, outside, masked = self._residual(k, coefficients, state)
             ms = np.mean(r**2, axis=1)
@@ -652,8 +657,15 @@ class LatticeSolver:
             step *= np.minimum(1.0, limit / np.maximum(move, 1e-12))[:, None]
             state = state + step
             move = np.minimum(move, limit)
-            if np.percentile(move, 99) < tolerance and move.max() < 10 * tolerance:
+            size = np.percentile(move, 99)
+            if size < tolerance and move.max() < 10 * tolerance:
                 converged = True
+                break
+            # stalled: the steps have not shrunk for a while (a few nodes cycling between
+            # robust weights, or drifting where nothing holds them): more iterations of the
+            # same would not converge either
+            best, since = (size, 0) if size < 0.9 * best else (best, since + 1)
+            if since >= _STALLED:
                 break
         self.weights, self.outside, self.residual = w, outside, ms
         self.fitted_level = k
