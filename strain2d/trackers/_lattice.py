@@ -30,8 +30,13 @@ Gauss-Newton with the Hessian of the reference gradients (the "modified"
 Gauss-Newton of global DIC), corrected per cell for the current deformation
 gradient and gain: ``grad g(x + u) = F^-T grad f / (1 + a)``. The Hessian of
 each cell is computed once per reference as a 16 x 16 block, so a frame costs
-one cubic B-spline sampling of the region per iteration and a sparse solve.
-Coarse-to-fine: the same lattice on blurred, subsampled images first, which
+one cubic B-spline sampling of the region per iteration and a sparse solve;
+the residual and the gradient per cell are compiled kernels
+(:func:`strain2d.trackers._icgn_kernel.lattice_residual`,
+:func:`~strain2d.trackers._icgn_kernel.lattice_gradient`) on every thread. A
+level stops when its steps fall below the tolerance, or once they have not
+shrunk for :data:`_STALLED` iterations (a few nodes cycling between robust
+weights). Coarse-to-fine: the same lattice on blurred, subsampled images first, which
 widens the basin of convergence. A finer level is held near the coarser
 level's answer by a weak prior (``LEASH``): where texture is strong the data
 outweigh it, where it is weak the field does not wander off.
