@@ -66,7 +66,7 @@ import itertools
 import os
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy import ndimage
@@ -137,8 +137,12 @@ class _Subsets:
     template: np.ndarray  # (N, S, S) float32, for the integer search
 
     def replace(self, rows: np.ndarray, other: _Subsets) -> None:
-        for name in ("centers", "frame", "f", "norm", "G", "template"):
+        for name in SUBSET_FIELDS:
             getattr(self, name)[rows] = getattr(other, name)
+
+
+#: the arrays of :class:`_Subsets`, in order
+SUBSET_FIELDS = tuple(f.name for f in fields(_Subsets))
 
 
 class _Correlator:

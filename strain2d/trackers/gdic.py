@@ -88,6 +88,7 @@ from strain2d.trackers._threads import (
     worker_count,
 )
 from strain2d.trackers.dic import (
+    SUBSET_FIELDS,
     _coefficients,
     _Correlator,
     _first_frame,
@@ -556,7 +557,7 @@ def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
     """Reference subsets of many points, built 256 at a time (on every thread allowed)
     into float32 arrays (the float64 ones of a whole dense grid would not fit the cache
     budget twice)."""
-    fields = ("centers", "frame", "f", "norm", "G", "template")
+    fields = SUBSET_FIELDS
     out = None
     chunks = _chunks(len(centers), 256)
     workers = worker_count()
@@ -576,12 +577,7 @@ def _subsets(corr: _Correlator, coefficients, centers: np.ndarray):
         return corr.reference(coefficients, centers, 0)
     parts = np.array_split(np.arange(len(centers)), workers)
     built = parallel_map(lambda rows: corr.reference(coefficients, centers[rows], 0), parts)
-    return _Subsets(
-        *(
-            np.concatenate([getattr(b, k) for b in built])
-            for k in ("centers", "frame", "f", "norm", "G", "template")
-        )
-    )
+    return _Subsets(*(np.concatenate([getattr(b, k) for b in built]) for k in SUBSET_FIELDS))
 
 
 def _store(out: dict | None, fields, rows, part, n: int) -> dict:
@@ -598,9 +594,7 @@ def _store(out: dict | None, fields, rows, part, n: int) -> dict:
 
 
 def _take(ref, rows: np.ndarray):
-    return _Subsets(
-        *(getattr(ref, k)[rows] for k in ("centers", "frame", "f", "norm", "G", "template"))
-    )
+    return _Subsets(*(getattr(ref, k)[rows] for k in SUBSET_FIELDS))
 
 
 def _bic_choice(ssd1, ssd2, n, ok1, ok2):
