@@ -6,6 +6,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
 from matplotlib import rc_context
 from matplotlib.figure import Figure
 
@@ -79,8 +80,8 @@ def save_figure(
         options = {"pil_kwargs": {"compress_level": PNG_COMPRESSION}} if fmt == "png" else {}
         # a fixed salt makes SVG element ids, hence the file, reproducible
         with replaced_on_success(out) as tmp, rc_context({"svg.hashsalt": "strain2d"}):
-            if fmt == "png" and not tight and _plain_savefig():
-                _draw_png(fig, tmp, dpi, options["pil_kwargs"])
+            if fmt == "png" and _plain_savefig():
+                _draw_png(fig, tmp, dpi, options["pil_kwargs"], tight=tight)
             else:
                 fig.savefig(
                     tmp,
@@ -105,9 +106,11 @@ def _plain_savefig() -> bool:
     )
 
 
-def _draw_png(fig: Figure, path, dpi: float, pil_kwargs: dict) -> None:
+def _draw_png(fig: Figure, path, dpi: float, pil_kwargs: dict, *, tight: bool = False) -> None:
     """The PNG ``savefig`` writes, drawn once: ``savefig`` draws a figure with a layout
-    engine twice (once to lay it out, once to render it at the layout found)."""
+    engine twice (once to lay it out, once to render it at the layout found), and three
+    times with ``bbox_inches="tight"``; here ``tight`` crops the drawn pixels instead (see
+    :func:`_crop`)."""
     import matplotlib.image
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -116,8 +119,39 @@ def _draw_png(fig: Figure, path, dpi: float, pil_kwargs: dict) -> None:
     try:
         canvas = FigureCanvasAgg(fig)
         canvas.draw()
-        matplotlib.image.imsave(
-            path, canvas.buffer_rgba(), format="png", dpi=dpi, pil_kwargs=pil_kwargs
-        )
+        pixels = np.asarray(canvas.buffer_rgba())
+        if tight:
+            pixels = _crop(pixels, fig, dpi)
+        matplotlib.image.imsave(path, pixels, format="png", dpi=dpi, pil_kwargs=pil_kwargs)
     finally:
         fig.set_dpi(kept)
+
+
+def _crop(pixels: np.ndarray, fig: Figure, dpi: float) -> np.ndarray:
+    """The drawn figure cropped to what is drawn on its background, with a margin of
+    ``savefig.pad_inches``, as ``bbox_inches="tight"`` crops it; a figure with nothing
+    drawn is kept whole."""
+    from matplotlib import rcParams
+    from matplotlib.colors import to_rgba
+
+    background = np.round(np.asarray(to_rgba(fig.get_facecolor())) * 255).astype(np.uint8)
+    if background[3] == 0:  # a transparent figure: whatever has some opacity is drawn
+        drawn = pixels[..., 3] != 0
+    else:
+        drawn = (pixels != background).any(axis=-1)
+    rows, cols = np.flatnonzero(drawn.any(axis=1)), np.flatnonzero(drawn.any(axis=0))
+    if rows.size == 0:
+        return pixels
+    pad = round(float(rcParams["savefig.pad_inches"]) * dpi)
+    top, bottom = rows[0] - pad, rows[-1] + 1 + pad
+    left, right = cols[0] - pad, cols[-1] + 1 + pad
+    h, w = drawn.shape
+    cropped = pixels[max(top, 0) : min(bottom, h), max(left, 0) : min(right, w)]
+    widen = ((max(-top, 0), max(bottom - h, 0)), (max(-left, 0), max(right - w, 0)))
+    if any(any(side) for side in widen):  # the margin reaches past the figure: its colour
+        cropped = np.concatenate(
+            [np.pad(cropped[..., c], widen, constant_values=background[c])[..., None]
+             for c in range(4)],
+            axis=-1,
+        )  # fmt: skip
+    return cropped
