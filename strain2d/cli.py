@@ -383,6 +383,7 @@ def _cmd_track(args) -> int:
 
 
 def _cmd_analyze(args) -> int:
+    from strain2d.figures._pool import FigurePool
     from strain2d.pipeline import analysis_of
     from strain2d.run import check_run_options, write_run
     from tissue_core.outputs import check_writable
@@ -418,30 +419,34 @@ def _cmd_analyze(args) -> int:
             scale = scale_from_ruler(args.scale_ruler, shape)
             say(f"pixel size {scale.per_px:.6g} {scale.unit} ({scale.source})")
 
-    source, point_info, tracks = _track_source(args, tracker_options, say, check=check)
-    t_tracked = time.perf_counter()
-    analysis = analysis_of(
-        tracks,
-        tracker=args.tracker,
-        grid_shape=point_info.get("grid_shape"),
-        min_triangle_quality=args.min_triangle_quality,
-        streamed=True,  # a block of frames at a time: memory does not grow with the video
-    )
-    t_strain = time.perf_counter()
-    say(f"strain on {analysis.field.n_triangles} triangles")
-    with say.task("figures and animation", unit="frame") as update:
-        summary = write_run(
-            args.out,
-            analysis,
-            source,
-            **options,
-            points_info=point_info,
-            overwrite=args.overwrite,
-            inputs=_inputs(args),
-            progress=update,
-            runtime_s={"tracking": t_tracked - t_start, "strain": t_strain - t_tracked},
-            scale=scale,
+    # the figures' workers start now, while this process has one thread, and load Matplotlib
+    # while the points are tracked
+    with FigurePool(warm=True) as pool:
+        source, point_info, tracks = _track_source(args, tracker_options, say, check=check)
+        t_tracked = time.perf_counter()
+        analysis = analysis_of(
+            tracks,
+            tracker=args.tracker,
+            grid_shape=point_info.get("grid_shape"),
+            min_triangle_quality=args.min_triangle_quality,
+            streamed=True,  # a block of frames at a time: memory does not grow with the video
         )
+        t_strain = time.perf_counter()
+        say(f"strain on {analysis.field.n_triangles} triangles")
+        with say.task("figures and animation", unit="frame") as update:
+            summary = write_run(
+                args.out,
+                analysis,
+                source,
+                **options,
+                points_info=point_info,
+                overwrite=args.overwrite,
+                inputs=_inputs(args),
+                progress=update,
+                runtime_s={"tracking": t_tracked - t_start, "strain": t_strain - t_tracked},
+                scale=scale,
+                pool=pool,
+            )
     ep = summary["contraction_endpoint"]
     say(f"{ep['label']}: frame {ep['frame']} ({ep['source']})")
     say(f"results in {args.out}")

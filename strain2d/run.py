@@ -14,6 +14,7 @@ instead of a traceback.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -371,6 +372,23 @@ def _units(scale, fps, uncertainty: bool) -> dict:
     }
 
 
+@contextlib.contextmanager
+def _figure_pool(pool, workers: int | None):
+    """``pool``, ended on an error (its workers may be writing into the run's temporary
+    folder, which the error removes next), or a pool of ``workers`` for this run."""
+    from strain2d.figures._pool import FigurePool
+
+    if pool is None:
+        with FigurePool(workers) as made:
+            yield made
+        return
+    try:
+        yield pool
+    except BaseException:
+        pool.cancel()
+        raise
+
+
 def write_run(
     out: str | os.PathLike,
     analysis,
@@ -389,6 +407,7 @@ def write_run(
     runtime_s: dict | None = None,
     scale=None,
     workers: int | None = None,
+    pool=None,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -447,6 +466,10 @@ def write_run(
         Processes that draw the figures meanwhile: default one per core this
         process may use (none with one core, or in a daemonic process such as
         a Dask worker's); 0 draws them here.  The files are the same.
+    pool : strain2d.figures._pool.FigurePool, keyword-only
+        Workers already started (``FigurePool(warm=True)`` entered before the
+        tracking, as ``strain2d analyze`` does, so that they load Matplotlib
+        while it tracks); ``workers`` is then ignored.  Ended on an error.
 
     Returns
     -------
@@ -472,7 +495,6 @@ def write_run(
 
     from strain2d.export import write_pvd, write_strain_elements_csv, write_strain_nodes_csv
     from strain2d.figures import plot_tracked_grid
-    from strain2d.figures._pool import FigurePool
     from strain2d.report import run_outputs, write_run_report
     from strain2d.tracks import write_tracks_csv
     from surface_strain import RUN_SCHEMA, Mesh
@@ -522,7 +544,7 @@ def write_run(
     # are written here
     with (
         atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp,
-        FigurePool(workers) as pool,
+        _figure_pool(pool, workers) as pool,
     ):
         figs = tmp / "figures"
         figs.mkdir()

@@ -47,15 +47,18 @@ def _available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def _context():
+def _context(warm_here: bool = True):
     """How the workers start: forked, where that is safe and cheap, else from a fresh server.
 
     A fork copies the caller's imports for free but is unsafe with other
     threads running (a lock one holds stays locked in the child) and on
     macOS; there the workers are forked from a server started afresh.
+    ``warm_here``: load the fonts here first, so that forked workers start
+    with them.
     """
     if sys.platform.startswith("linux") and threading.active_count() == 1:
-        _warm_up()
+        if warm_here:
+            _warm_up()
         return multiprocessing.get_context("fork")
     method = "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
     context = multiprocessing.get_context(method)
@@ -100,11 +103,12 @@ class _RemoteTraceback(Exception):
         return self.args[0]
 
 
-def _serve(connection, inherited: list) -> None:
+def _serve(connection, inherited: list, warm: bool = False) -> None:
     """A worker: run the tasks that come down ``connection`` until told to stop.
 
     ``inherited`` are the caller's ends of the workers' pipes that a fork
     copied here: closed, so that each worker sees its pipe end with the caller.
+    ``warm``: load Matplotlib's fonts and math text before the first task.
     """
     import pickle
     import signal
@@ -115,6 +119,8 @@ def _serve(connection, inherited: list) -> None:
         other.close()
     for name in _PRELOAD:
         __import__(name)
+    if warm:
+        _warm_up()
     while True:
         try:
             task = connection.recv()
@@ -158,6 +164,13 @@ class FigurePool:
         How many processes; default one per core this process may use (at
         most :data:`MAX_WORKERS`), none with a single core.  0 runs every call
         here, when it is submitted.
+    warm : bool, keyword-only
+        Start the workers ready to draw: each loads Matplotlib's fonts and
+        math text before its first task, not the caller before it starts
+        them.  For a pool started before long work (the tracking), while the
+        caller has one thread: the workers are then forked (not started
+        from a fresh server, as they are once threads run), and load while
+        the caller works.
 
     Examples
     --------
@@ -167,7 +180,7 @@ class FigurePool:
     (3, 1)
     """
 
-    def __init__(self, workers: int | None = None) -> None:
+    def __init__(self, workers: int | None = None, *, warm: bool = False) -> None:
         if workers is None:
             workers = _available_cores()
             workers = 0 if workers < 2 else min(workers, MAX_WORKERS)
@@ -176,6 +189,7 @@ class FigurePool:
         if workers and multiprocessing.current_process().daemon:
             workers = 0  # a daemonic process (a Dask worker's) may not start processes
         self.workers = workers
+        self.warm = warm
         self._processes: list = []
         self._idle: list = []  # connections of the workers without a task
         self._busy: dict = {}  # connection -> the number of its task
@@ -186,12 +200,14 @@ class FigurePool:
     def __enter__(self) -> FigurePool:
         if self.workers:
             try:
-                context = _context()
+                context = _context(warm_here=not self.warm)
                 forked = context.get_start_method() == "fork"
                 for _ in range(self.workers):
                     mine, theirs = context.Pipe()
                     inherited = [*self._idle, mine] if forked else []
-                    process = context.Process(target=_serve, args=(theirs, inherited), daemon=True)
+                    process = context.Process(
+                        target=_serve, args=(theirs, inherited, self.warm), daemon=True
+                    )
                     process.start()
                     theirs.close()
                     self._processes.append(process)
@@ -253,6 +269,11 @@ class FigurePool:
         for category, message in caught:
             warnings.warn(message, category, stacklevel=3)
         return value
+
+    def cancel(self) -> None:
+        """End the workers at once, their tasks unfinished (what leaving on an error does)."""
+        self._stop(kill=True)
+        self._queued.clear()
 
     def _stop(self, *, kill: bool) -> None:
         """End the workers: after their tasks, or at once (``kill``)."""

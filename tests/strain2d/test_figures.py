@@ -169,6 +169,54 @@ def test_png_figures_are_drawn_once_into_the_file_savefig_writes(tmp_path, monke
     assert len(draws) == 2 and imread(tmp_path / "y.png")[0, 0, :3].tolist() == [1, 1, 0]
 
 
+def test_tight_png_figures_are_drawn_once_and_cropped_as_savefig_crops_them(tmp_path, monkeypatch):
+    """``tight=True``: the drawn pixels cropped to the content plus savefig's margin, the
+    picture that ``bbox_inches="tight"`` gives (which draws the figure three times)."""
+    import io
+
+    import matplotlib
+
+    def loose() -> Figure:  # a figure with room around its one axes
+        fig = Figure(figsize=(4, 3))
+        ax = fig.add_axes((0.3, 0.3, 0.4, 0.4))
+        ax.plot([0, 1], [0, 1])
+        ax.set_xlabel("x (px)")
+        return fig
+
+    draws = []
+    plain = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda fig, r: draws.append(1) or plain(fig, r))
+    (path,) = save_figure(loose(), tmp_path / "t.png", dpi=100, tight=True)
+    assert len(draws) == 1
+    expected = io.BytesIO()
+    loose().savefig(expected, format="png", dpi=100, bbox_inches="tight")
+    expected.seek(0)
+    mine, theirs = imread(path), imread(expected)
+    # the same size to a pixel or two (savefig pads the text's box, not its ink) ...
+    assert abs(mine.shape[0] - theirs.shape[0]) <= 3 and abs(mine.shape[1] - theirs.shape[1]) <= 3
+    assert mine.shape[0] < 300 and mine.shape[1] < 400
+    # ... with the margin on every side: a white border, then ink
+    pad = round(matplotlib.rcParams["savefig.pad_inches"] * 100)
+    ink = (mine[..., :3] < 0.9).any(axis=-1)
+    rows, cols = np.flatnonzero(ink.any(axis=1)), np.flatnonzero(ink.any(axis=0))
+    assert abs(rows[0] - pad) <= 1 and abs(mine.shape[0] - 1 - rows[-1] - pad) <= 1
+    assert abs(cols[0] - pad) <= 1 and abs(mine.shape[1] - 1 - cols[-1] - pad) <= 1
+    # content at the figure's edge: the margin is added in the figure's colour
+    fig = Figure(figsize=(2, 1), facecolor="yellow")
+    fig.add_axes((0, 0, 1, 1)).imshow(np.zeros((4, 8)), cmap="gray", aspect="auto")
+    (edge,) = save_figure(fig, tmp_path / "edge.png", dpi=50, tight=True)
+    full = imread(edge)
+    assert full.shape[:2] == (50 + 2 * round(pad / 2), 100 + 2 * round(pad / 2))
+    assert full[0, 0, :3].tolist() == [1, 1, 0] and full[25, 50, :3].tolist() == [0, 0, 0]
+    # nothing drawn: the figure whole; a transparent figure: cropped to what is opaque
+    (blank,) = save_figure(Figure(figsize=(2, 1)), tmp_path / "blank.png", dpi=50, tight=True)
+    assert imread(blank).shape[:2] == (50, 100)
+    clear = loose()
+    clear.patch.set_alpha(0)
+    (see,) = save_figure(clear, tmp_path / "clear.png", dpi=100, tight=True)
+    assert imread(see).shape == mine.shape
+
+
 # ------------------------------------------------------------------ colour limits
 
 
@@ -653,6 +701,27 @@ def test_figure_pool_runs_tasks_elsewhere_as_they_would_run_here(tmp_path, threa
     with FigurePool(0) as pool:  # here, at once
         with pytest.warns(UserWarning, match="drawn elsewhere"):
             assert pool.submit(_font_size).result()[1] == os.getpid()
+
+
+def test_a_warm_pool_loads_matplotlib_in_its_workers_not_here():
+    """``warm=True`` (a pool started before the tracking): the workers load Matplotlib's
+    drawing themselves, ready for the figures, and this process does not."""
+    import subprocess
+
+    code = (
+        "import os, sys\n"
+        "from strain2d.figures._pool import FigurePool\n"
+        "def loaded():\n"
+        "    from matplotlib.mathtext import MathTextParser\n"
+        "    agg = 'matplotlib.backends.backend_agg' in sys.modules\n"
+        "    return [agg, MathTextParser._parser is not None], os.getpid()\n"
+        "if __name__ == '__main__':\n"
+        "    with FigurePool(2, warm=True) as pool:\n"
+        "        there, pid = pool.submit(loaded).result()\n"
+        "    print(there, pid != os.getpid(), loaded()[0])\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[True, True] True [False, False]"
 
 
 def test_figure_pool_ends_its_workers_when_left_by_an_error(tmp_path):
