@@ -367,6 +367,7 @@ def _real_folder() -> Path | None:
 def part_real(trackers: list[str], folder: Path | None) -> None:
     from sample_data_synth.measures import sigma_against_scatter
     from strain2d import make_grid, open_frames
+    from strain2d.pipeline import blank_start
 
     print(f"## Real recordings: {DEFAULT}'s sigma against its disagreement with dic\n")
     if folder is None or not folder.is_dir():
@@ -376,14 +377,17 @@ def part_real(trackers: list[str], folder: Path | None) -> None:
         print(f"compares {DEFAULT} with dic: name both in --trackers\n")
         return
     print(
-        f"| video | points x frames | {DEFAULT} visible | dic visible | "
+        f"| video | from frame | points x frames | {DEFAULT} visible | dic visible | "
         f"RMS {DEFAULT} sigma (px) | RMS disagreement per coordinate (px) | median ratio | "
         f"pooled ratio | {DEFAULT} (s) | dic (s) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for path in sorted(folder.glob("*.mp4")):
         frames = np.stack([np.asarray(f, dtype=float) for f in open_frames(path)])
         points = make_grid(frames.shape[1:], shape=(9, 9))
+        blank = blank_start(frames, points)  # a recording that fades in: from its texture on
+        start = 0 if blank is None else blank[0]
+        frames = frames[start:]
         tracks, seconds = {}, {}
         for name in (DEFAULT, "dic"):
             tracks[name], seconds[name] = _run(name, frames, points)
@@ -400,7 +404,8 @@ def part_real(trackers: list[str], folder: Path | None) -> None:
             np.sqrt(np.sum(w[ok] * check.scatter[ok] ** 2) / w[ok].sum()) if ok.any() else np.nan
         )
         print(
-            f"| {path.name} | {len(points)} x {len(frames)} | {g.visible[1:].mean():.0%} | "
+            f"| {path.name} | {start} | {len(points)} x {len(frames)} | "
+            f"{g.visible[1:].mean():.0%} | "
             f"{d.visible[1:].mean():.0%} | {_fmt(rms_sigma, 4)} | {_fmt(rms_gap, 4)} | "
             f"{_fmt(check.median_ratio, 2)} | {_fmt(check.pooled_ratio, 2)} | "
             f"{seconds[DEFAULT]:.1f} | {seconds['dic']:.1f} |",
@@ -408,7 +413,8 @@ def part_real(trackers: list[str], folder: Path | None) -> None:
         )
     print(
         "\nvisible: point-frames after the reference; the ratios are sigma over the "
-        "disagreement, over the point-frames both trackers report\n"
+        "disagreement, over the point-frames both trackers report; from frame: the first "
+        "textured frame of a recording that fades in (strain2d.pipeline.blank_start)\n"
     )
 
 

@@ -19,6 +19,7 @@ __all__ = [
     "Analysis",
     "analysis_of",
     "analyze",
+    "blank_start",
     "check_tracks_fit",
     "strain_from_tracks",
     "track",
@@ -143,14 +144,83 @@ def track(
             raise InputError(f"tracker {tracker!r}: {exc}") from None
         raise
     validate_points(tracks.reference)
-    _check_reference_visibility(tracks, tracker)
+    _check_reference_visibility(tracks, tracker, frames)
     return tracks
 
 
-def _check_reference_visibility(tracks: Tracks, tracker: str) -> None:
-    """Say which points cannot be used from the reference frame on; refuse if too few remain."""
+#: frames read, at most, to find where a video that starts blank gets its texture
+_FADE_SCAN = 120
+
+
+def blank_start(frames, points: np.ndarray) -> tuple[int, float, float] | None:
+    """Where a video that starts blank gets its texture: ``(frame, spread at the reference,
+    largest spread)``, or None when the reference is not blank.
+
+    A recording may fade in, or start on a dark or empty frame; nothing can be matched
+    on such a reference.  The grey levels' standard deviation over the points' region
+    (the spread), frame by frame (at most :data:`_FADE_SCAN` frames, read again): the
+    reference is blank when its spread is below a quarter of the largest, and the frame
+    given (counted in ``frames``) is the first that reaches 80 % of it.  None also when
+    ``frames`` cannot be read again (a one-pass iterator).
+    """
+    if frames is None or iter(frames) is frames:
+        return None
+    ok = np.isfinite(points).all(axis=1)
+    if not ok.any():
+        return None
+    (x0, y0), (x1, y1) = np.floor(points[ok].min(axis=0)), np.ceil(points[ok].max(axis=0))
+    spreads = []
+    for k, frame in enumerate(frames):
+        if k >= _FADE_SCAN:
+            break
+        h, w = np.shape(frame)[-2:]
+        box = np.asarray(frame, dtype=float)[
+            max(int(y0), 0) : min(int(y1) + 1, h), max(int(x0), 0) : min(int(x1) + 1, w)
+        ]
+        spreads.append(float(box.std()) if box.size else 0.0)
+    spreads = np.asarray(spreads)
+    if spreads.size < 2 or not spreads[0] < 0.25 * spreads.max():
+        return None
+    first = int(np.flatnonzero(spreads >= 0.8 * spreads.max())[0])
+    return first, float(spreads[0]), float(spreads.max())
+
+
+def _blank_start_hint(frames, points: np.ndarray) -> str:
+    """What to say when :func:`blank_start` finds the reference blank ("" when not): the
+    frame to start at, in the video's own frames (``--start`` and ``--step`` counted)."""
+    blank = blank_start(frames, points)
+    if blank is None:
+        return ""
+    first, spread, largest = blank
+    span = getattr(frames, "frame_range", None) or {"start": 0, "step": 1}
+    at = span["start"] + first * span["step"]
+    return (
+        f"; the reference frame is almost blank (its grey levels spread {spread:.2g} "
+        f"against {largest:.2g} on later frames: the video fades in or starts dark), "
+        f"so let a textured frame be the reference, e.g. --start {at}"
+    )
+
+
+def _check_reference_visibility(tracks: Tracks, tracker: str, frames=None) -> None:
+    """Say which points cannot be used from the reference frame on; refuse if too few remain.
+
+    When most cannot, and the reference frame is blank where later frames are not,
+    say which frame to start at instead (:func:`blank_start`).
+    """
     lost = np.flatnonzero(~tracks.visible[0])
     if lost.size == 0:
+        # a tracker that takes every point on the reference (dic, klt) loses them after a
+        # blank one
+        later = tracks.visible[1:].mean(axis=0) if tracks.n_frames > 1 else np.ones(1)
+        gone = int((later < 0.5).sum())
+        hint = _blank_start_hint(frames, tracks.reference) if 2 * gone >= tracks.n_points else ""
+        if hint:
+            warnings.warn(
+                PointsLeftOutWarning(
+                    f"{gone} of {tracks.n_points} points are lost on most frames{hint}"
+                ),
+                stacklevel=3,
+            )
         return
     n = tracks.n_points
     named = ", ".join(
@@ -162,6 +232,8 @@ def _check_reference_visibility(tracks: Tracks, tracker: str) -> None:
         if tracker == "imported"
         else "too close to the image edge for the tracker's window, or on texture it cannot follow"
     )
+    if tracker != "imported" and 2 * lost.size >= n:
+        why += _blank_start_hint(frames, tracks.reference)
     if n - lost.size < 3:
         raise InputError(
             f"only {n - lost.size} of {n} points can be used on the reference frame with the "

@@ -654,6 +654,51 @@ def test_points_the_tracker_cannot_use_on_the_reference_frame_are_named(small_ca
     assert not (tmp_path / "run2").exists()
 
 
+def test_a_video_that_fades_in_is_told_which_frame_to_start_at(small_case, tmp_path, capsys):
+    """A recording that starts dark (a real one fades in over its first frames): most points
+    cannot be used on the blank reference, and the warning says to start where the texture
+    is, counted in the video's own frames whatever --start was given."""
+    from sample_data_synth import write_video
+
+    _, video = small_case
+    gain = np.array([0.0, 0.0, 0.01, 0.3, 0.85, 1.0, 1.0, 1.0])[:, None, None]
+    frames = np.concatenate([video.frames[:1]] * 3 + [video.frames[:5]])  # 8 frames
+    write_video(np.round(frames * gain).astype(np.uint8), tmp_path / "fade.avi")
+    argv = ["-q", "track", str(tmp_path / "fade.avi"), "--grid", "3x3"]
+    # gdic uses no point on the blank reference: too few left, one line
+    assert main([*argv, "--out", str(tmp_path / "a.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "only 0 of 9 points can be used on the reference frame" in err
+    assert "the reference frame is almost blank" in err and "e.g. --start 4" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "a.csv").exists()
+    assert main([*argv, "--start", "1", "--out", str(tmp_path / "b.csv")]) == 2
+    assert "e.g. --start 4" in capsys.readouterr().err
+    # dic takes every point on the reference and loses them after it: a warning
+    argv += ["--tracker", "dic"]
+    assert main([*argv, "--out", str(tmp_path / "b.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "9 of 9 points are lost on most frames" in err and "e.g. --start 4" in err
+    argv = argv[:-2]  # gdic from the textured frame on: every point
+    assert main([*argv, "--start", "4", "--out", str(tmp_path / "c.csv")]) == 0
+    assert read_tracks(tmp_path / "c.csv").visible.all()
+    assert capsys.readouterr().err == ""
+    # the same from Python, on frames in memory; a one-pass iterator cannot be read again
+    from strain2d.pipeline import blank_start
+
+    faded = np.round(frames * gain)
+    points = np.array([[60.0, 60.0], [140.0, 140.0]])
+    first, spread, largest = blank_start(faded, points)
+    box = faded[:, 60:141, 60:141].reshape(8, -1)
+    assert first == 4 and spread == 0 and largest == pytest.approx(box.std(axis=1).max())
+    assert blank_start(iter(faded), points) is None and blank_start(faded[4:], points) is None
+    # a textured reference where points fail for another reason: no such hint
+    points = tmp_path / "p.csv"
+    points.write_text("x,y\n0,0\n100,100\n199,10\n199,199\n")
+    good = ["-q", "track", str(tmp_path / "fade.avi"), "--start", "4", "--tracker", "dic"]
+    assert main([*good, "--points", str(points), "--out", str(tmp_path / "d.csv")]) == 2
+    assert "blank" not in capsys.readouterr().err
+
+
 def test_a_video_without_deformation_has_no_contraction_endpoint(tmp_path, capsys):
     from scipy import ndimage
 
