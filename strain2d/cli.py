@@ -57,6 +57,14 @@ def _add_points_args(p: argparse.ArgumentParser) -> None:
         "imported and no --grid, every imported point)",
     )
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
+    p.add_argument(
+        "--mask",
+        metavar="FILE",
+        help="where the tissue is on the reference frame: an image of the frame's size "
+        "(PNG/TIFF, binary or labelled: not 0 is tissue), an ImageJ ROI (.roi, .zip) or a "
+        "polygon CSV (x,y); the grid fills it (over its bounds, or --roi) and points and "
+        "triangles off the tissue are left out",
+    )
 
 
 def _add_analyze_options(p) -> None:
@@ -309,28 +317,100 @@ def _tracker_options(args) -> dict:
 
 
 def _reference_points(args, source):
+    """The points to track, what the summary says of them, their mesh when the mask chose
+    it (else None: the grid's, or Delaunay's, made after the tracking), and the mask."""
     from strain2d.grid import make_grid, parse_grid, parse_roi, read_points_csv, validate_points
 
+    imported = args.tracker == "imported" and args.grid is None and args.roi is None
+    if imported and not args.points and getattr(args, "mask", None):
+        raise InputError(
+            "--mask with --tracker imported needs --grid or --points: the points of the "
+            "imported file are not a grid to fill the mask with"
+        )
+    mask = _mask(args, source.shape)
     if args.points:
         if args.roi or args.grid:
             raise InputError("give either --points or --grid/--roi, not both")
-        points = read_points_csv(args.points)
-        return validate_points(points, source.shape), {"points_file": args.points}
-    if args.tracker == "imported" and args.grid is None and args.roi is None:
-        return None, {"points": "all points of the imported file"}
+        points = validate_points(read_points_csv(args.points), source.shape)
+        info = {"points_file": args.points}
+        if mask is None:
+            return points, info, None, None
+        return (*_masked_points(args, points, mask, info), mask)
+    if imported:
+        return None, {"points": "all points of the imported file"}, None, None
     shape = parse_grid(args.grid or "7x7")
     roi = parse_roi(args.roi) if args.roi else None
+    if mask is not None:
+        from strain2d.grid import masked_grid
+        from surface_strain import Mesh
+
+        points, triangles, counts = masked_grid(source.shape, mask, shape=shape, roi=roi)
+        x0, y0, x1, y1 = mask.bounds() if roi is None else roi
+        info = {
+            "grid": f"{shape[0]}x{shape[1]}",
+            "roi": [x0, y0, x1, y1],
+            "mask": {**mask.summary(), **counts},
+        }
+        how = f"grid {shape[0]}x{shape[1]} on the mask's tissue, alternating diagonals"
+        return points, info, Mesh(triangles, "grid", how), mask
     points = make_grid(source.shape, shape=shape, roi=roi)
     x0, y0 = points.min(axis=0)
     x1, y1 = points.max(axis=0)
-    return points, {"grid": f"{shape[0]}x{shape[1]}", "grid_shape": shape, "roi": [x0, y0, x1, y1]}
+    info = {"grid": f"{shape[0]}x{shape[1]}", "grid_shape": shape, "roi": [x0, y0, x1, y1]}
+    return points, info, None, None
+
+
+def _mask(args, shape):
+    """``--mask``, read for frames of ``shape``, or None."""
+    if not getattr(args, "mask", None):
+        return None
+    from tissue_core.masks import read_mask
+
+    return read_mask(args.mask, shape)
+
+
+def _masked_points(args, points, mask, info):
+    """``--points`` in a mask: those on the tissue, their Delaunay triangles on it."""
+    import numpy as np
+
+    from strain2d.grid import mask_triangles
+    from surface_strain import Mesh, choose_mesh
+
+    on = mask.contains(points)
+    if on.sum() < 3:
+        raise InputError(
+            f"--mask {mask.source}: {int(on.sum())} of the {len(points)} points of "
+            f"{args.points} lie on the tissue; at least 3 are needed"
+        )
+    points = points[on]
+    mesh = choose_mesh(points, min_quality=args.min_triangle_quality)
+    triangles = mask_triangles(points, mesh.triangles, mask)
+    used = np.unique(triangles)
+    if used.size < 3:
+        raise InputError(
+            f"--mask {mask.source}: no triangle of the points of {args.points} lies on the tissue"
+        )
+    renumber = np.full(len(points), -1, dtype=np.int64)
+    renumber[used] = np.arange(used.size)
+    counts = {
+        "points_off_tissue": int(len(on) - used.size),
+        "triangles_off_tissue": int(len(mesh.triangles) - len(triangles)),
+    }
+    info = {**info, "mask": {**mask.summary(), **counts}}
+    how = f"{mesh.description}, on the mask's tissue"
+    return points[used], info, Mesh(renumber[triangles], mesh.method, how)
 
 
 def _inputs(args) -> list[str]:
     """Every file the command reads, so no output may replace one."""
     from strain2d.trackers import tracker_inputs
 
-    return [*args.source, *([args.points] if args.points else []), *tracker_inputs(args)]
+    return [
+        *args.source,
+        *([args.points] if args.points else []),
+        *([args.mask] if getattr(args, "mask", None) else []),
+        *tracker_inputs(args),
+    ]
 
 
 def _open(args):
@@ -340,7 +420,8 @@ def _open(args):
 
 
 def _track_source(args, options: dict, say, check=None):
-    """Open the frames, place the points and track them: (source, point_info, tracks).
+    """Open the frames, place the points and track them: (source, point_info, tracks,
+    (mesh, mask)), the mesh and the tissue mask None where no mask chose them.
 
     ``check(n_frames, (H, W))`` runs once the frames are counted, before tracking.
     ``source`` is an :class:`~strain2d.frames.EndFrames` wrapper, so the first and
@@ -353,7 +434,7 @@ def _track_source(args, options: dict, say, check=None):
     say(f"{source.names[0]}: {len(source)} frames of {w}x{h} px ({source.kind})")
     if check is not None:
         check(len(source), (h, w))
-    points, point_info = _reference_points(args, source)
+    points, point_info, mesh, mask = _reference_points(args, source)
     n = "the imported" if points is None else str(len(points))
     with say.task(f"tracking {n} points ({args.tracker})") as update:
         tracks = track(source, points, tracker=args.tracker, options=options, progress=update)
@@ -364,7 +445,7 @@ def _track_source(args, options: dict, say, check=None):
         )
     lost = int((~tracks.visible[-1]).sum())
     say(f"{tracks.n_points} points over {tracks.n_frames} frames, {lost} lost on the last one")
-    return source, point_info, tracks
+    return source, point_info, tracks, (mesh, mask)
 
 
 def _cmd_track(args) -> int:
@@ -375,7 +456,7 @@ def _cmd_track(args) -> int:
     kwargs = {"overwrite": args.overwrite, "inputs": _inputs(args)}
     check_writable(args.out, kind="file", **kwargs)
     say = _progress(args)
-    _, _, tracks = _track_source(args, options, say)
+    _, _, tracks, _ = _track_source(args, options, say)
     with atomic_file(args.out, **kwargs) as tmp:
         write_tracks_csv(tmp, tracks)
     say(f"tracks in {args.out}")
@@ -422,7 +503,9 @@ def _cmd_analyze(args) -> int:
     # the figures' workers start now, while this process has one thread, and load Matplotlib
     # while the points are tracked
     with FigurePool(warm=True) as pool:
-        source, point_info, tracks = _track_source(args, tracker_options, say, check=check)
+        source, point_info, tracks, (mesh, mask) = _track_source(
+            args, tracker_options, say, check=check
+        )
         t_tracked = time.perf_counter()
         analysis = analysis_of(
             tracks,
@@ -430,6 +513,7 @@ def _cmd_analyze(args) -> int:
             grid_shape=point_info.get("grid_shape"),
             min_triangle_quality=args.min_triangle_quality,
             streamed=True,  # a block of frames at a time: memory does not grow with the video
+            mesh=mesh,
         )
         t_strain = time.perf_counter()
         say(f"strain on {analysis.field.n_triangles} triangles")
@@ -446,6 +530,7 @@ def _cmd_analyze(args) -> int:
                 runtime_s={"tracking": t_tracked - t_start, "strain": t_strain - t_tracked},
                 scale=scale,
                 pool=pool,
+                mask=mask,
             )
     ep = summary["contraction_endpoint"]
     say(f"{ep['label']}: frame {ep['frame']} ({ep['source']})")

@@ -7,7 +7,6 @@ top-left corner.
 
 from __future__ import annotations
 
-import csv
 import os
 
 import numpy as np
@@ -19,6 +18,8 @@ __all__ = [
     "check_grid_spacing",
     "default_roi",
     "make_grid",
+    "mask_triangles",
+    "masked_grid",
     "parse_grid",
     "parse_roi",
     "read_points_csv",
@@ -192,44 +193,117 @@ def validate_points(points: np.ndarray, image_shape: tuple[int, int] | None = No
     return points
 
 
+def mask_triangles(points: np.ndarray, triangles: np.ndarray, mask) -> np.ndarray:
+    """The triangles that lie on the tissue of ``mask`` (a :class:`tissue_core.masks.Mask`):
+    their three corners and their centroid on it (a triangle across a notch of the
+    outline has its corners on tissue and its centroid off it)."""
+    points = np.asarray(points, dtype=float)
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    on = mask.contains(points)
+    corners = on[triangles].all(axis=1)
+    centroids = points[triangles].mean(axis=1)
+    return triangles[corners & mask.contains(centroids)]
+
+
+def masked_grid(
+    image_shape: tuple[int, int],
+    mask,
+    *,
+    shape: tuple[int, int] = (7, 7),
+    roi: tuple[float, float, float, float] | None = None,
+    option: str = "--mask",
+) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A grid that fills a tissue mask, and its triangles on the tissue.
+
+    The regular grid of ``shape`` over ``roi`` (default: the mask's bounds)
+    as :func:`make_grid` makes it, meshed cell by cell along alternating
+    diagonals (:func:`surface_strain.grid_triangles`); the triangles kept are
+    those on the tissue (:func:`mask_triangles`), the points kept those of a
+    kept triangle.  So a grid point of a masked run is the same point as in
+    the rectangle's run over the same region, and so is each kept triangle.
+
+    Parameters
+    ----------
+    image_shape : (H, W)
+    mask : tissue_core.masks.Mask
+        Of the frames' size.
+    shape : (n_cols, n_rows), keyword-only
+        Points along x and along y over the region.
+    roi : (x0, y0, x1, y1), keyword-only
+        The grid's region (default: the mask's bounds).
+    option : str, keyword-only
+        The option that gave the mask, for the messages.
+
+    Returns
+    -------
+    points : (M, 2) float
+        The kept points, in the grid's row-major order.
+    triangles : (K, 3) int
+        Indices into ``points``.
+    info : dict
+        ``grid_points`` (the whole grid's), ``points_off_tissue``,
+        ``grid_triangles``, ``triangles_off_tissue``: for the summary.
+
+    Raises
+    ------
+    InputError
+        A mask of another size than the frames, a mask too small for a grid,
+        or one that leaves fewer than 3 points with a triangle on the tissue.
+    """
+    from surface_strain.mesh import grid_triangles
+
+    if tuple(mask.shape) != tuple(image_shape):
+        raise InputError(
+            f"{option} {mask.source} is {mask.shape[1]}x{mask.shape[0]} px, the frames are "
+            f"{image_shape[1]}x{image_shape[0]} px"
+        )
+    n_cols, n_rows = shape
+    given = roi is not None
+    if roi is None:
+        roi = mask.bounds()
+        if not (roi[2] > roi[0] and roi[3] > roi[1]):
+            raise InputError(
+                f"{option} {mask.source} marks {int(roi[2] - roi[0]) + 1}x"
+                f"{int(roi[3] - roi[1]) + 1} px of tissue: too narrow for a grid"
+            )
+    try:
+        grid = make_grid(image_shape, shape=shape, roi=roi)
+    except InputError as exc:
+        if given:
+            raise
+        width, height = roi[2] - roi[0], roi[3] - roi[1]
+        raise InputError(
+            f"{option} {mask.source}: its tissue spans {width:g}x{height:g} px, so {exc}"
+        ) from None
+    every = grid_triangles(n_rows, n_cols)
+    kept = mask_triangles(grid, every, mask)
+    used = np.unique(kept)
+    if used.size < 3:
+        raise InputError(
+            f"{option} {mask.source}: {used.size} of the {n_cols}x{n_rows} grid's points lie on "
+            "the tissue with a whole triangle of the grid around them; at least 3 are needed "
+            f"(a finer --grid{'' if roi is None else ', or a --roi over the tissue'})"
+        )
+    renumber = np.full(len(grid), -1, dtype=np.int64)
+    renumber[used] = np.arange(used.size)
+    info = {
+        "grid_points": len(grid),
+        "points_off_tissue": int(len(grid) - used.size),
+        "grid_triangles": len(every),
+        "triangles_off_tissue": int(len(every) - len(kept)),
+    }
+    return grid[used], renumber[kept], info
+
+
 def read_points_csv(path: str | os.PathLike) -> np.ndarray:
     """Read points from a CSV file with a header holding columns ``x`` and ``y``.
 
-    A byte-order mark (as spreadsheet programs write) is accepted.  Every row
-    must have as many cells as the header (a decimal comma, ``10,5`` for
-    10.5, makes one too many) and numbers for ``x`` and ``y``; errors name the
-    file and the line.
+    See :func:`tissue_core.tables.read_xy_csv`, which reads it.
 
     Returns
     -------
     points : (N, 2) float
     """
-    from tissue_core.tables import cell_count_error
+    from tissue_core.tables import read_xy_csv
 
-    line = 1
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
-            fields = [c.strip().lower() for c in next(reader, [])]
-            if "x" not in fields or "y" not in fields:
-                raise InputError(f"{path} needs a header with columns x,y (found {fields})")
-            ix, iy = fields.index("x"), fields.index("y")
-            rows = []
-            for cells in reader:
-                line = reader.line_num
-                if not cells:
-                    continue  # a blank line
-                if len(cells) != len(fields):
-                    raise cell_count_error(path, line, len(cells), len(fields), ",".join(cells))
-                rows.append((float(cells[ix]), float(cells[iy])))
-    except FileNotFoundError:
-        raise InputError(f"no such points file: {path}") from None
-    except IsADirectoryError:
-        raise InputError(f"{path} is a folder, not a points CSV file") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path} is not a text CSV file") from None
-    except (TypeError, ValueError, csv.Error) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(f"{path}, line {line}: x and y must be numbers ({exc})") from None
-    return np.array(rows, dtype=float).reshape(-1, 2)
+    return read_xy_csv(path, what="points")

@@ -335,15 +335,21 @@ def analysis_of(
     min_triangle_quality: float = 0.1,
     points: np.ndarray | None = None,
     streamed: bool = False,
+    mesh: Mesh | None = None,
 ) -> Analysis:
     """Mesh tracks and compute their strain field (:func:`analyze` once tracked).
 
     ``points`` are the reference points given to the tracker, if any;
     ``streamed`` computes the field a block of frames at a time when read
-    (see :func:`strain_from_tracks`), as ``strain2d analyze`` does."""
-    mesh = choose_mesh(
-        validate_points(tracks.reference), grid=grid_shape, min_quality=min_triangle_quality
-    )
+    (see :func:`strain_from_tracks`), as ``strain2d analyze`` does; ``mesh``
+    is used as it is (a grid in a tissue mask: :func:`strain2d.grid.masked_grid`)
+    instead of one made from ``grid_shape`` or by Delaunay."""
+    if mesh is None:
+        mesh = choose_mesh(
+            validate_points(tracks.reference), grid=grid_shape, min_quality=min_triangle_quality
+        )
+    else:
+        validate_points(tracks.reference)
     field = strain_from_tracks(tracks, triangles=mesh.triangles, streamed=streamed)
     points = None if points is None else np.asarray(points, dtype=float)
     return Analysis(tracks, field, tracker, mesh, grid_shape, min_triangle_quality, points)

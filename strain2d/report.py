@@ -701,6 +701,20 @@ def _scale_text(scale) -> str:
     )
 
 
+def _mask_text(mask: dict | None) -> str | None:
+    """The tissue mask in a line: its file, its share of the frame, what it left out."""
+    if not mask:
+        return None
+    text = f"{mask['file']} ({mask['fraction_of_frame']:.0%} of the frame)"
+    left = [
+        f"{mask[key]} {what} off the tissue left out"
+        for key, what in (("points_off_tissue", "grid points"), ("triangles_off_tissue",
+                          "triangles"))
+        if mask.get(key)
+    ]  # fmt: skip
+    return text + (": " + ", ".join(left) if left else "")
+
+
 def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
     """Write ``report.html`` for a run folder from its ``summary.json`` content.
 
@@ -729,6 +743,7 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
             "tracker": tracker.get("name"),
             "tracker options": tracker.get("options", {}),
             "points": points.get("grid") or points.get("points_file") or points.get("points"),
+            "tissue mask": _mask_text(points.get("mask")),
             "triangles": summary.get("mesh", {}).get("n_triangles"),
             "points lost by the last frame": summary.get("lost_points_last_frame"),
             "tracking uncertainty (px, 1 sigma per coordinate)": _uncertainty_text(

@@ -408,6 +408,7 @@ def write_run(
     scale=None,
     workers: int | None = None,
     pool=None,
+    mask=None,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -470,6 +471,9 @@ def write_run(
         Workers already started (``FigurePool(warm=True)`` entered before the
         tracking, as ``strain2d analyze`` does, so that they load Matplotlib
         while it tracks); ``workers`` is then ignored.  Ended on an error.
+    mask : tissue_core.masks.Mask, keyword-only
+        The tissue mask the points were placed in: outlined on the reference
+        frame of the tracked-grid figure.
 
     Returns
     -------
@@ -557,6 +561,7 @@ def write_run(
             field.triangles,
             formats=formats,
             length=scale,
+            outline=[] if mask is None else mask.outline(),
         )
 
         def tables() -> None:

@@ -30,7 +30,7 @@ import numpy as np
 
 from tissue_core.errors import InputError
 
-__all__ = ["LongTable", "cell_count_error", "read_long_table", "write_long_table"]
+__all__ = ["LongTable", "cell_count_error", "read_long_table", "read_xy_csv", "write_long_table"]
 
 _MISSING = ("", "nan", "none", "null")
 #: rows :func:`write_long_table` formats at a time (whole frames, at least one)
@@ -352,3 +352,47 @@ def write_long_table(
                 [frame.ravel(), points.ravel(), *(a[t0:t1].reshape(-1) for a in arrays)]
             )
             f.writelines(line % tuple(row) for row in table.tolist())
+
+
+def read_xy_csv(path: str | os.PathLike, *, what: str = "points") -> np.ndarray:
+    """Read ``(x, y)`` rows from a CSV file with a header holding columns ``x`` and ``y``.
+
+    Points files and polygon outlines (``what`` names them in the messages)
+    have this form.
+
+    A byte-order mark (as spreadsheet programs write) is accepted.  Every row
+    must have as many cells as the header (a decimal comma, ``10,5`` for
+    10.5, makes one too many) and numbers for ``x`` and ``y``; errors name the
+    file and the line.
+
+    Returns
+    -------
+    points : (N, 2) float
+    """
+    line = 1
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            fields = [c.strip().lower() for c in next(reader, [])]
+            if "x" not in fields or "y" not in fields:
+                raise InputError(f"{path} needs a header with columns x,y (found {fields})")
+            ix, iy = fields.index("x"), fields.index("y")
+            rows = []
+            for cells in reader:
+                line = reader.line_num
+                if not cells:
+                    continue  # a blank line
+                if len(cells) != len(fields):
+                    raise cell_count_error(path, line, len(cells), len(fields), ",".join(cells))
+                rows.append((float(cells[ix]), float(cells[iy])))
+    except FileNotFoundError:
+        raise InputError(f"no such {what} file: {path}") from None
+    except IsADirectoryError:
+        raise InputError(f"{path} is a folder, not a {what} CSV file") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path} is not a text CSV file") from None
+    except (TypeError, ValueError, csv.Error) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(f"{path}, line {line}: x and y must be numbers ({exc})") from None
+    return np.array(rows, dtype=float).reshape(-1, 2)

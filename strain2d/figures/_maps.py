@@ -296,12 +296,15 @@ def plot_tracked_grid(
     dpi: int = 120,
     formats: str | Sequence[str] | None = None,
     length=None,
+    outline: Sequence[np.ndarray] = (),
 ) -> list[Path]:
     """Save the tracked grid and mesh over the reference and the last frame.
 
     Lost points on the last frame are drawn as red crosses.  Returns the
     written files (see :func:`save_figure` for ``path`` and ``formats``).
-    ``length`` (a :class:`~strain2d.scale.PixelScale`) labels the axes in its unit.
+    ``length`` (a :class:`~strain2d.scale.PixelScale`) labels the axes in its unit;
+    ``outline``, polylines ``(K, 2)`` of ``(x, y)`` px (a tissue mask's,
+    :meth:`tissue_core.masks.Mask.outline`), is drawn on the reference frame.
     """
     last_index = tracks.n_frames - 1 if last_index is None else last_index
     fig = Figure(figsize=(11, 5.4), layout="constrained")
@@ -311,6 +314,13 @@ def plot_tracked_grid(
         (axes[1], last, last_index, f"frame {last_index}"),
     ):
         _show_image(ax, image, length=length)
+        if k == 0:
+            for n, line in enumerate(outline):
+                line = np.asarray(line, dtype=float)
+                ax.plot(line[:, 0], line[:, 1], "--", color="#ff40ff", lw=1.2,
+                        label="tissue mask" if n == 0 else None)  # fmt: skip
+            if len(outline):
+                ax.legend(loc="upper right", fontsize=8)
         pos = tracks.positions[k]
         vis = tracks.visible[k]
         ok_tri = np.all(vis[triangles], axis=1)

@@ -136,6 +136,32 @@ def inputs(small_case, tmp_path_factory):
     }
     for name, text in ragged.items():
         (d / f"points_{name}.csv").write_text(text)
+    # tissue masks (the video is 200 x 200 px), broken in every way a mask can be
+    import roifile
+
+    disc = np.zeros((200, 200), np.uint8)
+    disc[(np.arange(200)[:, None] - 100) ** 2 + (np.arange(200)[None] - 100) ** 2 < 70**2] = 255
+    cv2.imwrite(str(d / "mask_small.png"), disc[:150, :180])
+    cv2.imwrite(str(d / "mask_blank.png"), np.zeros((200, 200), np.uint8))
+    cv2.imwrite(str(d / "mask_speck.png"), np.pad(np.full((3, 3), 255, np.uint8), (98, 99)))
+    specks = np.zeros((200, 200), np.uint8)  # two specks far apart: a grid over both misses
+    specks[20:23, 20:23] = specks[177:180, 177:180] = 255
+    cv2.imwrite(str(d / "mask_specks.png"), specks)
+    png = cv2.imencode(".png", disc)[1].tobytes()
+    (d / "mask_truncated.png").write_bytes(png[: len(png) // 2])
+    (d / "mask_text.png").write_text("not an image\n")
+    (d / "mask_empty.tif").write_bytes(b"")
+    tifffile.imwrite(d / "mask_stack.tif", np.stack([disc] * 3), photometric="minisblack")
+    cv2.imwrite(str(d / "mask.jpg"), disc)
+    roifile.ImagejRoi(roitype=roifile.ROI_TYPE.LINE, x1=10, y1=10, x2=90, y2=90,
+                      name="a line").tofile(d / "mask_line.roi")  # fmt: skip
+    roifile.ImagejRoi(roitype=roifile.ROI_TYPE.RECT, left=300, top=300, right=400,
+                      bottom=400).tofile(d / "mask_beyond.roi")  # fmt: skip
+    (d / "mask_text.roi").write_text("not a roi\n")
+    (d / "mask_two.csv").write_text("x,y\n10,10\n90,90\n")
+    (d / "mask_text.csv").write_text("x,y\n10,10\nninety,10\n50,80\n")
+    (d / "mask_columns.csv").write_text("a,b\n10,10\n90,10\n50,80\n")
+    (d / "mask_sliver.csv").write_text("x,y\n20,20\n180,20\n180,23\n20,23\n")
     # track files from another tool, broken
     corners = [(10, 10), (90, 10), (50, 80)]
     rows = [f"{t},{i},{x},{y},1,1\n" for t in range(2) for i, (x, y) in enumerate(corners)]
@@ -263,7 +289,50 @@ CASES = [
      "--out", o], ["nope.csv"]),
     ("study-missing-run-in-manifest", lambda c, o: ["study", "--manifest",
      c.dir / "manifest_missing.csv", "--out", o], ["nowhere"]),
+    ("analyze-missing-mask", lambda c, o: ["analyze", c.avi, "--mask", c.dir / "nope.png",
+     "--out", o], ["--mask", "nope.png"]),
     # ---- empty
+    ("analyze-empty-mask-blank", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_blank.png", "--out", o], ["mask_blank.png", "no pixel", "no tissue"]),
+    ("analyze-empty-mask-file", lambda c, o: ["analyze", c.avi, "--mask", c.dir / "mask_empty.tif",
+     "--out", o], ["mask_empty.tif", "empty"]),
+    ("analyze-empty-mask-roi-beyond-the-frame", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_beyond.roi", "--out", o], ["mask_beyond.roi", "encloses no pixel"]),
+    ("track-empty-mask-too-few-points", lambda c, o: ["track", c.avi, "--mask",
+     c.dir / "mask_specks.png", "--out", o], ["mask_specks.png", "of the 7x7 grid's points",
+     "at least 3"]),
+    ("track-empty-mask-speck", lambda c, o: ["track", c.avi, "--mask",
+     c.dir / "mask_speck.png", "--out", o], ["mask_speck.png", "spans 2x2 px", "--grid 7x7"]),
+    ("analyze-empty-mask-sliver", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_sliver.csv", "--out", o], ["mask_sliver.csv", "spans 160x3 px", "--grid 7x7"]),
+    ("analyze-empty-mask-points-off-tissue", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_speck.png", "--points", c.dir / "points_many.csv", "--out", o],
+     ["mask_speck.png", "0 of the 4 points", "at least 3"]),
+    ("analyze-truncated-mask", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_truncated.png", "--out", o], ["mask_truncated.png", "truncated"]),
+    ("analyze-wrong-type-mask-text", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_text.png", "--out", o], ["mask_text.png", "not an image"]),
+    ("analyze-wrong-type-mask-roi-text", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_text.roi", "--out", o], ["mask_text.roi", "not an ImageJ ROI"]),
+    ("analyze-wrong-type-mask-jpeg", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask.jpg", "--out", o], ["mask.jpg", "PNG, TIFF"]),
+    ("analyze-wrong-type-mask-folder", lambda c, o: ["analyze", c.avi, "--mask", c.dir,
+     "--out", o], ["--mask", "folder"]),
+    ("analyze-wrong-type-mask-line-roi", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_line.roi", "--out", o], ["mask_line.roi", "a line", "encloses no area"]),
+    ("analyze-wrong-type-mask-stack", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_stack.tif", "--out", o], ["mask_stack.tif", "stack of 3"]),
+    ("analyze-option-mask-size", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_small.png", "--out", o], ["mask_small.png", "180x150", "200x200"]),
+    ("analyze-csv-mask-two-vertices", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_two.csv", "--out", o], ["mask_two.csv", "2 vertices", "at least 3"]),
+    ("analyze-csv-mask-text", lambda c, o: ["analyze", c.avi, "--mask", c.dir / "mask_text.csv",
+     "--out", o], ["mask_text.csv", "line 3"]),
+    ("analyze-csv-mask-columns", lambda c, o: ["analyze", c.avi, "--mask",
+     c.dir / "mask_columns.csv", "--out", o], ["mask_columns.csv", "x,y"]),
+    ("analyze-conflict-mask-imported", lambda c, o: ["analyze", c.avi, "--tracker", "imported",
+     "--tracks-file", c.dir / "tracks_ok.npz", "--mask", c.dir / "mask_small.png", "--out", o],
+     ["--mask", "--grid or --points"]),
     ("analyze-empty-video", lambda c, o: ["analyze", c.dir / "empty.avi", "--out", o],
      ["empty.avi"]),
     ("analyze-empty-folder", lambda c, o: ["analyze", c.dir / "no_images", "--out", o],

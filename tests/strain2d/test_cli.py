@@ -717,3 +717,74 @@ def test_a_video_without_deformation_has_no_contraction_endpoint(tmp_path, capsy
             assert ep["source"].startswith("none: no deformation"), (name, tracker, ep)
             assert ep["frame"] == 7 and ep["detected_frame"] is None
             assert "no deformation" in (out / "report.html").read_text()
+
+
+# ------------------------------------------------------------------ tissue masks
+
+
+def _elements(run) -> dict:
+    """``{(frame, three reference points): (valid, Exx, Eyy, Exy)}`` of a run's triangles."""
+    import pandas as pd
+
+    nodes = pd.read_csv(run / "strain_nodes.csv")
+    first = nodes[nodes.frame == 0].set_index("point")
+    where = {p: (round(r.x, 6), round(r.y, 6)) for p, r in first.iterrows()}
+    table = pd.read_csv(run / "strain_elements.csv")
+    return {
+        (int(r.frame), frozenset(where[int(p)] for p in (r.p0, r.p1, r.p2))): (
+            int(r.valid),
+            r.Exx,
+            r.Eyy,
+            r.Exy,
+        )
+        for r in table.itertuples()
+    }
+
+
+def test_a_masked_run_is_the_rectangle_run_on_the_tissue(small_case, tmp_path, capsys):
+    """A grid in a tissue mask (a disc with a notch, from an image as Fiji saves it): no
+    point off the tissue; with dic (a local tracker), every triangle on the tissue has the
+    strain of the same triangle in the run over the mask's bounding rectangle, to dic's
+    convergence tolerance (1e-3 px: each point starts from its neighbours' motion, and the
+    masked grid has fewer neighbours)."""
+    import cv2
+
+    folder, _ = small_case
+    yy, xx = np.mgrid[:200, :200]
+    tissue = (xx - 100) ** 2 + (yy - 95) ** 2 <= 70**2
+    tissue &= ~((xx > 85) & (xx < 115) & (yy > 100))  # a notch from below: concave
+    cv2.imwrite(str(tmp_path / "mask.png"), tissue.astype(np.uint8) * 255)
+    rows, cols = np.flatnonzero(tissue.any(axis=1)), np.flatnonzero(tissue.any(axis=0))
+    bounds = f"{cols[0]},{rows[0]},{cols[-1]},{rows[-1]}"
+    common = ["-q", "analyze", str(folder / "eq.avi"), "--grid", "9x9", "--tracker", "dic",
+              "--animation", "none"]  # fmt: skip
+    assert main([*common, "--mask", str(tmp_path / "mask.png"), "--out", str(tmp_path / "m")]) == 0
+    assert main([*common, "--roi", bounds, "--out", str(tmp_path / "r")]) == 0
+    assert capsys.readouterr().err == ""
+    masked = read_tracks(tmp_path / "m" / "tracks.csv")
+    rect = read_tracks(tmp_path / "r" / "tracks.csv")
+    ref = masked.reference
+    inside = tissue[np.round(ref[:, 1]).astype(int), np.round(ref[:, 0]).astype(int)]
+    assert inside.all() and 20 < len(ref) < 81
+    # the same points as the rectangle's, tracked alike
+    index = {(round(x, 6), round(y, 6)): i for i, (x, y) in enumerate(rect.reference)}
+    same = [index[(round(x, 6), round(y, 6))] for x, y in ref]
+    assert np.array_equal(masked.visible, rect.visible[:, same])
+    gap = np.abs(masked.positions - rect.positions[:, same])[masked.visible]
+    assert gap.max() < 1e-3
+    mine, theirs = _elements(tmp_path / "m"), _elements(tmp_path / "r")
+    assert set(mine) < set(theirs)  # every masked triangle is one of the rectangle's
+    spacing = np.diff(np.unique(rect.reference[:, 0])).min()
+    for key, values in mine.items():  # 1e-3 px over a side of a triangle
+        assert values == pytest.approx(theirs[key], abs=2e-3 / spacing, nan_ok=True), key
+    # the triangles across the notch or the disc's edge are left out, and said so
+    summary = json.loads((tmp_path / "m" / "summary.json").read_text())
+    mask = summary["points"]["mask"]
+    n_tri = summary["mesh"]["n_triangles"]
+    assert mask["grid_points"] == 81 and mask["points_off_tissue"] == 81 - len(ref)
+    assert mask["grid_triangles"] - mask["triangles_off_tissue"] == n_tri == len(mine) // 6
+    notch = [k for k in theirs if k[0] == 0 and np.mean([p[0] for p in k[1]]) > 88
+             and np.mean([p[0] for p in k[1]]) < 112 and min(p[1] for p in k[1]) > 110]  # fmt: skip
+    assert notch and not set(notch) & set(mine)
+    report = (tmp_path / "m" / "report.html").read_text()
+    assert "tissue mask" in report and "mask.png" in report
