@@ -403,3 +403,55 @@ def test_a_study_manifest_the_user_edited_is_kept_and_the_study_is_built_from_it
     assert main([*batch, "--overwrite"]) == 0
     assert written_here(path) and "treated" not in path.read_text()
     assert study() == [("S01", "anisotropic"), ("S03", "isotropic")]
+
+
+def test_a_manifest_gives_each_specimen_its_tissue_mask(study_data, tmp_path, capsys):
+    """A ``mask`` column (relative to the manifest, as a video is): each run's grid fills its
+    own specimen's mask, the mask is one of the run's inputs, and a mask that does not fit
+    its video fails that specimen's run in one line naming it; the others complete."""
+    import cv2
+    import numpy as np
+
+    from strain2d.cli import main
+    from strain2d.tracks import read_tracks
+
+    with open(study_data / "manifest.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["specimen"] in ("S01", "S02")]
+    yy, xx = np.mgrid[:96, :96]
+    left = (xx < 50) & (yy > 10) & (yy < 86) & (xx > 10)
+    disc = (xx - 48) ** 2 + (yy - 48) ** 2 < 36**2
+    (tmp_path / "masks").mkdir()
+    cv2.imwrite(str(tmp_path / "masks" / "S01.png"), left.astype(np.uint8) * 255)
+    cv2.imwrite(str(tmp_path / "masks" / "S02.png"), disc.astype(np.uint8) * 255)
+    manifest = tmp_path / "masked.csv"
+    with open(manifest, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["video", "specimen", "group", "mask"])
+        writer.writerows([study_data / r["video"], r["specimen"], r["group"],
+                          f"masks/{r['specimen']}.png"] for r in rows)  # fmt: skip
+    out = tmp_path / "b"
+    options = ["--workers", "1", "--grid", "5x5", "--animation", "none", "--tracker", "klt"]
+    assert main(["-q", "batch", str(manifest), "--out", str(out), *options]) == 0, (
+        capsys.readouterr().err
+    )
+    for name, tissue in (("S01", left), ("S02", disc)):
+        run = out / "runs" / name
+        ref = read_tracks(run / "tracks.csv").reference
+        assert tissue[np.round(ref[:, 1]).astype(int), np.round(ref[:, 0]).astype(int)].all()
+        summary = json.loads((run / "summary.json").read_text())
+        assert summary["points"]["mask"]["file"] == str(tmp_path / "masks" / f"{name}.png")
+        assert any(str(tmp_path / "masks" / f"{name}.png") in i for i in summary["command"])
+    # the rectangle's grid is whole and spans it; the disc's corners are off the tissue
+    s01 = read_tracks(out / "runs" / "S01" / "tracks.csv").reference
+    assert len(s01) == 25 and s01.min(axis=0).tolist() == [11, 11]
+    assert len(read_tracks(out / "runs" / "S02" / "tracks.csv").reference) < 25
+    # a row whose mask does not fit its video: that run fails in one line, the other is made
+    cv2.imwrite(str(tmp_path / "masks" / "S02.png"), np.full((40, 40), 255, np.uint8))
+    capsys.readouterr()
+    assert main(["-q", "batch", str(manifest), "--out", str(tmp_path / "c"), *options]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "S02" in err[0], err
+    assert (tmp_path / "c" / "runs" / "S01" / "summary.json").exists()
+    assert not (tmp_path / "c" / "runs" / "S02").exists()
+    log = (tmp_path / "c" / "batch.json").read_text()
+    assert "S02.png is 40x40 px, the frames are 96x96 px" in log
