@@ -262,6 +262,13 @@ def _add_reconstruct_options(p) -> None:
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in left-image pixels")
     p.add_argument("--points", help="CSV with columns x,y instead of a grid (--grid, --roi)")
     p.add_argument(
+        "--mask",
+        metavar="FILE",
+        help="where the tissue is on the left view's reference frame: an image of its size "
+        "(PNG/TIFF, not 0 is tissue), an ImageJ ROI (.roi, .zip) or a polygon CSV (x,y); the "
+        "grid fills it and points and triangles off the tissue are left out",
+    )
+    p.add_argument(
         "--tracker",
         default="dic",
         help="2D tracker that follows the points through each video: dic, klt, or another "
@@ -584,6 +591,24 @@ def _grid_points(args, shape: tuple[int, int]) -> tuple[np.ndarray, dict]:
     return points, {"grid": [cols, rows], "roi": list(roi) if roi else None}
 
 
+def _masked_grid_points(args, mask, shape: tuple[int, int]):
+    """The grid in ``--mask`` (:func:`strain2d.grid.masked_grid`): points, triangles, info."""
+    from strain2d import parse_grid, parse_roi
+    from strain2d.grid import masked_grid
+
+    cols, rows = parse_grid(args.grid or _DEFAULT_GRID)
+    roi = parse_roi(args.roi) if args.roi else None
+    if roi is not None and not all(math.isfinite(v) for v in roi):
+        raise InputError(f"--roi must be four finite numbers X0,Y0,X1,Y1, got {args.roi!r}")
+    points, triangles, counts = masked_grid(shape, mask, shape=(cols, rows), roi=roi)
+    info = {
+        "grid": [cols, rows],
+        "roi": list(roi) if roi else list(mask.bounds()),
+        "mask": {**mask.summary(), **counts},
+    }
+    return points, triangles, info
+
+
 def _source_name(source) -> str:
     return source.names[0] if len(source.names) == 1 else f"{source.names[0]} ..."
 
@@ -705,6 +730,7 @@ def _cmd_reconstruct(args) -> int:
     from strain2d import tracker_inputs
 
     inputs = [*args.left, *args.right, *args.calib] + ([args.points] if args.points else [])
+    inputs += [args.mask] if args.mask else []
     inputs += tracker_inputs(args)
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
     say = _say(args)
@@ -721,9 +747,26 @@ def _cmd_reconstruct(args) -> int:
     options = _tracker_options(args)
     if isinstance(options.get("subset"), int):
         _check_subset_fits("--subset", options["subset"], left.shape, "frames")
+    mask = None
+    if args.mask:
+        from tissue_core.masks import read_mask
+
+        mask = read_mask(args.mask, left.shape)
+    masked_triangles = None  # a grid in the mask: its triangles on the tissue
     if args.points:
         points = _read_points(args.points, left.shape, for_strain=True)
         point_info = {"source": Path(args.points).name}
+        if mask is not None:
+            on = mask.contains(points)
+            if on.sum() < 3:
+                raise InputError(
+                    f"--mask {args.mask}: {int(on.sum())} of the {len(points)} points of "
+                    f"{args.points} lie on the tissue; at least 3 are needed"
+                )
+            point_info["mask"] = {**mask.summary(), "points_off_tissue": int((~on).sum())}
+            points = points[on]
+    elif mask is not None:
+        points, masked_triangles, point_info = _masked_grid_points(args, mask, left.shape)
     else:
         points, point_info = _grid_points(args, left.shape)
     from strain2d import check_tracks_fit
@@ -820,8 +863,21 @@ def _cmd_reconstruct(args) -> int:
 
             say("computing strain")
             usable = rec.visible[0] & np.isfinite(rec.points[0]).all(axis=1)
-            grid = None if args.points else tuple(point_info["grid"])
-            mesh = choose_mesh(rec.points[0], usable, grid=grid)
+            if masked_triangles is not None:
+                from surface_strain import Mesh
+
+                cols, rows = point_info["grid"]
+                how = f"grid {cols}x{rows} on the mask's tissue, alternating diagonals"
+                mesh = Mesh(masked_triangles, "grid", how)
+            else:
+                grid = None if args.points else tuple(point_info["grid"])
+                mesh = choose_mesh(rec.points[0], usable, grid=grid)
+                if mask is not None:  # Delaunay of the points on the tissue: its triangles on it
+                    from strain2d.grid import mask_triangles
+
+                    kept = mask_triangles(points, mesh.triangles, mask)
+                    point_info["mask"]["triangles_off_tissue"] = len(mesh.triangles) - len(kept)
+                    mesh = mesh._replace(triangles=kept)
             (tmp / "strain").mkdir()
             field = write_run(
                 tmp / "strain",

@@ -95,3 +95,37 @@ def test_the_console_script_runs_like_python_m(small_stereo, tmp_path):
     proc = subprocess.run(argv, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.startswith("stereo import-calib: error: ") and "calib.json" in proc.stderr
+
+
+def test_reconstruct_fills_a_tissue_mask_on_the_left_view(small_stereo, tmp_path):
+    """--mask (a polygon CSV on the left view): the grid fills it, no point off the tissue,
+    the strain's triangles on it; each point is the rectangle run's point at the same place."""
+    import numpy as np
+
+    from strain2d.tracks import read_tracks
+
+    s = small_stereo
+    angle = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    outline = np.c_[340 + 60 * np.cos(angle), 195 + 45 * np.sin(angle)]
+    mask = tmp_path / "outline.csv"
+    np.savetxt(mask, outline, delimiter=",", header="x,y", comments="")
+    common = ["reconstruct", "--calib", s.calib, "--left", s.left, "--right", s.right,
+              "--grid", "7x6", "--strain", "-q"]  # fmt: skip
+    assert main([str(a) for a in [*common, "--mask", mask, "--out", tmp_path / "m"]]) == 0
+    summary = json.loads((tmp_path / "m" / "summary.json").read_text())
+    info = summary["points"]["mask"]
+    assert info["kind"] == "polygon-csv" and info["grid_points"] == 42
+    n = summary["points"]["n"]
+    assert n == 42 - info["points_off_tissue"] and 20 <= n < 42
+    left = read_tracks(tmp_path / "m" / "tracks_left.csv").reference
+    inside = ((left[:, 0] - 340) / 60) ** 2 + ((left[:, 1] - 195) / 45) ** 2 <= 1.0
+    assert inside.all() and len(left) == n
+    x0, y0, x1, y1 = summary["points"]["roi"]
+    rect = ["--roi", f"{x0},{y0},{x1},{y1}", "--out", tmp_path / "r"]
+    assert main([str(a) for a in [*common, *rect]]) == 0
+    rec = read_tracks(tmp_path / "r" / "tracks_left.csv")
+    index = {(round(x, 6), round(y, 6)): i for i, (x, y) in enumerate(rec.reference)}
+    assert all((round(x, 6), round(y, 6)) in index for x, y in left)
+    masked = json.loads((tmp_path / "m" / "strain" / "summary.json").read_text())
+    whole = json.loads((tmp_path / "r" / "strain" / "summary.json").read_text())
+    assert 0 < masked["mesh"]["n_triangles"] < whole["mesh"]["n_triangles"]
