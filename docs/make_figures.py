@@ -3,12 +3,13 @@
     python docs/make_figures.py
 
 Writes docs/images/: the demo's tracked grid and strain maps (from
-demo_output/), the four synthetic benchmark cases, a 3D membrane-strain
-example computed by surface_strain, and dic's strain-error maps on two
-heterogeneous fields with a coarse and a fine grid; and the mpm3d demo's
-height map, 3D surface, fold profiles and before/after comparison; and a
-screenshot of the top of every package's report.html, taken in headless
-Chromium (``tests/report_browser.py``).
+demo_output/), the same video analyzed in a tissue mask (docs/masks.md),
+the four synthetic benchmark cases, a 3D membrane-strain example computed
+by surface_strain, and dic's strain-error maps on two heterogeneous fields
+with a coarse and a fine grid; and the mpm3d demo's height map, 3D surface,
+fold profiles and before/after comparison; and a screenshot of the top of
+every package's report.html, taken in headless Chromium
+(``tests/report_browser.py``).
 """
 
 from __future__ import annotations
@@ -215,9 +216,39 @@ def report_screenshots() -> None:
         image.save(shot, optimize=True)
 
 
+#: the tissue outline of docs/masks.md (x,y px on the demo's video)
+MASK_OUTLINE = (
+    "x,y\n230,260\n400,205\n575,250\n600,420\n560,585\n420,560\n330,600\n215,520\n260,400\n"
+)
+
+
+def mask_figure() -> None:
+    """docs/masks.md's worked example: the demo's video analyzed in a polygon mask; its
+    tracked-grid figure, with the mask's outline."""
+    import shutil
+    import tempfile
+
+    from strain2d.cli import main
+
+    video = ROOT / "demo_output" / "data" / "equibiaxial.avi"
+    if not video.is_file():
+        raise SystemExit("run `make demo` first")
+    with tempfile.TemporaryDirectory() as tmp:
+        outline = Path(tmp) / "outline.csv"
+        outline.write_text(MASK_OUTLINE)
+        argv = ["-q", "analyze", str(video), "--mask", str(outline), "--grid", "11x11",
+                "--fps", "10", "--scale", "0.012mm/px", "--animation", "none",
+                "--out", str(Path(tmp) / "masked")]  # fmt: skip
+        if main(argv) != 0:
+            raise SystemExit("the masked run failed")
+        shutil.copy(Path(tmp) / "masked" / "figures" / "tracked_grid.png",
+                    OUT / "mask_tracked_grid.png")  # fmt: skip
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
     demo_figures()
+    mask_figure()
     synthetic_cases()
     membrane_3d()
     error_figures()
