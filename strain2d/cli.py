@@ -304,10 +304,10 @@ def _cmd_batch(args) -> int:
     return 0
 
 
-def _progress(args):
+def _progress(args, *, record: bool = False):
     from tissue_core.progress import Progress
 
-    return Progress(quiet=args.quiet)
+    return Progress(quiet=args.quiet, record=record)
 
 
 def _tracker_options(args) -> dict:
@@ -483,7 +483,7 @@ def _cmd_analyze(args) -> int:
     scale = _scale_option(args)
     tracker_options = _tracker_options(args)  # bad ones fail before anything is read
     check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
-    say = _progress(args)
+    say = _progress(args, record=True)  # its lines go into the run's run.log
 
     def frames_exist(n: int) -> None:
         for flag, frames in (("--endpoint", [args.endpoint]), ("--maps-at", map_frames)):
@@ -531,6 +531,7 @@ def _cmd_analyze(args) -> int:
                 scale=scale,
                 pool=pool,
                 mask=mask,
+                log=say.recorded,
             )
     ep = summary["contraction_endpoint"]
     say(f"{ep['label']}: frame {ep['frame']} ({ep['source']})")

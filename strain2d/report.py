@@ -152,13 +152,25 @@ def endpoint_of(
     }
 
 
+#: a mean normal strain below this share of the larger one is taken as none in naming the
+#: deformation: the tissue's shortening, not the trackers' noise on the other axis, names it
+_MINOR_SHARE = 0.2
+
+
 def _deformation_kind(mean: np.ndarray, components: Sequence[str]) -> str:
     """ "contraction" when the mean normal strains at a frame are both <= 0 (not both 0),
-    "stretch" when both >= 0, else "deformation" (one shortens, the other stretches)."""
+    "stretch" when both >= 0, else "deformation" (one shortens, the other stretches).
+
+    A normal strain under :data:`_MINOR_SHARE` of the larger does not count, so that a
+    contraction along one axis with tracking noise on the other (-0.008 and +0.0003) is
+    a contraction with any tracker, not a contraction with one and a deformation with
+    another."""
     normal = [float(mean[j]) for j, c in enumerate(components) if c in ("Exx", "Eyy")]
     normal = [v for v in normal if math.isfinite(v)]
     if not normal or all(abs(v) < NO_DEFORMATION for v in normal):
         return "deformation"
+    largest = max(abs(v) for v in normal)
+    normal = [v for v in normal if abs(v) >= _MINOR_SHARE * largest]
     if all(v <= 0 for v in normal):
         return "contraction"
     if all(v >= 0 for v in normal):
@@ -473,7 +485,9 @@ def run_outputs(
     )
     values = {c: v[np.isfinite(v)] for c, v in at_end.items()}
     quality_summary = _quality_summary(quality, sigma, noise, unit)
-    flags = _run_flags(quality_summary, ep, field, values, noise)
+    flags = _run_flags(
+        quality_summary, ep, field, values, noise, tracks.meta.get("reference_updates")
+    )
 
     table = {}
     for key in ("Exx", "Eyy", "Exy", "E1", "E2", "J"):
@@ -541,8 +555,13 @@ def _quality_summary(quality: dict, sigma, noise, unit) -> dict:
     }
 
 
-def _run_flags(q: dict, ep: dict, field: StrainField, values: dict, noise: float) -> list[str]:
-    """What a reader of the run should know before trusting it, one sentence each."""
+def _run_flags(
+    q: dict, ep: dict, field: StrainField, values: dict, noise: float, updates=None
+) -> list[str]:
+    """What a reader of the run should know before trusting it, one sentence each.
+
+    ``updates``: per point, how often the tracker renewed its reference subset (dic's
+    ``reference_updates``)."""
     flags = []
     if q["lowest_visible_pct"] is not None and q["lowest_visible_pct"] < 100:
         flags.append(
@@ -563,6 +582,15 @@ def _run_flags(q: dict, ep: dict, field: StrainField, values: dict, noise: float
         flags.append(
             f"{q['mesh']['slivers']} of {q['mesh']['n_triangles']} triangles are slivers "
             "(radius ratio below 0.1): their strain magnifies tracking noise."
+        )
+    renewed = np.asarray(updates if updates is not None else [], dtype=float)
+    if renewed.size and np.nanmax(renewed) > 0:
+        worst = int(np.nanargmax(renewed))
+        flags.append(
+            f"The reference subsets of {int((renewed > 0).sum())} of {renewed.size} points were "
+            f"renewed as the tissue deformed (most often point {worst}, "
+            f"{int(renewed[worst])} times): each renewal adds its match's error, so those "
+            "points may drift more than the others (summary.json: tracker.reference_updates)."
         )
     source = str(ep.get("source", ""))
     if source.startswith(("not reached", "none", "too few")):

@@ -409,6 +409,7 @@ def write_run(
     workers: int | None = None,
     pool=None,
     mask=None,
+    log: Callable[[], str] | None = None,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -474,6 +475,10 @@ def write_run(
     mask : tissue_core.masks.Mask, keyword-only
         The tissue mask the points were placed in: outlined on the reference
         frame of the tracked-grid figure.
+    log : callable, keyword-only
+        Returns the command's log so far (its timestamped steps and warnings,
+        :meth:`tissue_core.progress.Progress.recorded`), written last as
+        ``run.log``; ``strain2d analyze`` gives it.
 
     Returns
     -------
@@ -636,11 +641,14 @@ def write_run(
             "statistics": extra["statistics"],
             "units": _units(scale, fps, tracks.uncertainty is not None),
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
-            "outputs": [
-                *sorted(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
-                "report.html",
-                "summary.json",
-            ],
+            "outputs": sorted(
+                [
+                    *(str(p.relative_to(tmp)) for p in tmp.rglob("*") if p.is_file()),
+                    "report.html",
+                    "summary.json",
+                    *(["run.log"] if log is not None else []),
+                ]
+            ),
             "figures": extra["figures"],
         }
         strain_s = getattr(field, "seconds_computing", 0.0) - strain_before
@@ -656,4 +664,6 @@ def write_run(
             "outputs": ended - t_start - strain_s,
         }
         write_json(tmp / "summary.json", summary)
+        if log is not None:
+            (tmp / "run.log").write_text(log(), encoding="utf-8")
     return summary

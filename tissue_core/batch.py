@@ -878,7 +878,15 @@ def _without_provenance(value):
 
 #: files of a folder that record how results were made, not results
 _NOT_RESULTS = frozenset(
-    {".tissue-strain-result.json", LEDGER, "report.html", BATCH_FILE, LOG_FILE, ".batch.lock"}
+    {
+        ".tissue-strain-result.json",
+        LEDGER,
+        "report.html",
+        BATCH_FILE,
+        LOG_FILE,
+        ".batch.lock",
+        "run.log",  # a run's own log: when and how fast it was made
+    }
 )
 
 
@@ -886,8 +894,8 @@ def differences(a: str | os.PathLike, b: str | os.PathLike) -> list[str]:
     """The files that differ between two result folders, beyond their provenance.
 
     Every file is compared byte for byte, except: the result marker and the
-    ledger of files, the batch's record and log (how and where the runs were
-    made); JSON files, compared without their time stamps, command lines and
+    ledger of files, the batch's record and log and a run's log (how, when and
+    where the runs were made); JSON files, compared without their time stamps, command lines and
     run times; and ``report.html``, which shows those.  Where a file names its own
     folder (a study lists its runs), the two folders' paths count as equal.
     An empty list means the two folders hold the same results.

@@ -46,7 +46,7 @@ from tissue_core.interrupt import (
     was_interrupted,
 )
 from tissue_core.outputs import recorded_command, written
-from tissue_core.progress import close_open_lines
+from tissue_core.progress import close_open_lines, record_line
 
 __all__ = ["ArgumentParser", "CommandLine", "one_line", "run_command", "run_module"]
 
@@ -179,6 +179,7 @@ def _show_warning(prefix: str):
         if issubclass(category, UserWarning):
             close_open_lines()
             print(f"{prefix}: warning: {one_line(message)}", file=sys.stderr, flush=True)
+            record_line(f"warning: {one_line(message)}")
         else:
             log.info("%s (%s:%s)", message, filename, lineno)
 

@@ -18,10 +18,18 @@ from typing import TextIO
 from tissue_core.filenames import readable
 from tissue_core.interrupt import raise_if_interrupted
 
-__all__ = ["Progress", "close_open_lines"]
+__all__ = ["Progress", "close_open_lines", "record_line"]
 
 #: counters whose terminal bar is on screen now (closed before an error line)
 _OPEN: list[Task] = []
+#: the recording progresses alive (``record=True``): the warnings shown go into them too
+_RECORDERS: list[Progress] = []
+
+
+def record_line(text: str) -> None:
+    """Add ``text`` (a warning shown on stderr) to what every recording progress keeps."""
+    for progress in _RECORDERS:
+        progress._keep(text)
 
 
 def _line(stream, text: str) -> None:
@@ -48,15 +56,50 @@ class Progress:
         Default ``sys.stderr`` (looked up when printing, so tests can capture it).
     interval : float
         Seconds between the lines a counter prints when ``stream`` is not a terminal.
+    record : bool
+        Keep every step, counter's total and warning, timestamped, in :attr:`lines`
+        (``quiet`` or not): the run's own log (``run.log``).
     """
 
     def __init__(
-        self, *, quiet: bool = False, stream: TextIO | None = None, interval: float = 10.0
+        self,
+        *,
+        quiet: bool = False,
+        stream: TextIO | None = None,
+        interval: float = 10.0,
+        record: bool = False,
     ) -> None:
         self.quiet = quiet
         self._stream = stream
         self.interval = interval
         self.start = time.perf_counter()
+        self.lines: list[str] = []
+        self._tasks: list[Task] = []
+        if record:
+            import weakref
+
+            _RECORDERS.append(self)
+            weakref.finalize(self, _RECORDERS.remove, self)
+
+    def _keep(self, text: str) -> None:
+        from datetime import datetime
+
+        stamp = datetime.now().astimezone().isoformat(timespec="seconds")
+        self.lines.append(f"{stamp} [{self.elapsed():6.1f} s] {readable(text)}")
+
+    def recorded(self) -> str:
+        """What was kept (``record=True``), one line each; a counter still running ends it
+        with how far it has got."""
+        running = [
+            f"{t.description}: {t._count()} (this log was written at the end of this step)"
+            for t in self._tasks
+            if not t._closed and t.done
+        ]
+        kept = list(self.lines)
+        for text in running:
+            self._keep(text)
+        lines, self.lines = self.lines, kept
+        return "".join(line + "\n" for line in lines)
 
     @property
     def stream(self) -> TextIO:
@@ -74,6 +117,8 @@ class Progress:
 
     def say(self, message: str) -> None:
         """Print ``[ELAPSED s] message`` (a step, a result, where the output went)."""
+        if self in _RECORDERS:
+            self._keep(message)
         if self.quiet:
             return
         close_open_lines()
@@ -83,7 +128,9 @@ class Progress:
 
     def task(self, description: str, *, unit: str = "frame") -> Task:
         """A counter for a loop: call it with ``(done, total)``; use it as a context manager."""
-        return Task(self, description, unit)
+        task = Task(self, description, unit)
+        self._tasks.append(task)
+        return task
 
 
 class Task:
@@ -113,11 +160,13 @@ class Task:
     def __call__(self, done: int, total: int | None = None) -> None:
         raise_if_interrupted()  # a Ctrl-C that Python swallowed in a finalizer
         p = self.progress
-        if p.quiet or self._closed:
+        if self._closed:
             return
         self.done = int(done)
         if total is not None:
             self.total = int(total)
+        if p.quiet:
+            return
         if p.is_terminal:
             if self._bar is None:
                 from tqdm import tqdm
@@ -151,6 +200,6 @@ class Task:
             self._bar = None
         if self in _OPEN:
             _OPEN.remove(self)
-        if report and not self.progress.quiet and self.done:
+        if report and self.done:  # say() keeps it for the run's log, quiet or not
             took = time.perf_counter() - self._start
             self.progress.say(f"{self.description}: {self._count()} in {took:.1f} s")

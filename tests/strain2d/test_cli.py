@@ -788,3 +788,25 @@ def test_a_masked_run_is_the_rectangle_run_on_the_tissue(small_case, tmp_path, c
     assert notch and not set(notch) & set(mine)
     report = (tmp_path / "m" / "report.html").read_text()
     assert "tissue mask" in report and "mask.png" in report
+
+
+def test_a_run_keeps_its_own_log_quiet_or_not(small_case, tmp_path, capsys):
+    """run.log in the run folder: the steps with their times, the warnings, even with -q."""
+    folder, _ = small_case
+    points = tmp_path / "p.csv"
+    points.write_text("x,y\n0,0\n60,60\n140,60\n100,140\n")  # the corner cannot be tracked
+    argv = ["-q", "analyze", str(folder / "eq.avi"), "--points", str(points), "--tracker", "dic",
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "warning: 1 of 4 points cannot be used" in err
+    log = (tmp_path / "run" / "run.log").read_text().splitlines()
+    assert log[0].endswith("eq.avi: 6 frames of 200x200 px (video)")
+    assert any("tracking 4 points (dic): 6/6 frames in" in line for line in log)
+    assert any("warning: 1 of 4 points cannot be used" in line for line in log)
+    assert "figures and animation: 6/6 frames" in log[-1]
+    for line in log:  # ISO time, then the time since the start
+        stamp, rest = line.split(" ", 1)
+        assert stamp[:4] == "2" + stamp[1:4] and "T" in stamp and rest.startswith("[")
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert "run.log" in summary["outputs"]

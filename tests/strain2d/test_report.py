@@ -326,3 +326,30 @@ def test_study_output_inside_a_run_folder_is_refused(run_dir, tmp_path, capsys):
     assert main(["-q", "study", str(out), "--out", str(out / "study")]) == 2
     assert "inside the input folder" in capsys.readouterr().err
     assert not (out / "study").exists()
+
+
+def test_the_endpoint_is_named_by_the_tissue_not_by_a_trackers_noise():
+    """A shortening along x with noise of either sign along y is a contraction (whichever
+    tracker's noise it is); both axes moving, each its own way, is a deformation."""
+    from strain2d.report import _deformation_kind
+
+    kinds = [
+        _deformation_kind(np.array(m), ("Exx", "Eyy", "Exy"))
+        for m in ([-0.008, 0.0003, 0.001], [-0.008, -0.0003, 0.0], [0.01, -0.0015, 0.0],
+                  [-0.008, 0.004, 0.0], [1e-6, -1e-6, 0.0], [-0.02, -0.01, 0.0])
+    ]  # fmt: skip
+    assert kinds == ["contraction", "contraction", "stretch", "deformation", "deformation",
+                     "contraction"]  # fmt: skip
+
+
+def test_renewed_references_are_flagged_with_the_point_renewed_most():
+    from strain2d.report import _run_flags
+
+    quality = {
+        "lowest_visible_pct": 100, "lowest_coverage_pct": 100, "lowest_median_quality": 0.95,
+        "mesh": {"slivers": 0, "n_triangles": 8},
+    }  # fmt: skip
+    ep = {"source": "detected"}
+    assert _run_flags(quality, ep, None, {}, 0.0, [0, 0, 0]) == []
+    (flag,) = _run_flags(quality, ep, None, {}, 0.0, [0, 3, 20, 0, 1])
+    assert "of 3 of 5 points were renewed" in flag and "point 2, 20 times" in flag
