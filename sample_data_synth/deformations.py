@@ -23,6 +23,7 @@ __all__ = [
     "Homogeneous",
     "RampHold",
     "Twitch",
+    "Twitches",
     "deformation_from_dict",
     "equibiaxial",
     "green_lagrange",
@@ -488,8 +489,82 @@ class Twitch:
         return f"Twitch({self.onset}, {self.peak}, {self.endpoint})"
 
 
-def time_profile_from_dict(d: dict) -> RampHold | Twitch:
+class Twitches:
+    """Time profile of repeated twitches of different sizes: a cycle after another.
+
+    Twitch ``i`` is a :class:`Twitch` ``(onset, peak, end)`` scaled by its
+    ``amplitude`` (0 to 1]: ``t`` rises from 0 at ``onset`` to ``amplitude`` at
+    ``peak`` and relaxes to 0 at ``end``; between twitches the tissue rests at
+    ``t = 0`` (its reference).  A deformation whose strain grows with ``t`` makes
+    each twitch's peak strain that of ``t = amplitude``.
+
+    Parameters
+    ----------
+    twitches : sequence of (onset, peak, end, amplitude)
+        Frames with ``onset < peak < end <= next onset``.
+
+    Examples
+    --------
+    >>> profile = Twitches([(1, 3, 5, 1.0), (6, 7, 9, 0.5)])
+    >>> [round(profile(k), 3) for k in range(11)]
+    [0.0, 0.0, 0.5, 1.0, 0.5, 0.0, 0.0, 0.5, 0.25, 0.0, 0.0]
+    """
+
+    def __init__(self, twitches) -> None:
+        twitches = [tuple(t) for t in twitches]
+        if not twitches:
+            raise ValueError("give at least one twitch")
+        self.twitches = []
+        end_before = -1
+        for onset, peak, end, amplitude in twitches:
+            if not 0 < float(amplitude) <= 1:
+                raise ValueError(f"a twitch's amplitude must be in (0, 1], got {amplitude!r}")
+            if onset < end_before:
+                raise ValueError(f"twitch at frame {onset} starts before the one before ends")
+            self.twitches.append((Twitch(onset, peak, end), float(amplitude)))
+            end_before = end
+        self.endpoint = self.twitches[-1][0].endpoint
+
+    @property
+    def cycles(self) -> list[dict]:
+        """Each twitch's ``onset``, ``peak``, ``end`` frames and ``amplitude``."""
+        return [
+            {"onset": t.onset, "peak": t.peak, "end": t.endpoint, "amplitude": a}
+            for t, a in self.twitches
+        ]
+
+    def __call__(self, frame: float) -> float:
+        """Normalized time ``t`` of a frame (fractional frames allowed)."""
+        frame = float(frame)
+        for twitch, amplitude in self.twitches:
+            if twitch.onset <= frame <= twitch.endpoint:
+                return amplitude * twitch(frame)
+        return 0.0
+
+    def describe(self) -> str:
+        parts = [f"{a:g} x twitch({t.onset}, {t.peak}, {t.endpoint})" for t, a in self.twitches]
+        return f"{len(parts)} twitches, t = 0 between them: " + ", ".join(parts)
+
+    def to_dict(self) -> dict:
+        return {
+            "type": "twitches",
+            "twitches": [[t.onset, t.peak, t.endpoint, a] for t, a in self.twitches],
+        }
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Twitches) and other.to_dict() == self.to_dict()
+
+    def __hash__(self) -> int:
+        return hash(str(self.to_dict()))
+
+    def __repr__(self) -> str:
+        return f"Twitches({self.to_dict()['twitches']})"
+
+
+def time_profile_from_dict(d: dict) -> RampHold | Twitch | Twitches:
     """Rebuild a time profile from its ``to_dict()`` output."""
+    if d.get("type") == "twitches":
+        return Twitches(d["twitches"])
     if d.get("type") == "twitch":
         return Twitch(d["onset"], d["peak"], d["endpoint"])
     if d.get("type") != "ramp_hold":

@@ -105,7 +105,15 @@ def _add_analyze_options(p) -> None:
         type=int,
         metavar="FRAME",
         help="contraction endpoint frame (default: detected, where the strain rate falls "
-        "below --endpoint-tolerance and stays there)",
+        "below --endpoint-tolerance and stays there; with repeated contractions, the peak of "
+        "the largest cycle)",
+    )
+    g.add_argument(
+        "--cycle",
+        type=int,
+        metavar="N",
+        help="with repeated contractions: the cycle (1, 2, ...) whose peak is the endpoint "
+        "(default: the largest)",
     )
     g.add_argument(
         "--endpoint-tolerance",
@@ -119,7 +127,7 @@ def _add_analyze_options(p) -> None:
         "--maps-at",
         metavar="FRAMES",
         help="comma-separated frames that also get contour maps (the endpoint and the last "
-        "frame always do)",
+        "frame always do); 'peaks': every cycle's peak too",
     )
     g.add_argument(
         "--animation",
@@ -470,7 +478,13 @@ def _cmd_analyze(args) -> int:
     from tissue_core.outputs import check_writable
 
     t_start = time.perf_counter()
-    map_frames = _frame_list(args.maps_at, "--maps-at")
+    peaks = bool(args.maps_at) and "peaks" in [v.strip() for v in args.maps_at.split(",")]
+    listed = ",".join(v for v in (args.maps_at or "").split(",") if v.strip() != "peaks")
+    map_frames = _frame_list(listed, "--maps-at")
+    if args.cycle is not None and args.cycle < 1:
+        raise InputError(f"--cycle counts cycles from 1, got {args.cycle}")
+    if args.cycle is not None and args.endpoint is not None:
+        raise InputError("give either --endpoint or --cycle: each chooses the endpoint")
     options = {
         "fps": args.fps,
         "endpoint": args.endpoint,
@@ -532,6 +546,8 @@ def _cmd_analyze(args) -> int:
                 pool=pool,
                 mask=mask,
                 log=say.recorded,
+                cycle=args.cycle,
+                maps_at_peaks=peaks,
             )
     ep = summary["contraction_endpoint"]
     say(f"{ep['label']}: frame {ep['frame']} ({ep['source']})")

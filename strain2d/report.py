@@ -152,6 +152,106 @@ def endpoint_of(
     }
 
 
+#: the components cycles are found in and reported
+CYCLE_COMPONENTS = ("Exx", "Eyy", "Exy")
+
+
+def run_cycles(
+    field: StrainField, times: np.ndarray, *, stimulus: np.ndarray | None = None
+) -> dict | None:
+    """The repeated contractions of a run (:mod:`strain2d.cycles`), or None with fewer than
+    two cycles (a single contraction: the endpoint is found as before).
+
+    Returns the detection (``component``, ``sign``, ``noise``,
+    ``min_prominence``, ``trigger``) with :func:`strain2d.cycles.cycle_statistics`'
+    ``cycles`` (numbered from 1 in ``cycle``), ``ensemble`` and ``largest``.
+    """
+    from strain2d.cycles import cycle_statistics, detect_cycles
+
+    curves = _mean_curves(field, CYCLE_COMPONENTS)
+    found = detect_cycles(curves, CYCLE_COMPONENTS, stimulus=stimulus)
+    responses = [c for c in found["cycles"] if c.peak is not None]
+    if len(responses) < 2 and stimulus is None:
+        return None
+    stats = cycle_statistics(found, curves, CYCLE_COMPONENTS, times)
+    for n, row in enumerate(stats["cycles"], start=1):
+        row["cycle"] = n
+    info = {k: found[k] for k in ("component", "sign", "noise", "min_prominence", "trigger")}
+    return {**info, "cycles": stats["cycles"], "ensemble": stats["ensemble"],
+            "largest": stats["largest"], "curves": curves}  # fmt: skip
+
+
+def _cycle_endpoint(ep: dict, cycles: dict, cycle: int | None, field, times) -> dict:
+    """The endpoint at the peak of cycle ``cycle`` (1, 2, ...; default the largest)."""
+    rows = cycles["cycles"]
+    if cycle is None:
+        index = cycles["largest"]
+        if index is None:
+            return ep
+        why = f"the largest of {len(rows)}"
+    else:
+        if not 1 <= cycle <= len(rows):
+            raise InputError(f"--cycle {cycle}: the run has cycles 1..{len(rows)}")
+        index = cycle - 1
+        if rows[index]["peak"] is None:
+            raise InputError(f"--cycle {cycle}: that stimulus pulse has no contraction")
+        why = f"cycle {cycle} of {len(rows)}, given"
+    cycles["chosen"] = index
+    k = int(rows[index]["peak"])
+    kind = _deformation_kind(cycles["curves"][k], CYCLE_COMPONENTS)
+    return {
+        **ep,
+        "frame": k,
+        "time": float(np.asarray(times, float)[k]),
+        "label": f"peak of cycle {index + 1} of {len(rows)}",
+        "deformation": kind,
+        "source": "cycle",
+        "cycle": index + 1,
+        "detection": f"peak of cycle {index + 1} ({why}) of the repeated contractions",
+    }
+
+
+def _write_cycles(folder: Path, cycles: dict, field: StrainField) -> list[Path]:
+    """``cycles.csv`` (a row per cycle) and ``cycles_nodes.csv`` (each cycle's peak strains
+    per node)."""
+    from tissue_core.csvtext import csv_writer
+    from tissue_core.outputs import replaced_on_success
+
+    columns = ["cycle", "onset", "peak", "end", "onset_time", "peak_time", "end_time",
+               "time_to_peak", "rt50", "relaxation_time", "amplitude"]  # fmt: skip
+    table = folder / "cycles.csv"
+    with replaced_on_success(table) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv_writer(f, lineterminator="\n")
+        writer.writerow([*columns, *(f"{c}_peak_mean" for c in CYCLE_COMPONENTS)])
+        for row in cycles["cycles"]:
+            means = row.get("peak_mean") or {}
+            writer.writerow([_cell(row.get(c)) for c in columns]
+                            + [_cell(means.get(c)) for c in CYCLE_COMPONENTS])  # fmt: skip
+    node = nodal_scalars(field)
+    names = ("Exx", "Eyy", "Exy", "E1", "E2")
+    nodes = folder / "cycles_nodes.csv"
+    with replaced_on_success(nodes) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv_writer(f, lineterminator="\n")
+        writer.writerow(["cycle", "peak", "point", *names])
+        for row in cycles["cycles"]:
+            if row["peak"] is None:
+                continue
+            k = int(row["peak"])
+            values = [np.asarray(node[c][k]) for c in names]
+            for i in range(field.n_points):
+                writer.writerow([row["cycle"], k, i, *(_cell(v[i]) for v in values)])
+    return [table, nodes]
+
+
+def _cell(value) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    value = float(value)
+    return "nan" if not math.isfinite(value) else f"{value:.8g}"
+
+
 #: a mean normal strain below this share of the larger one is taken as none in naming the
 #: deformation: the tissue's shortening, not the trackers' noise on the other axis, names it
 _MINOR_SHARE = 0.2
@@ -254,6 +354,9 @@ def run_outputs(
     pool=None,
     meanwhile: Callable[[], None] | None = None,
     runtime_s: dict | None = None,
+    cycle: int | None = None,
+    maps_at_peaks: bool = False,
+    stimulus: np.ndarray | None = None,
 ) -> dict:
     """Write a run's figures and ``statistics.json`` into ``folder``; return summary entries.
 
@@ -288,12 +391,20 @@ def run_outputs(
         tables then).
     runtime_s : dict, optional
         Filled with the seconds the animation took (``animation``).
+    cycle : int, optional
+        With repeated contractions (:func:`run_cycles`), the cycle (1, 2, ...)
+        whose peak is the endpoint; default the largest.
+    maps_at_peaks : bool
+        Draw maps at every cycle's peak too.
+    stimulus : (T,) float, optional
+        A stimulus signal per frame: the cycles start at its pulses.
 
     Returns
     -------
     dict
-        ``contraction_endpoint``, ``statistics`` and ``figures`` (a list of
-        {``files``, ``caption``}) for ``summary.json``.
+        ``contraction_endpoint``, ``statistics``, ``cycles`` (None with one
+        contraction) and ``figures`` (a list of {``files``, ``caption``}) for
+        ``summary.json``.
     """
     import time
 
@@ -315,9 +426,19 @@ def run_outputs(
         rate_tolerance=rate_tolerance,
         relative_tolerance=relative_tolerance,
     )
+    cycles = run_cycles(field, times, stimulus=stimulus)
+    if cycles is not None and endpoint is None:
+        # repeated contractions: the endpoint is a cycle's peak (the largest by default)
+        ep = _cycle_endpoint(ep, cycles, cycle, field, times)
+    elif cycle is not None:
+        raise InputError(
+            f"--cycle {cycle}: the run has "
+            + ("one contraction" if cycles is None else "an endpoint given by --endpoint")
+        )
     k_end = ep["frame"]
     end_name = ep["label"]
-    maps = sorted({*map_frames, k_end, T - 1})
+    peaks = [] if cycles is None else [c["peak"] for c in cycles["cycles"] if c["peak"] is not None]
+    maps = sorted({*map_frames, k_end, T - 1, *(peaks if maps_at_peaks else [])})
     unit = "s" if time_unit == "s" else "frame"
 
     def when(k: int) -> str:
@@ -412,6 +533,19 @@ def run_outputs(
         length=length,
     )
 
+    drawn_cycles = None
+    if cycles is not None:
+        drawn_cycles = pool.submit(
+            _saved,
+            fg.plot_cycles,
+            figdir / "cycles",
+            formats,
+            times,
+            cycles["curves"],
+            CYCLE_COMPONENTS,
+            {k: v for k, v in cycles.items() if k != "curves"},
+            time_unit=unit,
+        )
     if meanwhile is not None:
         meanwhile()
     # one pass over the video: the animation, and the frames under the maps not yet at hand
@@ -512,12 +646,24 @@ def run_outputs(
         "paired": {"components": [a, b], **tests},
     }
     write_json(folder / "statistics.json", statistics)
+    summary_cycles = None
+    if cycles is not None:
+        _write_cycles(folder, cycles, field)
+        record(
+            drawn_cycles.result(),
+            f"Repeated contractions: the {len(cycles['cycles'])} cycles found in the mean "
+            f"{cycles['component']} ({cycles['trigger']}), with onset, peak and end (top), "
+            "and each complete cycle from its onset with the ensemble mean +/- one SD over "
+            "the cycles (bottom). Per cycle: cycles.csv; each peak per node: cycles_nodes.csv.",
+        )
+        summary_cycles = {k: v for k, v in cycles.items() if k != "curves"}
     return {
         "contraction_endpoint": ep,
         "statistics": statistics,
         "figures": log.items,
         "quality": quality_summary,
         "flags": flags,
+        "cycles": summary_cycles,
     }
 
 

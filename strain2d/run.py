@@ -410,6 +410,8 @@ def write_run(
     pool=None,
     mask=None,
     log: Callable[[], str] | None = None,
+    cycle: int | None = None,
+    maps_at_peaks: bool = False,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -475,6 +477,13 @@ def write_run(
     mask : tissue_core.masks.Mask, keyword-only
         The tissue mask the points were placed in: outlined on the reference
         frame of the tracked-grid figure.
+    cycle : int, keyword-only
+        With repeated contractions (two cycles or more, :mod:`strain2d.cycles`),
+        the cycle (1, 2, ...) whose peak is the endpoint; default the largest.
+        The cycles go into ``summary.json`` (``cycles``), ``cycles.csv``,
+        ``cycles_nodes.csv`` and ``figures/cycles.png``.
+    maps_at_peaks : bool, keyword-only
+        Draw strain maps at every cycle's peak too (``--maps-at peaks``).
     log : callable, keyword-only
         Returns the command's log so far (its timestamped steps and warnings,
         :meth:`tissue_core.progress.Progress.recorded`), written last as
@@ -598,6 +607,8 @@ def write_run(
             pool=pool,
             meanwhile=tables,
             runtime_s=spent,
+            cycle=cycle,
+            maps_at_peaks=maps_at_peaks,
         )
         extra["figures"].insert(
             0,
@@ -639,6 +650,7 @@ def write_run(
             "quality": extra["quality"],
             "flags": extra["flags"],
             "statistics": extra["statistics"],
+            **({"cycles": extra["cycles"]} if extra["cycles"] is not None else {}),
             "units": _units(scale, fps, tracks.uncertainty is not None),
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
             "outputs": sorted(

@@ -33,7 +33,8 @@ Modules
 -------
 The figures live in private modules by concern and are imported from here:
 ``_maps`` (maps, tracked grid and error maps over a frame), ``_crosses``,
-``_curves``, ``_violins``, ``_study`` (the study figures), ``_animation``
+``_curves``, ``_cycles`` (repeated contractions),
+``_violins``, ``_study`` (the study figures), ``_animation``
 (the video writer), ``_save`` (:func:`save_figure`), ``_style`` (labels,
 colours, colour scales, :func:`strain_limits`), ``_checks`` and ``_pool``
 (the worker processes that draw a run's figures while it writes the rest).
@@ -42,6 +43,7 @@ colours, colour scales, :func:`strain_limits`), ``_checks`` and ``_pool``
 from strain2d.figures._animation import write_strain_animation
 from strain2d.figures._crosses import plot_principal_crosses, principal_noise_floor
 from strain2d.figures._curves import mean_strain_curves, plot_strain_curves
+from strain2d.figures._cycles import plot_cycles
 from strain2d.figures._maps import (
     plot_strain_errors,
     plot_strain_maps,
@@ -58,6 +60,7 @@ from strain2d.figures._violins import format_p, plot_strain_violins
 __all__ = [
     "format_p",
     "mean_strain_curves",
+    "plot_cycles",
     "plot_principal_crosses",
     "plot_run_quality",
     "plot_specimen_means",

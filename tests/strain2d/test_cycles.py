@@ -1,0 +1,144 @@
+"""Repeated contractions: cycles found in a rendered sheet that twitches three times, against
+its exact truth; a single contraction keeps today's endpoint."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from strain2d.cli import main
+from strain2d.cycles import cycle_statistics, detect_cycles
+from surface_strain import compute_strain, grid_triangles, nodal_scalars
+
+COMPONENTS = ("Exx", "Eyy", "Exy")
+
+
+@pytest.fixture(scope="module")
+def twitching(tmp_path_factory):
+    """The repeated-twitch case as a video, its stimulus CSV and mask PNG, and a dic run."""
+    import cv2
+
+    from sample_data_synth import write_video
+    from sample_data_synth.twitches import make_repeated_twitches
+
+    folder = tmp_path_factory.mktemp("twitches")
+    case = make_repeated_twitches()
+    write_video(case.video.frames, folder / "sheet.avi")
+    (folder / "stimulus.csv").write_text(case.stimulus_csv())
+    cv2.imwrite(str(folder / "mask.png"), case.mask.astype(np.uint8) * 255)
+    argv = ["-q", "analyze", str(folder / "sheet.avi"), "--grid", "9x7", "--tracker", "dic",
+            "--fps", "10", "--animation", "none", "--out", str(folder / "run")]  # fmt: skip
+    assert main(argv) == 0
+    return folder, case
+
+
+def _true_curves(case, points):
+    """The mean nodal strains the run would measure if it tracked every point exactly: the
+    true positions on the run's own mesh (cell by cell, alternating diagonals)."""
+    truth = case.video.truth
+    positions = truth.positions(points)
+    field = compute_strain(points, positions, grid_triangles(7, 9))
+    node = nodal_scalars(field)
+    return np.column_stack([np.nanmean(node[c], axis=1) for c in COMPONENTS])
+
+
+def test_every_cycle_of_a_repeated_contraction_is_found_with_its_peak_strains(twitching):
+    folder, case = twitching
+    summary = json.loads((folder / "run" / "summary.json").read_text())
+    cycles = summary["cycles"]
+    truth = case.video.truth.time_profile.cycles
+    assert [c["cycle"] for c in cycles["cycles"]] == [1, 2, 3]
+    for found, true in zip(cycles["cycles"], truth, strict=True):
+        assert abs(found["onset"] - true["onset"]) <= 1 and abs(found["peak"] - true["peak"]) <= 1
+        assert found["end"] is not None and abs(found["end"] - true["end"]) <= 1
+    assert cycles["component"] == "Exx" and cycles["sign"] == -1.0  # a contraction along x
+    # the endpoint is the peak of the largest cycle
+    ep = summary["contraction_endpoint"]
+    assert ep["frame"] == truth[0]["peak"] and ep["cycle"] == 1 and ep["source"] == "cycle"
+    assert ep["label"] == "peak of cycle 1 of 3"
+    # peak strains: the truth on the run's mesh, within 0.001
+    from strain2d.tracks import read_tracks
+
+    points = read_tracks(folder / "run" / "tracks.csv").reference
+    true = _true_curves(case, points)
+    for found, t in zip(cycles["cycles"], truth, strict=True):
+        for k, name in enumerate(COMPONENTS):
+            assert found["peak_mean"][name] == pytest.approx(true[t["peak"], k], abs=1e-3)
+    # the sizes of the twitches: 1, 0.55 and 0.8 of the largest
+    rise = np.array([c["amplitude"] for c in cycles["cycles"]])
+    assert rise / rise[0] == pytest.approx([1.0, 0.55, 0.8], abs=0.02)
+    # the ensemble: the true curves aligned at the true onsets, averaged, within 0.001
+    ens = cycles["ensemble"]
+    assert ens["n_cycles"] == 3
+    n = len(ens["frames_since_onset"])
+    ideal = np.nanmean([true[t["onset"] : t["onset"] + n] for t in truth], axis=0)
+    for k, name in enumerate(COMPONENTS):
+        assert np.asarray(ens["mean"][name]) == pytest.approx(ideal[:, k], abs=1e-3)
+    # the tables: a row per cycle; each peak's strains per node
+    with open(folder / "run" / "cycles.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["peak"]) for r in rows] == [c["peak"] for c in cycles["cycles"]]
+    assert float(rows[0]["time_to_peak"]) == pytest.approx(0.5, abs=0.1)  # 5 frames at 10 fps
+    with open(folder / "run" / "cycles_nodes.csv", newline="") as f:
+        nodes = list(csv.DictReader(f))
+    assert len(nodes) == 3 * 63 and {int(r["cycle"]) for r in nodes} == {1, 2, 3}
+    assert "figures/cycles.png" in summary["outputs"]
+    report = (folder / "run" / "report.html").read_text()
+    assert "peak of cycle 1 of 3" in report
+
+
+def test_the_cycles_are_cut_at_the_pulses_of_a_stimulus(twitching):
+    """From the stimulus recorded beside the video: the same cycles, each with its pulse; a
+    pulse with no contraction after it is reported as such."""
+    _, case = twitching
+    truth = case.video.truth
+    true = _true_curves(case, truth.grid((9, 7)))
+    found = detect_cycles(true, COMPONENTS, stimulus=case.stimulus)
+    assert found["trigger"] == "stimulus"
+    got = [(c.onset, c.peak, c.stimulus) for c in found["cycles"]]
+    assert got == [(t["onset"], t["peak"], t["onset"] - 1) for t in truth.time_profile.cycles]
+    silent = case.stimulus.copy()
+    silent[46] = 1.0  # a last pulse the tissue does not answer
+    last = detect_cycles(true, COMPONENTS, stimulus=silent)["cycles"][-1]
+    assert last.onset == 46 and last.peak is None and last.stimulus == 46
+
+
+def test_noise_alone_and_a_single_contraction_make_no_repeated_cycles(small_case, tmp_path):
+    rng = np.random.default_rng(0)
+    flat = rng.normal(0, 1e-4, (40, 3))
+    assert detect_cycles(flat, COMPONENTS)["cycles"] == [] or all(
+        c.amplitude < 1e-3 for c in detect_cycles(flat, COMPONENTS)["cycles"]
+    )
+    one = np.zeros((30, 3))
+    one[5:20, 0] = -0.05 * np.sin(np.linspace(0, np.pi, 15))
+    found = detect_cycles(one + rng.normal(0, 2e-4, one.shape), COMPONENTS)
+    assert len(found["cycles"]) == 1
+    stats = cycle_statistics(found, one, COMPONENTS, np.arange(30) / 10)
+    assert stats["largest"] == 0 and stats["ensemble"]["n_cycles"] == 1
+    # a run of one contraction: no cycles in its summary, the endpoint found as before
+    folder, _ = small_case
+    argv = ["-q", "analyze", str(folder / "eq.avi"), "--grid", "4x4", "--tracker", "dic",
+            "--animation", "none", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert "cycles" not in summary and summary["contraction_endpoint"]["source"] != "cycle"
+    assert not (tmp_path / "run" / "cycles.csv").exists()
+    assert main([*argv[:-1], str(tmp_path / "r2"), "--cycle", "2"]) == 2
+
+
+def test_another_cycle_can_be_the_endpoint_and_every_peak_can_get_maps(twitching, tmp_path):
+    folder, _ = twitching
+    argv = ["-q", "analyze", str(folder / "sheet.avi"), "--grid", "5x4", "--tracker", "dic",
+            "--fps", "10", "--animation", "none", "--cycle", "2", "--maps-at", "peaks,40",
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    ep = summary["contraction_endpoint"]
+    assert ep["cycle"] == 2 and ep["frame"] == summary["cycles"]["cycles"][1]["peak"]
+    maps = sorted(p.name for p in (tmp_path / "run" / "figures").glob("strain_frame*.png"))
+    peaks = [c["peak"] for c in summary["cycles"]["cycles"]]
+    assert maps == sorted({f"strain_frame{k:04d}.png" for k in [*peaks, 40, 47]})
+    assert main([*argv[:-1], str(tmp_path / "r4"), "--cycle", "4"]) == 2
