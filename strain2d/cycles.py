@@ -8,9 +8,11 @@ at the pulses of a stimulus signal recorded beside the video:
 * **Activity.** The mean strain component that moves most (of Exx, Eyy),
   signed so that the contraction (or stretch) rises: its value at the frame
   farthest from the reference, where the strain is 0, gives the sign.
-* **Noise.** The spread of the activity's second differences (a robust
-  standard deviation, 1.4826 MAD, over sqrt(6)): what frame-to-frame noise
-  alone makes of a curve that is smooth at the frame rate.
+* **Noise.** Where the tracker measures its uncertainty, what that
+  uncertainty makes of the mean strain (:func:`mean_strain_noise`); else
+  the spread of the activity's second differences (a robust standard
+  deviation, 1.4826 MAD, over sqrt(6)): what frame-to-frame noise alone
+  makes of a curve that is smooth at the frame rate.
 * **Peaks.** The local maxima whose prominence (how far they rise above the
   valleys on either side, :func:`scipy.signal.find_peaks`) exceeds
   ``min_prominence``: by default 8 noise SDs and 15 % of the largest
@@ -39,7 +41,7 @@ import numpy as np
 
 from strain2d.errors import InputError
 
-__all__ = ["Cycle", "activity", "cycle_statistics", "detect_cycles"]
+__all__ = ["Cycle", "activity", "cycle_statistics", "detect_cycles", "mean_strain_noise"]
 
 #: the least prominence of a cycle's peak, in noise SDs and as a share of the largest excursion
 NOISE_SDS = 8.0
@@ -111,6 +113,7 @@ def detect_cycles(
     stimulus: np.ndarray | None = None,
     min_prominence: float | None = None,
     rest_share: float = 0.02,
+    noise: float | None = None,
 ) -> dict:
     """Find the contraction cycles in a run's mean strains (see the module docstring).
 
@@ -127,6 +130,11 @@ def detect_cycles(
     rest_share : float, keyword-only
         Share of a cycle's rise within which the tissue counts as at rest
         (at least 3 noise SDs).
+    noise : float, keyword-only
+        The activity's noise SD when it is known (from the tracker's
+        uncertainty: :func:`mean_strain_noise`); default estimated from the
+        activity's second differences, which counts as noise what changes
+        faster than the frame rate resolves (beats two or three frames apart).
 
     Returns
     -------
@@ -140,7 +148,7 @@ def detect_cycles(
     a, component, sign = activity(curves, components)
     T = a.size
     finite = np.isfinite(a)
-    noise = _noise(a)
+    noise = _noise(a) if noise is None else float(noise)
     filled = np.where(finite, a, np.interp(np.arange(T), np.flatnonzero(finite), a[finite])
                       if finite.any() else 0.0)  # fmt: skip
     low = min(float(np.min(filled)), 0.0)
@@ -203,6 +211,28 @@ def detect_cycles(
         previous_end = end if end is not None else p
     out["cycles"] = cycles
     return out
+
+
+def mean_strain_noise(
+    reference: np.ndarray, triangles: np.ndarray, sigma_px: float, *, draws: int = 64, rng=0
+) -> float:
+    """The SD of a mesh's mean nodal strain (the largest over Exx, Eyy, Exy) when every
+    point's position has independent noise of ``sigma_px`` per coordinate (the tracker's
+    uncertainty): ``draws`` noisy copies of the reference, their mean strains' spread."""
+    from surface_strain import compute_strain, nodal_scalars
+
+    reference = np.asarray(reference, dtype=float)
+    ok = np.isfinite(reference).all(axis=1)
+    if not (np.isfinite(sigma_px) and sigma_px > 0) or ok.sum() < 3 or len(triangles) == 0:
+        return 0.0
+    gen = np.random.default_rng(rng)
+    start = np.where(ok[:, None], reference, 0.0)
+    noisy = start[None] + gen.normal(0.0, sigma_px, (draws, *reference.shape))
+    field = compute_strain(start, noisy, np.asarray(triangles))
+    node = nodal_scalars(field)
+    with _quiet():
+        spread = [np.nanstd(np.nanmean(node[c], axis=1), ddof=1) for c in ("Exx", "Eyy", "Exy")]
+    return float(np.nanmax(spread))
 
 
 def _crossing(a: np.ndarray, t: np.ndarray, start: int, level: float) -> float | None:

@@ -16,6 +16,7 @@ import math
 import os
 import tempfile
 import uuid
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
@@ -157,7 +158,11 @@ CYCLE_COMPONENTS = ("Exx", "Eyy", "Exy")
 
 
 def run_cycles(
-    field: StrainField, times: np.ndarray, *, stimulus: np.ndarray | None = None
+    field: StrainField,
+    times: np.ndarray,
+    *,
+    stimulus: np.ndarray | None = None,
+    sigma_px: float | None = None,
 ) -> dict | None:
     """The repeated contractions of a run (:mod:`strain2d.cycles`), or None with fewer than
     two cycles (a single contraction: the endpoint is found as before).
@@ -165,11 +170,16 @@ def run_cycles(
     Returns the detection (``component``, ``sign``, ``noise``,
     ``min_prominence``, ``trigger``) with :func:`strain2d.cycles.cycle_statistics`'
     ``cycles`` (numbered from 1 in ``cycle``), ``ensemble`` and ``largest``.
+    ``sigma_px``, the tracker's median uncertainty, sets the noise the peaks
+    must stand out of (:func:`strain2d.cycles.mean_strain_noise`).
     """
-    from strain2d.cycles import cycle_statistics, detect_cycles
+    from strain2d.cycles import cycle_statistics, detect_cycles, mean_strain_noise
 
     curves = _mean_curves(field, CYCLE_COMPONENTS)
-    found = detect_cycles(curves, CYCLE_COMPONENTS, stimulus=stimulus)
+    noise = None
+    if sigma_px is not None and np.isfinite(sigma_px) and sigma_px > 0:
+        noise = mean_strain_noise(field.reference, field.triangles, float(sigma_px))
+    found = detect_cycles(curves, CYCLE_COMPONENTS, stimulus=stimulus, noise=noise)
     responses = [c for c in found["cycles"] if c.peak is not None]
     if len(responses) < 2 and stimulus is None:
         return None
@@ -177,6 +187,7 @@ def run_cycles(
     for n, row in enumerate(stats["cycles"], start=1):
         row["cycle"] = n
     info = {k: found[k] for k in ("component", "sign", "noise", "min_prominence", "trigger")}
+    info["noise_from"] = "tracking uncertainty" if noise is not None else "second differences"
     return {**info, "cycles": stats["cycles"], "ensemble": stats["ensemble"],
             "largest": stats["largest"], "curves": curves}  # fmt: skip
 
@@ -426,7 +437,12 @@ def run_outputs(
         rate_tolerance=rate_tolerance,
         relative_tolerance=relative_tolerance,
     )
-    cycles = run_cycles(field, times, stimulus=stimulus)
+    quality = fg.run_quality(tracks, field)
+    unc = quality["uncertainty_median_px"]
+    with warnings.catch_warnings():  # frames without an uncertainty
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sigma_all = None if unc is None else float(np.nanmedian(np.asarray(unc, dtype=float)))
+    cycles = run_cycles(field, times, stimulus=stimulus, sigma_px=sigma_all)
     if cycles is not None and endpoint is None:
         # repeated contractions: the endpoint is a cycle's peak (the largest by default)
         ep = _cycle_endpoint(ep, cycles, cycle, field, times)
@@ -447,8 +463,6 @@ def run_outputs(
     log = _FigureLog(folder)
     figdir, record = log.dir, log.add
     limits = fg.strain_limits(field, components, cover=maps)  # no node of a map saturates
-    quality = fg.run_quality(tracks, field)
-    unc = quality["uncertainty_median_px"]
     sigma = None if unc is None else unc[k_end]  # the median over the endpoint's points
     noise = fg.principal_noise_floor(field, sigma, frame=k_end) if sigma is not None else 0.0
     noise = noise if np.isfinite(noise) else 0.0
