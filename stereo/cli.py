@@ -593,8 +593,7 @@ def _grid_points(args, shape: tuple[int, int]) -> tuple[np.ndarray, dict]:
 
 def _masked_grid_points(args, mask, shape: tuple[int, int]):
     """The grid in ``--mask`` (:func:`strain2d.grid.masked_grid`): points, triangles, info."""
-    from strain2d import parse_grid, parse_roi
-    from strain2d.grid import masked_grid
+    from strain2d import masked_grid, parse_grid, parse_roi
 
     cols, rows = parse_grid(args.grid or _DEFAULT_GRID)
     roi = parse_roi(args.roi) if args.roi else None
@@ -873,7 +872,7 @@ def _cmd_reconstruct(args) -> int:
                 grid = None if args.points else tuple(point_info["grid"])
                 mesh = choose_mesh(rec.points[0], usable, grid=grid)
                 if mask is not None:  # Delaunay of the points on the tissue: its triangles on it
-                    from strain2d.grid import mask_triangles
+                    from strain2d import mask_triangles
 
                     kept = mask_triangles(points, mesh.triangles, mask)
                     point_info["mask"]["triangles_off_tissue"] = len(mesh.triangles) - len(kept)

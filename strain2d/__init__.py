@@ -20,6 +20,8 @@ __getattr__, __dir__, __all__ = lazy_exports(
         "strain2d.grid": [
             "default_roi",
             "make_grid",
+            "mask_triangles",
+            "masked_grid",
             "parse_grid",
             "parse_roi",
             "read_points_csv",

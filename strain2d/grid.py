@@ -250,7 +250,7 @@ def masked_grid(
         A mask of another size than the frames, a mask too small for a grid,
         or one that leaves fewer than 3 points with a triangle on the tissue.
     """
-    from surface_strain.mesh import grid_triangles
+    from surface_strain import grid_triangles
 
     if tuple(mask.shape) != tuple(image_shape):
         raise InputError(
