@@ -46,6 +46,10 @@ demo: setup
 	$(BIN)/python -m strain2d analyze $(DEMO)/data/equibiaxial.avi --grid 7x7 \
 	    --roi 202,202,597,597 --scale 0.012mm/px --fps 10 --out $(DEMO)/equibiaxial --overwrite
 	@echo "demo results in $(DEMO)/equibiaxial: report.html, tracks.csv, strain_nodes.csv, strain.pvd, figures/"
+	$(BIN)/python -m sample_data_synth twitches --out $(DEMO)/twitches --overwrite -q
+	$(BIN)/python -m strain2d analyze $(DEMO)/twitches/twitches.avi --mask $(DEMO)/twitches/mask.png \
+	    --grid 11x9 --fps 10 --maps-at peaks --out $(DEMO)/twitches/run --overwrite
+	@echo "demo results in $(DEMO)/twitches/run: three twitches in a tissue mask (cycles.csv, figures/cycles.png)"
 	$(BIN)/python -m sample_data_synth stack --case pair --out $(DEMO)/stacks --overwrite -q
 	$(BIN)/python -m mpm3d analyze $(DEMO)/stacks/after.tif --out $(DEMO)/mpm3d_after --overwrite
 	$(BIN)/python -m mpm3d compare $(DEMO)/stacks/before.tif $(DEMO)/stacks/after.tif \

@@ -1,4 +1,4 @@
-"""Command line: ``python -m sample_data_synth {video,stack,stereo,study,list}``.
+"""Command line: ``python -m sample_data_synth {video,stack,stereo,study,twitches,list}``.
 
 ``video`` writes, for each case (the paper's, or the speckle-free tissue
 suite of :mod:`sample_data_synth.tissue` with ``--case tissue-suite`` or one of
@@ -26,6 +26,12 @@ specimen, ``manifest.csv`` (``run,specimen,group,video,truth,true_lx,true_ly,tru
 what to pass to ``strain2d analyze VIDEO --grid 7x7 --roi ROI --out RUN``) and
 ``study_truth.json`` (exact mean nodal strains at each endpoint, the expected
 verdict per group); see :mod:`sample_data_synth.specimens`.
+
+``twitches`` writes a muscle sheet that twitches three times, of different sizes
+(:mod:`sample_data_synth.twitches`): ``twitches.avi``, ``twitches_truth.json``
+(the deformation and the twitches' onsets, peaks, ends and amplitudes),
+``stimulus.csv`` (``frame,time_s,stimulus``: a pulse a frame before each
+onset) and ``mask.png`` (the tissue, an ellipse).
 
 Every command writes into a temporary folder beside ``--out`` and renames it
 only when everything is written.
@@ -149,6 +155,16 @@ def _build_parser() -> CommandLine:
         default=0.04,
         help="amplitude of the smooth strain heterogeneity, 0 to 0.2 (0.04)",
     )
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p = cli.command(
+        "twitches",
+        _cmd_twitches,
+        help="render a muscle sheet that twitches three times, with a stimulus and a tissue mask",
+    )
+    p.add_argument("--frames", type=int, default=48, help="frames (48; the twitches end at 44)")
+    p.add_argument("--fps", type=float, default=10.0, help="frame rate of stimulus.csv (10)")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -436,6 +452,31 @@ def _cmd_study(args) -> int:
             progress=progress,
         )
     say(f"results in {args.out}")
+    return 0
+
+
+def _cmd_twitches(args) -> int:
+    import cv2
+
+    from sample_data_synth.twitches import make_repeated_twitches
+
+    if not (math.isfinite(args.fps) and args.fps > 0):
+        raise ValueError(f"--fps must be a positive number, got {args.fps}")
+    if args.frames < 45:
+        raise ValueError(f"--frames must be at least 45 (the last twitch ends at 44), got "
+                         f"{args.frames}")  # fmt: skip
+    say = Progress(quiet=args.quiet)
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
+        with say.task("rendering the twitching sheet") as progress:
+            case = make_repeated_twitches(
+                n_frames=args.frames, fps=args.fps, rng=args.seed, progress=progress
+            )
+        write_video(case.video.frames, tmp / "twitches.avi")
+        case.video.truth.save(tmp / "twitches_truth.json")
+        (tmp / "stimulus.csv").write_text(case.stimulus_csv())
+        if not cv2.imwrite(str(tmp / "mask.png"), case.mask.astype(np.uint8) * 255):
+            raise OSError(f"could not write {tmp / 'mask.png'}")
+    say(f"twitches.avi, twitches_truth.json, stimulus.csv and mask.png in {args.out}")
     return 0
 
 
