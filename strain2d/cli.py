@@ -109,6 +109,19 @@ def _add_analyze_options(p) -> None:
         "the largest cycle)",
     )
     g.add_argument(
+        "--signals",
+        metavar="FILE",
+        help="CSV of the lab's signals beside the video (stimulus, force, pressure...): a "
+        "frame column (the video's frame numbers) or a time column (time, t, time_s, time_ms; "
+        "needs --fps), then one column per signal; aligned to the frames into signals.csv, "
+        "a figure and the report",
+    )
+    g.add_argument(
+        "--trigger",
+        metavar="NAME",
+        help="the --signals column whose pulses start each contraction cycle (a stimulus)",
+    )
+    g.add_argument(
         "--cycle",
         type=int,
         metavar="N",
@@ -417,6 +430,7 @@ def _inputs(args) -> list[str]:
         *args.source,
         *([args.points] if args.points else []),
         *([args.mask] if getattr(args, "mask", None) else []),
+        *([args.signals] if getattr(args, "signals", None) else []),
         *tracker_inputs(args),
     ]
 
@@ -485,6 +499,9 @@ def _cmd_analyze(args) -> int:
         raise InputError(f"--cycle counts cycles from 1, got {args.cycle}")
     if args.cycle is not None and args.endpoint is not None:
         raise InputError("give either --endpoint or --cycle: each chooses the endpoint")
+    if args.trigger and not args.signals:
+        raise InputError("--trigger names a column of --signals: give the signals file")
+    signals = None
     options = {
         "fps": args.fps,
         "endpoint": args.endpoint,
@@ -506,8 +523,16 @@ def _cmd_analyze(args) -> int:
                 raise InputError(f"{flag} {bad[0]} is outside the frames 0..{n - 1}")
 
     def check(n: int, shape: tuple[int, int]) -> None:
-        nonlocal scale
+        nonlocal scale, signals
         frames_exist(n)
+        if args.signals:  # aligned once the frames are counted, before any is tracked
+            from strain2d.signals import read_signals
+
+            signals = read_signals(args.signals, n, fps=args.fps, start=args.start,
+                                   step=args.step)  # fmt: skip
+            if args.trigger:
+                signals.column(args.trigger)  # a name it has
+            say(f"signals {', '.join(signals.names)} aligned by {signals.aligned_by}")
         if args.scale_ruler:  # the ruler's points must be in the frame: known once it is open
             from strain2d.scale import scale_from_ruler
 
@@ -548,6 +573,8 @@ def _cmd_analyze(args) -> int:
                 log=say.recorded,
                 cycle=args.cycle,
                 maps_at_peaks=peaks,
+                signals=signals,
+                trigger=args.trigger,
             )
     ep = summary["contraction_endpoint"]
     say(f"{ep['label']}: frame {ep['frame']} ({ep['source']})")

@@ -254,6 +254,23 @@ def _write_cycles(folder: Path, cycles: dict, field: StrainField) -> list[Path]:
     return [table, nodes]
 
 
+def _write_signals(folder: Path, signals, curves: np.ndarray, times, unit: str) -> Path:
+    """``signals.csv``: per frame its time, each signal aligned to it and the mean strains."""
+    from tissue_core.csvtext import csv_writer
+    from tissue_core.outputs import replaced_on_success
+
+    path = folder / "signals.csv"
+    time_column = "time_s" if unit == "s" else "time_frame"
+    with replaced_on_success(path) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv_writer(f, lineterminator="\n")
+        writer.writerow(["frame", time_column, *signals.names,
+                         *(f"{c}_mean" for c in CYCLE_COMPONENTS)])  # fmt: skip
+        for k in range(signals.values.shape[0]):
+            writer.writerow([k, _cell(times[k]), *(_cell(v) for v in signals.values[k]),
+                             *(_cell(v) for v in curves[k])])  # fmt: skip
+    return path
+
+
 def _cell(value) -> str:
     if value is None:
         return ""
@@ -367,7 +384,8 @@ def run_outputs(
     runtime_s: dict | None = None,
     cycle: int | None = None,
     maps_at_peaks: bool = False,
-    stimulus: np.ndarray | None = None,
+    signals=None,
+    trigger: str | None = None,
 ) -> dict:
     """Write a run's figures and ``statistics.json`` into ``folder``; return summary entries.
 
@@ -407,8 +425,11 @@ def run_outputs(
         whose peak is the endpoint; default the largest.
     maps_at_peaks : bool
         Draw maps at every cycle's peak too.
-    stimulus : (T,) float, optional
-        A stimulus signal per frame: the cycles start at its pulses.
+    signals : strain2d.signals.Signals, optional
+        The lab's signals aligned to the frames: ``signals.csv`` (each with
+        the mean strains) and ``figures/strain_and_signals.png``.
+    trigger : str, optional
+        The signal whose pulses start the cycles (a stimulus).
 
     Returns
     -------
@@ -442,6 +463,7 @@ def run_outputs(
     with warnings.catch_warnings():  # frames without an uncertainty
         warnings.simplefilter("ignore", RuntimeWarning)
         sigma_all = None if unc is None else float(np.nanmedian(np.asarray(unc, dtype=float)))
+    stimulus = None if trigger is None else signals.column(trigger)
     cycles = run_cycles(field, times, stimulus=stimulus, sigma_px=sigma_all)
     if cycles is not None and endpoint is None:
         # repeated contractions: the endpoint is a cycle's peak (the largest by default)
@@ -547,6 +569,26 @@ def run_outputs(
         length=length,
     )
 
+    drawn_signals = None
+    if signals is not None:
+        from strain2d.cycles import activity
+
+        means = _mean_curves(field, CYCLE_COMPONENTS)
+        _, main, _ = activity(means, CYCLE_COMPONENTS)
+        strain = means[:, CYCLE_COMPONENTS.index(main)]
+        _write_signals(folder, signals, means, times, unit)
+        drawn_signals = pool.submit(
+            _saved,
+            fg.plot_strain_and_signals,
+            figdir / "strain_and_signals",
+            formats,
+            times,
+            strain,
+            main,
+            signals.names,
+            signals.values,
+            time_unit=unit,
+        )
     drawn_cycles = None
     if cycles is not None:
         drawn_cycles = pool.submit(
@@ -660,6 +702,13 @@ def run_outputs(
         "paired": {"components": [a, b], **tests},
     }
     write_json(folder / "statistics.json", statistics)
+    if drawn_signals is not None:
+        record(
+            drawn_signals.result(),
+            f"The signals of {Path(signals.source).name}, aligned to the frames by "
+            f"{signals.aligned_by}, beside the mean strain that moves most: over time (left) "
+            "and the strain against each signal (right). Per frame: signals.csv.",
+        )
     summary_cycles = None
     if cycles is not None:
         _write_cycles(folder, cycles, field)
@@ -678,6 +727,7 @@ def run_outputs(
         "quality": quality_summary,
         "flags": flags,
         "cycles": summary_cycles,
+        "signals": None if signals is None else signals.summary(),
     }
 
 

@@ -412,6 +412,8 @@ def write_run(
     log: Callable[[], str] | None = None,
     cycle: int | None = None,
     maps_at_peaks: bool = False,
+    signals=None,
+    trigger: str | None = None,
 ) -> dict:
     """Write the run folder of an analysis: what ``strain2d analyze --out`` writes.
 
@@ -484,6 +486,11 @@ def write_run(
         ``cycles_nodes.csv`` and ``figures/cycles.png``.
     maps_at_peaks : bool, keyword-only
         Draw strain maps at every cycle's peak too (``--maps-at peaks``).
+    signals : strain2d.signals.Signals, keyword-only
+        The lab's signals aligned to the frames (``--signals``): into
+        ``signals.csv``, ``figures/strain_and_signals.png`` and ``summary.json``.
+    trigger : str, keyword-only
+        The signal whose pulses start the cycles (``--trigger``).
     log : callable, keyword-only
         Returns the command's log so far (its timestamped steps and warnings,
         :meth:`tissue_core.progress.Progress.recorded`), written last as
@@ -609,6 +616,8 @@ def write_run(
             runtime_s=spent,
             cycle=cycle,
             maps_at_peaks=maps_at_peaks,
+            signals=signals,
+            trigger=trigger,
         )
         extra["figures"].insert(
             0,
@@ -651,6 +660,7 @@ def write_run(
             "flags": extra["flags"],
             "statistics": extra["statistics"],
             **({"cycles": extra["cycles"]} if extra["cycles"] is not None else {}),
+            **({"signals": extra["signals"]} if extra["signals"] is not None else {}),
             "units": _units(scale, fps, tracks.uncertainty is not None),
             "pixel_convention": "x = column, y = row, centre of the top-left pixel at (0, 0)",
             "outputs": sorted(

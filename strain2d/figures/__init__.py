@@ -53,6 +53,7 @@ from strain2d.figures._maps import (
 )
 from strain2d.figures._quality import plot_run_quality, run_quality
 from strain2d.figures._save import save_figure
+from strain2d.figures._signals import plot_strain_and_signals
 from strain2d.figures._study import plot_specimen_means, plot_study_curves, plot_study_violins
 from strain2d.figures._style import strain_limits
 from strain2d.figures._violins import format_p, plot_strain_violins
@@ -64,6 +65,7 @@ __all__ = [
     "plot_principal_crosses",
     "plot_run_quality",
     "plot_specimen_means",
+    "plot_strain_and_signals",
     "plot_strain_curves",
     "plot_strain_errors",
     "plot_strain_maps",

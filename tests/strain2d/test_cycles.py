@@ -142,3 +142,87 @@ def test_another_cycle_can_be_the_endpoint_and_every_peak_can_get_maps(twitching
     peaks = [c["peak"] for c in summary["cycles"]["cycles"]]
     assert maps == sorted({f"strain_frame{k:04d}.png" for k in [*peaks, 40, 47]})
     assert main([*argv[:-1], str(tmp_path / "r4"), "--cycle", "4"]) == 2
+
+
+def test_signals_beside_the_video_are_aligned_to_the_frames_with_their_lag(twitching, tmp_path):
+    """A force channel sampled at 100 Hz that follows the contraction 0.3 s late and a
+    stimulus of 5 ms pulses, by time: per frame the force is the true strain 3 frames
+    before, the pulses are on the frames before the onsets, and the stimulus cuts the
+    cycles; by frame number, the same values."""
+    folder, case = twitching
+    from strain2d.tracks import read_tracks
+
+    points = read_tracks(folder / "run" / "tracks.csv").reference
+    true = _true_curves(case, points)[:, 0]  # mean Exx per frame
+    t = np.arange(0, 4.8, 0.01)
+    lag = 0.3
+    force = -1000 * np.interp(t - lag, np.arange(48) / 10, true, left=0.0)
+    pulse_times = [(c["onset"] - 1) / 10 for c in case.video.truth.time_profile.cycles]
+    stimulus = np.zeros_like(t)
+    for p in pulse_times:
+        stimulus[(t >= p - 0.0025) & (t < p + 0.0025)] = 1  # one 5 ms sample: under a frame
+    lines = ["time_ms,force_mN,stimulus"] + [
+        f"{1000 * a:.1f},{b:.6f},{int(c)}" for a, b, c in zip(t, force, stimulus, strict=True)
+    ]
+    (tmp_path / "daq.csv").write_text("\n".join(lines) + "\n")
+    argv = ["-q", "analyze", str(folder / "sheet.avi"), "--grid", "9x7", "--tracker", "dic",
+            "--fps", "10", "--animation", "none", "--signals", str(tmp_path / "daq.csv"),
+            "--trigger", "stimulus", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 0
+    with open(tmp_path / "run" / "signals.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["frame", "time_s", "force_mN", "stimulus", "Exx_mean", "Eyy_mean",
+                             "Exy_mean"]  # fmt: skip
+    got = np.array([float(r["force_mN"]) for r in rows])
+    expected = -1000 * np.r_[np.zeros(3), true[:-3]]
+    assert got == pytest.approx(expected, abs=0.03 * np.abs(expected).max())
+    # the lag, read back from the table: the force trails the measured strain by 3 frames
+    strain = np.array([float(r["Exx_mean"]) for r in rows])
+    shifts = range(-6, 7)
+    score = [np.corrcoef(np.roll(strain, s)[6:-6], -got[6:-6])[0, 1] for s in shifts]
+    assert list(shifts)[int(np.argmax(score))] == 3
+    pulses = [int(r["frame"]) for r in rows if float(r["stimulus"]) == 1]
+    assert pulses == [c["onset"] - 1 for c in case.video.truth.time_profile.cycles]
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["signals"]["aligned_by"] == "time" and summary["signals"]["samples"] == 480
+    assert summary["cycles"]["trigger"] == "stimulus"
+    assert [c["stimulus"] for c in summary["cycles"]["cycles"]] == pulses
+    assert "figures/strain_and_signals.png" in summary["outputs"]
+    # the same by the video's frame numbers, here with --start 2: the run's frame k is
+    # the video's frame k + 2
+    frames = ["frame,force_mN"] + [f"{k},{v:.6f}" for k, v in enumerate(expected)]
+    (tmp_path / "byframe.csv").write_text("\n".join(frames) + "\n")
+    from strain2d.signals import read_signals
+
+    aligned = read_signals(tmp_path / "byframe.csv", 46, start=2)
+    assert aligned.values[:, 0] == pytest.approx(expected[2:], abs=1e-6)
+    assert aligned.aligned_by == "frame"
+
+
+@pytest.mark.parametrize(
+    ("text", "extra", "fragments"),
+    [
+        ("force\n1\n2\n", [], ["needs a frame column", "time_ms"]),
+        ("time_s,force\n0,1\n0.1,2\n", ["--no-fps"], ["--fps"]),
+        ("frame\n0\n1\n", [], ["no signal"]),
+        ("frame,force\n0,1\n1,one\n", [], ["line 3", "force must be a number"]),
+        ("frame,force\n0,1\n0,2\n", [], ["line 3", "go forward"]),
+        ("frame,force\n100,1\n101,2\n", [], ["covers frames 100-101", "none of the run's"]),
+        ("frame,force\n0,1,2\n", [], ["line 2", "3 cells"]),
+        ("frame,force\n0,1\n1,2\n", ["--trigger", "stimulus"], ["--trigger stimulus", "force"]),
+    ],
+)
+def test_bad_signals_are_one_line_before_the_tracking(small_case, tmp_path, capsys, text, extra,
+                                                      fragments):  # fmt: skip
+    folder, _ = small_case
+    (tmp_path / "s.csv").write_text(text)
+    fps = [] if "--no-fps" in extra else ["--fps", "5"]
+    extra = [e for e in extra if e != "--no-fps"]
+    argv = ["-q", "analyze", str(folder / "eq.avi"), "--grid", "3x3", *fps, "--signals",
+            str(tmp_path / "s.csv"), *extra, "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tracking" not in err[0], err
+    for fragment in fragments:
+        assert fragment in err[0], err[0]
+    assert not (tmp_path / "run").exists()
