@@ -953,6 +953,41 @@ def _mask_text(mask: dict | None) -> str | None:
     return text + (": " + ", ".join(left) if left else "")
 
 
+def _cycles_section(doc: HtmlReport, summary: dict) -> None:
+    """The repeated contractions (a table of the cycles) and the signals beside the video."""
+    cycles = summary.get("cycles")
+    unit = "s" if summary.get("time_axis", {}).get("unit") == "s" else "frames"
+    if cycles:
+        doc.heading("Repeated contractions")
+        doc.paragraph(
+            f"{len(cycles['cycles'])} cycles, found "
+            + ("at the pulses of the stimulus" if cycles["trigger"] == "stimulus" else
+               f"in the mean {cycles['component']}")
+            + f" (peaks rising at least {cycles['min_prominence']:.2g} above their valleys; "
+            f"noise {cycles['noise']:.2g} from the {cycles.get('noise_from', 'curve')}). "
+            f"Times in {unit}; strains are the mean nodal values at each peak; cycles.csv "
+            "and cycles_nodes.csv hold them."
+        )  # fmt: skip
+        rows = []
+        for c in cycles["cycles"]:
+            means = c.get("peak_mean") or {}
+            rows.append({
+                "cycle": c["cycle"], "onset": c["onset"], "peak": c["peak"], "end": c["end"],
+                "time to peak": c.get("time_to_peak"), "50 % relaxation": c.get("rt50"),
+                "relaxation": c.get("relaxation_time"), "rise": c.get("amplitude"),
+                **{f"{k} at peak": means.get(k) for k in ("Exx", "Eyy", "Exy")},
+            })  # fmt: skip
+        doc.table(rows)
+    signals = summary.get("signals")
+    if signals:
+        doc.heading("Signals beside the video")
+        doc.paragraph(
+            f"{Path(signals['file']).name}: {signals['samples']} rows aligned to the frames by "
+            f"{signals['aligned_by']} (signals.csv holds them per frame, with the mean strains)."
+        )
+        doc.table([{"signal": name, **values} for name, values in signals["signals"].items()])
+
+
 def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
     """Write ``report.html`` for a run folder from its ``summary.json`` content.
 
@@ -1010,9 +1045,12 @@ def write_run_report(folder: str | os.PathLike, summary: dict) -> Path:
             )
         elif ep["source"] == "detected":
             text += f", detected: {ep['method']}."
+        elif ep["source"] == "cycle":
+            text += f": the {ep.get('detection', 'peak of a cycle')}."
         else:
             text += f": the endpoint was {ep['source']}."
         doc.paragraph(text)
+    _cycles_section(doc, summary)
     stats = summary.get("statistics")
     if stats:
         doc.heading(f"Nodal strain at frame {stats.get('frame')}: {stats.get('frame_meaning')}")

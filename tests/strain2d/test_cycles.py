@@ -188,6 +188,9 @@ def test_signals_beside_the_video_are_aligned_to_the_frames_with_their_lag(twitc
     assert summary["cycles"]["trigger"] == "stimulus"
     assert [c["stimulus"] for c in summary["cycles"]["cycles"]] == pulses
     assert "figures/strain_and_signals.png" in summary["outputs"]
+    report = (tmp_path / "run" / "report.html").read_text()
+    assert "Repeated contractions" in report and "at the pulses of the stimulus" in report
+    assert "Signals beside the video" in report and "force_mN" in report
     # the same by the video's frame numbers, here with --start 2: the run's frame k is
     # the video's frame k + 2
     frames = ["frame,force_mN"] + [f"{k},{v:.6f}" for k, v in enumerate(expected)]
