@@ -1101,6 +1101,22 @@ def _curves(run, components: Sequence[str]) -> tuple[dict, dict]:
     return mean, sd
 
 
+def _write_study_cycles(folder: Path, cycles: dict) -> None:
+    """A study's ``cycles.csv`` (a row per specimen and cycle) and ``specimen_cycles.csv``
+    (each specimen's cycles averaged)."""
+    from tissue_core.csvtext import csv_writer
+
+    for name, rows in (("cycles.csv", cycles["rows"]), ("specimen_cycles.csv",
+                                                        cycles["specimens"])):  # fmt: skip
+        columns = list(rows[0])
+        with open(folder / name, "w", newline="") as f:
+            writer = csv_writer(f, lineterminator="\n")
+            writer.writerow(columns)
+            for row in rows:
+                writer.writerow([v if isinstance(v, str) else _cell(v) for v in
+                                 (row.get(c) for c in columns)])  # fmt: skip
+
+
 def study_outputs(
     folder: str | os.PathLike,
     specimens: Sequence,
@@ -1253,6 +1269,49 @@ def _endpoint_text(row: dict) -> str:
     return text
 
 
+def _study_cycles_section(doc: HtmlReport, cycles: dict | None, pct: int) -> None:
+    """Runs with repeated contractions: per specimen its cycles averaged, and the
+    specimen-level tests per cycle number and on the averages."""
+    if not cycles:
+        return
+    a, b = cycles["components"]
+    doc.heading("Repeated contractions")
+    doc.paragraph(
+        f"{len(cycles['specimens'])} specimens contracted more than once "
+        f"({len(cycles['rows'])} cycles). {a} and {b} at each cycle's peak (mean over the "
+        "nodes), averaged over each specimen's cycles with their SD over the cycles; "
+        "cycles.csv has every cycle, specimen_cycles.csv the averages."
+    )
+    doc.table(
+        [
+            {
+                "specimen": e["specimen"], "group": e["group"], "cycles": e["n_cycles"],
+                f"{a} mean": e[f"{a}_mean"], f"{a} SD": e[f"{a}_sd"],
+                f"{b} mean": e[f"{b}_mean"], f"{b} SD": e[f"{b}_sd"],
+                "time to peak": e["time_to_peak_mean"], "50 % relaxation": e["rt50_mean"],
+            }
+            for e in cycles["specimens"]
+        ]
+    )  # fmt: skip
+    doc.paragraph(
+        f"Specimen-level paired tests of {a} against {b} (the specimen is the unit): at each "
+        "cycle number two specimens or more reach, and on the specimens' averages over "
+        "their cycles."
+    )
+    rows = [{"cycles": f"cycle {t['cycle']}", **t} for t in cycles["per_cycle"]]
+    rows.append({"cycles": "averaged over cycles", **cycles["averaged_over_cycles"]})
+    doc.table(
+        [
+            {
+                "cycles": r["cycles"], "specimens": r["n"],
+                f"mean {a} - {b}": r["mean_difference"], f"{pct}% CI": r["mean_difference_ci"],
+                "p (paired t)": _p(r["t_p"]), "p (Wilcoxon)": _p(r["wilcoxon_p"]),
+            }
+            for r in rows
+        ]
+    )  # fmt: skip
+
+
 def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) -> Path:
     """Write a study folder's self-contained ``report.html``.
 
@@ -1375,6 +1434,7 @@ def write_study_report(folder: str | os.PathLike, summary: dict, stats: dict) ->
             for r in stats["specimens"]
         ]
     )
+    _study_cycles_section(doc, stats.get("cycles"), pct)
 
     doc.heading("Node-level tests (descriptive)")
     doc.paragraph(_NODE_CAVEAT, css="note")
@@ -1452,7 +1512,7 @@ def write_study(
     from datetime import UTC, datetime
 
     from strain2d import __version__
-    from strain2d.study import load_specimens, plain_summary, study_statistics
+    from strain2d.study import load_specimens, plain_summary, study_cycles, study_statistics
     from tissue_core.outputs import atomic_dir, check_writable
 
     entries = [e if isinstance(e, dict) else {"run": Path(e)} for e in runs]
@@ -1463,9 +1523,14 @@ def write_study(
     specimens = load_specimens(entries)
     a, b = compare
     stats = study_statistics(specimens, a=a, b=b, alpha=alpha)
+    cycles = study_cycles(specimens, a, b)
+    if cycles is not None:
+        stats["cycles"] = cycles
     formats = parse_formats(formats)
     with atomic_dir(out, overwrite=overwrite, inputs=inputs) as tmp:
         extra = study_outputs(tmp, specimens, stats, formats=formats)
+        if cycles is not None:
+            _write_study_cycles(tmp, cycles)
         summary = {
             "software": {"name": "strain2d", "version": __version__},
             "created": datetime.now(UTC).isoformat(timespec="seconds"),

@@ -622,3 +622,74 @@ def plain_summary(stats: dict) -> list[str]:
             "tissue."
         )
     return lines
+
+
+def study_cycles(specimens: list[Specimen], a: str = "Exx", b: str = "Eyy") -> dict | None:
+    """The repeated contractions of a study's runs: per cycle, per specimen, and tests.
+
+    Each run with cycles (``summary.json``'s ``cycles``, :mod:`strain2d.cycles`)
+    gives a row per cycle: its peak's mean ``a`` and ``b`` and their difference,
+    its time to peak, 50 % relaxation and relaxation times.  Per specimen the
+    cycles are averaged (mean and SD over its cycles, how many).  The tests
+    have the specimen as the unit (:func:`specimen_tests`): ``a`` against ``b``
+    at each cycle number that two specimens or more reach (``per_cycle``), and
+    on the specimens' averages over their cycles (``averaged_over_cycles``).
+    None when no run has repeated contractions.
+
+    Returns
+    -------
+    dict
+        ``rows`` (a dict per specimen and cycle), ``specimens`` (a dict per
+        specimen with cycles), ``per_cycle`` (per cycle number: ``cycle`` and
+        the tests) and ``averaged_over_cycles`` (the tests).
+    """
+    rows = []
+    for s in specimens:
+        found = s.run.summary.get("cycles") or {}
+        for c in found.get("cycles", []):
+            if c.get("peak") is None:
+                continue
+            means = c.get("peak_mean") or {}
+            va, vb = means.get(a, float("nan")), means.get(b, float("nan"))
+            rows.append({
+                "specimen": s.name, "group": s.group, "cycle": int(c["cycle"]),
+                "peak_frame": int(c["peak"]), a: va, b: vb, f"{a}-{b}": va - vb,
+                "time_to_peak": c.get("time_to_peak"), "rt50": c.get("rt50"),
+                "relaxation_time": c.get("relaxation_time"), "rise": c.get("amplitude"),
+            })  # fmt: skip
+    if not rows:
+        return None
+
+    def value(row, key):
+        v = row.get(key)
+        return float("nan") if v is None else float(v)
+
+    per_specimen = []
+    for s in specimens:
+        mine = [r for r in rows if r["specimen"] == s.name]
+        if not mine:
+            continue
+        entry = {"specimen": s.name, "group": s.group, "n_cycles": len(mine)}
+        for key in (a, b, f"{a}-{b}", "time_to_peak", "rt50", "relaxation_time"):
+            v = np.array([value(r, key) for r in mine])
+            ok = np.isfinite(v)
+            entry[f"{key}_mean"] = float(v[ok].mean()) if ok.any() else float("nan")
+            entry[f"{key}_sd"] = float(v[ok].std(ddof=1)) if ok.sum() > 1 else float("nan")
+        per_specimen.append(entry)
+    per_cycle = []
+    for k in sorted({r["cycle"] for r in rows}):
+        at = [r for r in rows if r["cycle"] == k]
+        if len(at) < 2:
+            continue
+        tests = specimen_tests([value(r, a) for r in at], [value(r, b) for r in at])
+        per_cycle.append({"cycle": k, **tests})
+    averaged = specimen_tests(
+        [e[f"{a}_mean"] for e in per_specimen], [e[f"{b}_mean"] for e in per_specimen]
+    )
+    return {
+        "components": [a, b],
+        "rows": rows,
+        "specimens": per_specimen,
+        "per_cycle": per_cycle,
+        "averaged_over_cycles": averaged,
+    }

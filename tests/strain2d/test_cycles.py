@@ -229,3 +229,46 @@ def test_bad_signals_are_one_line_before_the_tracking(small_case, tmp_path, caps
     for fragment in fragments:
         assert fragment in err[0], err[0]
     assert not (tmp_path / "run").exists()
+
+
+def test_a_study_of_repeated_contractions_reports_each_cycle_and_each_specimen(tmp_path):
+    """Three specimens, each twitching three times with its own sizes: the study lists every
+    cycle, averages each specimen's cycles, and tests Exx against Eyy per cycle number and
+    on the averages, with the specimen as the unit."""
+    from sample_data_synth import write_video
+    from sample_data_synth.twitches import make_repeated_twitches
+
+    sizes = [(1.0, 0.55, 0.8), (0.7, 1.0, 0.6), (0.9, 0.8, 1.0)]
+    runs = []
+    for n, (x, y, z) in enumerate(sizes):
+        twitches = ((3, 8, 15, x), (18, 22, 29, y), (32, 37, 44, z))
+        case = make_repeated_twitches(shape=(200, 260), twitches=twitches, rng=n)
+        write_video(case.video.frames, tmp_path / f"S{n}.avi")
+        argv = ["-q", "analyze", str(tmp_path / f"S{n}.avi"), "--grid", "5x4", "--tracker",
+                "dic", "--fps", "10", "--animation", "none",
+                "--out", str(tmp_path / f"S{n}")]  # fmt: skip
+        assert main(argv) == 0
+        runs.append(tmp_path / f"S{n}")
+    assert main(["-q", "study", *map(str, runs), "--out", str(tmp_path / "study")]) == 0
+    stats = json.loads((tmp_path / "study" / "statistics.json").read_text())
+    cycles = stats["cycles"]
+    assert len(cycles["rows"]) == 9 and [e["n_cycles"] for e in cycles["specimens"]] == [3, 3, 3]
+    # each row is its run's cycle, and each specimen's average is the mean of its rows
+    for run, entry in zip(runs, cycles["specimens"], strict=True):
+        mine = json.loads((run / "summary.json").read_text())["cycles"]["cycles"]
+        rows = [r for r in cycles["rows"] if r["specimen"] == entry["specimen"]]
+        assert [r["Exx"] for r in rows] == pytest.approx([c["peak_mean"]["Exx"] for c in mine])
+        assert entry["Exx_mean"] == pytest.approx(np.mean([r["Exx"] for r in rows]))
+        assert entry["Exx_sd"] == pytest.approx(np.std([r["Exx"] for r in rows], ddof=1))
+        # the sizes of this specimen's twitches, read back
+        assert np.array([r["Exx"] for r in rows]) / min(r["Exx"] for r in rows) == (
+            pytest.approx(np.array(sizes[runs.index(run)]) / max(sizes[runs.index(run)]),
+                          abs=0.05))  # fmt: skip
+    assert [t["cycle"] for t in cycles["per_cycle"]] == [1, 2, 3]
+    assert all(t["n"] == 3 and t["mean_difference"] < 0 for t in cycles["per_cycle"])
+    assert cycles["averaged_over_cycles"]["n"] == 3
+    with open(tmp_path / "study" / "cycles.csv", newline="") as f:
+        assert len(list(csv.DictReader(f))) == 9
+    with open(tmp_path / "study" / "specimen_cycles.csv", newline="") as f:
+        assert [r["n_cycles"] for r in csv.DictReader(f)] == ["3", "3", "3"]
+    assert "Repeated contractions" in (tmp_path / "study" / "report.html").read_text()
