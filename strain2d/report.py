@@ -25,7 +25,7 @@ import numpy as np
 from strain2d.errors import InputError
 from strain2d.stats import contraction_endpoint, paired_node_tests
 from strain2d.tracks import Tracks
-from surface_strain import StrainField, nodal_scalars
+from surface_strain import CYCLE_COMPONENTS, StrainField, nodal_scalars, write_cycles_csv
 from tissue_core.html import HtmlReport, format_value, input_records
 from tissue_core.jsonio import write_json
 
@@ -153,10 +153,6 @@ def endpoint_of(
     }
 
 
-#: the components cycles are found in and reported
-CYCLE_COMPONENTS = ("Exx", "Eyy", "Exy")
-
-
 def run_cycles(
     field: StrainField,
     times: np.ndarray,
@@ -164,32 +160,17 @@ def run_cycles(
     stimulus: np.ndarray | None = None,
     sigma_px: float | None = None,
 ) -> dict | None:
-    """The repeated contractions of a run (:mod:`strain2d.cycles`), or None with fewer than
-    two cycles (a single contraction: the endpoint is found as before).
-
-    Returns the detection (``component``, ``sign``, ``noise``,
-    ``min_prominence``, ``trigger``) with :func:`strain2d.cycles.cycle_statistics`'
-    ``cycles`` (numbered from 1 in ``cycle``), ``ensemble`` and ``largest``.
-    ``sigma_px``, the tracker's median uncertainty, sets the noise the peaks
-    must stand out of (:func:`strain2d.cycles.mean_strain_noise`).
-    """
-    from strain2d.cycles import cycle_statistics, detect_cycles, mean_strain_noise
+    """The repeated contractions of a run (:func:`surface_strain.find_run_cycles` on its
+    mean strains), or None with fewer than two cycles.  ``sigma_px``, the tracker's
+    median uncertainty, sets the noise the peaks must stand out of
+    (:func:`surface_strain.mean_strain_noise`)."""
+    from surface_strain import find_run_cycles, mean_strain_noise
 
     curves = _mean_curves(field, CYCLE_COMPONENTS)
     noise = None
     if sigma_px is not None and np.isfinite(sigma_px) and sigma_px > 0:
         noise = mean_strain_noise(field.reference, field.triangles, float(sigma_px))
-    found = detect_cycles(curves, CYCLE_COMPONENTS, stimulus=stimulus, noise=noise)
-    responses = [c for c in found["cycles"] if c.peak is not None]
-    if len(responses) < 2 and stimulus is None:
-        return None
-    stats = cycle_statistics(found, curves, CYCLE_COMPONENTS, times)
-    for n, row in enumerate(stats["cycles"], start=1):
-        row["cycle"] = n
-    info = {k: found[k] for k in ("component", "sign", "noise", "min_prominence", "trigger")}
-    info["noise_from"] = "tracking uncertainty" if noise is not None else "second differences"
-    return {**info, "cycles": stats["cycles"], "ensemble": stats["ensemble"],
-            "largest": stats["largest"], "curves": curves}  # fmt: skip
+    return find_run_cycles(curves, times, stimulus=stimulus, noise=noise)
 
 
 def _cycle_endpoint(ep: dict, cycles: dict, cycle: int | None, field, times) -> dict:
@@ -220,38 +201,6 @@ def _cycle_endpoint(ep: dict, cycles: dict, cycle: int | None, field, times) -> 
         "cycle": index + 1,
         "detection": f"peak of cycle {index + 1} ({why}) of the repeated contractions",
     }
-
-
-def _write_cycles(folder: Path, cycles: dict, field: StrainField) -> list[Path]:
-    """``cycles.csv`` (a row per cycle) and ``cycles_nodes.csv`` (each cycle's peak strains
-    per node)."""
-    from tissue_core.csvtext import csv_writer
-    from tissue_core.outputs import replaced_on_success
-
-    columns = ["cycle", "onset", "peak", "end", "onset_time", "peak_time", "end_time",
-               "time_to_peak", "rt50", "relaxation_time", "amplitude"]  # fmt: skip
-    table = folder / "cycles.csv"
-    with replaced_on_success(table) as tmp, open(tmp, "w", newline="") as f:
-        writer = csv_writer(f, lineterminator="\n")
-        writer.writerow([*columns, *(f"{c}_peak_mean" for c in CYCLE_COMPONENTS)])
-        for row in cycles["cycles"]:
-            means = row.get("peak_mean") or {}
-            writer.writerow([_cell(row.get(c)) for c in columns]
-                            + [_cell(means.get(c)) for c in CYCLE_COMPONENTS])  # fmt: skip
-    node = nodal_scalars(field)
-    names = ("Exx", "Eyy", "Exy", "E1", "E2")
-    nodes = folder / "cycles_nodes.csv"
-    with replaced_on_success(nodes) as tmp, open(tmp, "w", newline="") as f:
-        writer = csv_writer(f, lineterminator="\n")
-        writer.writerow(["cycle", "peak", "point", *names])
-        for row in cycles["cycles"]:
-            if row["peak"] is None:
-                continue
-            k = int(row["peak"])
-            values = [np.asarray(node[c][k]) for c in names]
-            for i in range(field.n_points):
-                writer.writerow([row["cycle"], k, i, *(_cell(v[i]) for v in values)])
-    return [table, nodes]
 
 
 def _write_signals(folder: Path, signals, curves: np.ndarray, times, unit: str) -> Path:
@@ -571,7 +520,7 @@ def run_outputs(
 
     drawn_signals = None
     if signals is not None:
-        from strain2d.cycles import activity
+        from surface_strain import activity
 
         means = _mean_curves(field, CYCLE_COMPONENTS)
         _, main, _ = activity(means, CYCLE_COMPONENTS)
@@ -711,7 +660,7 @@ def run_outputs(
         )
     summary_cycles = None
     if cycles is not None:
-        _write_cycles(folder, cycles, field)
+        write_cycles_csv(folder, cycles, field)
         record(
             drawn_cycles.result(),
             f"Repeated contractions: the {len(cycles['cycles'])} cycles found in the mean "

@@ -12,6 +12,16 @@ __getattr__, __dir__, __all__ = lazy_exports(
     __name__,
     {
         "tissue_core.version": ["__version__"],
+        "surface_strain.cycles": [
+            "CYCLE_COMPONENTS",
+            "Cycle",
+            "activity",
+            "cycle_statistics",
+            "detect_cycles",
+            "find_run_cycles",
+            "mean_strain_noise",
+            "write_cycles_csv",
+        ],
         "surface_strain.export": [
             "element_columns",
             "node_columns",

@@ -363,6 +363,28 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
             f"reference frame in {unit}. Mean and SD are over the nodes with a value."
         )
 
+    cycles = summary.get("cycles")
+    if cycles:
+        doc.heading("Repeated contractions")
+        doc.paragraph(
+            f"{len(cycles['cycles'])} cycles found in the mean {cycles['component']} (peaks "
+            f"rising at least {cycles['min_prominence']:.2g} above their valleys). Strains "
+            "are the mean nodal values at each peak; cycles.csv and cycles_nodes.csv hold "
+            "them."
+        )
+        doc.table(
+            [
+                {
+                    "cycle": c["cycle"], "onset": c["onset"], "peak": c["peak"],
+                    "end": c["end"], "time to peak": c.get("time_to_peak"),
+                    "50 % relaxation": c.get("rt50"), "rise": c.get("amplitude"),
+                    **{f"{k} at peak": (c.get("peak_mean") or {}).get(k)
+                       for k in ("Exx", "Eyy", "Exy")},
+                }
+                for c in cycles["cycles"]
+            ]
+        )  # fmt: skip
+
     doc.heading("Flagged")
     doc.flags(summary.get("flagged") or [])
 

@@ -336,6 +336,13 @@ def write_run(
         plot_tracking_quality(visible, coverage, times=times, fps=fps).savefig(path)
     mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
                 for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
+    # repeated contractions (two cycles or more), as 2D runs find them
+    from surface_strain.cycles import CYCLE_COMPONENTS, find_run_cycles, write_cycles_csv
+
+    curves = np.array([[np.nan if v is None else v for v in mean[c]] for c in CYCLE_COMPONENTS]).T
+    cycles = find_run_cycles(curves, times)
+    if cycles is not None:
+        write_cycles_csv(folder, cycles, field)
     summary = {
         "schema": RUN_SCHEMA,
         "software": {"name": "surface_strain", "version": __version__},
@@ -353,6 +360,7 @@ def write_run(
         "time_axis": {"fps": fps, "unit": "s" if fps else "frame"},
         "strain": "Green-Lagrange membrane strain; Exx, Eyy, Exy in the directions' frame",
         "nodal_mean_per_frame": mean,
+        **({"cycles": {k: v for k, v in cycles.items() if k != "curves"}} if cycles else {}),
         "last_frame_statistics": strain_statistics(field, last),
         "quality": quality,
         "figures": figure_list,

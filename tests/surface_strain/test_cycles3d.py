@@ -1,0 +1,35 @@
+"""Repeated contractions in 3D runs: a curved sheet that twitches three times."""
+
+import csv
+import json
+
+import numpy as np
+
+from sample_data_synth.twitches import make_repeated_twitches
+from surface_strain import choose_mesh, write_run
+
+
+def test_a_3d_run_finds_the_cycles_of_a_curved_sheet(tmp_path):
+    """The rendered twitches' exact motion, on a cylinder-shaped sheet in mm: every onset and
+    peak to the frame, cycles.csv and the report's table; one twitch alone gives none."""
+    truth = make_repeated_twitches(shape=(60, 80), n_frames=46).video.truth
+    grid = truth.grid((9, 7))
+    xy = truth.positions(grid)  # (T, N, 2) px
+    z = 0.002 * (xy[..., 0] - 40) ** 2  # a gentle curve across the fibres
+    points = np.concatenate([xy * 0.05, z[..., None]], axis=-1)  # mm
+    visible = np.ones(points.shape[:2], bool)
+    mesh = choose_mesh(points[0], grid=(9, 7))
+    (tmp_path / "run").mkdir()
+    write_run(tmp_path / "run", points, visible, mesh, fps=10, figures=False)
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    found = summary["cycles"]["cycles"]
+    true = truth.time_profile.cycles
+    assert [(c["onset"], c["peak"]) for c in found] == [(t["onset"], t["peak"]) for t in true]
+    with open(tmp_path / "run" / "cycles.csv", newline="") as f:
+        assert [int(r["peak"]) for r in csv.DictReader(f)] == [t["peak"] for t in true]
+    assert "Repeated contractions" in (tmp_path / "run" / "report.html").read_text()
+    # one twitch: no cycles, no table
+    (tmp_path / "one").mkdir()
+    write_run(tmp_path / "one", points[:16], visible[:16], mesh, fps=10, figures=False)
+    assert "cycles" not in json.loads((tmp_path / "one" / "summary.json").read_text())
+    assert not (tmp_path / "one" / "cycles.csv").exists()
