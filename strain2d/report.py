@@ -414,13 +414,14 @@ def run_outputs(
         sigma_all = None if unc is None else float(np.nanmedian(np.asarray(unc, dtype=float)))
     stimulus = None if trigger is None else signals.column(trigger)
     cycles = run_cycles(field, times, stimulus=stimulus, sigma_px=sigma_all)
-    if cycles is not None and endpoint is None:
+    repeated = cycles is not None and cycles["repeated"]
+    if repeated and endpoint is None:
         # repeated contractions: the endpoint is a cycle's peak (the largest by default)
         ep = _cycle_endpoint(ep, cycles, cycle, field, times)
     elif cycle is not None:
         raise InputError(
             f"--cycle {cycle}: the run has "
-            + ("one contraction" if cycles is None else "an endpoint given by --endpoint")
+            + ("one contraction or none" if not repeated else "an endpoint given by --endpoint")
         )
     k_end = ep["frame"]
     end_name = ep["label"]
@@ -539,7 +540,7 @@ def run_outputs(
             time_unit=unit,
         )
     drawn_cycles = None
-    if cycles is not None:
+    if repeated:  # one contraction: the strain curves show it
         drawn_cycles = pool.submit(
             _saved,
             fg.plot_cycles,
@@ -661,6 +662,8 @@ def run_outputs(
     summary_cycles = None
     if cycles is not None:
         write_cycles_csv(folder, cycles, field)
+        summary_cycles = {k: v for k, v in cycles.items() if k != "curves"}
+    if drawn_cycles is not None:
         record(
             drawn_cycles.result(),
             f"Repeated contractions: the {len(cycles['cycles'])} cycles found in the mean "
@@ -668,7 +671,6 @@ def run_outputs(
             "and each complete cycle from its onset with the ensemble mean +/- one SD over "
             "the cycles (bottom). Per cycle: cycles.csv; each peak per node: cycles_nodes.csv.",
         )
-        summary_cycles = {k: v for k, v in cycles.items() if k != "curves"}
     return {
         "contraction_endpoint": ep,
         "statistics": statistics,
@@ -907,9 +909,9 @@ def _cycles_section(doc: HtmlReport, summary: dict) -> None:
     cycles = summary.get("cycles")
     unit = "s" if summary.get("time_axis", {}).get("unit") == "s" else "frames"
     if cycles:
-        doc.heading("Repeated contractions")
+        doc.heading("Repeated contractions" if cycles.get("repeated", True) else "Contraction")
         doc.paragraph(
-            f"{len(cycles['cycles'])} cycles, found "
+            f"{len(cycles['cycles'])} cycle{'s' if len(cycles['cycles']) != 1 else ''}, found "
             + ("at the pulses of the stimulus" if cycles["trigger"] == "stimulus" else
                f"in the mean {cycles['component']}")
             + f" (peaks rising at least {cycles['min_prominence']:.2g} above their valleys; "

@@ -646,6 +646,8 @@ def study_cycles(specimens: list[Specimen], a: str = "Exx", b: str = "Eyy") -> d
     rows = []
     for s in specimens:
         found = s.run.summary.get("cycles") or {}
+        if not found.get("repeated", True):
+            continue  # one contraction: the endpoint comparison is the study
         for c in found.get("cycles", []):
             if c.get("peak") is None:
                 continue

@@ -357,9 +357,10 @@ def find_run_cycles(
     stimulus: np.ndarray | None = None,
     noise: float | None = None,
 ) -> dict | None:
-    """A run's repeated contractions from its mean strains ``curves`` ``(T, 3)`` of
-    :data:`CYCLE_COMPONENTS`, or None with fewer than two cycles (and no stimulus): a
-    single contraction keeps the run's endpoint as it was found before.
+    """A run's contraction cycles from its mean strains ``curves`` ``(T, 3)`` of
+    :data:`CYCLE_COMPONENTS`, or None when there is none (and no stimulus).  A single
+    contraction is one cycle; only repeated ones (``repeated``: two or more) move the
+    run's endpoint to a cycle's peak.
 
     Returns the detection (``component``, ``sign``, ``noise``, ``noise_from``,
     ``min_prominence``, ``trigger``), :func:`cycle_statistics`' ``cycles``
@@ -368,13 +369,14 @@ def find_run_cycles(
     """
     found = detect_cycles(curves, CYCLE_COMPONENTS, stimulus=stimulus, noise=noise)
     responses = [c for c in found["cycles"] if c.peak is not None]
-    if len(responses) < 2 and stimulus is None:
+    if not responses and stimulus is None:
         return None
     stats = cycle_statistics(found, curves, CYCLE_COMPONENTS, times)
     for n, row in enumerate(stats["cycles"], start=1):
         row["cycle"] = n
     info = {k: found[k] for k in ("component", "sign", "noise", "min_prominence", "trigger")}
     info["noise_from"] = "tracking uncertainty" if noise is not None else "second differences"
+    info["repeated"] = len(responses) >= 2 or stimulus is not None
     return {**info, "cycles": stats["cycles"], "ensemble": stats["ensemble"],
             "largest": stats["largest"], "curves": curves}  # fmt: skip
 

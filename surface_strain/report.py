@@ -365,9 +365,9 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
 
     cycles = summary.get("cycles")
     if cycles:
-        doc.heading("Repeated contractions")
+        doc.heading("Repeated contractions" if cycles.get("repeated", True) else "Contraction")
         doc.paragraph(
-            f"{len(cycles['cycles'])} cycles found in the mean {cycles['component']} (peaks "
+            f"{len(cycles['cycles'])} cycle(s) found in the mean {cycles['component']} (peaks "
             f"rising at least {cycles['min_prominence']:.2g} above their valleys). Strains "
             "are the mean nodal values at each peak; cycles.csv and cycles_nodes.csv hold "
             "them."

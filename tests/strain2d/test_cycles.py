@@ -118,14 +118,25 @@ def test_noise_alone_and_a_single_contraction_make_no_repeated_cycles(small_case
     assert len(found["cycles"]) == 1
     stats = cycle_statistics(found, one, COMPONENTS, np.arange(30) / 10)
     assert stats["largest"] == 0 and stats["ensemble"]["n_cycles"] == 1
-    # a run of one contraction: no cycles in its summary, the endpoint found as before
+    # a run of one contraction (the paper's ramp): one cycle, the endpoint found as before,
+    # the same as without the cycles (the endpoint a run with cycles turned off would get)
+    from strain2d.report import endpoint_of
+
     folder, _ = small_case
     argv = ["-q", "analyze", str(folder / "eq.avi"), "--grid", "4x4", "--tracker", "dic",
             "--animation", "none", "--out", str(tmp_path / "run")]  # fmt: skip
     assert main(argv) == 0
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
-    assert "cycles" not in summary and summary["contraction_endpoint"]["source"] != "cycle"
-    assert not (tmp_path / "run" / "cycles.csv").exists()
+    assert len(summary["cycles"]["cycles"]) == 1 and not summary["cycles"]["repeated"]
+    ep = summary["contraction_endpoint"]
+    assert ep["source"] != "cycle" and "cycle" not in ep
+    from strain2d.pipeline import strain_from_tracks
+    from strain2d.tracks import read_tracks
+
+    field = strain_from_tracks(read_tracks(tmp_path / "run" / "tracks.csv"), grid_shape=(4, 4))
+    assert ep["frame"] == endpoint_of(field)["frame"]
+    assert (tmp_path / "run" / "cycles.csv").exists()
+    assert not (tmp_path / "run" / "figures" / "cycles.png").exists()
     assert main([*argv[:-1], str(tmp_path / "r2"), "--cycle", "2"]) == 2
 
 

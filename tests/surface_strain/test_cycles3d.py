@@ -28,8 +28,8 @@ def test_a_3d_run_finds_the_cycles_of_a_curved_sheet(tmp_path):
     with open(tmp_path / "run" / "cycles.csv", newline="") as f:
         assert [int(r["peak"]) for r in csv.DictReader(f)] == [t["peak"] for t in true]
     assert "Repeated contractions" in (tmp_path / "run" / "report.html").read_text()
-    # one twitch: no cycles, no table
+    # one twitch: one cycle, not repeated
     (tmp_path / "one").mkdir()
     write_run(tmp_path / "one", points[:16], visible[:16], mesh, fps=10, figures=False)
-    assert "cycles" not in json.loads((tmp_path / "one" / "summary.json").read_text())
-    assert not (tmp_path / "one" / "cycles.csv").exists()
+    one = json.loads((tmp_path / "one" / "summary.json").read_text())["cycles"]
+    assert [(c["onset"], c["peak"]) for c in one["cycles"]] == [(3, 8)] and not one["repeated"]
