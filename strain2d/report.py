@@ -159,14 +159,16 @@ def run_cycles(
     *,
     stimulus: np.ndarray | None = None,
     sigma_px: float | None = None,
+    curves: np.ndarray | None = None,
 ) -> dict | None:
-    """The repeated contractions of a run (:func:`surface_strain.find_run_cycles` on its
-    mean strains), or None with fewer than two cycles.  ``sigma_px``, the tracker's
-    median uncertainty, sets the noise the peaks must stand out of
+    """The contraction cycles of a run (:func:`surface_strain.find_run_cycles` on its
+    mean strains, ``curves`` when they are at hand), or None without any.  ``sigma_px``,
+    the tracker's median uncertainty, sets the noise the peaks must stand out of
     (:func:`surface_strain.mean_strain_noise`)."""
     from surface_strain import find_run_cycles, mean_strain_noise
 
-    curves = _mean_curves(field, CYCLE_COMPONENTS)
+    if curves is None:
+        curves = _mean_curves(field, CYCLE_COMPONENTS)
     noise = None
     if sigma_px is not None and np.isfinite(sigma_px) and sigma_px > 0:
         noise = mean_strain_noise(field.reference, field.triangles, float(sigma_px))
@@ -413,7 +415,11 @@ def run_outputs(
         warnings.simplefilter("ignore", RuntimeWarning)
         sigma_all = None if unc is None else float(np.nanmedian(np.asarray(unc, dtype=float)))
     stimulus = None if trigger is None else signals.column(trigger)
-    cycles = run_cycles(field, times, stimulus=stimulus, sigma_px=sigma_all)
+    # the mean strains, once (a streamed field computes its strain again for each pass)
+    wanted = tuple(dict.fromkeys([*components, *CYCLE_COMPONENTS]))
+    mean_curves = fg.mean_strain_curves(field, wanted)
+    means = np.column_stack([mean_curves["mean"][c] for c in CYCLE_COMPONENTS])
+    cycles = run_cycles(field, times, stimulus=stimulus, sigma_px=sigma_all, curves=means)
     repeated = cycles is not None and cycles["repeated"]
     if repeated and endpoint is None:
         # repeated contractions: the endpoint is a cycle's peak (the largest by default)
@@ -505,7 +511,7 @@ def run_outputs(
         time_unit=unit,
         components=components,
         endpoint=k_end,
-        curves=fg.mean_strain_curves(field, components),
+        curves={k: {c: v[c] for c in components} for k, v in mean_curves.items()},
     )
     tracking = pool.submit(
         _saved,
@@ -523,7 +529,6 @@ def run_outputs(
     if signals is not None:
         from surface_strain import activity
 
-        means = _mean_curves(field, CYCLE_COMPONENTS)
         _, main, _ = activity(means, CYCLE_COMPONENTS)
         strain = means[:, CYCLE_COMPONENTS.index(main)]
         _write_signals(folder, signals, means, times, unit)
@@ -661,7 +666,7 @@ def run_outputs(
         )
     summary_cycles = None
     if cycles is not None:
-        write_cycles_csv(folder, cycles, field)
+        write_cycles_csv(folder, cycles, field, node=node)
         summary_cycles = {k: v for k, v in cycles.items() if k != "curves"}
     if drawn_cycles is not None:
         record(

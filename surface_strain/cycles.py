@@ -392,9 +392,9 @@ def _cell(value) -> str:
     return "nan" if not math.isfinite(value) else f"{value:.8g}"
 
 
-def write_cycles_csv(folder, cycles: dict, field) -> list:
+def write_cycles_csv(folder, cycles: dict, field, *, node: dict | None = None) -> list:
     """``cycles.csv`` (a row per cycle) and ``cycles_nodes.csv`` (each cycle's peak strains
-    per node) in ``folder``."""
+    per node) in ``folder``; ``node``, the field's nodal scalars when they are at hand."""
     from pathlib import Path
 
     from surface_strain.field import nodal_scalars
@@ -412,7 +412,7 @@ def write_cycles_csv(folder, cycles: dict, field) -> list:
             means = row.get("peak_mean") or {}
             writer.writerow([_cell(row.get(c)) for c in columns]
                             + [_cell(means.get(c)) for c in CYCLE_COMPONENTS])  # fmt: skip
-    node = nodal_scalars(field)
+    node = nodal_scalars(field) if node is None else node
     names = ("Exx", "Eyy", "Exy", "E1", "E2")
     nodes = folder / "cycles_nodes.csv"
     with replaced_on_success(nodes) as tmp, open(tmp, "w", newline="") as f:
