@@ -18,7 +18,7 @@ at the pulses of a stimulus signal recorded beside the video:
   deviation, 1.4826 MAD, over sqrt(6)): what frame-to-frame noise alone
   makes of a curve that is smooth at the frame rate.
 * **Peaks.** The local maxima whose prominence (how far they rise above the
-  valleys on either side, :func:`scipy.signal.find_peaks`) exceeds
+  valleys on either side, as :func:`scipy.signal.find_peaks` measures it) exceeds
   ``min_prominence``: by default 8 noise SDs and 15 % of the largest
   excursion, so that noise and a wobble at rest are not cycles.
 * **Onset and end.** Before each peak the valley since the cycle before (its
@@ -109,6 +109,42 @@ def _noise(a: np.ndarray) -> float:
     return float(1.4826 * mad / np.sqrt(6.0))
 
 
+def _prominent_peaks(a: np.ndarray, min_prominence: float) -> np.ndarray:
+    """The local maxima of ``a`` (the middle frame of a flat top) whose prominence is at
+    least ``min_prominence``: the height above the higher of the lowest points between
+    the peak and the nearest higher sample on each side (or the ends), as
+    :func:`scipy.signal.find_peaks` measures it (without importing scipy.signal, which
+    takes longer to load than a run's cycles take to find)."""
+    n = a.size
+    peaks = []
+    i = 1
+    while i < n - 1:
+        if a[i - 1] < a[i]:
+            j = i
+            while j + 1 < n and a[j + 1] == a[i]:  # a flat top
+                j += 1
+            if j + 1 < n and a[j + 1] < a[i]:
+                peaks.append((i + j) // 2)
+            i = j + 1
+        else:
+            i += 1
+    kept = []
+    for p in peaks:
+        left = p
+        lowest_left = a[p]
+        while left > 0 and a[left - 1] <= a[p]:
+            left -= 1
+            lowest_left = min(lowest_left, a[left])
+        right = p
+        lowest_right = a[p]
+        while right < n - 1 and a[right + 1] <= a[p]:
+            right += 1
+            lowest_right = min(lowest_right, a[right])
+        if a[p] - max(lowest_left, lowest_right) >= min_prominence:
+            kept.append(p)
+    return np.asarray(kept, dtype=int)
+
+
 def _pulses(stimulus: np.ndarray) -> np.ndarray:
     s = np.asarray(stimulus, dtype=float)
     if s.ndim != 1:
@@ -159,8 +195,6 @@ def detect_cycles(
         activity, ``noise`` (its SD), ``min_prominence`` and ``trigger``
         ("strain" or "stimulus").
     """
-    from scipy.signal import find_peaks
-
     a, component, sign = activity(curves, components)
     T = a.size
     finite = np.isfinite(a)
@@ -182,8 +216,8 @@ def detect_cycles(
     if excursion <= 0 or not finite.any():
         return out
     if stimulus is None:
-        peaks, _ = find_peaks(np.r_[low, filled, low], prominence=min_prominence)
-        peaks = peaks - 1  # the padding lets a peak on the first or last frame count
+        # the padding lets a peak on the first or last frame count
+        peaks = _prominent_peaks(np.r_[low, filled, low], min_prominence) - 1
         starts = [None] * len(peaks)
     else:
         stimulus = np.asarray(stimulus, dtype=float)

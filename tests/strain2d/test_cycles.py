@@ -283,3 +283,20 @@ def test_a_study_of_repeated_contractions_reports_each_cycle_and_each_specimen(t
     with open(tmp_path / "study" / "specimen_cycles.csv", newline="") as f:
         assert [r["n_cycles"] for r in csv.DictReader(f)] == ["3", "3", "3"]
     assert "Repeated contractions" in (tmp_path / "study" / "report.html").read_text()
+
+
+def test_peaks_are_found_by_prominence_as_scipy_finds_them():
+    """The cycles' peak finder against scipy.signal.find_peaks (which the runs do not import:
+    it takes longer to load than the cycles take to find), flat tops included."""
+    from scipy.signal import find_peaks
+
+    from surface_strain.cycles import _prominent_peaks
+
+    rng = np.random.default_rng(7)
+    for trial in range(500):
+        n = int(rng.integers(3, 80))
+        a = rng.normal(0, 1, n)
+        if trial % 2:
+            a = np.round(a.cumsum(), 1)  # steps of 0.1: flat tops and valleys
+        least = float(rng.uniform(0, 2))
+        assert np.array_equal(_prominent_peaks(a, least), find_peaks(a, prominence=least)[0])
