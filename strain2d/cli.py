@@ -58,6 +58,13 @@ def _add_points_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--roi", help="grid region X0,Y0,X1,Y1 in pixels (default: central 70%%)")
     p.add_argument(
+        "--spacing",
+        type=float,
+        metavar="PX",
+        help="a grid of points PX pixels apart over the region (the ROI, or the mask's "
+        "bounds), centred in it, instead of --grid's count",
+    )
+    p.add_argument(
         "--mask",
         metavar="FILE",
         help="where the tissue is on the reference frame: an image of the frame's size "
@@ -348,19 +355,27 @@ def _reference_points(args, source):
             "--mask with --tracker imported needs --grid or --points: the points of the "
             "imported file are not a grid to fill the mask with"
         )
+    spacing = getattr(args, "spacing", None)
+    if spacing is not None and args.grid:
+        raise InputError("give either --grid (a count) or --spacing (a distance), not both")
     mask = _mask(args, source.shape)
     if args.points:
-        if args.roi or args.grid:
-            raise InputError("give either --points or --grid/--roi, not both")
+        if args.roi or args.grid or spacing is not None:
+            raise InputError("give either --points or --grid/--roi/--spacing, not both")
         points = validate_points(read_points_csv(args.points), source.shape)
         info = {"points_file": args.points}
         if mask is None:
             return points, info, None, None
         return (*_masked_points(args, points, mask, info), mask)
-    if imported:
+    if imported and spacing is None:
         return None, {"points": "all points of the imported file"}, None, None
     shape = parse_grid(args.grid or "7x7")
     roi = parse_roi(args.roi) if args.roi else None
+    if spacing is not None:
+        from strain2d.grid import default_roi, grid_at_spacing
+
+        region = roi or (mask.bounds() if mask is not None else default_roi(source.shape))
+        shape, roi = grid_at_spacing(region, spacing)
     if mask is not None:
         from strain2d.grid import masked_grid
         from surface_strain import Mesh
@@ -369,6 +384,7 @@ def _reference_points(args, source):
         x0, y0, x1, y1 = mask.bounds() if roi is None else roi
         info = {
             "grid": f"{shape[0]}x{shape[1]}",
+            **({"spacing_px": spacing} if spacing is not None else {}),
             "roi": [x0, y0, x1, y1],
             "mask": {**mask.summary(), **counts},
         }
@@ -378,6 +394,8 @@ def _reference_points(args, source):
     x0, y0 = points.min(axis=0)
     x1, y1 = points.max(axis=0)
     info = {"grid": f"{shape[0]}x{shape[1]}", "grid_shape": shape, "roi": [x0, y0, x1, y1]}
+    if spacing is not None:
+        info["spacing_px"] = spacing
     return points, info, None, None
 
 

@@ -17,6 +17,7 @@ __all__ = [
     "MIN_GRID_SPACING_PX",
     "check_grid_spacing",
     "default_roi",
+    "grid_at_spacing",
     "make_grid",
     "mask_triangles",
     "masked_grid",
@@ -104,6 +105,42 @@ def check_grid_spacing(
         f"{width:g}x{height:g} px region; points closer than {MIN_GRID_SPACING_PX:g} px "
         f"measure the same pixels and only multiply the work: {fits}"
     )
+
+
+def grid_at_spacing(
+    region: tuple[float, float, float, float], spacing: float, *, option: str = "--spacing"
+) -> tuple[tuple[int, int], tuple[float, float, float, float]]:
+    """The grid of points ``spacing`` px apart that fits ``region`` ``(x0, y0, x1, y1)``:
+    ``((n_cols, n_rows), roi)``, the grid centred in the region (the margins that do not
+    make a whole spacing shared between both sides).
+
+    Examples
+    --------
+    >>> grid_at_spacing((10, 20, 55, 40), 10.0)
+    ((5, 3), (12.5, 20.0, 52.5, 40.0))
+    """
+    import math
+
+    if not (math.isfinite(spacing) and spacing > 0):
+        raise InputError(f"{option} must be a positive number of pixels, got {spacing:g}")
+    if spacing < MIN_GRID_SPACING_PX:
+        raise InputError(
+            f"{option} {spacing:g} px: points closer than {MIN_GRID_SPACING_PX:g} px measure "
+            "the same pixels and only multiply the work"
+        )
+    x0, y0, x1, y1 = (float(v) for v in region)
+    width, height = x1 - x0, y1 - y0
+    n_cols = math.floor(width / spacing + 1e-9) + 1
+    n_rows = math.floor(height / spacing + 1e-9) + 1
+    if n_cols < 2 or n_rows < 2:
+        raise InputError(
+            f"{option} {spacing:g} px leaves fewer than 2 points across the {width:g}x{height:g} "
+            "px region: give a smaller spacing"
+        )
+    dx = (width - (n_cols - 1) * spacing) / 2
+    dy = (height - (n_rows - 1) * spacing) / 2
+    roi = (x0 + dx, y0 + dy, x0 + dx + (n_cols - 1) * spacing, y0 + dy + (n_rows - 1) * spacing)
+    return (n_cols, n_rows), roi
 
 
 def make_grid(

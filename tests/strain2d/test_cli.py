@@ -810,3 +810,31 @@ def test_a_run_keeps_its_own_log_quiet_or_not(small_case, tmp_path, capsys):
         assert stamp[:4] == "2" + stamp[1:4] and "T" in stamp and rest.startswith("[")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert "run.log" in summary["outputs"]
+
+
+def test_a_grid_at_a_spacing_fills_a_mask_or_a_region(small_case, tmp_path, capsys):
+    """--spacing PX: points PX apart over the mask's bounds (or --roi), centred; with --grid
+    or --points it is one line."""
+    import cv2
+
+    folder, _ = small_case
+    yy, xx = np.mgrid[:200, :200]
+    disc = (xx - 100) ** 2 + (yy - 100) ** 2 <= 60**2
+    cv2.imwrite(str(tmp_path / "disc.png"), disc.astype(np.uint8) * 255)
+    argv = ["-q", "track", str(folder / "eq.avi"), "--tracker", "klt", "--spacing", "20"]
+    assert (
+        main([*argv, "--mask", str(tmp_path / "disc.png"), "--out", str(tmp_path / "m.csv")]) == 0
+    )
+    ref = read_tracks(tmp_path / "m.csv").reference
+    assert disc[np.round(ref[:, 1]).astype(int), np.round(ref[:, 0]).astype(int)].all()
+    steps = np.diff(np.unique(np.round(ref[:, 0], 6)))
+    assert np.allclose(steps, 20.0) and np.isclose(ref[:, 0].min() + ref[:, 0].max(), 200.0)
+    assert main([*argv, "--roi", "20,30,125,95", "--out", str(tmp_path / "r.csv")]) == 0
+    ref = read_tracks(tmp_path / "r.csv").reference
+    assert sorted(set(ref[:, 0])) == [22.5, 42.5, 62.5, 82.5, 102.5, 122.5]
+    assert sorted(set(ref[:, 1])) == [32.5, 52.5, 72.5, 92.5]
+    capsys.readouterr()
+    for extra, fragment in ((["--grid", "5x5"], "not both"), (["--spacing", "1"], "closer than"),
+                            (["--roi", "20,30,35,95"], "fewer than 2 points")):  # fmt: skip
+        assert main([*argv, *extra, "--out", str(tmp_path / "x.csv")]) == 2
+        assert fragment in capsys.readouterr().err
