@@ -363,6 +363,19 @@ def write_run_report(folder: str | os.PathLike, summary: Mapping) -> Path:
             f"reference frame in {unit}. Mean and SD are over the nodes with a value."
         )
 
+    peak = summary.get("peak_statistics")
+    if peak:
+        frame = int(peak["frame"])
+        doc.heading(f"Strain at the peak of cycle {peak['cycle']}, the largest "
+                    f"({_when(frame, times)})")  # fmt: skip
+        units = {"J": "(-), area ratio", "|u|": unit, "max_shear": "(-)"}
+        rows = [
+            {"quantity": k, "unit": units.get(k, "(-)"), **{c: v[c] for c in v}}
+            for k, v in peak.items()
+            if isinstance(v, dict)
+        ]
+        doc.table(rows, columns=["quantity", "unit", "mean", "sd", "min", "max", "n"],
+                  headers=["quantity", "unit", "mean", "SD", "min", "max", "nodes"])  # fmt: skip
     cycles = summary.get("cycles")
     if cycles:
         doc.heading("Repeated contractions" if cycles.get("repeated", True) else "Contraction")

@@ -269,7 +269,6 @@ def write_run(
     times = np.arange(field.n_frames) / fps if fps else np.arange(field.n_frames, dtype=float)
     if not np.isfinite(times).all():
         raise InputError(f"--fps {fps} gives non-finite times")
-    node = nodal_scalars(field)
     write_nodes_csv(folder / "strain_nodes.csv", field)
     write_elements_csv(folder / "strain_elements.csv", field)
     write_pvd(
@@ -281,6 +280,21 @@ def write_run(
         length_unit=unit,
     )
     last = field.n_frames - 1
+    node = nodal_scalars(field)
+    mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
+                for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
+    # contraction cycles, as 2D runs find them; repeated ones put the peak of the largest
+    # beside the last frame (its maps and statistics)
+    from surface_strain.cycles import CYCLE_COMPONENTS, find_run_cycles, write_cycles_csv
+
+    curves = np.array([[np.nan if v is None else v for v in mean[c]] for c in CYCLE_COMPONENTS]).T
+    cycles = find_run_cycles(curves, times)
+    peak = None
+    if cycles is not None:
+        write_cycles_csv(folder, cycles, field, node=node)
+        if cycles["repeated"] and cycles["largest"] is not None:
+            cycles["chosen"] = cycles["largest"]
+            peak = int(cycles["cycles"][cycles["largest"]]["peak"])
     quality = measurement_quality(
         field, n_mesh_triangles=n_mesh_triangles, point_quality=point_quality
     )
@@ -315,6 +329,17 @@ def write_run(
                 f"last frame ({when}); grey: no valid value. Axes in {unit}.",
             )
             render_strain(field, path, key=key, frame=last, unit=unit, fps=fps)
+        if peak is not None and peak != last:
+            n = cycles["largest"] + 1
+            at = f"t = {times[peak]:.4g} s, frame {peak}" if fps else f"frame {peak}"
+            for key in ("E1", "E2"):
+                path = figure(
+                    f"{key}_frame{peak:04d}.png",
+                    f"Nodal {key} on the deformed surface at the peak of cycle {n}, the "
+                    f"largest of the repeated contractions ({at}); grey: no valid value. "
+                    f"Axes in {unit}.",
+                )
+                render_strain(field, path, key=key, frame=peak, unit=unit, fps=fps)
         path = figure(
             "strain_over_time.png",
             "Mean nodal strain of each component over time, with a band of +/- one spatial "
@@ -334,15 +359,6 @@ def write_run(
         )
         visible, coverage = quality["visible_fraction"], quality["surface_coverage"]
         plot_tracking_quality(visible, coverage, times=times, fps=fps).savefig(path)
-    mean = {k: [float(np.nanmean(v[t])) if np.isfinite(v[t]).any() else None
-                for t in range(field.n_frames)] for k, v in node.items()}  # fmt: skip
-    # repeated contractions (two cycles or more), as 2D runs find them
-    from surface_strain.cycles import CYCLE_COMPONENTS, find_run_cycles, write_cycles_csv
-
-    curves = np.array([[np.nan if v is None else v for v in mean[c]] for c in CYCLE_COMPONENTS]).T
-    cycles = find_run_cycles(curves, times)
-    if cycles is not None:
-        write_cycles_csv(folder, cycles, field)
     summary = {
         "schema": RUN_SCHEMA,
         "software": {"name": "surface_strain", "version": __version__},
@@ -362,6 +378,17 @@ def write_run(
         "nodal_mean_per_frame": mean,
         **({"cycles": {k: v for k, v in cycles.items() if k != "curves"}} if cycles else {}),
         "last_frame_statistics": strain_statistics(field, last),
+        **(
+            {
+                "peak_statistics": {
+                    "frame": peak,
+                    "cycle": cycles["largest"] + 1,
+                    **strain_statistics(field, peak),
+                }
+            }
+            if peak is not None
+            else {}
+        ),
         "quality": quality,
         "figures": figure_list,
         "report": "report.html",

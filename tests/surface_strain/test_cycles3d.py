@@ -20,8 +20,14 @@ def test_a_3d_run_finds_the_cycles_of_a_curved_sheet(tmp_path):
     visible = np.ones(points.shape[:2], bool)
     mesh = choose_mesh(points[0], grid=(9, 7))
     (tmp_path / "run").mkdir()
-    write_run(tmp_path / "run", points, visible, mesh, fps=10, figures=False)
+    write_run(tmp_path / "run", points, visible, mesh, fps=10)
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    # the peak of the largest cycle beside the last frame: its statistics and maps
+    peak = summary["peak_statistics"]
+    assert peak["frame"] == 8 and peak["cycle"] == 1
+    assert peak["Exx"]["mean"] < 0.9 * summary["last_frame_statistics"]["Exx"]["mean"] - 0.01
+    assert (tmp_path / "run" / "figures" / "E1_frame0008.png").exists()
+    assert "Strain at the peak of cycle 1" in (tmp_path / "run" / "report.html").read_text()
     found = summary["cycles"]["cycles"]
     true = truth.time_profile.cycles
     assert [(c["onset"], c["peak"]) for c in found] == [(t["onset"], t["peak"]) for t in true]
