@@ -549,7 +549,13 @@ def _cmd_analyze(args) -> int:
             signals = read_signals(args.signals, n, fps=args.fps, start=args.start,
                                    step=args.step)  # fmt: skip
             if args.trigger:
-                signals.column(args.trigger)  # a name it has
+                from surface_strain import stimulus_pulses
+
+                if stimulus_pulses(signals.column(args.trigger)).size == 0:
+                    raise InputError(
+                        f"--trigger {args.trigger}: the column holds no pulse over the run's "
+                        "frames (it does not rise); cycles cannot start at it"
+                    )
             say(f"signals {', '.join(signals.names)} aligned by {signals.aligned_by}")
         if args.scale_ruler:  # the ruler's points must be in the frame: known once it is open
             from strain2d.scale import scale_from_ruler

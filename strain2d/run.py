@@ -186,7 +186,10 @@ def load_run(path: str | os.PathLike) -> Run:
         or not (isinstance(fps, int | float) and math.isfinite(fps) and fps > 0)
     ):
         raise InputError(f"{path / 'summary.json'}: time_axis.fps must be a positive number")
-    times = np.arange(T) / fps if fps else np.arange(T, dtype=float)
+    step = (summary.get("time_axis") or {}).get("step", 1)
+    if not _whole(step) or step < 1:
+        raise InputError(f"{path / 'summary.json'}: time_axis.step must be a whole number >= 1")
+    times = np.arange(T) * step / fps if fps else np.arange(T, dtype=float)
     ep = summary.get("contraction_endpoint") or {}
     endpoint, source = T - 1, "last frame"
     if "frame" in ep:
@@ -550,7 +553,9 @@ def write_run(
     reopen, ends = _frames_of(frames)
     first_img, last_img = ends()
     names, source = _source_info(frames, T, first_img.shape)
-    times = np.arange(T) / fps if fps else np.arange(T)
+    # --step N uses every N-th frame of the video: N / fps seconds between the frames used
+    step = int((getattr(frames, "frame_range", None) or {}).get("step", 1) or 1)
+    times = np.arange(T) * step / fps if fps else np.arange(T)
     t_start = time.perf_counter()
     # a streamed field's strain is computed while the outputs below read it: its time counts
     # as the strain's, not the figures'
@@ -651,7 +656,11 @@ def write_run(
                     analysis.min_triangle_quality if mesh.method == "delaunay" else None
                 ),
             },
-            "time_axis": {"fps": fps, "unit": "s" if fps else "frame"},
+            "time_axis": {
+                "fps": fps,
+                "unit": "s" if fps else "frame",
+                **({"step": step} if step != 1 else {}),
+            },
             "lost_points_last_frame": int((~tracks.visible[-1]).sum()),
             "tracking_uncertainty_px": _uncertainty_summary(tracks),
             "final_frame": {"index": T - 1, "nodal_strain": _final_stats(field)},

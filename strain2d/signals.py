@@ -5,7 +5,7 @@ a pressure or volume channel are sampled beside the camera, often faster.
 ``--signals FILE.csv`` attaches them to a run.  The CSV has a header and
 
 * a ``frame`` column (the video's own frame numbers, 0 for its first frame),
-  or a time column: ``time``, ``t`` or ``time_s`` in seconds, ``time_ms`` in
+  or a time column: ``time`` or ``time_s`` in seconds, ``time_ms`` in
   milliseconds (the video's first frame at time 0; ``--fps`` gives the
   frames' times); with both, the frame numbers are used;
 * any number of other columns, each a signal (its header is its name; a
@@ -13,12 +13,14 @@ a pressure or volume channel are sampled beside the camera, often faster.
 
 Each signal is brought to the run's frames: frame ``k`` of the run is the
 video's frame ``start + k * step`` (``--start``, ``--step``), shown from
-``t_k - dt/2`` to ``t_k + dt/2``.  A signal is averaged over the samples in
+``t_k - dt/2`` to ``t_k + dt/2`` (``dt`` the time between the frames used,
+``step / fps``).  A signal is averaged over the samples in
 that interval, or, for a pulse train (a column named ``stimulus``,
 ``trigger`` or ``pulse``), its largest sample there, so that a pulse far
 shorter than a frame is not lost; a frame with no sample in its interval
 gets the signal linearly interpolated at its time (NaN outside the
-recording).  By frame number, each frame takes its own row.
+recording).  By frame number the same with the video's frames: a run frame
+takes its own row, or with ``--step`` the rows of the frames it stands for.
 """
 
 from __future__ import annotations
@@ -37,8 +39,9 @@ __all__ = ["PULSE_NAMES", "Signals", "read_signals"]
 
 #: columns read as pulse trains (the largest sample within a frame, not the mean)
 PULSE_NAMES = ("stimulus", "trigger", "pulse")
-_TIME = {"time": 1.0, "t": 1.0, "time_s": 1.0, "time (s)": 1.0, "time_ms": 1e-3,
-         "time (ms)": 1e-3}  # fmt: skip
+_TIME = {"time": 1.0, "time_s": 1.0, "time (s)": 1.0, "time_ms": 1e-3, "time (ms)": 1e-3}
+#: the largest magnitude a signal's value may have (beyond it, sums overflow)
+_LARGEST = 1e30
 
 
 @dataclass(frozen=True)
@@ -90,14 +93,25 @@ class Signals:
         }
 
 
+def _is_pulse(name: str) -> bool:
+    """Whether a column is a pulse train (:data:`PULSE_NAMES`, with a unit or not)."""
+    return name.lower().split("_")[0].split(" ")[0] in PULSE_NAMES
+
+
 def _number(text: str, path, line: int, column: str) -> float:
     text = text.strip()
     if text.lower() in ("", "nan", "na", "none", "null"):
         return float("nan")
     try:
-        return float(text)
+        value = float(text)
     except ValueError:
         raise InputError(f"{path}, line {line}: {column} must be a number, got {text!r}") from None
+    if not abs(value) <= _LARGEST:
+        raise InputError(
+            f"{path}, line {line}: {column} is {text}, beyond what a measurement can be "
+            f"(at most {_LARGEST:g} in magnitude; leave a cell empty where there is no value)"
+        )
+    return value
 
 
 def read_signals(
@@ -129,7 +143,9 @@ def read_signals(
     except FileNotFoundError:
         raise InputError(f"--signals: no such file: {path}") from None
     except (UnicodeDecodeError, csv.Error):
-        raise InputError(f"--signals {path} is not a text CSV file") from None
+        raise InputError(
+            f"--signals {path} is not a UTF-8 text CSV file (save it as CSV UTF-8)"
+        ) from None
     lower = [h.lower() for h in header]
     clocks = [i for i, h in enumerate(lower) if h == "frame" or h in _TIME]
     # the frame numbers where they are given (exact), else the time
@@ -140,6 +156,11 @@ def read_signals(
             f"column (time, t, time_s or time_ms); its header is {','.join(header) or 'empty'}"
         )
     names = [h for i, h in enumerate(header) if i not in clocks and h]
+    repeated = sorted({h for h in names if names.count(h) > 1})
+    if repeated:
+        raise InputError(
+            f"--signals {path}: the column {repeated[0]} is there twice; name each signal once"
+        )
     if not names:
         raise InputError(f"--signals {path} has no signal beside its {header[clock]} column")
     if not rows:
@@ -169,10 +190,19 @@ def read_signals(
     if lower[clock] == "frame":
         if np.any(clock_values != np.round(clock_values)) or clock_values.min() < 0:
             raise InputError(f"--signals {path}: frame numbers are whole numbers from 0")
-        where = {int(f): r for r, f in enumerate(clock_values)}
-        for k, frame in enumerate(video_frames):
-            if int(frame) in where:
-                values[k] = data[where[int(frame)], columns]
+        # run frame k stands for the video's frames from start + k step - step/2 to
+        # start + k step + step/2 (its own frame alone without --step)
+        lo = np.searchsorted(clock_values, video_frames - step / 2, side="left")
+        hi = np.searchsorted(clock_values, video_frames + step / 2, side="left")
+        if step == 1:
+            hi = np.searchsorted(clock_values, video_frames, side="right")
+        for j, c in enumerate(columns):
+            pulse = _is_pulse(header[c])
+            for k in range(n_frames):
+                window = data[lo[k] : hi[k], c]
+                window = window[np.isfinite(window)]
+                if window.size:
+                    values[k, j] = window.max() if pulse else window.mean()
         aligned = "frame"
     else:
         if fps is None or not (math.isfinite(fps) and fps > 0):
@@ -182,15 +212,18 @@ def read_signals(
             )
         seconds = clock_values * _TIME[lower[clock]]
         frame_time = video_frames / fps
-        half = 0.5 / fps
+        half = 0.5 * step / fps  # a run frame stands for step frames of the video
         for j, c in enumerate(columns):
             signal = data[:, c]
             ok = np.isfinite(signal)
             if not ok.any():
                 continue
-            pulse = header[c].lower().split("_")[0].split(" ")[0] in PULSE_NAMES
-            lo = np.searchsorted(seconds, frame_time - half, side="left")
-            hi = np.searchsorted(seconds, frame_time + half, side="left")
+            pulse = _is_pulse(header[c])
+            # the windows in the video's frames (rounded: a sample on the boundary between
+            # two run frames goes to the later one, as it does by frame number)
+            position = np.round(seconds * fps, 6)
+            lo = np.searchsorted(position, video_frames - step / 2, side="left")
+            hi = np.searchsorted(position, video_frames + step / 2, side="left")
             inside_recording = (frame_time >= seconds[ok][0] - half) & (
                 frame_time <= seconds[ok][-1] + half
             )
@@ -205,6 +238,8 @@ def read_signals(
                 else:
                     values[k, j] = interp[k]
         aligned = "time"
+    if not np.isfinite(data[:, columns]).any():
+        raise InputError(f"--signals {path} holds no value in its signal columns")
     if not np.isfinite(values).any():
         span = (
             f"frames {int(clock_values[0])}-{int(clock_values[-1])}"

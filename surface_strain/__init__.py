@@ -20,6 +20,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "detect_cycles",
             "find_run_cycles",
             "mean_strain_noise",
+            "stimulus_pulses",
             "write_cycles_csv",
         ],
         "surface_strain.export": [

@@ -15,8 +15,9 @@ at the pulses of a stimulus signal recorded beside the video:
 * **Noise.** Where the tracker measures its uncertainty, what that
   uncertainty makes of the mean strain (:func:`mean_strain_noise`); else
   the spread of the activity's second differences (a robust standard
-  deviation, 1.4826 MAD, over sqrt(6)): what frame-to-frame noise alone
-  makes of a curve that is smooth at the frame rate.
+  deviation, 1.4826 MAD, over sqrt(6)) over the frames at rest (near the
+  lowest activity), where the contractions' own curvature does not count:
+  what frame-to-frame noise alone makes of the curve.
 * **Peaks.** The local maxima whose prominence (how far they rise above the
   valleys on either side, as :func:`scipy.signal.find_peaks` measures it) exceeds
   ``min_prominence``: by default 8 noise SDs and 15 % of the largest
@@ -29,7 +30,8 @@ at the pulses of a stimulus signal recorded beside the video:
 * **With a stimulus** (one value per frame): a cycle starts at each pulse
   (where the stimulus first rises past half its range) and runs to the next;
   its peak is the largest activity in it, its onset and end as above.  A
-  pulse with no prominent response is reported, without a peak.
+  pulse whose response rises less than 3 noise SDs and 15 % of the largest
+  excursion is reported, without a peak.
 
 :func:`cycle_statistics` gives each cycle's times (time to peak, time to 50 %
 relaxation, relaxation time) and its peak strains, and the ensemble cycle:
@@ -53,6 +55,7 @@ __all__ = [
     "detect_cycles",
     "find_run_cycles",
     "mean_strain_noise",
+    "stimulus_pulses",
     "write_cycles_csv",
 ]
 
@@ -101,10 +104,24 @@ def activity(curves: np.ndarray, components) -> tuple[np.ndarray, str, float]:
     return sign * values, names[j], sign
 
 
+#: frames within this share of the activity's range above its lowest count as at rest
+_REST_SHARE = 0.2
+
+
 def _noise(a: np.ndarray) -> float:
-    second = np.diff(a[np.isfinite(a)], 2)
+    """The activity's noise SD from its second differences (1.4826 MAD / sqrt 6): over the
+    frames at rest (three in a row within :data:`_REST_SHARE` of the range above the
+    lowest), where the contractions' own curvature does not count as noise, when five or
+    more such triples exist; over every frame otherwise."""
+    a = a[np.isfinite(a)]
+    second = np.diff(a, 2)
     if second.size < 3:
         return 0.0
+    low, high = float(a.min()), float(a.max())
+    rest = a <= low + _REST_SHARE * (high - low)
+    calm = rest[:-2] & rest[1:-1] & rest[2:]
+    if calm.sum() >= 5:
+        second = second[calm]
     mad = np.median(np.abs(second - np.median(second)))
     return float(1.4826 * mad / np.sqrt(6.0))
 
@@ -145,7 +162,8 @@ def _prominent_peaks(a: np.ndarray, min_prominence: float) -> np.ndarray:
     return np.asarray(kept, dtype=int)
 
 
-def _pulses(stimulus: np.ndarray) -> np.ndarray:
+def stimulus_pulses(stimulus: np.ndarray) -> np.ndarray:
+    """The frames where a stimulus first rises past half its range (none when it is flat)."""
     s = np.asarray(stimulus, dtype=float)
     if s.ndim != 1:
         raise InputError("the stimulus must be one value per frame")
@@ -204,7 +222,10 @@ def detect_cycles(
     low = min(float(np.min(filled)), 0.0)
     excursion = float(np.max(filled)) - low
     if min_prominence is None:
-        min_prominence = max(NOISE_SDS * noise, LARGEST_SHARE * excursion)
+        # found in the strain, a peak must stand out of the noise; cut at a stimulus (where
+        # a contraction is expected), a response need only rise out of it
+        sds = NOISE_SDS if stimulus is None else 3.0
+        min_prominence = max(sds * noise, LARGEST_SHARE * excursion)
     out = {
         "component": component,
         "sign": sign,
@@ -223,7 +244,7 @@ def detect_cycles(
         stimulus = np.asarray(stimulus, dtype=float)
         if stimulus.shape != (T,):
             raise InputError(f"the stimulus has {stimulus.size} values for {T} frames")
-        pulses = _pulses(stimulus)
+        pulses = stimulus_pulses(stimulus)
         peaks, starts = [], []
         for i, pulse in enumerate(pulses):
             stop = pulses[i + 1] if i + 1 < len(pulses) else T
@@ -410,7 +431,7 @@ def find_run_cycles(
         row["cycle"] = n
     info = {k: found[k] for k in ("component", "sign", "noise", "min_prominence", "trigger")}
     info["noise_from"] = "tracking uncertainty" if noise is not None else "second differences"
-    info["repeated"] = len(responses) >= 2 or stimulus is not None
+    info["repeated"] = len(responses) >= 2
     return {**info, "cycles": stats["cycles"], "ensemble": stats["ensemble"],
             "largest": stats["largest"], "curves": curves}  # fmt: skip
 

@@ -6,8 +6,8 @@ of the forms the tools of a lab write:
 * an image the size of the frame, PNG or TIFF, binary or labelled (as Fiji's
   *Create Mask*, napari's labels layer or ilastik export it): every pixel
   that is not 0 is tissue, whatever its label; a colour image counts where
-  any colour channel is not 0 (its alpha channel where the colours are all
-  0);
+  any colour channel is not 0 (its alpha channel where the colours, or the
+  gray of a gray + alpha image, are all 0);
 * an ImageJ ROI (``.roi``, as Fiji's ROI Manager saves one) or a set of ROIs
   (``.zip``): rectangles, ovals, polygons, freehand and traced outlines, and
   composite ROIs; the union of the areas;
@@ -179,11 +179,12 @@ def _from_image(path: Path, shape: tuple[int, int], option: str) -> np.ndarray:
         # any depth, colour and alpha as stored; refuses truncated files
         image = read_image(path, flags=cv2.IMREAD_UNCHANGED)
     image = np.asarray(image)
-    if image.ndim == 3:  # colour (OpenCV's BGR or BGRA, or a TIFF's RGB): any channel
-        colour = image[..., :3] if image.shape[-1] in (3, 4) else image
+    if image.ndim == 3:  # gray + alpha, colour (BGR, RGB) or colour + alpha: any channel
+        channels = image.shape[-1]
+        colour = image[..., :3] if channels in (3, 4) else image[..., :1]
         inside = (colour != 0).any(axis=-1)
-        if not inside.any() and image.shape[-1] == 4:  # drawn in the alpha channel alone
-            inside = image[..., 3] != 0
+        if not inside.any() and channels in (2, 4):  # drawn in the alpha channel alone
+            inside = image[..., -1] != 0
     elif image.ndim == 2:
         inside = image != 0
     else:
@@ -217,7 +218,7 @@ def _read_tiff(path: Path, option: str) -> np.ndarray:
     if "S" in axes:  # colour samples, planar or not: last
         image = np.moveaxis(image, axes.index("S"), -1)
     image = np.squeeze(image)
-    if image.ndim == 3 and image.shape[-1] not in (3, 4):
+    if image.ndim == 3 and image.shape[-1] not in (2, 3, 4):
         raise InputError(
             f"{option} {path} is a stack of {image.shape[0]} images; a mask is one image "
             "(save the one drawn on the reference frame)"

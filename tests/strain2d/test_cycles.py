@@ -224,6 +224,11 @@ def test_signals_beside_the_video_are_aligned_to_the_frames_with_their_lag(twitc
         ("frame,force\n100,1\n101,2\n", [], ["covers frames 100-101", "none of the run's"]),
         ("frame,force\n0,1,2\n", [], ["line 2", "3 cells"]),
         ("frame,force\n0,1\n1,2\n", ["--trigger", "stimulus"], ["--trigger stimulus", "force"]),
+        ("frame,force\n0,1e308\n1,-1e308\n", [], ["line 2", "beyond what a measurement"]),
+        ("frame,force\n0,inf\n1,2\n", [], ["line 2", "beyond what a measurement"]),
+        ("frame,force,force\n0,1,2\n1,2,3\n", [], ["force is there twice"]),
+        ("frame,force\n0,\n1,nan\n", [], ["holds no value"]),
+        ("frame,stimulus\n0,0\n1,0\n2,0\n", ["--trigger", "stimulus"], ["no pulse"]),
     ],
 )
 def test_bad_signals_are_one_line_before_the_tracking(small_case, tmp_path, capsys, text, extra,
@@ -300,3 +305,40 @@ def test_peaks_are_found_by_prominence_as_scipy_finds_them():
             a = np.round(a.cumsum(), 1)  # steps of 0.1: flat tops and valleys
         least = float(rng.uniform(0, 2))
         assert np.array_equal(_prominent_peaks(a, least), find_peaks(a, prominence=least)[0])
+
+
+def test_signals_with_every_other_frame_keep_their_pulses_and_the_time_axis_its_step(
+    twitching, tmp_path
+):
+    """--step 2: a run frame stands for two of the video's, so a pulse on a frame left out is
+    kept (by frame number and by time), and the run's time axis is 2 / fps per frame."""
+    from strain2d.signals import read_signals
+
+    folder, case = twitching
+    onsets = [c["onset"] for c in case.video.truth.time_profile.cycles]
+    pulses = [o - 1 for o in onsets]  # 2, 17, 31: an odd one is between the frames used
+    by_frame = tmp_path / "f.csv"
+    by_frame.write_text("frame,stimulus,T\n" + "".join(
+        f"{k},{int(k in pulses)},{20 + k}\n" for k in range(48)))  # fmt: skip
+    aligned = read_signals(by_frame, 24, step=2)
+    assert aligned.names == ["stimulus", "T"]  # a column named T is a signal, not the time
+    assert sorted(np.flatnonzero(aligned.column("stimulus") == 1)) == [1, 9, 16]
+    by_time = tmp_path / "t.csv"
+    by_time.write_text("time_s,stimulus\n" + "".join(
+        f"{k / 100:.2f},{int(round(k / 10) in pulses and k % 10 == 0)}\n"
+        for k in range(480)))  # fmt: skip
+    aligned = read_signals(by_time, 24, fps=10, step=2)
+    assert sorted(np.flatnonzero(aligned.column("stimulus") == 1)) == [1, 9, 16]
+    argv = ["-q", "analyze", str(folder / "sheet.avi"), "--grid", "5x4", "--tracker", "dic",
+            "--fps", "10", "--step", "2", "--animation", "none", "--signals", str(by_frame),
+            "--trigger", "stimulus", "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(argv) == 0
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["time_axis"] == {"fps": 10, "unit": "s", "step": 2}
+    cycles = summary["cycles"]["cycles"]
+    assert len(cycles) == 3 and summary["cycles"]["repeated"]
+    for c in cycles:  # times of the video: run frame k is video frame 2 k, at 0.2 k s
+        assert c["peak_time"] == pytest.approx(0.2 * c["peak"])
+    with open(tmp_path / "run" / "signals.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert float(rows[5]["time_s"]) == pytest.approx(1.0)

@@ -35,7 +35,12 @@ def test_binary_labelled_and_colour_images_mark_the_pixels_that_are_not_zero(tmp
     tifffile.imwrite(tmp_path / "planar.tif", planar, photometric="rgb", planarconfig="separate")
     floats = disc.astype(np.float32) * 0.5
     tifffile.imwrite(tmp_path / "float.tif", floats)
-    for name in ("fiji.png", "red.png", "alpha.png", "planar.tif", "float.tif"):
+    gray_alpha = np.zeros((H, W, 2), np.uint8)
+    gray_alpha[disc, 1] = 255  # black drawn on transparency, gray + alpha
+    tifffile.imwrite(tmp_path / "gray_alpha.tif", gray_alpha, photometric="minisblack",
+                     extrasamples=["unassalpha"])  # fmt: skip
+    names = ("fiji.png", "red.png", "alpha.png", "planar.tif", "float.tif", "gray_alpha.tif")
+    for name in names:
         mask = read_mask(tmp_path / name, (H, W))
         assert mask.kind == "image" and (mask.inside == disc).all(), name
     both = read_mask(tmp_path / "labels.tif", (H, W)).inside
