@@ -433,6 +433,12 @@ def run_outputs(
     end_name = ep["label"]
     peaks = [] if cycles is None else [c["peak"] for c in cycles["cycles"] if c["peak"] is not None]
     maps = sorted({*map_frames, k_end, T - 1, *(peaks if maps_at_peaks else [])})
+    peak_names = (
+        {}
+        if not repeated
+        else {int(c["peak"]): f"peak of cycle {c['cycle']}" for c in cycles["cycles"]
+              if c["peak"] is not None}
+    )  # fmt: skip
     unit = "s" if time_unit == "s" else "frame"
 
     def when(k: int) -> str:
@@ -453,7 +459,7 @@ def run_outputs(
         nonlocal crosses
         if k in drawn:
             return
-        what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
+        what = end_name if k == k_end else peak_names.get(k, "last frame" if k == T - 1 else "")
         drawn[k] = pool.submit(
             _saved,
             fg.strain_maps_figure,
@@ -587,7 +593,7 @@ def run_outputs(
         raise InputError(f"the video ended before frame {min(missing)}")
 
     for k in maps:
-        what = end_name if k == k_end else ("last frame" if k == T - 1 else "")
+        what = end_name if k == k_end else peak_names.get(k, "last frame" if k == T - 1 else "")
         record(
             drawn[k].result(),
             f"Nodal strain on the deformed grid at {when(k)}"

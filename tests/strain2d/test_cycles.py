@@ -152,6 +152,9 @@ def test_another_cycle_can_be_the_endpoint_and_every_peak_can_get_maps(twitching
     maps = sorted(p.name for p in (tmp_path / "run" / "figures").glob("strain_frame*.png"))
     peaks = [c["peak"] for c in summary["cycles"]["cycles"]]
     assert maps == sorted({f"strain_frame{k:04d}.png" for k in [*peaks, 40, 47]})
+    captions = {f["files"][0]: f["caption"] for f in summary["figures"]}
+    assert "the peak of cycle 3" in captions[f"figures/strain_frame{peaks[2]:04d}.png"]
+    assert "peak of cycle 2 of 3" in captions[f"figures/strain_frame{peaks[1]:04d}.png"]
     assert main([*argv[:-1], str(tmp_path / "r4"), "--cycle", "4"]) == 2
 
 
