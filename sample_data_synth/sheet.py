@@ -80,6 +80,43 @@ def muscle_texture(shape: tuple[int, int] = (1080, 1920), *, rng=0) -> np.ndarra
     return _unit(image)
 
 
+def render_sheet(
+    shape: tuple[int, int],
+    peak: float,
+    times,
+    *,
+    spot: tuple[float, float, float],
+    read_noise: float,
+    shot_gain: float,
+    rng,
+    progress=None,
+) -> tuple[np.ndarray, Contraction]:
+    """Frames of the muscle sheet contracting by ``peak`` at ``t = 1`` over ``times``, and
+    its deformation: stretches ``1 - 0.6 peak`` along the fibres and ``1 + 0.2 peak``
+    across them (E ~ F - 1 for small strain), plus a local hot spot of ``0.4 peak`` at
+    ``spot`` ``(x, y, width)`` as shares of the frame.  The texture and the noise come
+    from two streams of ``rng``."""
+    h, w = shape
+    texture_rng, noise_rng = (
+        np.random.default_rng(s) for s in np.random.SeedSequence(rng).spawn(2)
+    )
+    texture = muscle_texture((h, w), rng=texture_rng)
+    center = ((w - 1) / 2, (h - 1) / 2)
+    sx, sy, width = spot
+    local = Field("gaussian", (sx * (w - 1), sy * (h - 1)), a=0.4 * peak, s=width * w)
+    deformation = Contraction(center, lx=1 - 0.6 * peak, ly=1 + 0.2 * peak, fields=[local])
+    frames = render_frames(
+        texture,
+        deformation,
+        times,
+        read_noise=read_noise,
+        shot_gain=shot_gain,
+        rng=noise_rng,
+        progress=progress,
+    )
+    return frames, deformation
+
+
 def make_muscle_sheet(
     *,
     shape: tuple[int, int] = (1080, 1920),
@@ -119,22 +156,15 @@ def make_muscle_sheet(
         raise ValueError(f"n_frames must be >= 6, got {n_frames}")
     if not 0 < peak < 0.2:
         raise ValueError(f"peak must be between 0 and 0.2, got {peak}")
-    texture_rng, noise_rng = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(rng).spawn(2)
-    )
-    texture = muscle_texture((h, w), rng=texture_rng)
-    center = ((w - 1) / 2, (h - 1) / 2)
-    # E = (F^2 - 1) / 2 ~ F - 1 for small strain: stretches of 1 - 0.6 peak and 1 + 0.2 peak
-    local = Field("gaussian", (0.35 * (w - 1), 0.55 * (h - 1)), a=0.4 * peak, s=0.15 * w)
-    deformation = Contraction(center, lx=1 - 0.6 * peak, ly=1 + 0.2 * peak, fields=[local])
     profile = Twitch(2, max(3, round(0.4 * (n_frames - 1))), n_frames - 1)
-    frames = render_frames(
-        texture,
-        deformation,
+    frames, deformation = render_sheet(
+        (h, w),
+        peak,
         [profile(k) for k in range(n_frames)],
+        spot=(0.35, 0.55, 0.15),
         read_noise=read_noise,
         shot_gain=shot_gain,
-        rng=noise_rng,
+        rng=rng,
         progress=progress,
     )
     roi = (0.1 * (w - 1), 0.1 * (h - 1), 0.9 * (w - 1), 0.9 * (h - 1))

@@ -23,9 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sample_data_synth.cases import GroundTruth, SyntheticVideo
-from sample_data_synth.deformations import Contraction, Field, Twitches
-from sample_data_synth.sheet import muscle_texture
-from sample_data_synth.tissue import render_frames
+from sample_data_synth.deformations import Twitches
+from sample_data_synth.sheet import render_sheet
 
 __all__ = ["DEFAULT_TWITCHES", "STIMULUS_LEAD", "RepeatedTwitches", "make_repeated_twitches"]
 
@@ -99,22 +98,17 @@ def make_repeated_twitches(
         )
     if not 0 < peak < 0.3:
         raise ValueError(f"peak must be between 0 and 0.3, got {peak}")
-    texture_rng, noise_rng = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(rng).spawn(2)
-    )
-    texture = muscle_texture((h, w), rng=texture_rng)
-    center = ((w - 1) / 2, (h - 1) / 2)
-    local = Field("gaussian", (0.4 * (w - 1), 0.5 * (h - 1)), a=0.4 * peak, s=0.18 * w)
-    deformation = Contraction(center, lx=1 - 0.6 * peak, ly=1 + 0.2 * peak, fields=[local])
-    frames = render_frames(
-        texture,
-        deformation,
+    frames, deformation = render_sheet(
+        (h, w),
+        peak,
         [profile(k) for k in range(n_frames)],
+        spot=(0.4, 0.5, 0.18),
         read_noise=read_noise,
         shot_gain=shot_gain,
-        rng=noise_rng,
+        rng=rng,
         progress=progress,
     )
+    center = ((w - 1) / 2, (h - 1) / 2)
     yy, xx = np.mgrid[:h, :w]
     mask = ((xx - center[0]) / (0.42 * w)) ** 2 + ((yy - center[1]) / (0.40 * h)) ** 2 <= 1.0
     stimulus = np.zeros(n_frames)
