@@ -207,7 +207,7 @@ def _cycle_endpoint(ep: dict, cycles: dict, cycle: int | None, field, times) -> 
 
 def _write_signals(folder: Path, signals, curves: np.ndarray, times, unit: str) -> Path:
     """``signals.csv``: per frame its time, each signal aligned to it and the mean strains."""
-    from tissue_core.csvtext import csv_writer
+    from tissue_core.csvtext import csv_writer, number_cell
     from tissue_core.outputs import replaced_on_success
 
     path = folder / "signals.csv"
@@ -217,18 +217,9 @@ def _write_signals(folder: Path, signals, curves: np.ndarray, times, unit: str) 
         writer.writerow(["frame", time_column, *signals.names,
                          *(f"{c}_mean" for c in CYCLE_COMPONENTS)])  # fmt: skip
         for k in range(signals.values.shape[0]):
-            writer.writerow([k, _cell(times[k]), *(_cell(v) for v in signals.values[k]),
-                             *(_cell(v) for v in curves[k])])  # fmt: skip
+            writer.writerow([k, number_cell(times[k]), *(number_cell(v) for v in signals.values[k]),
+                             *(number_cell(v) for v in curves[k])])  # fmt: skip
     return path
-
-
-def _cell(value) -> str:
-    if value is None:
-        return ""
-    if isinstance(value, int | np.integer):
-        return str(int(value))
-    value = float(value)
-    return "nan" if not math.isfinite(value) else f"{value:.8g}"
 
 
 #: a mean normal strain below this share of the larger one is taken as none in naming the
@@ -1066,7 +1057,7 @@ def _curves(run, components: Sequence[str]) -> tuple[dict, dict]:
 def _write_study_cycles(folder: Path, cycles: dict) -> None:
     """A study's ``cycles.csv`` (a row per specimen and cycle) and ``specimen_cycles.csv``
     (each specimen's cycles averaged)."""
-    from tissue_core.csvtext import csv_writer
+    from tissue_core.csvtext import csv_writer, number_cell
 
     for name, rows in (("cycles.csv", cycles["rows"]), ("specimen_cycles.csv",
                                                         cycles["specimens"])):  # fmt: skip
@@ -1075,7 +1066,7 @@ def _write_study_cycles(folder: Path, cycles: dict) -> None:
             writer = csv_writer(f, lineterminator="\n")
             writer.writerow(columns)
             for row in rows:
-                writer.writerow([v if isinstance(v, str) else _cell(v) for v in
+                writer.writerow([v if isinstance(v, str) else number_cell(v) for v in
                                  (row.get(c) for c in columns)])  # fmt: skip
 
 

@@ -436,24 +436,13 @@ def find_run_cycles(
             "largest": stats["largest"], "curves": curves}  # fmt: skip
 
 
-def _cell(value) -> str:
-    import math
-
-    if value is None:
-        return ""
-    if isinstance(value, int | np.integer):
-        return str(int(value))
-    value = float(value)
-    return "nan" if not math.isfinite(value) else f"{value:.8g}"
-
-
 def write_cycles_csv(folder, cycles: dict, field, *, node: dict | None = None) -> list:
     """``cycles.csv`` (a row per cycle) and ``cycles_nodes.csv`` (each cycle's peak strains
     per node) in ``folder``; ``node``, the field's nodal scalars when they are at hand."""
     from pathlib import Path
 
     from surface_strain.field import nodal_scalars
-    from tissue_core.csvtext import csv_writer
+    from tissue_core.csvtext import csv_writer, number_cell
     from tissue_core.outputs import replaced_on_success
 
     folder = Path(folder)
@@ -465,8 +454,8 @@ def write_cycles_csv(folder, cycles: dict, field, *, node: dict | None = None) -
         writer.writerow([*columns, *(f"{c}_peak_mean" for c in CYCLE_COMPONENTS)])
         for row in cycles["cycles"]:
             means = row.get("peak_mean") or {}
-            writer.writerow([_cell(row.get(c)) for c in columns]
-                            + [_cell(means.get(c)) for c in CYCLE_COMPONENTS])  # fmt: skip
+            writer.writerow([number_cell(row.get(c)) for c in columns]
+                            + [number_cell(means.get(c)) for c in CYCLE_COMPONENTS])  # fmt: skip
     node = nodal_scalars(field) if node is None else node
     names = ("Exx", "Eyy", "Exy", "E1", "E2")
     nodes = folder / "cycles_nodes.csv"
@@ -479,5 +468,5 @@ def write_cycles_csv(folder, cycles: dict, field, *, node: dict | None = None) -
             k = int(row["peak"])
             values = [np.asarray(node[c][k]) for c in names]
             for i in range(field.n_points):
-                writer.writerow([row["cycle"], k, i, *(_cell(v[i]) for v in values)])
+                writer.writerow([row["cycle"], k, i, *(number_cell(v[i]) for v in values)])
     return [table, nodes]

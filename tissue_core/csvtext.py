@@ -33,7 +33,14 @@ import csv
 from collections.abc import Iterable
 from typing import Any, TextIO
 
-__all__ = ["FORMULA_STARTS", "InertWriter", "csv_writer", "inert_cell", "restore_cell"]
+__all__ = [
+    "FORMULA_STARTS",
+    "InertWriter",
+    "csv_writer",
+    "inert_cell",
+    "number_cell",
+    "restore_cell",
+]
 
 #: what a spreadsheet takes for the start of a formula
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
@@ -70,6 +77,25 @@ def inert_cell(value: Any) -> Any:
     if isinstance(value, str) and _formula(value.lstrip("'")):
         return "'" + value
     return value
+
+
+def number_cell(value) -> str:
+    """A number as a table cell: integers whole, others to 8 significant digits, ``nan``
+    for NaN or infinity, an empty cell for None.
+
+    >>> [number_cell(v) for v in (3, 0.1 + 0.2, float("inf"), None)]
+    ['3', '0.3', 'nan', '']
+    """
+    import math
+
+    import numpy as np
+
+    if value is None:
+        return ""
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    value = float(value)
+    return "nan" if not math.isfinite(value) else f"{value:.8g}"
 
 
 def restore_cell(text: str) -> str:
