@@ -81,25 +81,25 @@ class Progress:
             _RECORDERS.append(self)
             weakref.finalize(self, _RECORDERS.remove, self)
 
-    def _keep(self, text: str) -> None:
+    def _stamped(self, text: str) -> str:
         from datetime import datetime
 
         stamp = datetime.now().astimezone().isoformat(timespec="seconds")
-        self.lines.append(f"{stamp} [{self.elapsed():6.1f} s] {readable(text)}")
+        return f"{stamp} [{self.elapsed():6.1f} s] {readable(text)}"
+
+    def _keep(self, text: str) -> None:
+        self.lines.append(self._stamped(text))
 
     def recorded(self) -> str:
         """What was kept (``record=True``), one line each; a counter still running ends it
         with how far it has got."""
         running = [
-            f"{t.description}: {t._count()} (this log was written at the end of this step)"
+            self._stamped(f"{t.description}: {t._count()} (this log was written at the end "
+                          "of this step)")
             for t in self._tasks
             if not t._closed and t.done
-        ]
-        kept = list(self.lines)
-        for text in running:
-            self._keep(text)
-        lines, self.lines = self.lines, kept
-        return "".join(line + "\n" for line in lines)
+        ]  # fmt: skip
+        return "".join(line + "\n" for line in [*self.lines, *running])
 
     @property
     def stream(self) -> TextIO:
