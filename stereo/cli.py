@@ -756,12 +756,9 @@ def _cmd_reconstruct(args) -> int:
         points = _read_points(args.points, left.shape, for_strain=True)
         point_info = {"source": Path(args.points).name}
         if mask is not None:
-            on = mask.contains(points)
-            if on.sum() < 3:
-                raise InputError(
-                    f"--mask {args.mask}: {int(on.sum())} of the {len(points)} points of "
-                    f"{args.points} lie on the tissue; at least 3 are needed"
-                )
+            from strain2d import points_on_tissue
+
+            on = points_on_tissue(points, mask, source=args.points)
             point_info["mask"] = {**mask.summary(), "points_off_tissue": int((~on).sum())}
             points = points[on]
     elif mask is not None:

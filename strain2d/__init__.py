@@ -22,6 +22,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "make_grid",
             "mask_triangles",
             "masked_grid",
+            "points_on_tissue",
             "parse_grid",
             "parse_roi",
             "read_points_csv",

@@ -412,15 +412,10 @@ def _masked_points(args, points, mask, info):
     """``--points`` in a mask: those on the tissue, their Delaunay triangles on it."""
     import numpy as np
 
-    from strain2d.grid import mask_triangles
+    from strain2d.grid import mask_triangles, points_on_tissue
     from surface_strain import Mesh, choose_mesh
 
-    on = mask.contains(points)
-    if on.sum() < 3:
-        raise InputError(
-            f"--mask {mask.source}: {int(on.sum())} of the {len(points)} points of "
-            f"{args.points} lie on the tissue; at least 3 are needed"
-        )
+    on = points_on_tissue(points, mask, source=args.points)
     points = points[on]
     mesh = choose_mesh(points, min_quality=args.min_triangle_quality)
     triangles = mask_triangles(points, mesh.triangles, mask)

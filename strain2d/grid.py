@@ -23,6 +23,7 @@ __all__ = [
     "masked_grid",
     "parse_grid",
     "parse_roi",
+    "points_on_tissue",
     "read_points_csv",
     "validate_points",
 ]
@@ -240,6 +241,18 @@ def mask_triangles(points: np.ndarray, triangles: np.ndarray, mask) -> np.ndarra
     corners = on[triangles].all(axis=1)
     centroids = points[triangles].mean(axis=1)
     return triangles[corners & mask.contains(centroids)]
+
+
+def points_on_tissue(points: np.ndarray, mask, *, source: str) -> np.ndarray:
+    """Which of ``points`` (from the file ``source``) lie on the tissue of ``mask``;
+    refuses fewer than 3 (:class:`InputError`)."""
+    on = mask.contains(points)
+    if on.sum() < 3:
+        raise InputError(
+            f"--mask {mask.source}: {int(on.sum())} of the {len(points)} points of {source} "
+            "lie on the tissue; at least 3 are needed"
+        )
+    return on
 
 
 def masked_grid(

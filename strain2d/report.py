@@ -175,7 +175,7 @@ def run_cycles(
     return find_run_cycles(curves, times, stimulus=stimulus, noise=noise)
 
 
-def _cycle_endpoint(ep: dict, cycles: dict, cycle: int | None, field, times) -> dict:
+def _cycle_endpoint(ep: dict, cycles: dict, cycle: int | None, times) -> dict:
     """The endpoint at the peak of cycle ``cycle`` (1, 2, ...; default the largest)."""
     rows = cycles["cycles"]
     if cycle is None:
@@ -414,7 +414,7 @@ def run_outputs(
     repeated = cycles is not None and cycles["repeated"]
     if repeated and endpoint is None:
         # repeated contractions: the endpoint is a cycle's peak (the largest by default)
-        ep = _cycle_endpoint(ep, cycles, cycle, field, times)
+        ep = _cycle_endpoint(ep, cycles, cycle, times)
     elif cycle is not None:
         raise InputError(
             f"--cycle {cycle}: the run has "
