@@ -75,8 +75,12 @@ def endpoint_of(
     relative_tolerance: float = 0.05,
     components: Sequence[str] = ("Exx", "Eyy", "Exy"),
     min_change: float = NO_DEFORMATION,
+    curves: np.ndarray | None = None,
 ) -> dict:
     """The contraction endpoint of a run: detected from the mean strains, or ``frame``.
+
+    ``curves``: the mean strains ``(T, len(components))`` when they are at hand (a
+    streamed field computes its strain again for each pass over it).
 
     When the mean strains never move more than ``min_change`` away from
     their reference values, there is no contraction to find an endpoint of:
@@ -91,7 +95,8 @@ def endpoint_of(
     if frame is not None and not 0 <= frame < T:
         raise InputError(f"--endpoint {frame} is outside the frames 0..{T - 1}")
     t = np.arange(T, dtype=float) if times is None else np.asarray(times, float)
-    curves = _mean_curves(field, components)
+    if curves is None:
+        curves = _mean_curves(field, components)
     valid = np.flatnonzero(np.isfinite(curves).all(axis=1))
     last_valid = int(valid[-1]) if valid.size else -1
     change = float(np.abs(curves[valid] - curves[valid[:1]]).max()) if valid.size else 0.0
@@ -393,12 +398,17 @@ def run_outputs(
     if bad:
         raise InputError(f"--maps-at frame {bad[0]} is outside the frames 0..{T - 1}")
     pool = FigurePool(0) if pool is None else pool
+    # the mean strains, once (a streamed field computes its strain again for each pass)
+    wanted = tuple(dict.fromkeys([*components, *CYCLE_COMPONENTS]))
+    mean_curves = fg.mean_strain_curves(field, wanted)
+    means = np.column_stack([mean_curves["mean"][c] for c in CYCLE_COMPONENTS])
     ep = endpoint_of(
         field,
         times=times,
         frame=endpoint,
         rate_tolerance=rate_tolerance,
         relative_tolerance=relative_tolerance,
+        curves=means,
     )
     quality = fg.run_quality(tracks, field)
     unc = quality["uncertainty_median_px"]
@@ -406,10 +416,6 @@ def run_outputs(
         warnings.simplefilter("ignore", RuntimeWarning)
         sigma_all = None if unc is None else float(np.nanmedian(np.asarray(unc, dtype=float)))
     stimulus = None if trigger is None else signals.column(trigger)
-    # the mean strains, once (a streamed field computes its strain again for each pass)
-    wanted = tuple(dict.fromkeys([*components, *CYCLE_COMPONENTS]))
-    mean_curves = fg.mean_strain_curves(field, wanted)
-    means = np.column_stack([mean_curves["mean"][c] for c in CYCLE_COMPONENTS])
     cycles = run_cycles(field, times, stimulus=stimulus, sigma_px=sigma_all, curves=means)
     repeated = cycles is not None and cycles["repeated"]
     if repeated and endpoint is None:
