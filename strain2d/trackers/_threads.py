@@ -90,10 +90,19 @@ def using_threads(threads: int | None) -> Iterator[int]:
 
     Sets numba's thread count and OpenCV's for the block and restores them
     after.  numba cannot use more threads than it started with
-    (``NUMBA_NUM_THREADS``): more is refused with one line.
+    (``NUMBA_NUM_THREADS``): more is refused with one line.  BLAS and LAPACK
+    (NumPy's and SciPy's OpenBLAS or MKL) get one thread in the block: the
+    trackers split their work over the threads themselves, and a BLAS call
+    inside that work (a banded Cholesky of a few thousand unknowns, a small
+    matrix product) gains nothing from threads of its own while the others
+    wait for them.  With OpenBLAS's default of a thread per core, gdic on the
+    vessels case (bench/bench_default_tracker.py) took 1.7x as long on 2
+    cores and 3.3x as long on 16 (20.7 s against 6.3 s); the tracks are the
+    same.
     """
     import cv2
     import numba
+    from threadpoolctl import threadpool_limits
 
     if threads is not None and (isinstance(threads, bool) or int(threads) != threads):
         raise InputError(f"--threads must be a whole number, got {threads!r}")
@@ -112,7 +121,8 @@ def using_threads(threads: int | None) -> Iterator[int]:
     numba.set_num_threads(n)
     cv2.setNumThreads(n)
     try:
-        yield n
+        with threadpool_limits(limits=1, user_api="blas"):
+            yield n
     finally:
         numba.set_num_threads(old_numba)
         cv2.setNumThreads(old_cv)

@@ -41,6 +41,26 @@ def test_the_thread_count_is_the_option_then_the_environment_then_the_cores(monk
     assert numba.get_num_threads() == before  # restored
 
 
+def _blas_threads() -> set[int]:
+    from threadpoolctl import threadpool_info
+
+    return {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+
+
+def test_blas_runs_on_one_thread_inside_the_trackers_and_as_before_after():
+    """The trackers' own threads each call BLAS (a banded Cholesky, small products): BLAS
+    threads of its own on top of them only wait (gdic took twice as long with them)."""
+    import scipy.linalg  # noqa: F401  (loads LAPACK's library, as the trackers do)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        assert _blas_threads() == {2}
+        with using_threads(2):
+            inside = _blas_threads()
+        assert inside == {1}
+        assert _blas_threads() == {2}  # restored
+
+
 @pytest.mark.parametrize("threads", [0, -2, 10_000, 1.5])
 def test_a_thread_count_that_cannot_be_used_is_refused(threads):
     video = make_case("rotation", size=120, n_frames=2, rng=1)
