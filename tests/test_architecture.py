@@ -14,7 +14,15 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("tissue_core", "sample_data_synth", "surface_strain", "mpm3d", "strain2d", "stereo")
+PACKAGES = (
+    "tissue_core",
+    "sample_data_synth",
+    "surface_strain",
+    "mpm3d",
+    "strain2d",
+    "stereo",
+    "multimodal",
+)
 
 
 def allowed_imports() -> dict[str, set[str]]:

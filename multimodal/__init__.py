@@ -1,0 +1,28 @@
+"""Camera and microscope together: membrane strain along the folding surface.
+
+The camera's strain (:mod:`strain2d`) is the projection of a wall that
+folds; the multiphoton microscope's height maps (:mod:`mpm3d`) show the
+folds.  This package lifts the camera's mesh onto the height maps and
+measures each triangle along the surface, separating true stretch from
+length hidden in folds (:mod:`multimodal.geometry`).
+"""
+
+from tissue_core.lazy import lazy_exports
+
+__getattr__, __dir__, __all__ = lazy_exports(
+    __name__,
+    {
+        "tissue_core.version": ["__version__"],
+        "multimodal.geometry": [
+            "EDGES",
+            "Similarity",
+            "SurfaceMap",
+            "Tortuosity",
+            "directional_tortuosity",
+            "fold_aware_strain",
+            "surface_lengths",
+            "surface_metric",
+            "tortuosity_correction",
+        ],
+    },
+)
