@@ -30,7 +30,14 @@ import numpy as np
 
 from tissue_core.errors import InputError
 
-__all__ = ["LongTable", "cell_count_error", "read_long_table", "read_xy_csv", "write_long_table"]
+__all__ = [
+    "LongTable",
+    "cell_count_error",
+    "read_long_table",
+    "read_number_columns",
+    "read_xy_csv",
+    "write_long_table",
+]
 
 _MISSING = ("", "nan", "none", "null")
 #: rows :func:`write_long_table` formats at a time (whole frames, at least one)
@@ -358,25 +365,40 @@ def read_xy_csv(path: str | os.PathLike, *, what: str = "points") -> np.ndarray:
     """Read ``(x, y)`` rows from a CSV file with a header holding columns ``x`` and ``y``.
 
     Points files and polygon outlines (``what`` names them in the messages)
-    have this form.
-
-    A byte-order mark (as spreadsheet programs write) is accepted.  Every row
-    must have as many cells as the header (a decimal comma, ``10,5`` for
-    10.5, makes one too many) and numbers for ``x`` and ``y``; errors name the
-    file and the line.
+    have this form; see :func:`read_number_columns`.
 
     Returns
     -------
     points : (N, 2) float
     """
+    return read_number_columns(path, ("x", "y"), what=what)
+
+
+def read_number_columns(
+    path: str | os.PathLike, columns: tuple[str, ...], *, what: str = "points"
+) -> np.ndarray:
+    """Read the numbers of ``columns`` (named in a header, in any order among others).
+
+    A byte-order mark (as spreadsheet programs write) is accepted.  Every row
+    must have as many cells as the header (a decimal comma, ``10,5`` for
+    10.5, makes one too many) and numbers in ``columns``; errors name the
+    file and the line.
+
+    Returns
+    -------
+    (N, len(columns)) float
+    """
     line = 1
+    names = " and ".join([", ".join(columns[:-1]), columns[-1]] if len(columns) > 1 else columns)
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
             reader = csv.reader(f)
             fields = [c.strip().lower() for c in next(reader, [])]
-            if "x" not in fields or "y" not in fields:
-                raise InputError(f"{path} needs a header with columns x,y (found {fields})")
-            ix, iy = fields.index("x"), fields.index("y")
+            if any(c not in fields for c in columns):
+                raise InputError(
+                    f"{path} needs a header with columns {','.join(columns)} (found {fields})"
+                )
+            index = [fields.index(c) for c in columns]
             rows = []
             for cells in reader:
                 line = reader.line_num
@@ -384,7 +406,7 @@ def read_xy_csv(path: str | os.PathLike, *, what: str = "points") -> np.ndarray:
                     continue  # a blank line
                 if len(cells) != len(fields):
                     raise cell_count_error(path, line, len(cells), len(fields), ",".join(cells))
-                rows.append((float(cells[ix]), float(cells[iy])))
+                rows.append(tuple(float(cells[i]) for i in index))
     except FileNotFoundError:
         raise InputError(f"no such {what} file: {path}") from None
     except IsADirectoryError:
@@ -394,5 +416,5 @@ def read_xy_csv(path: str | os.PathLike, *, what: str = "points") -> np.ndarray:
     except (TypeError, ValueError, csv.Error) as exc:
         if isinstance(exc, InputError):
             raise
-        raise InputError(f"{path}, line {line}: x and y must be numbers ({exc})") from None
-    return np.array(rows, dtype=float).reshape(-1, 2)
+        raise InputError(f"{path}, line {line}: {names} must be numbers ({exc})") from None
+    return np.array(rows, dtype=float).reshape(-1, len(columns))

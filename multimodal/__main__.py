@@ -1,0 +1,3 @@
+from tissue_core.main import run
+
+run("multimodal")

@@ -1,0 +1,156 @@
+"""Command line: ``python -m multimodal strain RUN --before B --after A --out DIR``.
+
+Lifts a camera run (``strain2d analyze``) onto the microscope's height maps
+of the same tissue before and after (``mpm3d analyze`` folders or height-map
+TIFFs) and writes, per triangle, the camera's projected strain, the strain
+along the folded surface where the maps cover the triangle, and the
+statistics-only correction everywhere (``fold_strain.csv``), the surface's
+tortuosity per direction (``tortuosity.csv``), ``summary.json`` and a
+figure.  The camera and the microscope are registered by landmark pairs
+(``--landmarks``, with their residual) or a given similarity
+(``--transform``).  Errors a user can cause end with one line on stderr and
+exit status 2.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from tissue_core.errors import InputError
+
+__all__ = ["main"]
+
+
+def _build_parser():
+    from tissue_core.cli import CommandLine
+
+    cli = CommandLine("multimodal", "Camera and microscope together: fold-aware strain.")
+    p = cli.command(
+        "strain",
+        _cmd_strain,
+        help="membrane strain along the microscope's surface for a camera run's triangles",
+    )
+    p.add_argument("run", help="a strain2d analyze output folder")
+    p.add_argument("--before", required=True, help="height map of the reference state "
+                   "(an mpm3d analyze folder or a height-map TIFF, in um)")  # fmt: skip
+    p.add_argument("--after", required=True, help="height map of the deformed state")
+    how = p.add_mutually_exclusive_group(required=True)
+    how.add_argument(
+        "--landmarks",
+        help="CSV of landmark pairs: camera_x,camera_y (px, on the run's reference frame), "
+        "microscope_x,microscope_y (um)",
+    )
+    how.add_argument(
+        "--transform",
+        help="camera px to microscope um: a JSON file (scale_um_per_px, angle_deg, shift_um, "
+        "mirrored) or SCALE,ANGLE,SHIFT_X,SHIFT_Y",
+    )
+    p.add_argument(
+        "--mirrored", action="store_true", help="the microscope sees the tissue mirrored"
+    )
+    p.add_argument(
+        "--frame",
+        type=int,
+        help="the run's frame the --after map shows (default: the run's contraction endpoint)",
+    )
+    p.add_argument(
+        "--path",
+        choices=["geodesic", "chord"],
+        default="geodesic",
+        help="how an edge runs on the surface: the shortest path near its chord (default), "
+        "or the chord itself",
+    )
+    p.add_argument("--pixel-um", type=float, help="height maps' pixel size, if they lack one")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    return cli
+
+
+def _triangles(run_dir: Path) -> np.ndarray:
+    from tissue_core.tables import read_number_columns
+
+    folder = run_dir / "strain" if (run_dir / "strain" / "summary.json").is_file() else run_dir
+    table = read_number_columns(
+        folder / "strain_elements.csv", ("frame", "p0", "p1", "p2"), what="elements"
+    )
+    first = table[table[:, 0] == table[:, 0].min(), 1:] if len(table) else table[:, 1:]
+    if not len(first) or not np.all(first == np.round(first)):
+        raise InputError(f"{folder / 'strain_elements.csv'}: no triangles of whole point numbers")
+    return first.astype(np.intp)
+
+
+def _inputs(args) -> list[Path]:
+    files = [Path(args.run) / "summary.json", Path(args.before), Path(args.after)]
+    files += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
+    return files
+
+
+def _cmd_strain(args) -> int:
+    from multimodal.geometry import Similarity
+    from multimodal.io import read_landmarks, read_surface_map, read_transform
+    from multimodal.run import fold_strain_run, write_fold_run
+    from strain2d import load_run
+    from tissue_core.outputs import atomic_dir, check_writable
+    from tissue_core.progress import Progress
+
+    check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
+    say = Progress(quiet=args.quiet)
+    run = load_run(args.run)
+    if run.positions.shape[-1] != 2:
+        raise InputError(
+            f"{args.run}: a 3D run; give a camera run of strain2d analyze (the surface of a "
+            "stereo run is not registered to a microscope yet)"
+        )
+    frame = run.endpoint if args.frame is None else args.frame
+    if not 0 < frame < run.n_frames:
+        raise InputError(f"--frame {frame} is outside the run's frames 1..{run.n_frames - 1}")
+    triangles = _triangles(Path(args.run))
+    before = read_surface_map(args.before, pixel_um=args.pixel_um)
+    after = read_surface_map(args.after, pixel_um=args.pixel_um)
+    residual = None
+    if args.landmarks:
+        camera, microscope = read_landmarks(args.landmarks)
+        transform, residual = Similarity.from_landmarks(camera, microscope, mirrored=args.mirrored)
+    else:
+        transform = read_transform(args.transform)
+        if args.mirrored:
+            transform = Similarity(
+                transform.scale, transform.angle_deg, transform.shift_um, mirrored=True
+            )
+    fit = "" if residual is None else f", landmarks {np.sqrt(np.mean(residual**2)):.3g} um RMS"
+    say(
+        f"{args.run}: {run.n_points} nodes, {len(triangles)} triangles; frame {frame} against "
+        f"frame 0; camera to microscope: {transform.scale:.4g} um/px, "
+        f"{transform.angle_deg:.3g} deg{fit}"
+    )
+    result = fold_strain_run(run, triangles, frame, before, after, transform, path=args.path)
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
+        summary = write_fold_run(
+            tmp, result, run=run, frame=frame, before=before, after=after,
+            transform=transform, residual=residual, path=args.path,
+            inputs=[p for p in _inputs(args) if p.is_file()],
+        )  # fmt: skip
+    means = summary["mean_strain"]
+    say(
+        f"{summary['coverage']['on_maps']} of {len(triangles)} triangles on both height maps; "
+        f"mean Exx projected {means['projected']['Exx']:.4f}, along the surface "
+        f"{means['fold_aware']['Exx']:.4f} (statistics only {means['corrected']['Exx']:.4f})"
+    )
+    say(f"results in {args.out}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    from tissue_core.cli import run_command
+
+    return run_command("multimodal", _build_parser(), argv)
+
+
+def entry() -> None:
+    """The console script ``multimodal``: like ``python -m multimodal``."""
+    from tissue_core.cli import run_module
+
+    run_module(__name__)

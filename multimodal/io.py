@@ -1,0 +1,105 @@
+"""Reading the microscope's height maps, landmark pairs and transforms."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from multimodal.geometry import Similarity, SurfaceMap
+from tissue_core.errors import InputError
+
+__all__ = ["read_landmarks", "read_surface_map", "read_transform"]
+
+
+def read_surface_map(path: str | os.PathLike, *, pixel_um: float | None = None) -> SurfaceMap:
+    """A height map: an ``mpm3d analyze`` run folder (its ``heightmap.tif``) or a TIFF.
+
+    The TIFF holds heights in micrometres, (Y, X), or ``mpm3d``'s two
+    channels (height, and 1 where the surface was measured: the columns it
+    filled in become gaps here, so no length is measured over them).  Its
+    pixel size comes from the file (ImageJ calibration, OME, resolution
+    tags) or ``pixel_um``.
+    """
+    import tifffile
+
+    from tissue_core.tiff_units import lateral_pixel_size_um
+
+    path = Path(path)
+    if path.is_dir():
+        inner = path / "heightmap.tif"
+        if not inner.is_file():
+            raise InputError(f"{path}: no heightmap.tif in it (give an mpm3d analyze folder)")
+        path = inner
+    if not path.is_file():
+        raise InputError(f"height map {path} does not exist")
+    try:
+        with tifffile.TiffFile(path) as tif:
+            data = tif.asarray()
+            size = lateral_pixel_size_um(tif)
+    except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
+        raise InputError(f"{path}: cannot read it as a TIFF height map ({exc})") from None
+    data = np.asarray(data, dtype=float)
+    if data.ndim == 3 and data.shape[0] == 2:  # mpm3d: height, measured
+        height = np.where(data[1] > 0.5, data[0], np.nan)
+    elif data.ndim == 2:
+        height = data
+    else:
+        raise InputError(
+            f"{path}: a height map is one 2D image (or mpm3d's height and measured channels), "
+            f"got shape {data.shape}"
+        )
+    if pixel_um is not None:
+        if not (math.isfinite(pixel_um) and pixel_um > 0):
+            raise InputError(f"--pixel-um must be a positive number, got {pixel_um}")
+        dy = dx = float(pixel_um)
+    elif isinstance(size, tuple):
+        dy, dx, _ = size
+    else:
+        raise InputError(f"{path}: its pixel size is unknown ({size}); give --pixel-um")
+    return SurfaceMap(height, (dy, dx), source=str(path))
+
+
+def read_landmarks(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Landmark pairs from a CSV: ``camera_x, camera_y`` (px), ``microscope_x,
+    microscope_y`` (um), one pair per row."""
+    from tissue_core.tables import read_number_columns
+
+    columns = ("camera_x", "camera_y", "microscope_x", "microscope_y")
+    table = read_number_columns(path, columns, what="landmarks")
+    return table[:, :2], table[:, 2:]
+
+
+def read_transform(text: str) -> Similarity:
+    """A transform: a JSON file (``scale_um_per_px``, ``angle_deg``, ``shift_um``,
+    ``mirrored``), or ``SCALE,ANGLE,SHIFT_X,SHIFT_Y``."""
+    path = Path(text)
+    if path.suffix.lower() == ".json" or path.is_file():
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise InputError(f"--transform {text}: cannot read it ({exc.strerror})") from None
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise InputError(f"--transform {text}: not a JSON file") from None
+        try:
+            shift = data["shift_um"]
+            return Similarity(
+                float(data["scale_um_per_px"]),
+                float(data.get("angle_deg", 0.0)),
+                (float(shift[0]), float(shift[1])),
+                bool(data.get("mirrored", False)),
+            )
+        except (KeyError, TypeError, ValueError, IndexError):
+            raise InputError(
+                f"--transform {text}: needs scale_um_per_px, angle_deg and shift_um [x, y]"
+            ) from None
+    try:
+        scale, angle, x, y = (float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(
+            f"--transform must be a JSON file or SCALE,ANGLE,SHIFT_X,SHIFT_Y, got {text!r}"
+        ) from None
+    return Similarity(scale, angle, (x, y))

@@ -1,0 +1,225 @@
+"""A fold-aware run: the camera run's triangles measured along the microscope's surface."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import numpy as np
+
+from multimodal.geometry import (
+    Similarity,
+    SurfaceMap,
+    Tortuosity,
+    directional_tortuosity,
+    fold_aware_strain,
+    tortuosity_correction,
+)
+
+__all__ = ["FoldStrain", "fold_strain_run", "write_fold_run"]
+
+#: the components written per triangle, as (name, row, column) of the 2x2 tensor
+COMPONENTS = (("Exx", 0, 0), ("Eyy", 1, 1), ("Exy", 0, 1))
+
+
+@dataclass
+class FoldStrain:
+    """What :func:`fold_strain_run` measured (arrays per triangle)."""
+
+    triangles: np.ndarray
+    reference_px: np.ndarray
+    current_px: np.ndarray
+    surface: dict
+    corrected: dict
+    before: Tortuosity
+    after: Tortuosity
+
+
+def fold_strain_run(
+    run,
+    triangles: np.ndarray,
+    frame: int,
+    before: SurfaceMap,
+    after: SurfaceMap,
+    transform: Similarity,
+    *,
+    path: str = "geodesic",
+) -> FoldStrain:
+    """The run's frame ``frame`` against frame 0, along the surface and corrected by the
+    surfaces' tortuosity (the segments as long as the mesh's median edge)."""
+    from surface_strain import deformation_gradient
+
+    X = np.asarray(run.positions[0], float)
+    x = np.where(run.visible[frame][:, None], run.positions[frame], np.nan)
+    surface = fold_aware_strain(X, x, triangles, before, after, transform, path=path)
+    segment = float(np.nanmedian(surface["P0"]))
+    tort_before = directional_tortuosity(before, segment)
+    tort_after = directional_tortuosity(after, segment)
+    F = deformation_gradient(X, x, triangles)
+    corrected = tortuosity_correction(F, tort_before, tort_after, transform)
+    return FoldStrain(triangles, X, x, surface, corrected, tort_before, tort_after)
+
+
+def _means(E: np.ndarray, use: np.ndarray) -> dict:
+    out = {}
+    for name, i, j in COMPONENTS:
+        values = E[use, i, j]
+        values = values[np.isfinite(values)]
+        out[name] = float(values.mean()) if values.size else None
+    return out
+
+
+def write_fold_run(
+    folder: str | os.PathLike,
+    result: FoldStrain,
+    *,
+    run,
+    frame: int,
+    before: SurfaceMap,
+    after: SurfaceMap,
+    transform: Similarity,
+    residual: np.ndarray | None,
+    path: str,
+    inputs: list[Path],
+) -> dict:
+    """Write ``fold_strain.csv``, ``tortuosity.csv``, ``summary.json`` and
+    ``figures/fold_strain.png`` into ``folder``; returns the summary."""
+    from tissue_core.csvtext import number_cell
+    from tissue_core.jsonio import write_json
+    from tissue_core.outputs import sha256_of
+    from tissue_core.version import __version__
+
+    folder = Path(folder)
+    E_s, E_p = result.surface["E"], result.surface["E_projected"]
+    E_c, sd = result.corrected["E"], result.corrected["E_principal_sd"]
+    on_maps = np.isfinite(E_s).all(axis=(1, 2))
+    seen = np.isfinite(E_p).all(axis=(1, 2))
+    header = ["triangle", "p0", "p1", "p2", "on_maps"]
+    header += [f"{c}_projected" for c, _, _ in COMPONENTS]
+    header += [f"{c}_surface" for c, _, _ in COMPONENTS]
+    header += [f"{c}_corrected" for c, _, _ in COMPONENTS]
+    header += ["E1_corrected_sd", "E2_corrected_sd"]
+    lines = [",".join(header)]
+    for k, tri in enumerate(result.triangles):
+        cells = [str(k), *map(str, tri), str(int(on_maps[k]))]
+        for E in (E_p, E_s, E_c):
+            cells += [number_cell(float(E[k, i, j])) for _, i, j in COMPONENTS]
+        cells += [number_cell(float(v)) for v in sd[k]]
+        lines.append(",".join(cells))
+    (folder / "fold_strain.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    rows = ["angle_deg,before_mean,before_sd,after_mean,after_sd,before_segments,after_segments"]
+    tb, ta = result.before, result.after
+    for k, angle in enumerate(tb.angles_deg):
+        values = (angle, tb.mean[k], tb.sd[k], ta.mean[k], ta.sd[k], tb.count[k], ta.count[k])
+        rows.append(",".join(number_cell(float(v)) for v in values))
+    (folder / "tortuosity.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    (folder / "figures").mkdir()
+    figure = _figure(folder / "figures" / "fold_strain.png", result, before, after, transform)
+    means = {
+        "projected": _means(E_p, on_maps if on_maps.any() else seen),
+        "fold_aware": _means(E_s, on_maps),
+        "corrected": _means(E_c, seen),
+        "projected_all": _means(E_p, seen),
+    }
+    folding = {}
+    for name, _, _ in COMPONENTS:
+        p, s = means["projected"][name], means["fold_aware"][name]
+        folding[name] = None if p is None or s is None or abs(p) < 1e-3 else (p - s) / p
+    digest, _ = sha256_of(inputs) if inputs else (None, 0)
+    summary = {
+        "schema": 1,
+        "software": {"name": "multimodal", "version": __version__},
+        "created": datetime.now(UTC).isoformat(timespec="seconds"),
+        "run": str(run.path),
+        "frames": {"reference": 0, "deformed": int(frame)},
+        "height_maps": {
+            name: {"source": m.source, "shape": list(m.shape), "pixel_um": list(m.pixel_um)}
+            for name, m in (("before", before), ("after", after))
+        },
+        "inputs_sha256": digest,
+        "transform": {
+            **transform.as_dict(),
+            "from": "landmarks" if residual is not None else "given",
+            **(
+                {
+                    "landmarks": len(residual),
+                    "residual_um_rms": float(np.sqrt(np.mean(residual**2))),
+                    "residual_um_max": float(residual.max()),
+                }
+                if residual is not None
+                else {}
+            ),
+        },
+        "parameters": {"path": path, "tortuosity_segment_um": result.before.segment_um},
+        "coverage": {
+            "triangles": len(result.triangles),
+            "on_maps": int(on_maps.sum()),
+            "tracked": int(seen.sum()),
+        },
+        "mean_strain": means,
+        "folding_share": folding,
+        "tortuosity": {
+            "before": {"x": float(tb.at(0.0)[0]), "y": float(tb.at(90.0)[0])},
+            "after": {"x": float(ta.at(0.0)[0]), "y": float(ta.at(90.0)[0])},
+            "directions": "the microscope's x and y",
+        },
+        "units": {"strain": "-", "lengths": "um", "camera": "px"},
+        "definitions": {
+            "projected": "the camera's 2D Green-Lagrange strain of each triangle",
+            "fold_aware": "membrane strain along the surface: each edge's length on the "
+            "height maps (before and after), over the triangles both maps cover; frame of "
+            "the reference surface, first axis over the camera's x",
+            "corrected": "the projected principal stretches scaled by the surfaces' "
+            "tortuosity along them (after / before), over every tracked triangle",
+            "folding_share": "(projected - fold_aware) / projected of the means over the "
+            "triangles on the maps: the share of the apparent strain that is folding",
+        },
+        "outputs": ["fold_strain.csv", "tortuosity.csv", "summary.json", *figure],
+    }
+    write_json(folder / "summary.json", summary)
+    return summary
+
+
+def _figure(
+    path: Path, result: FoldStrain, before: SurfaceMap, after: SurfaceMap, transform: Similarity
+) -> list[str]:
+    """Exx as the camera sees it, along the surface and corrected, on the deformed mesh,
+    with the microscope's field of view."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.tri import Triangulation
+
+    x = result.current_px
+    panels = (
+        ("projected (camera)", result.surface["E_projected"]),
+        ("along the surface (microscope)", result.surface["E"]),
+        ("corrected by tortuosity", result.corrected["E"]),
+    )
+    values = [E[:, 0, 0] for _, E in panels]
+    finite = np.concatenate([v[np.isfinite(v)] for v in values])
+    top = float(np.max(np.abs(finite))) if finite.size else 1.0
+    fig = Figure(figsize=(13.5, 4.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(1, 3, sharex=True, sharey=True)
+    ok = np.isfinite(x).all(axis=1)
+    keep = ok[result.triangles].all(axis=1)
+    tri = Triangulation(np.nan_to_num(x[:, 0]), np.nan_to_num(x[:, 1]), result.triangles[keep])
+    x0, y0, x1, y1 = after.bounds()
+    corners = transform.inverse(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]))
+    shown = None
+    for ax, (title, _), v in zip(axes, panels, values, strict=True):
+        colours = np.ma.masked_invalid(v[keep])
+        shown = ax.tripcolor(tri, facecolors=colours, cmap="RdBu_r", vmin=-top, vmax=top)
+        ax.triplot(tri, color="0.6", lw=0.3)
+        ax.plot(corners[:, 0], corners[:, 1], color="k", lw=1.0, ls="--")
+        ax.set_title(title, fontsize=10)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (px)")
+    axes[0].set_ylabel("y (px)")
+    axes[0].invert_yaxis()
+    fig.colorbar(shown, ax=axes, shrink=0.85, label=r"$E_{xx}$ (-)")
+    fig.suptitle("Exx on the deformed mesh; dashed: the microscope's field of view", fontsize=11)
+    fig.savefig(path, dpi=110)
+    return [f"figures/{path.name}"]

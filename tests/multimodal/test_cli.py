@@ -1,0 +1,118 @@
+"""``python -m multimodal strain`` on a rendered folding wall, and on bad input."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from sample_data_synth.folds import make_folding_wall, write_folding_wall
+
+
+def _run(*argv, check=True) -> subprocess.CompletedProcess:
+    done = subprocess.run(
+        [sys.executable, "-m", *argv], capture_output=True, text=True, timeout=300
+    )
+    if check:
+        assert done.returncode == 0, done.stderr
+    return done
+
+
+@pytest.fixture(scope="module", params=["folding", "mixed"])
+def wall(request, tmp_path_factory):
+    folder = tmp_path_factory.mktemp(request.param)
+    case = make_folding_wall(request.param, n_frames=4)
+    files = write_folding_wall(case, folder)
+    _run(
+        "strain2d", "analyze", str(files["video"]), "--grid", "5x5", "--roi",
+        "160,160,320,320", "--tracker", "dic", "--animation", "none", "--out",
+        str(folder / "run"),
+    )  # fmt: skip
+    return case, files, folder
+
+
+def test_the_surface_strain_is_the_true_stretch_where_the_camera_sees_folds(wall):
+    case, files, folder = wall
+    out = folder / "fold_landmarks"
+    _run(
+        "multimodal", "strain", str(folder / "run"), "--before", str(files["before"]),
+        "--after", str(files["after"]), "--landmarks", str(files["landmarks"]),
+        "--out", str(out),
+    )  # fmt: skip
+    summary = json.loads((out / "summary.json").read_text())
+    true = case.wall.true_strain()
+    means = summary["mean_strain"]
+    assert summary["coverage"]["on_maps"] == summary["coverage"]["triangles"] == 32
+    assert means["projected"]["Exx"] < true[0, 0] - 0.1  # the folds look like contraction
+    assert means["fold_aware"]["Exx"] == pytest.approx(true[0, 0], abs=0.01)
+    assert means["fold_aware"]["Eyy"] == pytest.approx(true[1, 1], abs=0.01)
+    assert means["corrected"]["Exx"] == pytest.approx(true[0, 0], abs=0.02)
+    # the registration from hand-picked landmarks, with its residual
+    transform = summary["transform"]
+    assert transform["from"] == "landmarks" and 0 < transform["residual_um_rms"] < 3
+    assert transform["scale_um_per_px"] == pytest.approx(case.camera_um, rel=0.02)
+    rows = (out / "fold_strain.csv").read_text().splitlines()
+    assert rows[0].startswith("triangle,p0,p1,p2,on_maps,Exx_projected")
+    assert len(rows) == 33
+    assert (out / "figures" / "fold_strain.png").stat().st_size > 10_000
+    assert summary["software"]["name"] == "multimodal"
+
+
+def test_a_given_transform_and_a_flat_surface_give_the_camera_strain(wall, tmp_path):
+    import tifffile
+
+    _, files, folder = wall
+    flat = tmp_path / "flat.tif"
+    tifffile.imwrite(flat, np.zeros((480, 480), np.float32), imagej=True,
+                     resolution=(1 / 3.0, 1 / 3.0), metadata={"unit": "um"})  # fmt: skip
+    out = tmp_path / "flat_run"
+    _run(
+        "multimodal", "strain", str(folder / "run"), "--before", str(flat), "--after",
+        str(flat), "--transform", str(files["transform"]), "--out", str(out),
+    )  # fmt: skip
+    summary = json.loads((out / "summary.json").read_text())
+    means = summary["mean_strain"]
+    for c in ("Exx", "Eyy", "Exy"):
+        assert means["fold_aware"][c] == pytest.approx(means["projected"][c], abs=1e-9)
+        assert means["corrected"][c] == pytest.approx(means["projected"][c], abs=1e-9)
+
+
+BAD = [
+    (["--before", "missing.tif"], "does not exist"),
+    (["--transform", "1,2,3"], "SCALE,ANGLE,SHIFT_X,SHIFT_Y"),
+    (["--transform", "0,0,0,0"], "scale must be positive"),
+    (["--frame", "0"], "outside the run's frames"),
+    (["--frame", "99"], "outside the run's frames"),
+    (["--landmarks", "bad_landmarks.csv"], "needs a header with columns camera_x"),
+    (["--before", "nopixel.tif"], "pixel size is unknown"),
+]
+
+
+@pytest.mark.parametrize("extra, message", BAD)
+def test_bad_input_ends_with_one_line(wall, tmp_path, extra, message):
+    import tifffile
+
+    _, files, folder = wall
+    (tmp_path / "bad_landmarks.csv").write_text("x,y\n1,2\n")
+    tifffile.imwrite(tmp_path / "nopixel.tif", np.zeros((20, 20), np.float32))
+    options = {"--before": str(files["before"]), "--after": str(files["after"]),
+               "--transform": str(files["transform"])}  # fmt: skip
+    given = dict(zip(extra[::2], extra[1::2], strict=True))
+    if "--landmarks" in given:
+        options.pop("--transform")
+    for key, value in given.items():
+        path = tmp_path / value
+        options[key] = str(path) if key != "--frame" and path.exists() else value
+    if options.get("--before") == "missing.tif":
+        options["--before"] = str(tmp_path / "missing.tif")
+    argv = [a for kv in options.items() for a in kv]
+    done = _run(
+        "multimodal", "strain", str(folder / "run"), *argv, "--out", str(tmp_path / "o"),
+        check=False,
+    )  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], done.stderr
+    assert "Traceback" not in done.stderr
+    assert not (tmp_path / "o").exists()
