@@ -1,4 +1,4 @@
-"""Command line: ``python -m sample_data_synth {video,stack,stereo,study,twitches,list}``.
+"""Command line: ``python -m sample_data_synth {video,stack,stereo,study,twitches,folds,list}``.
 
 ``video`` writes, for each case (the paper's, or the speckle-free tissue
 suite of :mod:`sample_data_synth.tissue` with ``--case tissue-suite`` or one of
@@ -32,6 +32,14 @@ verdict per group); see :mod:`sample_data_synth.specimens`.
 (the deformation and the twitches' onsets, peaks, ends and amplitudes),
 ``stimulus.csv`` (``frame,time_s,stimulus``: a pulse a frame before each
 onset) and ``mask.png`` (the tissue, an ellipse).
+
+``folds`` writes a lumen wall that folds as it contracts (:mod:`sample_data_synth.folds`;
+``--case folding``, ``mixed`` or ``oblique``): the camera's ``video.avi``, the
+microscope's height maps of a sub-region ``before_heightmap.tif`` and
+``after_heightmap.tif`` (and with ``--stacks`` the z-stacks ``before_stack.tif`` and
+``after_stack.tif`` to give ``mpm3d analyze``), ``landmarks.csv`` (pairs picked by
+hand), ``transform.json`` (the exact camera-to-microscope similarity) and
+``truth.json`` (the true membrane strain).
 
 Every command writes into a temporary folder beside ``--out`` and renames it
 only when everything is written.
@@ -165,6 +173,22 @@ def _build_parser() -> CommandLine:
     )
     p.add_argument("--frames", type=int, default=48, help="frames (48; the twitches end at 44)")
     p.add_argument("--fps", type=float, default=10.0, help="frame rate of stimulus.csv (10)")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p = cli.command(
+        "folds",
+        _cmd_folds,
+        help="render a wall that folds as it contracts: camera video, microscope height maps",
+    )
+    p.add_argument(
+        "--case",
+        choices=["folding", "mixed", "oblique"],
+        default="mixed",
+        help="all folding, a true contraction plus folding (default), oblique folds",
+    )
+    p.add_argument("--frames", type=int, default=11, help="frames of the video (11)")
+    p.add_argument("--stacks", action="store_true", help="also the multiphoton z-stacks")
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -477,6 +501,29 @@ def _cmd_twitches(args) -> int:
         if not cv2.imwrite(str(tmp / "mask.png"), case.mask.astype(np.uint8) * 255):
             raise OSError(f"could not write {tmp / 'mask.png'}")
     say(f"twitches.avi, twitches_truth.json, stimulus.csv and mask.png in {args.out}")
+    return 0
+
+
+def _cmd_folds(args) -> int:
+    from sample_data_synth.folds import (
+        folding_wall_stacks,
+        make_folding_wall,
+        write_folding_wall,
+    )
+    from sample_data_synth.stacks import write_stack
+
+    if args.frames < 2:
+        raise ValueError(f"--frames must be at least 2, got {args.frames}")
+    say = Progress(quiet=args.quiet)
+    with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
+        say(f"rendering the {args.case} wall: {args.frames} frames")
+        case = make_folding_wall(args.case, n_frames=args.frames, rng=args.seed)
+        write_folding_wall(case, tmp)
+        if args.stacks:
+            say("rendering the z-stacks before and after")
+            for stack in folding_wall_stacks(case, rng=args.seed):
+                write_stack(tmp / f"{stack.params['state']}_stack.tif", stack)
+    say(f"video.avi, height maps, landmarks.csv, transform.json and truth.json in {args.out}")
     return 0
 
 

@@ -47,6 +47,7 @@ __all__ = [
     "FOLD_CASES",
     "FoldingWall",
     "FoldingWallCase",
+    "folding_wall_stacks",
     "make_folding_wall",
     "write_folding_wall",
 ]
@@ -391,3 +392,41 @@ def write_folding_wall(case: FoldingWallCase, out: str | os.PathLike) -> dict[st
     }
     paths["truth"].write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
     return paths
+
+
+def folding_wall_stacks(
+    case: FoldingWallCase,
+    *,
+    dz_um: float = 2.0,
+    tissue_below_um: float = 40.0,
+    rng: int | None = 0,
+) -> tuple:
+    """Multiphoton z-stacks of the microscope's sub-region before and after: the tissue
+    under the wall's surface as :func:`sample_data_synth.stacks.render_stack` renders it
+    (a :class:`~sample_data_synth.stacks.SyntheticStack` each, the exact surface with it)."""
+    from sample_data_synth.stacks import SyntheticStack, render_stack
+
+    positive(dz_um, "dz_um")
+    generator = np.random.default_rng(rng)
+    top = max(float(np.max(case.before)), float(np.max(case.after)))
+    low = min(float(np.min(case.before)), float(np.min(case.after)))
+    margin = 3 * dz_um
+    n_slices = math.ceil((top - low + margin + tissue_below_um) / dz_um) + 1
+    spacing = (dz_um, case.microscope_um, case.microscope_um)
+    stacks = []
+    for name, height in (("before", case.before), ("after", case.after)):
+        # depth below slice 0: the highest crest lies `margin` below it
+        depth = margin + (top - height)
+        stack = render_stack(depth, n_slices=n_slices, spacing=spacing, rng=generator)
+        stacks.append(
+            SyntheticStack(
+                name=f"folding wall {name}",
+                stack=stack,
+                spacing=spacing,
+                depth_um=depth,
+                height_um=(n_slices - 1) * dz_um - depth,
+                info={"surface_offset_um": margin + top},
+                params={**case.params, "state": name, "dz_um": dz_um},
+            )
+        )
+    return tuple(stacks)
