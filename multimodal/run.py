@@ -117,6 +117,7 @@ def write_fold_run(
     (folder / "tortuosity.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     (folder / "figures").mkdir()
     figure = _figure(folder / "figures" / "fold_strain.png", result, before, after, transform)
+    paraview = _paraview(folder, result, before, after, transform, on_maps)
     means = {
         "projected": _means(E_p, on_maps if on_maps.any() else seen),
         "fold_aware": _means(E_s, on_maps),
@@ -176,10 +177,68 @@ def write_fold_run(
             "folding_share": "(projected - fold_aware) / projected of the means over the "
             "triangles on the maps: the share of the apparent strain that is folding",
         },
-        "outputs": ["fold_strain.csv", "tortuosity.csv", "summary.json", *figure],
+        "outputs": ["fold_strain.csv", "tortuosity.csv", "summary.json", *figure, *paraview],
     }
     write_json(folder / "summary.json", summary)
     return summary
+
+
+#: the most vertices per side of a height map's mesh in the ParaView files
+_SURFACE_SIDE = 240
+
+
+def _surface_mesh(surface: SurfaceMap) -> tuple[np.ndarray, np.ndarray]:
+    """The height map as a triangle mesh (um), every k-th pixel; no triangle over a gap."""
+    Y, X = surface.shape
+    k = max(1, int(np.ceil(max(Y, X) / _SURFACE_SIDE)))
+    rows, cols = np.arange(0, Y, k), np.arange(0, X, k)
+    (dy, dx), (x0, y0) = surface.pixel_um, surface.origin_um
+    z = surface.height_um[np.ix_(rows, cols)]
+    xx, yy = np.meshgrid(x0 + cols * dx, y0 + rows * dy)
+    points = np.column_stack([xx.ravel(), yy.ravel(), np.nan_to_num(z).ravel()])
+    n = len(cols)
+    a = (np.arange(len(rows) - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    triangles = np.concatenate([np.column_stack([a, a + 1, a + n + 1]),
+                                np.column_stack([a, a + n + 1, a + n])])  # fmt: skip
+    finite = np.isfinite(z.ravel())
+    return points, triangles[finite[triangles].all(axis=1)]
+
+
+def _paraview(
+    folder: Path,
+    result: FoldStrain,
+    before: SurfaceMap,
+    after: SurfaceMap,
+    transform: Similarity,
+    on_maps: np.ndarray,
+) -> list[str]:
+    """The camera's mesh on the microscope's surfaces (um), with every triangle's strains,
+    and the two surfaces: one ParaView scene, in the microscope's coordinates."""
+    from tissue_core.vtkio import write_triangles
+
+    cells = {"on_maps": on_maps}
+    for label, E in (("surface", result.surface["E"]), ("projected", result.surface["E_projected"]),
+                     ("corrected", result.corrected["E"])):  # fmt: skip
+        for name, i, j in COMPONENTS:
+            cells[f"{name}_{label}"] = E[:, i, j]
+    units = {"units": ["coordinates um (the microscope's x, y and height)", "strain -"]}
+    written = []
+    for name, nodes, surface in (
+        ("mesh_before.vtp", result.reference_px, before),
+        ("mesh_after.vtp", result.current_px, after),
+    ):
+        xy = transform.apply(np.nan_to_num(nodes))
+        z = surface.heights(xy)
+        z = np.where(np.isfinite(z), z, float(np.nanmean(surface.height_um)))
+        write_triangles(folder / name, np.column_stack([xy, z]), result.triangles,
+                        cell_data=cells, field_data=units)  # fmt: skip
+        written.append(name)
+    for name, surface in (("surface_before.vtp", before), ("surface_after.vtp", after)):
+        points, triangles = _surface_mesh(surface)
+        write_triangles(folder / name, points, triangles,
+                        point_data={"height_um": points[:, 2]}, field_data=units)  # fmt: skip
+        written.append(name)
+    return written
 
 
 def _figure(
