@@ -4,7 +4,9 @@ The camera's strain (:mod:`strain2d`) is the projection of a wall that
 folds; the multiphoton microscope's height maps (:mod:`mpm3d`) show the
 folds.  This package lifts the camera's mesh onto the height maps and
 measures each triangle along the surface, separating true stretch from
-length hidden in folds (:mod:`multimodal.geometry`).
+length hidden in folds (:mod:`multimodal.geometry`); the two are
+registered from landmark pairs or automatically from the images
+(:mod:`multimodal.registration`).
 """
 
 from tissue_core.lazy import lazy_exports
@@ -24,5 +26,8 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "surface_metric",
             "tortuosity_correction",
         ],
+        "multimodal.io": ["read_landmarks", "read_surface_map", "read_transform"],
+        "multimodal.registration": ["Registration", "register_images"],
+        "multimodal.run": ["FoldStrain", "fold_strain_run", "write_fold_run"],
     },
 )

@@ -65,7 +65,140 @@ def _build_parser():
     p.add_argument("--pixel-um", type=float, help="height maps' pixel size, if they lack one")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p = cli.command(
+        "register",
+        _cmd_register,
+        help="the camera-to-microscope similarity from the images, found automatically",
+    )
+    p.add_argument("camera", help="the camera's video, image or image folder (its first frame)")
+    p.add_argument(
+        "microscope",
+        help="the microscope's surface-intensity projection (a TIFF with its pixel size, or "
+        "any image with --pixel-um)",
+    )
+    p.add_argument("--pixel-um", type=float, help="the microscope image's pixel size, um")
+    p.add_argument(
+        "--mirrored", action="store_true", help="the microscope sees the tissue mirrored"
+    )
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     return cli
+
+
+def _microscope_image(path: Path, pixel_um: float | None) -> tuple[np.ndarray, float]:
+    import math
+
+    import tifffile
+
+    from tissue_core.images import read_image
+    from tissue_core.tiff_units import lateral_pixel_size_um
+
+    if not path.is_file():
+        raise InputError(f"microscope image {path} does not exist")
+    size = None
+    if path.suffix.lower() in (".tif", ".tiff"):
+        try:
+            with tifffile.TiffFile(path) as tif:
+                image = tif.asarray()
+                found = lateral_pixel_size_um(tif)
+        except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
+            raise InputError(f"{path}: cannot read it as a TIFF ({exc})") from None
+        if isinstance(found, tuple):
+            size = (found[0] + found[1]) / 2
+    else:
+        image = read_image(path)
+    if pixel_um is not None:
+        if not (math.isfinite(pixel_um) and pixel_um > 0):
+            raise InputError(f"--pixel-um must be a positive number, got {pixel_um}")
+        size = float(pixel_um)
+    if size is None:
+        raise InputError(f"{path}: its pixel size is unknown; give --pixel-um")
+    image = np.asarray(image)
+    if image.ndim == 3 and image.shape[-1] in (3, 4):
+        image = image[..., :3].mean(axis=-1)
+    if image.ndim != 2:
+        raise InputError(f"{path}: give one 2D image (the surface projection), got {image.shape}")
+    return image, size
+
+
+def _cmd_register(args) -> int:
+    from multimodal.registration import register_images
+    from strain2d import open_frames
+    from tissue_core.csvtext import number_cell
+    from tissue_core.jsonio import write_json
+    from tissue_core.outputs import atomic_dir, check_writable
+    from tissue_core.progress import Progress
+
+    inputs = [Path(args.camera), Path(args.microscope)]
+    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
+    say = Progress(quiet=args.quiet)
+    source = open_frames(args.camera, min_frames=1)
+    frame = next(iter(source))
+    image, size = _microscope_image(Path(args.microscope), args.pixel_um)
+    found = register_images(frame, image, size, mirrored=args.mirrored)
+    record = {**found.as_dict(), "camera": str(args.camera), "microscope": str(args.microscope),
+              "microscope_pixel_um": size}  # fmt: skip
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
+        write_json(tmp / "transform.json", record)
+        rows = ["camera_x,camera_y,microscope_x,microscope_y,residual_um"]
+        for c, m, r in zip(found.camera_px, found.microscope_um, found.residual_um, strict=True):
+            rows.append(",".join(number_cell(float(v)) for v in (*c, *m, r)))
+        (tmp / "matches.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+        (tmp / "figures").mkdir()
+        _registration_figure(tmp / "figures" / "registration.png", frame, image, size, found)
+    t = found.transform
+    say(
+        f"camera to microscope: {t.scale:.5g} um/px, {t.angle_deg:.4g} deg, shift "
+        f"({t.shift_um[0]:.5g}, {t.shift_um[1]:.5g}) um; {len(found.residual_um)} of "
+        f"{found.n_matches} matches kept, residual {record['residual_um_rms']:.3g} um RMS"
+    )
+    say(f"results in {args.out} (give transform.json to multimodal strain --transform)")
+    return 0
+
+
+def _checkerboard(a: np.ndarray, b: np.ndarray, tiles: int = 8) -> np.ndarray:
+    """Alternating square tiles of ``a`` and ``b`` (each stretched over 0-1; NaN of ``b``
+    shows ``a``): features run on across the tiles' edges where the two are registered."""
+
+    def unit(x):
+        x = np.asarray(x, dtype=float)
+        lo, hi = np.nanpercentile(x, [1, 99])
+        return np.clip((x - lo) / max(hi - lo, 1e-12), 0, 1)
+
+    a, b = unit(a), unit(b)
+    side = max(1, max(a.shape) // tiles)
+    rows, cols = np.indices(a.shape) // side
+    use_b = ((rows + cols) % 2 == 1) & np.isfinite(b)
+    return np.where(use_b, b, a)
+
+
+def _registration_figure(path: Path, frame, image, size: float, found) -> None:
+    """The microscope's image with the camera's frame drawn over it where the transform
+    puts it (edges in colour), and the kept matches."""
+    import cv2
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    t = found.transform
+    A = t.matrix / size  # camera px -> microscope px
+    b = np.asarray(t.shift_um) / size
+    frame = np.asarray(frame, dtype=np.float32)
+    warped = cv2.warpAffine(
+        frame, np.column_stack([A, b]).astype(np.float64), (image.shape[1], image.shape[0]),
+        flags=cv2.INTER_LINEAR, borderValue=float("nan"),
+    )  # fmt: skip
+    fig = Figure(figsize=(10, 5), layout="constrained")
+    FigureCanvasAgg(fig)
+    left, right = fig.subplots(1, 2, sharex=True, sharey=True)
+    left.imshow(image, cmap="gray")
+    left.plot(*(found.microscope_um / size).T, "+", color="tab:orange", ms=4, mew=0.8)
+    left.set_title(f"microscope: the {len(found.residual_um)} matches kept", fontsize=10)
+    right.imshow(_checkerboard(image, warped), cmap="gray", vmin=0, vmax=1)
+    right.set_title("tiles: microscope, and camera registered onto it", fontsize=10)
+    for ax in (left, right):
+        ax.set_xlabel("x (microscope px)")
+    left.set_ylabel("y (microscope px)")
+    fig.savefig(path, dpi=100)
 
 
 def _triangles(run_dir: Path) -> np.ndarray:

@@ -202,6 +202,10 @@ class FoldingWallCase:
     landmarks : (K, 4) float
         ``camera_x, camera_y`` (px) and ``microscope_x, microscope_y`` (um) of
         K features, as a user would pick them.
+    surface_image : (Yh, Xh) uint8
+        The microscope's surface-intensity projection of the reference wall:
+        the tissue's own texture at the microscope's pixels, with another
+        contrast than the camera's (what an automatic registration matches).
     params : dict
     """
 
@@ -213,6 +217,7 @@ class FoldingWallCase:
     microscope_um: float
     transform: dict
     landmarks: np.ndarray
+    surface_image: np.ndarray | None = None
     params: dict = field(default_factory=dict)
 
     @property
@@ -304,6 +309,13 @@ def make_folding_wall(
     plane_of_mic = (mic - half) @ axes.T
     before = wall.height(plane_of_mic, 0.0)
     after = wall.height(plane_of_mic, 1.0)
+    # the same tissue as the microscope sees its surface: finer pixels, another contrast
+    m = wall.material(plane_of_mic, 0.0) / camera_um + tex_centre
+    seen = ndimage.map_coordinates(
+        coefficients, [m[..., 1], m[..., 0]], order=3, mode="mirror", prefilter=False
+    )
+    seen = 30.0 + 200.0 * (np.clip(seen, 0.0, 255.0) / 255.0) ** 1.4
+    surface_image = add_sensor_noise(seen, read_noise=2.0 * noise, rng=generator)
     # camera px -> plane um: (c - centre) * camera_um; plane -> mic: axes^T p + half
     scale = camera_um
     rot = -angle  # axes^T is a rotation by -angle
@@ -333,6 +345,7 @@ def make_folding_wall(
         microscope_um=microscope_um,
         transform=transform,
         landmarks=landmarks,
+        surface_image=surface_image,
         params={
             "generator": "sample_data_synth.folds",
             "version": version(),
@@ -353,7 +366,8 @@ def make_folding_wall(
 def write_folding_wall(case: FoldingWallCase, out: str | os.PathLike) -> dict[str, Path]:
     """Write the case into folder ``out``: ``video.avi``, ``before_heightmap.tif`` and
     ``after_heightmap.tif`` (float32 um with their pixel size, as ``mpm3d analyze`` writes
-    them), ``landmarks.csv``, ``transform.json`` and ``truth.json``."""
+    them), ``before_surface.tif`` (the microscope's surface-intensity projection),
+    ``landmarks.csv``, ``transform.json`` and ``truth.json``."""
     import json
 
     import tifffile
@@ -366,6 +380,7 @@ def write_folding_wall(case: FoldingWallCase, out: str | os.PathLike) -> dict[st
         "video": out / "video.avi",
         "before": out / "before_heightmap.tif",
         "after": out / "after_heightmap.tif",
+        "surface": out / "before_surface.tif",
         "landmarks": out / "landmarks.csv",
         "transform": out / "transform.json",
         "truth": out / "truth.json",
@@ -379,6 +394,14 @@ def write_folding_wall(case: FoldingWallCase, out: str | os.PathLike) -> dict[st
             imagej=True,
             resolution=(1 / case.microscope_um, 1 / case.microscope_um),
             metadata={"unit": "um", "spacing": 1.0},
+        )
+    if case.surface_image is not None:
+        tifffile.imwrite(
+            paths["surface"],
+            case.surface_image,
+            imagej=True,
+            resolution=(1 / case.microscope_um, 1 / case.microscope_um),
+            metadata={"unit": "um"},
         )
     rows = ["camera_x,camera_y,microscope_x,microscope_y"]
     rows += [",".join(f"{v:.6f}" for v in row) for row in case.landmarks]

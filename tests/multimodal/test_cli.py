@@ -151,3 +151,76 @@ def test_the_whole_chain_from_stacks_through_mpm3d(tmp_path):
     assert means["fold_aware"]["Eyy"] == pytest.approx(true[1, 1], abs=0.005)
     for name in ("mesh_before.vtp", "mesh_after.vtp", "surface_before.vtp", "surface_after.vtp"):
         assert (tmp_path / "fold" / name).stat().st_size > 1000
+
+
+def test_register_finds_the_known_similarity(tmp_path):
+    case = make_folding_wall("mixed", n_frames=2)
+    files = write_folding_wall(case, tmp_path / "wall")
+    out = tmp_path / "reg"
+    _run("multimodal", "-q", "register", str(files["video"]), str(files["surface"]), "--out",
+         str(out))  # fmt: skip
+    found = json.loads((out / "transform.json").read_text())
+    true = case.transform
+    assert found["scale_um_per_px"] == pytest.approx(true["scale_um_per_px"], rel=0.005)
+    assert found["angle_deg"] == pytest.approx(true["angle_deg"], abs=0.5)
+    # the shift, as where the camera's centre lands, in camera pixels
+    from multimodal import Similarity
+
+    def similarity(d):
+        return Similarity(d["scale_um_per_px"], d["angle_deg"], tuple(d["shift_um"]))
+
+    centre = np.array([[240.0, 240.0], [180.0, 300.0]])
+    moved = similarity(found).apply(centre) - similarity(true).apply(centre)
+    assert np.hypot(*moved.T).max() / true["scale_um_per_px"] < 2.0
+    assert found["inliers"] >= 100 and 0 < found["residual_um_rms"] < 3
+    # its matches are landmark pairs, and its transform a --transform
+    rows = (out / "matches.csv").read_text().splitlines()
+    assert rows[0] == "camera_x,camera_y,microscope_x,microscope_y,residual_um"
+    assert len(rows) == found["inliers"] + 1
+    assert (out / "figures" / "registration.png").stat().st_size > 10_000
+
+
+def test_register_mirrored_and_refused():
+    from multimodal import Similarity
+    from multimodal.registration import register_images
+    from tissue_core.errors import InputError
+
+    case = make_folding_wall("oblique", n_frames=2)
+    true = Similarity(case.transform["scale_um_per_px"], case.transform["angle_deg"],
+                      tuple(case.transform["shift_um"]))  # fmt: skip
+    flipped = case.frames[0][::-1]
+    found = register_images(flipped, case.surface_image, case.microscope_um, mirrored=True)
+    points = np.array([[200.0, 200.0], [280.0, 260.0]])
+    rows = np.column_stack([points[:, 0], flipped.shape[0] - 1 - points[:, 1]])
+    moved = found.transform.apply(rows) - true.apply(points)
+    assert np.hypot(*moved.T).max() / true.scale < 2.0
+    noise = np.random.default_rng(0).normal(100, 20, case.surface_image.shape)
+    with pytest.raises(InputError, match="could not register"):
+        register_images(case.frames[0], noise, case.microscope_um)
+    with pytest.raises(InputError, match="uniform"):
+        register_images(case.frames[0], np.zeros((50, 50)), 1.0)
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda d: d / "none.tif", "does not exist"),
+        (lambda d: _uncalibrated(d), "pixel size is unknown"),
+    ],
+)
+def test_register_bad_input_ends_with_one_line(tmp_path, make, message):
+    case = make_folding_wall("mixed", n_frames=2, size=240, microscope_px=120)
+    files = write_folding_wall(case, tmp_path / "wall")
+    done = _run("multimodal", "register", str(files["video"]), str(make(tmp_path)), "--out",
+                str(tmp_path / "o"), check=False)  # fmt: skip
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], done.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def _uncalibrated(folder):
+    import tifffile
+
+    tifffile.imwrite(folder / "plain.tif", np.zeros((40, 40), np.uint8))
+    return folder / "plain.tif"
