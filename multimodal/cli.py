@@ -215,7 +215,9 @@ def _triangles(run_dir: Path) -> np.ndarray:
 
 
 def _inputs(args) -> list[Path]:
-    files = [Path(args.run) / "summary.json", Path(args.before), Path(args.after)]
+    maps = [Path(p) / "heightmap.tif" if Path(p).is_dir() else Path(p)
+            for p in (args.before, args.after)]  # fmt: skip
+    files = [Path(args.run) / "summary.json", *maps]
     files += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
     return files
 

@@ -87,8 +87,8 @@ def write_fold_run(
     """Write ``fold_strain.csv``, ``tortuosity.csv``, ``summary.json`` and
     ``figures/fold_strain.png`` into ``folder``; returns the summary."""
     from tissue_core.csvtext import number_cell
+    from tissue_core.html import input_records
     from tissue_core.jsonio import write_json
-    from tissue_core.outputs import sha256_of
     from tissue_core.version import __version__
 
     folder = Path(folder)
@@ -128,7 +128,6 @@ def write_fold_run(
     for name, _, _ in COMPONENTS:
         p, s = means["projected"][name], means["fold_aware"][name]
         folding[name] = None if p is None or s is None or abs(p) < 1e-3 else (p - s) / p
-    digest, _ = sha256_of(inputs) if inputs else (None, 0)
     summary = {
         "schema": 1,
         "software": {"name": "multimodal", "version": __version__},
@@ -139,7 +138,7 @@ def write_fold_run(
             name: {"source": m.source, "shape": list(m.shape), "pixel_um": list(m.pixel_um)}
             for name, m in (("before", before), ("after", after))
         },
-        "inputs_sha256": digest,
+        "inputs": input_records(inputs),
         "transform": {
             **transform.as_dict(),
             "from": "landmarks" if residual is not None else "given",
@@ -177,10 +176,87 @@ def write_fold_run(
             "folding_share": "(projected - fold_aware) / projected of the means over the "
             "triangles on the maps: the share of the apparent strain that is folding",
         },
-        "outputs": ["fold_strain.csv", "tortuosity.csv", "summary.json", *figure, *paraview],
-    }
+        "outputs": [
+            "fold_strain.csv", "tortuosity.csv", "summary.json", "report.html", *figure,
+            *paraview,
+        ],
+    }  # fmt: skip
+    summary["flags"] = _flags(summary)
     write_json(folder / "summary.json", summary)
+    _report(folder, summary)
     return summary
+
+
+def _flags(summary: dict) -> list[str]:
+    """What a reader should know before trusting the numbers."""
+    flags = []
+    cover = summary["coverage"]
+    if cover["on_maps"] == 0:
+        flags.append(
+            "No triangle lies on both height maps: only the statistics-only correction is "
+            "measured (is the transform right? the microscope's field may miss the grid)"
+        )
+    elif cover["on_maps"] < cover["triangles"]:
+        flags.append(
+            f"{cover['triangles'] - cover['on_maps']} of {cover['triangles']} triangles leave a "
+            "height map or cross a gap in it: they have the statistics-only correction alone"
+        )
+    transform = summary["transform"]
+    if transform.get("from") == "landmarks" and transform.get("landmarks", 0) < 3:
+        flags.append("Two landmarks fix the transform exactly: its residual is not measured")
+    rms = transform.get("residual_um_rms")
+    seg = summary["parameters"]["tortuosity_segment_um"]
+    if rms is not None and seg and rms > 0.05 * seg:
+        flags.append(
+            f"The registration's residual ({rms:.3g} um RMS) is over 5 % of a mesh edge "
+            f"({seg:.3g} um): the edges may not lie where the height maps are read"
+        )
+    return flags
+
+
+def _report(folder: Path, summary: dict) -> None:
+    """``report.html``: inputs, the registration, the mean strains, figure, flags."""
+    from tissue_core.html import HtmlReport
+
+    doc = HtmlReport(
+        "Fold-aware membrane strain",
+        subtitle=f"{summary['run']}: frame {summary['frames']['deformed']} against frame 0",
+    )
+    doc.heading("Inputs")
+    doc.inputs(summary["inputs"])
+    doc.heading("Registration: camera pixels to microscope micrometres")
+    doc.key_values(summary["transform"])
+    doc.heading("Mean strain")
+    means = summary["mean_strain"]
+    rows = []
+    for kind, label in (
+        ("projected", "projected (the camera), over the triangles on the maps"),
+        ("fold_aware", "along the surface (the height maps)"),
+        ("corrected", "corrected by the tortuosity, every tracked triangle"),
+    ):
+        rows.append({"strain": label, **{c: means[kind][c] for c, _, _ in COMPONENTS}})
+    doc.table(rows)
+    doc.paragraph(
+        "Share of the apparent strain that is folding, (projected - along the surface) / "
+        "projected: " + ", ".join(
+            f"{c} {v:.2f}" for c, v in summary["folding_share"].items() if v is not None
+        )
+    )  # fmt: skip
+    doc.key_values(summary["coverage"])
+    doc.heading("Figure")
+    doc.media(
+        folder / "figures" / "fold_strain.png",
+        "Exx on the deformed mesh: as the camera sees it, along the microscope's surface, and "
+        "corrected by the surfaces' tortuosity; dashed: the microscope's field of view.",
+    )
+    doc.heading("Tortuosity (surface length over projected length)")
+    doc.key_values({f"{state} along {axis}": value
+                    for state, d in summary["tortuosity"].items() if isinstance(d, dict)
+                    for axis, value in d.items()})  # fmt: skip
+    doc.heading("Flags")
+    doc.flags(summary["flags"])
+    doc.provenance(summary)
+    doc.write(folder / "report.html")
 
 
 #: the most vertices per side of a height map's mesh in the ParaView files

@@ -57,6 +57,10 @@ def test_the_surface_strain_is_the_true_stretch_where_the_camera_sees_folds(wall
     assert len(rows) == 33
     assert (out / "figures" / "fold_strain.png").stat().st_size > 10_000
     assert summary["software"]["name"] == "multimodal"
+    report = (out / "report.html").read_text(encoding="utf-8")
+    assert "Fold-aware membrane strain" in report and "data:image/png;base64" in report
+    assert [r["path"] for r in summary["inputs"]][1:3] == [str(files["before"]),
+                                                          str(files["after"])]  # fmt: skip
 
 
 def test_a_given_transform_and_a_flat_surface_give_the_camera_strain(wall, tmp_path):
