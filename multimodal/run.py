@@ -115,6 +115,7 @@ def write_fold_run(
         values = (angle, tb.mean[k], tb.sd[k], ta.mean[k], ta.sd[k], tb.count[k], ta.count[k])
         rows.append(",".join(number_cell(float(v)) for v in values))
     (folder / "tortuosity.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    _nodes(folder / "strain_nodes.csv", result)
     (folder / "figures").mkdir()
     figure = _figure(folder / "figures" / "fold_strain.png", result, before, after, transform)
     paraview = _paraview(folder, result, before, after, transform, on_maps)
@@ -153,6 +154,10 @@ def write_fold_run(
             ),
         },
         "parameters": {"path": path, "tortuosity_segment_um": result.before.segment_um},
+        # what load_run (and so studies) read: frame 1 is the deformed state
+        "source": {"frames_used": 2, "frames": [0, int(frame)]},
+        "time_axis": {"fps": None, "unit": "frame"},
+        "contraction_endpoint": {"frame": 1, "source": "given", "label": "the --after state"},
         "coverage": {
             "triangles": len(result.triangles),
             "on_maps": int(on_maps.sum()),
@@ -177,7 +182,8 @@ def write_fold_run(
             "triangles on the maps: the share of the apparent strain that is folding",
         },
         "outputs": [
-            "fold_strain.csv", "tortuosity.csv", "summary.json", "report.html", *figure,
+            "fold_strain.csv", "strain_nodes.csv", "tortuosity.csv", "summary.json",
+            "report.html", *figure,
             *paraview,
         ],
     }  # fmt: skip
@@ -185,6 +191,34 @@ def write_fold_run(
     write_json(folder / "summary.json", summary)
     _report(folder, summary)
     return summary
+
+
+def _nodes(path: Path, result: FoldStrain) -> None:
+    """The surface strain averaged onto the nodes (area-weighted, triangles off the maps
+    left out), as a two-frame run (the reference and the deformed state): what
+    ``load_run`` reads, so studies take fold-aware runs beside 2D and stereo ones."""
+    from surface_strain import nodal_average, scalar_fields, triangle_areas
+    from tissue_core.tables import write_long_table
+
+    n = len(result.reference_px)
+    E = result.surface["E"]
+    areas = triangle_areas(result.reference_px, result.triangles)
+    nodal = nodal_average(E, result.triangles, n, weights=areas)
+    nodal = np.stack([np.zeros_like(nodal), nodal])  # (2, N, 2, 2): the reference is 0
+    fields = scalar_fields(nodal)
+    C = 2 * nodal + np.eye(2)
+    J = np.sqrt(np.maximum(C[..., 0, 0] * C[..., 1, 1] - C[..., 0, 1] ** 2, 0.0))
+    J = np.where(np.isfinite(nodal).all(axis=(-2, -1)), J, np.nan)
+    positions = np.stack([result.reference_px, result.current_px])
+    visible = np.isfinite(positions).all(axis=-1) & np.isfinite(fields["Exx"])
+    columns = {
+        "x": (positions[..., 0], "%.6f"),
+        "y": (positions[..., 1], "%.6f"),
+        "visible": (visible, "%d"),
+        **{c: (fields[c], "%.8g") for c in ("Exx", "Eyy", "Exy", "E1", "E2", "max_shear")},
+        "J": (J, "%.8g"),
+    }
+    write_long_table(path, columns)
 
 
 def _flags(summary: dict) -> list[str]:

@@ -57,6 +57,13 @@ def test_the_surface_strain_is_the_true_stretch_where_the_camera_sees_folds(wall
     assert len(rows) == 33
     assert (out / "figures" / "fold_strain.png").stat().st_size > 10_000
     assert summary["software"]["name"] == "multimodal"
+    # a run like the others: studies load it (frame 1 is the deformed state)
+    from strain2d import load_run
+
+    run = load_run(out)
+    assert run.n_frames == 2 and run.endpoint == 1
+    assert np.nanmean(run.nodal["Exx"][1]) == pytest.approx(true[0, 0], abs=0.01)
+    assert np.isfinite(run.nodal["Exx"][1]).all() and (run.nodal["Exx"][0] == 0).all()
     report = (out / "report.html").read_text(encoding="utf-8")
     assert "Fold-aware membrane strain" in report and "data:image/png;base64" in report
     assert [r["path"] for r in summary["inputs"]][1:3] == [str(files["before"]),
