@@ -19,6 +19,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "EDGES",
             "Similarity",
             "SurfaceMap",
+            "SurfaceMosaic",
             "Tortuosity",
             "directional_tortuosity",
             "fold_aware_strain",

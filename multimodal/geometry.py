@@ -50,6 +50,7 @@ __all__ = [
     "EDGES",
     "Similarity",
     "SurfaceMap",
+    "SurfaceMosaic",
     "Tortuosity",
     "directional_tortuosity",
     "fold_aware_strain",
@@ -148,6 +149,60 @@ class SurfaceMap:
             z[i + 1, j] * (1 - fc) + z[i + 1, j + 1] * fc
         ) * fr
         return np.where(inside, out, np.nan)
+
+
+class SurfaceMosaic:
+    """Height-map tiles at their stage positions, read as one surface.
+
+    A point takes its height from the tile that holds it with a measured
+    height and whose centre is nearest (where tiles overlap, the middle of
+    a tile is trusted before its edge).  Tiles of one pixel grid give, where
+    they hold a point, exactly the stitched map's bilinear height.
+
+    Parameters
+    ----------
+    tiles : sequence of SurfaceMap
+        Each with its ``origin_um`` (the stage position of its pixel (0, 0)).
+    """
+
+    def __init__(self, tiles: Sequence[SurfaceMap], *, source: str = "") -> None:
+        tiles = list(tiles)
+        if not tiles:
+            raise InputError("a mosaic needs at least one tile")
+        self.tiles = tiles
+        self.source = source
+        self.pixel_um = (min(t.pixel_um[0] for t in tiles), min(t.pixel_um[1] for t in tiles))
+        bounds = np.array([t.bounds() for t in tiles])
+        self._bounds = (
+            float(bounds[:, 0].min()), float(bounds[:, 1].min()),
+            float(bounds[:, 2].max()), float(bounds[:, 3].max()),
+        )  # fmt: skip
+        self._centres = np.column_stack(
+            [(bounds[:, 0] + bounds[:, 2]) / 2, (bounds[:, 1] + bounds[:, 3]) / 2]
+        )
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The mosaic's extent in its finest pixels (rows, columns)."""
+        x0, y0, x1, y1 = self._bounds
+        dy, dx = self.pixel_um
+        return round((y1 - y0) / dy) + 1, round((x1 - x0) / dx) + 1
+
+    def bounds(self) -> tuple[float, float, float, float]:
+        """``(x0, y0, x1, y1)``: the box around every tile (parts of it may be no tile's)."""
+        return self._bounds
+
+    def heights(self, xy_um: np.ndarray) -> np.ndarray:
+        xy = np.asarray(xy_um, dtype=float)
+        best = np.full(xy.shape[:-1], np.inf)
+        out = np.full(xy.shape[:-1], np.nan)
+        for tile, centre in zip(self.tiles, self._centres, strict=True):
+            z = tile.heights(xy)
+            d = np.sum((xy - centre) ** 2, axis=-1)
+            take = np.isfinite(z) & (d < best)
+            out = np.where(take, z, out)
+            best = np.where(take, d, best)
+        return out
 
 
 @dataclass(frozen=True)

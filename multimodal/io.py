@@ -9,14 +9,18 @@ from pathlib import Path
 
 import numpy as np
 
-from multimodal.geometry import Similarity, SurfaceMap
+from multimodal.geometry import Similarity, SurfaceMap, SurfaceMosaic
 from tissue_core.errors import InputError
 
 __all__ = ["read_landmarks", "read_surface_map", "read_transform"]
 
 
-def read_surface_map(path: str | os.PathLike, *, pixel_um: float | None = None) -> SurfaceMap:
-    """A height map: an ``mpm3d analyze`` run folder (its ``heightmap.tif``) or a TIFF.
+def read_surface_map(
+    path: str | os.PathLike, *, pixel_um: float | None = None
+) -> SurfaceMap | SurfaceMosaic:
+    """A height map: an ``mpm3d analyze`` run folder (its ``heightmap.tif``), a TIFF, or a
+    mosaic of them (a CSV of tiles: ``file,x_um,y_um``, each tile's file, relative to the
+    CSV, and the stage position of its pixel (0, 0)).
 
     The TIFF holds heights in micrometres, (Y, X), or ``mpm3d``'s two
     channels (height, and 1 where the surface was measured: the columns it
@@ -29,6 +33,8 @@ def read_surface_map(path: str | os.PathLike, *, pixel_um: float | None = None) 
     from tissue_core.tiff_units import lateral_pixel_size_um
 
     path = Path(path)
+    if path.suffix.lower() == ".csv":
+        return _mosaic(path, pixel_um)
     if path.is_dir():
         inner = path / "heightmap.tif"
         if not inner.is_file():
@@ -61,6 +67,34 @@ def read_surface_map(path: str | os.PathLike, *, pixel_um: float | None = None) 
     else:
         raise InputError(f"{path}: its pixel size is unknown ({size}); give --pixel-um")
     return SurfaceMap(height, (dy, dx), source=str(path))
+
+
+def _mosaic(path: Path, pixel_um: float | None) -> SurfaceMosaic:
+    import csv
+
+    if not path.is_file():
+        raise InputError(f"mosaic {path} does not exist")
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{path}: cannot read it as a CSV of tiles ({exc})") from None
+    if not rows or not {"file", "x_um", "y_um"} <= {k.strip().lower() for k in rows[0]}:
+        raise InputError(f"{path}: a mosaic needs a header file,x_um,y_um and one row per tile")
+    tiles = []
+    for line, row in enumerate(rows, start=2):
+        row = {k.strip().lower(): (v or "").strip() for k, v in row.items() if k}
+        try:
+            x, y = float(row["x_um"]), float(row["y_um"])
+        except ValueError:
+            raise InputError(f"{path}, line {line}: x_um and y_um must be numbers") from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise InputError(f"{path}, line {line}: x_um and y_um must be finite")
+        tile = read_surface_map(path.parent / row["file"], pixel_um=pixel_um)
+        if isinstance(tile, SurfaceMosaic):
+            raise InputError(f"{path}, line {line}: a tile cannot be a mosaic itself")
+        tiles.append(SurfaceMap(tile.height_um, tile.pixel_um, (x, y), source=tile.source))
+    return SurfaceMosaic(tiles, source=str(path))
 
 
 def read_landmarks(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:

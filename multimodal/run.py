@@ -136,7 +136,12 @@ def write_fold_run(
         "run": str(run.path),
         "frames": {"reference": 0, "deformed": int(frame)},
         "height_maps": {
-            name: {"source": m.source, "shape": list(m.shape), "pixel_um": list(m.pixel_um)}
+            name: {
+                "source": m.source,
+                "shape": list(m.shape),
+                "pixel_um": list(m.pixel_um),
+                "tiles": len(_tiles(m)),
+            }
             for name, m in (("before", before), ("after", after))
         },
         "inputs": input_records(inputs),
@@ -182,11 +187,15 @@ def write_fold_run(
             "triangles on the maps: the share of the apparent strain that is folding",
         },
         "outputs": [
-            "fold_strain.csv", "strain_nodes.csv", "tortuosity.csv", "summary.json",
-            "report.html", *figure,
+            "fold_strain.csv",
+            "strain_nodes.csv",
+            "tortuosity.csv",
+            "summary.json",
+            "report.html",
+            *figure,
             *paraview,
         ],
-    }  # fmt: skip
+    }
     summary["flags"] = _flags(summary)
     write_json(folder / "summary.json", summary)
     _report(folder, summary)
@@ -339,16 +348,25 @@ def _paraview(
     ):
         xy = transform.apply(np.nan_to_num(nodes))
         z = surface.heights(xy)
-        z = np.where(np.isfinite(z), z, float(np.nanmean(surface.height_um)))
+        level = np.nanmean([np.nanmean(t.height_um) for t in _tiles(surface)])
+        z = np.where(np.isfinite(z), z, float(level))
         write_triangles(folder / name, np.column_stack([xy, z]), result.triangles,
                         cell_data=cells, field_data=units)  # fmt: skip
         written.append(name)
     for name, surface in (("surface_before.vtp", before), ("surface_after.vtp", after)):
-        points, triangles = _surface_mesh(surface)
+        meshes = [_surface_mesh(t) for t in _tiles(surface)]
+        offsets = np.cumsum([0] + [len(p) for p, _ in meshes[:-1]])
+        points = np.concatenate([p for p, _ in meshes])
+        triangles = np.concatenate([t + o for (_, t), o in zip(meshes, offsets, strict=True)])
         write_triangles(folder / name, points, triangles,
                         point_data={"height_um": points[:, 2]}, field_data=units)  # fmt: skip
         written.append(name)
     return written
+
+
+def _tiles(surface) -> list[SurfaceMap]:
+    """A map's tiles: a mosaic's, or the map itself."""
+    return list(getattr(surface, "tiles", [surface]))
 
 
 def _figure(
@@ -375,14 +393,18 @@ def _figure(
     ok = np.isfinite(x).all(axis=1)
     keep = ok[result.triangles].all(axis=1)
     tri = Triangulation(np.nan_to_num(x[:, 0]), np.nan_to_num(x[:, 1]), result.triangles[keep])
-    x0, y0, x1, y1 = after.bounds()
-    corners = transform.inverse(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]))
+    outlines = []
+    for tile in _tiles(after):
+        x0, y0, x1, y1 = tile.bounds()
+        box = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]])
+        outlines.append(transform.inverse(box))
     shown = None
     for ax, (title, _), v in zip(axes, panels, values, strict=True):
         colours = np.ma.masked_invalid(v[keep])
         shown = ax.tripcolor(tri, facecolors=colours, cmap="RdBu_r", vmin=-top, vmax=top)
         ax.triplot(tri, color="0.6", lw=0.3)
-        ax.plot(corners[:, 0], corners[:, 1], color="k", lw=1.0, ls="--")
+        for corners in outlines:
+            ax.plot(corners[:, 0], corners[:, 1], color="k", lw=1.0, ls="--")
         ax.set_title(title, fontsize=10)
         ax.set_aspect("equal")
         ax.set_xlabel("x (px)")

@@ -196,3 +196,42 @@ def test_the_synthetic_wall_maps_material_to_projection_and_back():
     # tortuosity
     ends = folding.project(np.array([[-600.0, 0.0], [600.0, 0.0]]), 1.0)
     assert (ends[1, 0] - ends[0, 0]) * folding.tortuosity(1.0) == pytest.approx(1200.0, rel=2e-3)
+
+
+def test_tiles_at_their_stage_positions_measure_what_the_stitched_map_does(tmp_path):
+    from multimodal import SurfaceMosaic, read_surface_map
+
+    case, transform, X, x, triangles, (before, after) = _case("oblique")
+    whole = fold_aware_strain(X, x, triangles, before, after, transform)
+
+    def tiles(surface, step=200, size=300):
+        """Overlapping tiles of the map, cut on its pixel grid, at their stage positions."""
+        out = []
+        dy, dx = surface.pixel_um
+        for r in range(0, surface.shape[0] - 1, step):
+            for c in range(0, surface.shape[1] - 1, step):
+                part = surface.height_um[r : r + size, c : c + size]
+                out.append(SurfaceMap(part, surface.pixel_um, (c * dx, r * dy)))
+        return out
+
+    mosaic_before, mosaic_after = SurfaceMosaic(tiles(before)), SurfaceMosaic(tiles(after))
+    assert len(mosaic_before.tiles) == 9
+    tiled = fold_aware_strain(X, x, triangles, mosaic_before, mosaic_after, transform)
+    np.testing.assert_allclose(tiled["L0"], whole["L0"], rtol=1e-9)
+    np.testing.assert_allclose(tiled["E"], whole["E"], atol=1e-7)
+    assert np.abs(tiled["E"] - case.wall.true_strain()).max() < 0.01
+    # the same tiles from files and a CSV of their stage positions
+    import tifffile
+
+    rows = ["file,x_um,y_um"]
+    for k, tile in enumerate(mosaic_after.tiles):
+        tifffile.imwrite(tmp_path / f"t{k}.tif", tile.height_um.astype(np.float32), imagej=True,
+                         resolution=(1 / 3.0, 1 / 3.0), metadata={"unit": "um"})  # fmt: skip
+        rows.append(f"t{k}.tif,{tile.origin_um[0]},{tile.origin_um[1]}")
+    (tmp_path / "tiles.csv").write_text("\n".join(rows) + "\n")
+    read = read_surface_map(tmp_path / "tiles.csv")
+    probe = np.random.default_rng(0).uniform(0, 1400, (500, 2))
+    np.testing.assert_allclose(read.heights(probe), after.heights(probe), atol=1e-4)
+    (tmp_path / "bad.csv").write_text("file,x_um\nt0.tif,0\n")
+    with pytest.raises(InputError, match="file,x_um,y_um"):
+        read_surface_map(tmp_path / "bad.csv")
