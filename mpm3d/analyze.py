@@ -12,6 +12,10 @@ stack (:mod:`mpm3d.io`), find the surface (:mod:`mpm3d.heightmap`), mesh it
                           height_um point array and its datum in the field data
     OUT/surface.ply       the same mesh for other tools
     OUT/heightmap.tif     float32 height (um) with its pixel size (ImageJ)
+    OUT/surface_intensity.tif  float32: the tissue's surface seen from above (the
+                          mean intensity over the few um below the surface), with
+                          its pixel size: what ``multimodal register`` matches
+                          against a camera's frame
     OUT/figures/          heightmap.png, surface3d.png, profiles.png, spectrum.png
     OUT/report.html       one self-contained page: inputs, parameters, results,
                           quality, figures, what was flagged
@@ -36,7 +40,13 @@ from pathlib import Path
 import numpy as np
 
 from mpm3d.errors import InputError
-from mpm3d.heightmap import HEIGHT_DATUM, HeightMap, height_map
+from mpm3d.heightmap import (
+    HEIGHT_DATUM,
+    SURFACE_LAYER_UM,
+    HeightMap,
+    height_map,
+    surface_intensity,
+)
 from mpm3d.io import Stack, read_stack, select_channel
 from mpm3d.metrics import FoldSpectrum, FoldTable, fold_metrics
 from tissue_core.csvtext import csv_writer
@@ -80,6 +90,7 @@ class Analysis:
     folds: FoldTable
     surface: object = None
     params: dict = field(default_factory=dict)
+    surface_intensity: np.ndarray | None = None
 
     @property
     def height_um(self) -> np.ndarray:
@@ -234,6 +245,10 @@ def _analyze(
             volume, channel_label = select_channel(stack, channel)
             say("finding the surface")
             hm = height_map(volume, spacing=stack.spacing, threshold=threshold, smooth_um=smooth_um)
+        say("reading the surface's intensity")
+        projection = surface_intensity(
+            volume, hm.depth_um, stack.spacing[0], rows=plan.tile_rows if tiled else None
+        )
         say("measuring the folds")
         metrics, spectrum, folds = fold_metrics(
             hm.height_um,
@@ -337,8 +352,9 @@ def _analyze(
         "metrics_version": METRICS_VERSION,
     }
     return Analysis(
-        metrics=record, heightmap=hm, spectrum=spectrum, folds=folds, surface=mesh, params=params
-    )
+        metrics=record, heightmap=hm, spectrum=spectrum, folds=folds, surface=mesh, params=params,
+        surface_intensity=projection,
+    )  # fmt: skip
 
 
 def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, tile_rows):
@@ -508,6 +524,18 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
             "channel 1: 1 where measured, 0 where filled",
         },
     )
+    if analysis.surface_intensity is not None:
+        tifffile.imwrite(
+            folder / "surface_intensity.tif",
+            analysis.surface_intensity.astype(np.float32),
+            imagej=True,
+            resolution=(1 / dx, 1 / dy),
+            metadata={
+                "unit": "um",
+                "info": "the mean intensity over the first "
+                f"{SURFACE_LAYER_UM:g} um below the surface, per column",
+            },
+        )
     fig_dir = folder / "figures"
     if figures:
         fig_dir.mkdir()

@@ -35,6 +35,7 @@ __all__ = [
     "otsu_separability",
     "otsu_threshold",
     "smooth_map",
+    "surface_intensity",
     "surface_levels",
 ]
 
@@ -544,4 +545,49 @@ def fill_gaps(values: np.ndarray, valid: np.ndarray) -> np.ndarray:
         weight[ok] = 1.0
         missing &= ~ok
         sigma *= 2.0
+    return out
+
+
+#: how deep below the surface the surface-intensity projection averages (um)
+SURFACE_LAYER_UM = 6.0
+
+
+def surface_intensity(
+    volume, depth_um: np.ndarray, dz: float, *, layer_um: float = SURFACE_LAYER_UM,
+    rows: int | None = None,
+) -> np.ndarray:  # fmt: skip
+    """The tissue's surface as seen from above: per column, the mean intensity over the
+    ``layer_um`` below the surface (the slices from the surface's depth on).
+
+    Parameters
+    ----------
+    volume : (Z, Y, X) array, or anything with ``shape`` and ``rows(y0, y1)`` giving
+        ``volume[:, y0:y1, :]`` (a stack read a band of rows at a time)
+    depth_um : (Y, X) float
+        The surface's depth below slice 0.
+    dz : float
+        Slice spacing (um).
+    rows : int, optional
+        Rows read at a time (all at once by default).
+
+    Returns
+    -------
+    (Y, X) float32
+        NaN where the surface's depth is not finite.
+    """
+    nz, ny, nx = volume.shape
+    depth = np.asarray(depth_um, dtype=float)
+    first = np.clip(np.ceil(np.nan_to_num(depth, nan=0.0) / dz), 0, nz - 1).astype(np.intp)
+    count = max(1, round(layer_um / dz))
+    out = np.empty((ny, nx), np.float32)
+    step = ny if rows is None else max(1, int(rows))
+    for y0 in range(0, ny, step):
+        y1 = min(ny, y0 + step)
+        band = volume.rows(y0, y1) if hasattr(volume, "rows") else volume[:, y0:y1, :]
+        total = np.zeros((y1 - y0, nx), np.float64)
+        for k in range(count):
+            index = np.minimum(first[y0:y1] + k, nz - 1)[None]
+            total += np.take_along_axis(band, index, axis=0)[0]
+        out[y0:y1] = total / count
+    out[~np.isfinite(depth)] = np.nan
     return out

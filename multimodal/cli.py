@@ -73,8 +73,8 @@ def _build_parser():
     p.add_argument("camera", help="the camera's video, image or image folder (its first frame)")
     p.add_argument(
         "microscope",
-        help="the microscope's surface-intensity projection (a TIFF with its pixel size, or "
-        "any image with --pixel-um)",
+        help="the microscope's surface-intensity projection: an mpm3d analyze folder (its "
+        "surface_intensity.tif), a TIFF with its pixel size, or any image with --pixel-um",
     )
     p.add_argument("--pixel-um", type=float, help="the microscope image's pixel size, um")
     p.add_argument(
@@ -93,6 +93,11 @@ def _microscope_image(path: Path, pixel_um: float | None) -> tuple[np.ndarray, f
     from tissue_core.images import read_image
     from tissue_core.tiff_units import lateral_pixel_size_um
 
+    if path.is_dir():  # an mpm3d analyze folder: its surface-intensity projection
+        inner = path / "surface_intensity.tif"
+        if not inner.is_file():
+            raise InputError(f"{path}: no surface_intensity.tif in it (an mpm3d analyze folder)")
+        path = inner
     if not path.is_file():
         raise InputError(f"microscope image {path} does not exist")
     size = None

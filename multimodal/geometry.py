@@ -89,12 +89,16 @@ class SurfaceMap:
         Microscope coordinates of the centre of pixel (0, 0).
     source : str
         Where the map came from (for the run's records).
+    measured : (Y, X) bool, optional
+        Where the surface was measured rather than filled in (as ``mpm3d``
+        fills its gaps); everywhere when None.
     """
 
     height_um: np.ndarray
     pixel_um: tuple[float, float]
     origin_um: tuple[float, float] = (0.0, 0.0)
     source: str = ""
+    measured: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         z = np.asarray(self.height_um, dtype=float)
@@ -111,6 +115,13 @@ class SurfaceMap:
         object.__setattr__(self, "height_um", z)
         object.__setattr__(self, "pixel_um", (dy, dx))
         object.__setattr__(self, "origin_um", (x0, y0))
+        if self.measured is not None:
+            measured = np.asarray(self.measured, dtype=bool)
+            if measured.shape != z.shape:
+                raise InputError(
+                    f"the measured mask's shape {measured.shape} differs from the map's {z.shape}"
+                )
+            object.__setattr__(self, "measured", measured)
 
     @classmethod
     def flat(
@@ -149,6 +160,19 @@ class SurfaceMap:
             z[i + 1, j] * (1 - fc) + z[i + 1, j + 1] * fc
         ) * fr
         return np.where(inside, out, np.nan)
+
+    def filled(self, xy_um: np.ndarray) -> np.ndarray:
+        """Whether the nearest pixel's height was filled in, not measured (False off the
+        map and where every height was measured)."""
+        xy = np.asarray(xy_um, dtype=float)
+        if self.measured is None:
+            return np.zeros(xy.shape[:-1], bool)
+        (dy, dx), (x0, y0) = self.pixel_um, self.origin_um
+        Y, X = self.shape
+        c = np.rint(np.nan_to_num((xy[..., 0] - x0) / dx, nan=-1.0)).astype(np.intp)
+        r = np.rint(np.nan_to_num((xy[..., 1] - y0) / dy, nan=-1.0)).astype(np.intp)
+        inside = (c >= 0) & (c < X) & (r >= 0) & (r < Y)
+        return inside & ~self.measured[r.clip(0, Y - 1), c.clip(0, X - 1)]
 
 
 class SurfaceMosaic:
@@ -201,6 +225,18 @@ class SurfaceMosaic:
             d = np.sum((xy - centre) ** 2, axis=-1)
             take = np.isfinite(z) & (d < best)
             out = np.where(take, z, out)
+            best = np.where(take, d, best)
+        return out
+
+    def filled(self, xy_um: np.ndarray) -> np.ndarray:
+        xy = np.asarray(xy_um, dtype=float)
+        best = np.full(xy.shape[:-1], np.inf)
+        out = np.zeros(xy.shape[:-1], bool)
+        for tile, centre in zip(self.tiles, self._centres, strict=True):
+            z = tile.heights(xy)
+            d = np.sum((xy - centre) ** 2, axis=-1)
+            take = np.isfinite(z) & (d < best)
+            out = np.where(take, tile.filled(xy), out)
             best = np.where(take, d, best)
         return out
 
@@ -582,6 +618,11 @@ def fold_aware_strain(
     G1 = surface_metric(D, L1 / transform.scale)
     E = _strain_from_metrics(G0, G1)
     E_proj = green_lagrange(deformation_gradient(X, x, tri))
+    filled = (
+        np.maximum(_filled_share(before, X_um[i], X_um[j]), _filled_share(after, x_um[i], x_um[j]))
+        .reshape(M, 3)
+        .max(axis=1)
+    )
     return {
         "E": E,
         "E_projected": E_proj,
@@ -591,7 +632,15 @@ def fold_aware_strain(
         "P1": np.hypot(*(x_um[j] - x_um[i]).T).reshape(M, 3),
         "G0": G0,
         "G1": G1,
+        "filled_share": filled,
     }
+
+
+def _filled_share(surface, a: np.ndarray, b: np.ndarray, samples: int = 64) -> np.ndarray:
+    """Per path, the share of its chord over heights the map filled in."""
+    t = np.linspace(0.0, 1.0, samples)
+    points = a[:, None, :] + t[None, :, None] * (b - a)[:, None, :]
+    return surface.filled(points).mean(axis=1)
 
 
 @dataclass(frozen=True)

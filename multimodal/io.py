@@ -23,8 +23,9 @@ def read_surface_map(
     CSV, and the stage position of its pixel (0, 0)).
 
     The TIFF holds heights in micrometres, (Y, X), or ``mpm3d``'s two
-    channels (height, and 1 where the surface was measured: the columns it
-    filled in become gaps here, so no length is measured over them).  Its
+    channels (height with its gaps filled, and 1 where the surface was
+    measured: the share of each triangle's edges over filled heights is
+    reported).  NaN heights are gaps: no length is measured over them.  Its
     pixel size comes from the file (ImageJ calibration, OME, resolution
     tags) or ``pixel_um``.
     """
@@ -49,8 +50,9 @@ def read_surface_map(
     except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
         raise InputError(f"{path}: cannot read it as a TIFF height map ({exc})") from None
     data = np.asarray(data, dtype=float)
-    if data.ndim == 3 and data.shape[0] == 2:  # mpm3d: height, measured
-        height = np.where(data[1] > 0.5, data[0], np.nan)
+    measured = None
+    if data.ndim == 3 and data.shape[0] == 2:  # mpm3d: height (gaps filled), measured
+        height, measured = data[0], data[1] > 0.5
     elif data.ndim == 2:
         height = data
     else:
@@ -66,7 +68,7 @@ def read_surface_map(
         dy, dx, _ = size
     else:
         raise InputError(f"{path}: its pixel size is unknown ({size}); give --pixel-um")
-    return SurfaceMap(height, (dy, dx), source=str(path))
+    return SurfaceMap(height, (dy, dx), source=str(path), measured=measured)
 
 
 def _mosaic(path: Path, pixel_um: float | None) -> SurfaceMosaic:
@@ -93,7 +95,7 @@ def _mosaic(path: Path, pixel_um: float | None) -> SurfaceMosaic:
         tile = read_surface_map(path.parent / row["file"], pixel_um=pixel_um)
         if isinstance(tile, SurfaceMosaic):
             raise InputError(f"{path}, line {line}: a tile cannot be a mosaic itself")
-        tiles.append(SurfaceMap(tile.height_um, tile.pixel_um, (x, y), source=tile.source))
+        tiles.append(SurfaceMap(tile.height_um, tile.pixel_um, (x, y), tile.source, tile.measured))
     return SurfaceMosaic(tiles, source=str(path))
 
 

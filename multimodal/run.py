@@ -95,18 +95,20 @@ def write_fold_run(
     E_s, E_p = result.surface["E"], result.surface["E_projected"]
     E_c, sd = result.corrected["E"], result.corrected["E_principal_sd"]
     on_maps = np.isfinite(E_s).all(axis=(1, 2))
+    filled = result.surface["filled_share"]
     seen = np.isfinite(E_p).all(axis=(1, 2))
     header = ["triangle", "p0", "p1", "p2", "on_maps"]
     header += [f"{c}_projected" for c, _, _ in COMPONENTS]
     header += [f"{c}_surface" for c, _, _ in COMPONENTS]
     header += [f"{c}_corrected" for c, _, _ in COMPONENTS]
-    header += ["E1_corrected_sd", "E2_corrected_sd"]
+    header += ["E1_corrected_sd", "E2_corrected_sd", "filled_share"]
     lines = [",".join(header)]
     for k, tri in enumerate(result.triangles):
         cells = [str(k), *map(str, tri), str(int(on_maps[k]))]
         for E in (E_p, E_s, E_c):
             cells += [number_cell(float(E[k, i, j])) for _, i, j in COMPONENTS]
         cells += [number_cell(float(v)) for v in sd[k]]
+        cells.append(number_cell(float(result.surface["filled_share"][k])))
         lines.append(",".join(cells))
     (folder / "fold_strain.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     rows = ["angle_deg,before_mean,before_sd,after_mean,after_sd,before_segments,after_segments"]
@@ -167,6 +169,9 @@ def write_fold_run(
             "triangles": len(result.triangles),
             "on_maps": int(on_maps.sum()),
             "tracked": int(seen.sum()),
+            # the share of an edge over heights the microscope's software filled in
+            "filled_share_mean": float(filled[on_maps].mean()) if on_maps.any() else None,
+            "over_10_percent_filled": int((filled[on_maps] > 0.1).sum()),
         },
         "mean_strain": means,
         "folding_share": folding,
@@ -243,6 +248,12 @@ def _flags(summary: dict) -> list[str]:
         flags.append(
             f"{cover['triangles'] - cover['on_maps']} of {cover['triangles']} triangles leave a "
             "height map or cross a gap in it: they have the statistics-only correction alone"
+        )
+    if cover.get("over_10_percent_filled"):
+        flags.append(
+            f"{cover['over_10_percent_filled']} triangles have an edge more than 10 % over "
+            "heights the microscope's software filled in rather than measured "
+            "(filled_share in fold_strain.csv)"
         )
     transform = summary["transform"]
     if transform.get("from") == "landmarks" and transform.get("landmarks", 0) < 3:

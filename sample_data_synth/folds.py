@@ -426,7 +426,9 @@ def folding_wall_stacks(
 ) -> tuple:
     """Multiphoton z-stacks of the microscope's sub-region before and after: the tissue
     under the wall's surface as :func:`sample_data_synth.stacks.render_stack` renders it
-    (a :class:`~sample_data_synth.stacks.SyntheticStack` each, the exact surface with it)."""
+    (a :class:`~sample_data_synth.stacks.SyntheticStack` each, the exact surface with it),
+    the urothelium textured with the reference wall's pattern (``surface_image``; after
+    the deformation the stack shows it unmoved, as only the reference is registered)."""
     from sample_data_synth.stacks import SyntheticStack, render_stack
 
     positive(dz_um, "dz_um")
@@ -440,7 +442,12 @@ def folding_wall_stacks(
     for name, height in (("before", case.before), ("after", case.after)):
         # depth below slice 0: the highest crest lies `margin` below it
         depth = margin + (top - height)
-        stack = render_stack(depth, n_slices=n_slices, spacing=spacing, rng=generator)
+        # the urothelium carries the tissue's own pattern (what the camera sees too), drawn on
+        # the reference wall: its surface-intensity projection registers to the camera's frame
+        stack = render_stack(
+            depth, n_slices=n_slices, spacing=spacing, rng=generator,
+            cell_texture=case.surface_image, urothelium_contrast=0.15,
+        )  # fmt: skip
         stacks.append(
             SyntheticStack(
                 name=f"folding wall {name}",

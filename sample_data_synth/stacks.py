@@ -349,6 +349,7 @@ def render_stack(
     rng: Rng = None,
     out: np.ndarray | None = None,
     progress: Callable[[int, int], None] | None = None,
+    cell_texture: np.ndarray | None = None,
 ) -> np.ndarray:
     """Render a two-channel MPM z-stack of tissue below a surface of known depth.
 
@@ -425,6 +426,11 @@ def render_stack(
         Write into this array (e.g. a memory map) instead of a new one.
     progress : callable(done, total), keyword-only
         Called after every slice.
+    cell_texture : (Y, X) array, keyword-only
+        The urothelium's texture ``q`` itself (scaled here to zero mean and
+        unit variance) in place of the random cells: a pattern the tissue's
+        surface also shows to a camera.  The other streams of ``rng`` are
+        drawn as without it.
 
     Returns
     -------
@@ -469,7 +475,13 @@ def render_stack(
     depth32 = depth.astype(np.float32)
     t_vert = (thickness * np.sqrt(1 + gx**2 + gy**2)).astype(np.float32)
     del gy, gx
-    cells = _cell_texture(cell_rng, shape, (dy, dx), cell)
+    if cell_texture is None:
+        cells = _cell_texture(cell_rng, shape, (dy, dx), cell)
+    else:
+        given = np.asarray(cell_texture, dtype=np.float64)
+        if given.shape != shape or not np.isfinite(given).all() or not given.std() > 0:
+            raise ValueError(f"cell_texture must be a finite, non-uniform {shape} array")
+        cells = ((given - given.mean()) / given.std()).astype(np.float32)
     uro_amp = np.float32(i_u) * np.maximum(1 + np.float32(contrast) * cells, 0)
     del cells
     collagen_top = depth32 + t_vert  # where the collagen envelope starts

@@ -27,7 +27,14 @@ FIGURES = {
 }
 #: options for a quick, quiet run
 FAST = ("--no-surface", "--no-figures", "-q")
-TABLES = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif", "report.html"}
+TABLES = {
+    "metrics.json",
+    "folds.csv",
+    "crests.csv",
+    "heightmap.tif",
+    "surface_intensity.tif",
+    "report.html",
+}
 FULL = TABLES | {"surface.vtp", "surface.ply", "figures", MARKER} | set(FIGURES)
 
 

@@ -17,9 +17,15 @@ from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SHIFT_P
 from tissue_core.outputs import MARKER
 
 #: one side's analysis without the surface (the comparison needs only the height maps)
-SIDE = {"metrics.json", "folds.csv", "crests.csv", "heightmap.tif", "report.html", "figures"} | {
-    f"figures/{name}.png" for name in ("heightmap", "profiles", "spectrum")
-}
+SIDE = {
+    "metrics.json",
+    "folds.csv",
+    "crests.csv",
+    "heightmap.tif",
+    "surface_intensity.tif",
+    "report.html",
+    "figures",
+} | {f"figures/{name}.png" for name in ("heightmap", "profiles", "spectrum")}
 
 
 @pytest.fixture

@@ -69,6 +69,7 @@ def test_bands_equal_in_memory(options, tile_rows, mpm_small, in_memory):
     assert math.ceil(ny / tile_rows) >= 10  # many bands, the last one shorter
     for name in ("depth_um", "valid", "cnr", "peak"):
         assert np.array_equal(getattr(banded.heightmap, name), getattr(whole.heightmap, name))
+    assert np.array_equal(banded.surface_intensity, whole.surface_intensity, equal_nan=True)
     a, b = whole.surface, banded.surface
     assert a.n_points == b.n_points and a.n_cells == b.n_cells
     assert np.array_equal(a.points, b.points)

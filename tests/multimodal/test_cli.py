@@ -148,15 +148,22 @@ def test_the_whole_chain_from_stacks_through_mpm3d(tmp_path):
         "185,185,295,295", "--tracker", "dic", "--animation", "none", "--out",
         str(tmp_path / "run"),
     )  # fmt: skip
+    # registered from mpm3d's surface-intensity projection against the camera's frame
+    _run("multimodal", "-q", "register", str(files["video"]), str(tmp_path / "mpm_before"),
+         "--out", str(tmp_path / "reg"))  # fmt: skip
+    found = json.loads((tmp_path / "reg" / "transform.json").read_text())
+    assert found["scale_um_per_px"] == pytest.approx(case.camera_um, rel=0.005)
+    assert found["angle_deg"] == pytest.approx(case.transform["angle_deg"], abs=0.5)
     _run(
         "multimodal", "-q", "strain", str(tmp_path / "run"), "--before",
-        str(tmp_path / "mpm_before"), "--after", str(tmp_path / "mpm_after"), "--landmarks",
-        str(files["landmarks"]), "--out", str(tmp_path / "fold"),
+        str(tmp_path / "mpm_before"), "--after", str(tmp_path / "mpm_after"), "--transform",
+        str(tmp_path / "reg" / "transform.json"), "--out", str(tmp_path / "fold"),
     )  # fmt: skip
     summary = json.loads((tmp_path / "fold" / "summary.json").read_text())
     true = case.wall.true_strain()
     means = summary["mean_strain"]
     assert summary["coverage"]["on_maps"] == 32
+    assert summary["coverage"]["filled_share_mean"] < 0.05  # mpm3d measured nearly all
     assert means["projected"]["Exx"] < -0.2
     assert means["fold_aware"]["Exx"] == pytest.approx(true[0, 0], abs=0.015)
     assert means["fold_aware"]["Eyy"] == pytest.approx(true[1, 1], abs=0.005)
