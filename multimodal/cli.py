@@ -62,7 +62,9 @@ def _build_parser():
         help="how an edge runs on the surface: the shortest path near its chord (default), "
         "or the chord itself",
     )
-    p.add_argument("--pixel-um", type=float, help="height maps' pixel size, if they lack one")
+    p.add_argument(
+        "--pixel-um", type=float, help="the height maps' pixel size, um (overrides the files')"
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p = cli.command(
@@ -219,17 +221,47 @@ def _triangles(run_dir: Path) -> np.ndarray:
     return first.astype(np.intp)
 
 
+def _check_triangles(triangles: np.ndarray, n_points: int, run_dir: Path) -> None:
+    file = run_dir / "strain_elements.csv"
+    if triangles.min() < 0 or triangles.max() >= n_points:
+        raise InputError(f"{file}: a triangle names a point outside 0..{n_points - 1}")
+    if (np.diff(np.sort(triangles, axis=1), axis=1) == 0).any():
+        raise InputError(f"{file}: a triangle names one point twice")
+
+
+def _map_files(text: str) -> list[Path]:
+    """A height map's files: an mpm3d folder's heightmap.tif, a TIFF, or a mosaic's CSV and
+    its tiles (those it names that exist)."""
+    import csv
+
+    path = Path(text)
+    if path.is_dir():
+        return [path / "heightmap.tif"]
+    if path.suffix.lower() != ".csv" or not path.is_file():
+        return [path]
+    tiles = []
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            for row in csv.DictReader(f):
+                name = next((v for k, v in row.items() if k and k.strip().lower() == "file"), "")
+                if name and name.strip():
+                    tile = path.parent / name.strip()
+                    tiles.append(tile / "heightmap.tif" if tile.is_dir() else tile)
+    except (OSError, UnicodeDecodeError, csv.Error):
+        pass  # read_surface_map says what is wrong with it
+    return [path, *tiles]
+
+
 def _inputs(args) -> list[Path]:
-    maps = [Path(p) / "heightmap.tif" if Path(p).is_dir() else Path(p)
-            for p in (args.before, args.after)]  # fmt: skip
-    files = [Path(args.run) / "summary.json", *maps]
+    maps = [f for p in (args.before, args.after) for f in _map_files(p)]
+    files = [Path(args.run) / "summary.json", Path(args.run) / "strain_elements.csv", *maps]
     files += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
     return files
 
 
 def _cmd_strain(args) -> int:
     from multimodal.geometry import Similarity
-    from multimodal.io import read_landmarks, read_surface_map, read_transform
+    from multimodal.io import read_landmarks, read_transform
     from multimodal.run import fold_strain_run, write_fold_run
     from strain2d import load_run
     from tissue_core.outputs import atomic_dir, check_writable
@@ -247,8 +279,9 @@ def _cmd_strain(args) -> int:
     if not 0 < frame < run.n_frames:
         raise InputError(f"--frame {frame} is outside the run's frames 1..{run.n_frames - 1}")
     triangles = _triangles(Path(args.run))
-    before = read_surface_map(args.before, pixel_um=args.pixel_um)
-    after = read_surface_map(args.after, pixel_um=args.pixel_um)
+    _check_triangles(triangles, run.n_points, Path(args.run))
+    before = _named_map("--before", args.before, args.pixel_um)
+    after = _named_map("--after", args.after, args.pixel_um)
     residual = None
     if args.landmarks:
         camera, microscope = read_landmarks(args.landmarks)
@@ -259,13 +292,17 @@ def _cmd_strain(args) -> int:
             transform = Similarity(
                 transform.scale, transform.angle_deg, transform.shift_um, mirrored=True
             )
+    _check_scale(transform, before, after)
+    try:
+        result = fold_strain_run(run, triangles, frame, before, after, transform, path=args.path)
+    except InputError as exc:
+        raise InputError(f"the height maps ({args.before}, {args.after}): {exc}") from None
     fit = "" if residual is None else f", landmarks {np.sqrt(np.mean(residual**2)):.3g} um RMS"
     say(
         f"{args.run}: {run.n_points} nodes, {len(triangles)} triangles; frame {frame} against "
         f"frame 0; camera to microscope: {transform.scale:.4g} um/px, "
         f"{transform.angle_deg:.3g} deg{fit}"
     )
-    result = fold_strain_run(run, triangles, frame, before, after, transform, path=args.path)
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
         summary = write_fold_run(
             tmp, result, run=run, frame=frame, before=before, after=after,
@@ -273,13 +310,44 @@ def _cmd_strain(args) -> int:
             inputs=[p for p in _inputs(args) if p.is_file()],
         )  # fmt: skip
     means = summary["mean_strain"]
+
+    def shown(value) -> str:
+        return "-" if value is None else f"{value:.4f}"
+
     say(
         f"{summary['coverage']['on_maps']} of {len(triangles)} triangles on both height maps; "
-        f"mean Exx projected {means['projected']['Exx']:.4f}, along the surface "
-        f"{means['fold_aware']['Exx']:.4f} (statistics only {means['corrected']['Exx']:.4f})"
+        f"mean Exx projected {shown(means['projected']['Exx'])}, along the surface "
+        f"{shown(means['fold_aware']['Exx'])} (statistics only "
+        f"{shown(means['corrected']['Exx'])})"
     )
+    for flag in summary["flags"]:
+        say(f"flagged: {flag}")
     say(f"results in {args.out}")
     return 0
+
+
+def _named_map(option: str, text: str, pixel_um: float | None):
+    """The height map ``option`` names; its errors say which map."""
+    from multimodal.io import read_surface_map
+
+    try:
+        return read_surface_map(text, pixel_um=pixel_um)
+    except InputError as exc:
+        message = str(exc)
+        raise InputError(message if text in message else f"{option} {text}: {message}") from None
+
+
+def _check_scale(transform, before, after) -> None:
+    """A transform whose scale would put the mesh's edges inside a pixel of the maps, or
+    make the paths longer than memory holds, is a unit mistake (mm for um), not data."""
+    pixel = min(*before.pixel_um, *after.pixel_um)
+    if not 1e-6 <= pixel <= 1e6:
+        raise InputError(f"a height map's pixel size of {pixel:g} um is not a microscope's")
+    if not 1e-6 <= transform.scale <= 1e6:
+        raise InputError(
+            f"the transform's scale of {transform.scale:g} um per camera pixel is not plausible "
+            "(are the landmarks' microscope coordinates in um?)"
+        )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -69,6 +69,9 @@ SAMPLES_PER_PIXEL = 4
 #: map pixels between the knots of a shortest path's offsets across its chord
 KNOT_PIXELS = 2.0
 
+#: about the most segments laid along one direction by :func:`directional_tortuosity`
+_MAX_SEGMENTS = 20_000
+
 #: the most samples held at once when lengths are measured (memory: 8 bytes each, a few
 #: arrays of this size)
 _CHUNK_SAMPLES = 4_000_000
@@ -715,7 +718,9 @@ def directional_tortuosity(
     for angle in angles:
         a = math.radians(angle)
         u, v = np.array([math.cos(a), math.sin(a)]), np.array([-math.sin(a), math.cos(a)])
-        offsets = np.arange(-reach, reach + 1e-9, spacing)
+        # at most about _MAX_SEGMENTS segments a direction: wider apart on a big map
+        step = max(spacing, 2 * reach * 2 * reach / segment / _MAX_SEGMENTS)
+        offsets = np.arange(-reach, reach + 1e-9, step)
         starts_along = np.arange(-reach, reach - segment + 1e-9, segment)
         if starts_along.size == 0:
             raise InputError(

@@ -49,6 +49,8 @@ def read_surface_map(
             size = lateral_pixel_size_um(tif)
     except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
         raise InputError(f"{path}: cannot read it as a TIFF height map ({exc})") from None
+    if np.iscomplexobj(data) or np.asarray(data).dtype == bool:
+        raise InputError(f"{path}: heights must be real numbers, got {np.asarray(data).dtype}")
     data = np.asarray(data, dtype=float)
     measured = None
     if data.ndim == 3 and data.shape[0] == 2:  # mpm3d: height (gaps filled), measured
@@ -60,6 +62,8 @@ def read_surface_map(
             f"{path}: a height map is one 2D image (or mpm3d's height and measured channels), "
             f"got shape {data.shape}"
         )
+    if np.isinf(height).any():
+        raise InputError(f"{path}: infinite heights (give NaN where nothing was measured)")
     if pixel_um is not None:
         if not (math.isfinite(pixel_um) and pixel_um > 0):
             raise InputError(f"--pixel-um must be a positive number, got {pixel_um}")
@@ -92,9 +96,15 @@ def _mosaic(path: Path, pixel_um: float | None) -> SurfaceMosaic:
             raise InputError(f"{path}, line {line}: x_um and y_um must be numbers") from None
         if not (math.isfinite(x) and math.isfinite(y)):
             raise InputError(f"{path}, line {line}: x_um and y_um must be finite")
-        tile = read_surface_map(path.parent / row["file"], pixel_um=pixel_um)
-        if isinstance(tile, SurfaceMosaic):
+        name = row.get("file", "")
+        if not name:
+            raise InputError(f"{path}, line {line}: no file named")
+        if Path(name).suffix.lower() == ".csv":
             raise InputError(f"{path}, line {line}: a tile cannot be a mosaic itself")
+        try:
+            tile = read_surface_map(path.parent / name, pixel_um=pixel_um)
+        except InputError as exc:
+            raise InputError(f"{path}, line {line}: {exc}") from None
         tiles.append(SurfaceMap(tile.height_um, tile.pixel_um, (x, y), tile.source, tile.measured))
     return SurfaceMosaic(tiles, source=str(path))
 
@@ -115,23 +125,34 @@ def read_transform(text: str) -> Similarity:
     path = Path(text)
     if path.suffix.lower() == ".json" or path.is_file():
         try:
-            data = json.loads(path.read_text(encoding="utf-8"))
+            data = json.loads(path.read_text(encoding="utf-8-sig"))
         except OSError as exc:
             raise InputError(f"--transform {text}: cannot read it ({exc.strerror})") from None
         except (json.JSONDecodeError, UnicodeDecodeError):
             raise InputError(f"--transform {text}: not a JSON file") from None
+
+        def number(value) -> float:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise TypeError(value)
+            return float(value)
+
         try:
             shift = data["shift_um"]
-            return Similarity(
-                float(data["scale_um_per_px"]),
-                float(data.get("angle_deg", 0.0)),
-                (float(shift[0]), float(shift[1])),
-                bool(data.get("mirrored", False)),
-            )
-        except (KeyError, TypeError, ValueError, IndexError):
+            values = (number(data["scale_um_per_px"]), number(data.get("angle_deg", 0.0)),
+                      (number(shift[0]), number(shift[1])))  # fmt: skip
+            if len(shift) != 2:
+                raise IndexError(shift)
+            mirrored = data.get("mirrored", False)
+            if not isinstance(mirrored, bool):
+                raise InputError(f"--transform {text}: mirrored must be true or false")
+        except (KeyError, TypeError, IndexError):
             raise InputError(
-                f"--transform {text}: needs scale_um_per_px, angle_deg and shift_um [x, y]"
+                f"--transform {text}: needs numbers scale_um_per_px, angle_deg and shift_um [x, y]"
             ) from None
+        try:
+            return Similarity(*values, mirrored)
+        except InputError as exc:
+            raise InputError(f"--transform {text}: {exc}") from None
     try:
         scale, angle, x, y = (float(v) for v in text.split(","))
     except ValueError:

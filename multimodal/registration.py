@@ -112,7 +112,7 @@ def register_images(
     import cv2
 
     size = float(np.mean(np.broadcast_to(np.asarray(pixel_um, float), 2)))
-    if not (np.isfinite(size) and size > 0):
+    if not (np.isfinite(size) and 1e-6 <= size <= 1e6):
         raise InputError(f"the microscope's pixel size must be positive, got {pixel_um}")
     cam = _gray8(camera)
     if mirrored:
@@ -138,13 +138,20 @@ def register_images(
     )  # fmt: skip
     keep = np.zeros(len(good), bool) if inliers is None else inliers.ravel().astype(bool)
     if keep.sum() < MIN_INLIERS:
+        hint = "" if mirrored else " (is the microscope's image mirrored? try --mirrored)"
         raise InputError(
             f"could not register: only {int(keep.sum())} of {len(good)} matches agree on one "
-            "similarity; give landmark pairs instead (--landmarks)"
+            f"similarity{hint}; else give landmark pairs (--landmarks)"
         )
     camera_px = src[keep]
     if mirrored:  # back to the camera's own rows
         camera_px = np.column_stack([camera_px[:, 0], cam.shape[0] - 1 - camera_px[:, 1]])
     microscope_um = dst[keep] * size
-    transform, residual = Similarity.from_landmarks(camera_px, microscope_um, mirrored=mirrored)
+    try:
+        transform, residual = Similarity.from_landmarks(camera_px, microscope_um, mirrored=mirrored)
+    except InputError:
+        raise InputError(
+            "could not register: the matches kept do not fix a similarity (is the "
+            "microscope's pixel size right?)"
+        ) from None
     return Registration(transform, camera_px, microscope_um, residual, len(good))

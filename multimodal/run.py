@@ -17,6 +17,7 @@ from multimodal.geometry import (
     fold_aware_strain,
     tortuosity_correction,
 )
+from tissue_core.errors import InputError
 
 __all__ = ["FoldStrain", "fold_strain_run", "write_fold_run"]
 
@@ -55,6 +56,12 @@ def fold_strain_run(
     x = np.where(run.visible[frame][:, None], run.positions[frame], np.nan)
     surface = fold_aware_strain(X, x, triangles, before, after, transform, path=path)
     segment = float(np.nanmedian(surface["P0"]))
+    pixel = max(*before.pixel_um, *after.pixel_um)
+    if not segment >= pixel:
+        raise InputError(
+            f"the mesh's edges measure {segment:.3g} um on the height maps, under one of their "
+            f"pixels ({pixel:.3g} um): are the transform's units um per camera pixel?"
+        )
     tort_before = directional_tortuosity(before, segment)
     tort_after = directional_tortuosity(after, segment)
     F = deformation_gradient(X, x, triangles)
@@ -255,11 +262,18 @@ def _flags(summary: dict) -> list[str]:
             "heights the microscope's software filled in rather than measured "
             "(filled_share in fold_strain.csv)"
         )
+    seg = summary["parameters"]["tortuosity_segment_um"]
+    pixel = max(max(m["pixel_um"]) for m in summary["height_maps"].values())
+    if seg is not None and seg < 4 * pixel:
+        flags.append(
+            f"The mesh's edges ({seg:.3g} um) span under 4 pixels of the height maps "
+            f"({pixel:.3g} um): the folds between the nodes are not resolved (are the "
+            "transform's units um per camera pixel?)"
+        )
     transform = summary["transform"]
     if transform.get("from") == "landmarks" and transform.get("landmarks", 0) < 3:
         flags.append("Two landmarks fix the transform exactly: its residual is not measured")
     rms = transform.get("residual_um_rms")
-    seg = summary["parameters"]["tortuosity_segment_um"]
     if rms is not None and seg and rms > 0.05 * seg:
         flags.append(
             f"The registration's residual ({rms:.3g} um RMS) is over 5 % of a mesh edge "

@@ -512,8 +512,8 @@ def _cmd_folds(args) -> int:
     )
     from sample_data_synth.stacks import write_stack
 
-    if args.frames < 2:
-        raise ValueError(f"--frames must be at least 2, got {args.frames}")
+    if not 2 <= args.frames <= 1000:
+        raise ValueError(f"--frames must be 2 to 1000, got {args.frames}")
     say = Progress(quiet=args.quiet)
     with atomic_dir(args.out, overwrite=args.overwrite) as tmp:
         say(f"rendering the {args.case} wall: {args.frames} frames")

@@ -66,7 +66,7 @@ def test_the_surface_strain_is_the_true_stretch_where_the_camera_sees_folds(wall
     assert np.isfinite(run.nodal["Exx"][1]).all() and (run.nodal["Exx"][0] == 0).all()
     report = (out / "report.html").read_text(encoding="utf-8")
     assert "Fold-aware membrane strain" in report and "data:image/png;base64" in report
-    assert [r["path"] for r in summary["inputs"]][1:3] == [str(files["before"]),
+    assert [r["path"] for r in summary["inputs"]][2:4] == [str(files["before"]),
                                                           str(files["after"])]  # fmt: skip
 
 
@@ -242,3 +242,57 @@ def _uncalibrated(folder):
 
     tifffile.imwrite(folder / "plain.tif", np.zeros((40, 40), np.uint8))
     return folder / "plain.tif"
+
+
+def test_more_bad_input_ends_with_one_line(wall, tmp_path):
+    """What a hostile-input review found: each one line, exit status 2, no folder."""
+    import shutil
+
+    _, files, folder = wall
+    maps = ["--before", str(files["before"]), "--after", str(files["after"])]
+    (tmp_path / "mirrored.json").write_text(
+        '{"scale_um_per_px": 6, "angle_deg": -12, "shift_um": [0, 0], "mirrored": "false"}'
+    )
+    (tmp_path / "self.csv").write_text("file,x_um,y_um\nself.csv,0,0\n")
+    mm = files["landmarks"].read_text().splitlines()
+    rows = [mm[0]] + [",".join(f"{float(v) / (1000 if k > 1 else 1):.9f}"
+                               for k, v in enumerate(r.split(","))) for r in mm[1:]]  # fmt: skip
+    (tmp_path / "mm.csv").write_text("\n".join(rows) + "\n")
+    edited = tmp_path / "edited_run"
+    shutil.copytree(folder / "run", edited)
+    elements = (edited / "strain_elements.csv").read_text().splitlines()
+    cells = elements[1].split(",")
+    cells[2] = "999"
+    elements[1] = ",".join(cells)
+    (edited / "strain_elements.csv").write_text("\n".join(elements) + "\n")
+    cases = [
+        ([str(folder / "run"), *maps, "--transform", str(tmp_path / "mirrored.json")],
+         "mirrored must be true or false"),
+        ([str(folder / "run"), "--before", str(tmp_path / "self.csv"), "--after",
+          str(files["after"]), "--transform", str(files["transform"])], "a mosaic itself"),
+        ([str(folder / "run"), *maps, "--landmarks", str(tmp_path / "mm.csv")],
+         "um per camera pixel"),
+        ([str(edited), *maps, "--transform", str(files["transform"])], "outside 0.."),
+    ]  # fmt: skip
+    for argv, message in cases:
+        out = tmp_path / "o"
+        done = _run("multimodal", "strain", *argv, "--out", str(out), check=False)
+        assert done.returncode == 2, (argv, done.stderr)
+        lines = done.stderr.strip().splitlines()
+        assert len(lines) == 1 and message in lines[0], done.stderr
+        assert not out.exists()
+
+
+def test_a_grid_off_the_maps_is_flagged_not_a_crash(wall, tmp_path):
+    _, files, folder = wall
+    out = tmp_path / "off"
+    done = _run(
+        "multimodal", "strain", str(folder / "run"), "--before", str(files["before"]),
+        "--after", str(files["after"]), "--transform", "6,-12,100000,100000", "--out", str(out),
+    )  # fmt: skip
+    assert "Traceback" not in done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["coverage"]["on_maps"] == 0
+    assert summary["mean_strain"]["fold_aware"]["Exx"] is None
+    assert any("No triangle lies on both height maps" in f for f in summary["flags"])
+    assert summary["mean_strain"]["corrected"]["Exx"] is not None
