@@ -27,7 +27,12 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "surface_metric",
             "tortuosity_correction",
         ],
-        "multimodal.io": ["read_landmarks", "read_surface_map", "read_transform"],
+        "multimodal.io": [
+            "read_landmarks",
+            "read_microscope_image",
+            "read_surface_map",
+            "read_transform",
+        ],
         "multimodal.registration": ["Registration", "register_images"],
         "multimodal.run": ["FoldStrain", "fold_strain_run", "write_fold_run"],
     },

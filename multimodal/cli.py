@@ -87,48 +87,8 @@ def _build_parser():
     return cli
 
 
-def _microscope_image(path: Path, pixel_um: float | None) -> tuple[np.ndarray, float]:
-    import math
-
-    import tifffile
-
-    from tissue_core.images import read_image
-    from tissue_core.tiff_units import lateral_pixel_size_um
-
-    if path.is_dir():  # an mpm3d analyze folder: its surface-intensity projection
-        inner = path / "surface_intensity.tif"
-        if not inner.is_file():
-            raise InputError(f"{path}: no surface_intensity.tif in it (an mpm3d analyze folder)")
-        path = inner
-    if not path.is_file():
-        raise InputError(f"microscope image {path} does not exist")
-    size = None
-    if path.suffix.lower() in (".tif", ".tiff"):
-        try:
-            with tifffile.TiffFile(path) as tif:
-                image = tif.asarray()
-                found = lateral_pixel_size_um(tif)
-        except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
-            raise InputError(f"{path}: cannot read it as a TIFF ({exc})") from None
-        if isinstance(found, tuple):
-            size = (found[0] + found[1]) / 2
-    else:
-        image = read_image(path)
-    if pixel_um is not None:
-        if not (math.isfinite(pixel_um) and pixel_um > 0):
-            raise InputError(f"--pixel-um must be a positive number, got {pixel_um}")
-        size = float(pixel_um)
-    if size is None:
-        raise InputError(f"{path}: its pixel size is unknown; give --pixel-um")
-    image = np.asarray(image)
-    if image.ndim == 3 and image.shape[-1] in (3, 4):
-        image = image[..., :3].mean(axis=-1)
-    if image.ndim != 2:
-        raise InputError(f"{path}: give one 2D image (the surface projection), got {image.shape}")
-    return image, size
-
-
 def _cmd_register(args) -> int:
+    from multimodal.io import read_microscope_image
     from multimodal.registration import register_images
     from strain2d import open_frames
     from tissue_core.csvtext import number_cell
@@ -141,7 +101,7 @@ def _cmd_register(args) -> int:
     say = Progress(quiet=args.quiet)
     source = open_frames(args.camera, min_frames=1)
     frame = next(iter(source))
-    image, size = _microscope_image(Path(args.microscope), args.pixel_um)
+    image, size = read_microscope_image(args.microscope, pixel_um=args.pixel_um)
     found = register_images(frame, image, size, mirrored=args.mirrored)
     record = {**found.as_dict(), "camera": str(args.camera), "microscope": str(args.microscope),
               "microscope_pixel_um": size}  # fmt: skip

@@ -12,7 +12,36 @@ import numpy as np
 from multimodal.geometry import Similarity, SurfaceMap, SurfaceMosaic
 from tissue_core.errors import InputError
 
-__all__ = ["read_landmarks", "read_surface_map", "read_transform"]
+__all__ = ["read_landmarks", "read_microscope_image", "read_surface_map", "read_transform"]
+
+
+def _calibrated(path: Path, pixel_um: float | None, what: str) -> tuple[np.ndarray, tuple]:
+    """A TIFF's pixels and its pixel size ``(dy, dx)`` in um: ``pixel_um`` where given,
+    else the file's own (ImageJ calibration, OME, resolution tags)."""
+    import tifffile
+
+    from tissue_core.tiff_units import lateral_pixel_size_um
+
+    if not path.is_file():
+        raise InputError(f"{what} {path} does not exist")
+    try:
+        with tifffile.TiffFile(path) as tif:
+            data = tif.asarray()
+            size = lateral_pixel_size_um(tif)
+    except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
+        raise InputError(f"{path}: cannot read it as a TIFF {what} ({exc})") from None
+    return data, _pixel_size(path, pixel_um, size)
+
+
+def _pixel_size(path: Path, pixel_um: float | None, found) -> tuple[float, float]:
+    if pixel_um is not None:
+        if not (math.isfinite(pixel_um) and pixel_um > 0):
+            raise InputError(f"--pixel-um must be a positive number, got {pixel_um}")
+        return float(pixel_um), float(pixel_um)
+    if isinstance(found, tuple):
+        return found[0], found[1]
+    why = f" ({found})" if isinstance(found, str) else ""
+    raise InputError(f"{path}: its pixel size is unknown{why}; give --pixel-um")
 
 
 def read_surface_map(
@@ -29,10 +58,6 @@ def read_surface_map(
     pixel size comes from the file (ImageJ calibration, OME, resolution
     tags) or ``pixel_um``.
     """
-    import tifffile
-
-    from tissue_core.tiff_units import lateral_pixel_size_um
-
     path = Path(path)
     if path.suffix.lower() == ".csv":
         return _mosaic(path, pixel_um)
@@ -41,14 +66,7 @@ def read_surface_map(
         if not inner.is_file():
             raise InputError(f"{path}: no heightmap.tif in it (give an mpm3d analyze folder)")
         path = inner
-    if not path.is_file():
-        raise InputError(f"height map {path} does not exist")
-    try:
-        with tifffile.TiffFile(path) as tif:
-            data = tif.asarray()
-            size = lateral_pixel_size_um(tif)
-    except (OSError, ValueError, KeyError, IndexError, tifffile.TiffFileError) as exc:
-        raise InputError(f"{path}: cannot read it as a TIFF height map ({exc})") from None
+    data, (dy, dx) = _calibrated(path, pixel_um, "height map")
     if np.iscomplexobj(data) or np.asarray(data).dtype == bool:
         raise InputError(f"{path}: heights must be real numbers, got {np.asarray(data).dtype}")
     data = np.asarray(data, dtype=float)
@@ -64,15 +82,36 @@ def read_surface_map(
         )
     if np.isinf(height).any():
         raise InputError(f"{path}: infinite heights (give NaN where nothing was measured)")
-    if pixel_um is not None:
-        if not (math.isfinite(pixel_um) and pixel_um > 0):
-            raise InputError(f"--pixel-um must be a positive number, got {pixel_um}")
-        dy = dx = float(pixel_um)
-    elif isinstance(size, tuple):
-        dy, dx, _ = size
-    else:
-        raise InputError(f"{path}: its pixel size is unknown ({size}); give --pixel-um")
     return SurfaceMap(height, (dy, dx), source=str(path), measured=measured)
+
+
+def read_microscope_image(
+    path: str | os.PathLike, *, pixel_um: float | None = None
+) -> tuple[np.ndarray, float]:
+    """The microscope's surface-intensity projection and its pixel size (um): an ``mpm3d
+    analyze`` folder (its ``surface_intensity.tif``), a calibrated TIFF, or any image with
+    ``pixel_um``."""
+    from tissue_core.images import read_image
+
+    path = Path(path)
+    if path.is_dir():
+        inner = path / "surface_intensity.tif"
+        if not inner.is_file():
+            raise InputError(f"{path}: no surface_intensity.tif in it (an mpm3d analyze folder)")
+        path = inner
+    if path.suffix.lower() in (".tif", ".tiff"):
+        image, (dy, dx) = _calibrated(path, pixel_um, "microscope image")
+    else:
+        if not path.is_file():
+            raise InputError(f"microscope image {path} does not exist")
+        image = read_image(path)
+        dy, dx = _pixel_size(path, pixel_um, None)
+    image = np.asarray(image)
+    if image.ndim == 3 and image.shape[-1] in (3, 4):
+        image = image[..., :3].mean(axis=-1)
+    if image.ndim != 2:
+        raise InputError(f"{path}: give one 2D image (the surface projection), got {image.shape}")
+    return image, (dy + dx) / 2
 
 
 def _mosaic(path: Path, pixel_um: float | None) -> SurfaceMosaic:
