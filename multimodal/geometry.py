@@ -184,7 +184,10 @@ class SurfaceMosaic:
     A point takes its height from the tile that holds it with a measured
     height and whose centre is nearest (where tiles overlap, the middle of
     a tile is trusted before its edge).  Tiles of one pixel grid give, where
-    they hold a point, exactly the stitched map's bilinear height.
+    they hold a point, exactly the stitched map's bilinear height.  Tiles
+    must overlap by a pixel at least (microscope mosaics overlap by 5-20 %):
+    between two tiles that only abut, no height is interpolated and a path
+    across the seam has no length.
 
     Parameters
     ----------
@@ -219,28 +222,31 @@ class SurfaceMosaic:
         """``(x0, y0, x1, y1)``: the box around every tile (parts of it may be no tile's)."""
         return self._bounds
 
-    def heights(self, xy_um: np.ndarray) -> np.ndarray:
-        xy = np.asarray(xy_um, dtype=float)
+    def _choice(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per point, the height and the index of the tile it comes from (-1: none)."""
         best = np.full(xy.shape[:-1], np.inf)
-        out = np.full(xy.shape[:-1], np.nan)
-        for tile, centre in zip(self.tiles, self._centres, strict=True):
+        height = np.full(xy.shape[:-1], np.nan)
+        which = np.full(xy.shape[:-1], -1)
+        for k, (tile, centre) in enumerate(zip(self.tiles, self._centres, strict=True)):
             z = tile.heights(xy)
             d = np.sum((xy - centre) ** 2, axis=-1)
             take = np.isfinite(z) & (d < best)
-            out = np.where(take, z, out)
+            height = np.where(take, z, height)
+            which = np.where(take, k, which)
             best = np.where(take, d, best)
-        return out
+        return height, which
+
+    def heights(self, xy_um: np.ndarray) -> np.ndarray:
+        return self._choice(np.asarray(xy_um, dtype=float))[0]
 
     def filled(self, xy_um: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy_um, dtype=float)
-        best = np.full(xy.shape[:-1], np.inf)
+        _, which = self._choice(xy)
         out = np.zeros(xy.shape[:-1], bool)
-        for tile, centre in zip(self.tiles, self._centres, strict=True):
-            z = tile.heights(xy)
-            d = np.sum((xy - centre) ** 2, axis=-1)
-            take = np.isfinite(z) & (d < best)
-            out = np.where(take, tile.filled(xy), out)
-            best = np.where(take, d, best)
+        for k, tile in enumerate(self.tiles):
+            mine = which == k
+            if mine.any():
+                out[mine] = tile.filled(xy[mine])
         return out
 
 
@@ -250,8 +256,8 @@ class Similarity:
 
     ``M`` mirrors the camera's y axis where ``mirrored`` (a microscope that
     sees the tissue from the other side); ``scale`` is micrometres per camera
-    pixel, ``angle_deg`` counter-clockwise in the (x right, y down) image
-    convention's algebra (x' = x cos a - y sin a).
+    pixel, ``angle_deg`` the rotation ``x' = x cos a - y sin a``, ``y' = x
+    sin a + y cos a`` (clockwise on screen, where y points down).
     """
 
     scale: float
@@ -417,10 +423,14 @@ def _geodesic(
     The offsets across the chord are linear between knots :data:`KNOT_PIXELS`
     map pixels apart (a fold is many pixels wide: the shortest path bends
     over tens of them) and bounded so that the path stays on the map.
-    L-BFGS-B minimises the length sampled once per map pixel, with its exact
-    gradient on the bilinear surface (central differences across the chord);
-    the path found is then measured at all ``n`` samples.  Where the chord's
-    length is NaN, or no shorter path is found, the chord's length is kept.
+    L-BFGS-B minimises the length sampled once per map pixel, with its
+    gradient from the surface's slope across the chord (central differences
+    a quarter pixel apart; 0.5 % from the exact one on a bilinear map, which
+    leaves the lengths within 3e-4 of the shortest); the path found is then
+    measured at all ``n`` samples.  The edges are solved as one problem; an
+    edge whose path would step into a gap of the map is solved again on its
+    own, and the others without it.  Where the chord's length is NaN, or no
+    shorter path is found, the chord's length is kept.
     """
     from scipy.optimize import minimize
 
@@ -461,41 +471,64 @@ def _geodesic(
         B[np.arange(count), cell + 1] += f
         return t, B[:, 1:-1]
 
-    def path(w_knots: np.ndarray, t: np.ndarray, B: np.ndarray) -> np.ndarray:
-        w = w_knots.reshape(E, K - 2) @ B.T
-        along = (b - a)[:, None, :] * t[None, :, None] + a[:, None, :]
-        return along + w[..., None] * across[:, None, :]
+    def path(w_knots: np.ndarray, t: np.ndarray, B: np.ndarray, rows) -> np.ndarray:
+        w = w_knots.reshape(len(rows), K - 2) @ B.T
+        ab = (b - a)[rows]
+        along = ab[:, None, :] * t[None, :, None] + a[rows][:, None, :]
+        return along + w[..., None] * across[rows][:, None, :]
 
     t_fit, B_fit = basis(max(3, int(np.ceil(length.max() / pixel)) + 1))
     h = 0.25 * pixel
+    # a path that steps into a gap costs each such segment this much (the chord, where every
+    # path starts, has none), and its edge is noted: the edges solved together are then
+    # solved again apart, so that one edge beside a gap does not hold the others back
+    gap_cost = 10.0 * float(np.max(chord[use]))
 
-    def cost(w_knots: np.ndarray) -> tuple[float, np.ndarray]:
-        p = path(w_knots, t_fit, B_fit)
-        z = surface.heights(p)
-        step = h * across[:, None, :]
-        slope = (surface.heights(p + step) - surface.heights(p - step)) / (2 * h)
-        dp = np.diff(p, axis=1)
-        dz = np.diff(z, axis=1)
-        seg = np.sqrt(np.sum(dp**2, axis=2) + dz**2)
-        if not np.isfinite(seg).all():  # a gap in the map
-            return np.inf, np.zeros_like(w_knots)
-        seg = np.maximum(seg, 1e-300)
-        sideways = np.einsum("ejk,ek->ej", dp, across)
-        grad = np.zeros(p.shape[:2])
-        grad[:, 1:] += (sideways + dz * np.nan_to_num(slope[:, 1:])) / seg
-        grad[:, :-1] -= (sideways + dz * np.nan_to_num(slope[:, :-1])) / seg
-        return float(seg.sum()), (grad @ B_fit).ravel()
+    def solve(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        touched = np.zeros(len(rows), bool)
 
-    result = minimize(
-        cost,
-        np.zeros(E * (K - 2)),
-        jac=True,
-        method="L-BFGS-B",
-        bounds=bounds,
-        options={"maxiter": 1000, "ftol": 1e-12, "gtol": 1e-9},
-    )
+        def cost(w_knots: np.ndarray) -> tuple[float, np.ndarray]:
+            p = path(w_knots, t_fit, B_fit, rows)
+            z = surface.heights(p)
+            step = h * across[rows][:, None, :]
+            slope = (surface.heights(p + step) - surface.heights(p - step)) / (2 * h)
+            dp = np.diff(p, axis=1)
+            dz = np.diff(z, axis=1)
+            seg = np.sqrt(np.sum(dp**2, axis=2) + dz**2)
+            gap = ~np.isfinite(seg)
+            touched[gap.any(axis=1)] = True
+            seg = np.where(gap, 1.0, np.maximum(seg, 1e-300))
+            dz = np.where(gap, 0.0, dz)
+            sideways = np.where(gap, 0.0, np.einsum("ejk,ek->ej", dp, across[rows]))
+            grad = np.zeros(p.shape[:2])
+            grad[:, 1:] += (sideways + dz * np.nan_to_num(slope[:, 1:])) / seg
+            grad[:, :-1] -= (sideways + dz * np.nan_to_num(slope[:, :-1])) / seg
+            total = float(np.where(gap, gap_cost, seg).sum())
+            return total, (grad @ B_fit).ravel()
+
+        result = minimize(
+            cost,
+            np.zeros(len(rows) * (K - 2)),
+            jac=True,
+            method="L-BFGS-B",
+            bounds=[bound for r in rows for bound in bounds[r * (K - 2) : (r + 1) * (K - 2)]],
+            options={"maxiter": 1000, "ftol": 1e-12, "gtol": 1e-9},
+        )
+        return result.x.reshape(len(rows), K - 2), touched
+
+    w_all = np.zeros((E, K - 2))
+    pending = [np.arange(E)]
+    while pending:
+        rows = pending.pop()
+        w, touched = solve(rows)
+        if touched.any() and len(rows) > 1:
+            if (~touched).any():
+                pending.append(rows[~touched])
+            pending.extend(np.array([r]) for r in rows[touched])
+        else:
+            w_all[rows] = w
     t, B = basis(n)
-    p = path(result.x, t, B)
+    p = path(w_all.ravel(), t, B, np.arange(E))
     z = surface.heights(p)
     found = np.sum(np.sqrt(np.sum(np.diff(p, axis=1) ** 2, axis=2) + np.diff(z, axis=1) ** 2), 1)
     better = np.isfinite(found) & (found <= chord[use])
@@ -675,10 +708,14 @@ class Tortuosity:
     def at(self, angle_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean and SD at any angles (periodic in 180 degrees, linear in between)."""
         a = np.mod(np.asarray(angle_deg, float), 180.0)
-        grid = np.concatenate([self.angles_deg, [self.angles_deg[0] + 180.0]])
-        mean = np.interp(a, grid, np.concatenate([self.mean, self.mean[:1]]))
-        sd = np.interp(a, grid, np.concatenate([self.sd, self.sd[:1]]))
-        return mean, sd
+        grid = np.concatenate(
+            [[self.angles_deg[-1] - 180.0], self.angles_deg, [self.angles_deg[0] + 180.0]]
+        )
+
+        def periodic(v: np.ndarray) -> np.ndarray:
+            return np.concatenate([v[-1:], v, v[:1]])
+
+        return np.interp(a, grid, periodic(self.mean)), np.interp(a, grid, periodic(self.sd))
 
 
 def directional_tortuosity(
@@ -709,7 +746,7 @@ def directional_tortuosity(
     angles = np.arange(0.0, 180.0, 5.0) if angles_deg is None else np.asarray(angles_deg, float)
     if angles.ndim != 1 or angles.size == 0:
         raise InputError("give at least one direction")
-    angles = np.sort(np.mod(angles, 180.0))
+    angles = np.unique(np.mod(angles, 180.0))
     spacing = max(segment / 10.0, max(surface.pixel_um)) if spacing_um is None else spacing_um
     x0, y0, x1, y1 = surface.bounds()
     centre = np.array([(x0 + x1) / 2, (y0 + y1) / 2])

@@ -115,7 +115,7 @@ def write_fold_run(
         for E in (E_p, E_s, E_c):
             cells += [number_cell(float(E[k, i, j])) for _, i, j in COMPONENTS]
         cells += [number_cell(float(v)) for v in sd[k]]
-        cells.append(number_cell(float(result.surface["filled_share"][k])))
+        cells.append(number_cell(float(filled[k])))
         lines.append(",".join(cells))
     (folder / "fold_strain.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     rows = ["angle_deg,before_mean,before_sd,after_mean,after_sd,before_segments,after_segments"]
@@ -129,7 +129,7 @@ def write_fold_run(
     figure = _figure(folder / "figures" / "fold_strain.png", result, before, after, transform)
     paraview = _paraview(folder, result, before, after, transform, on_maps)
     means = {
-        "projected": _means(E_p, on_maps if on_maps.any() else seen),
+        "projected": _means(E_p, on_maps),
         "fold_aware": _means(E_s, on_maps),
         "corrected": _means(E_c, seen),
         "projected_all": _means(E_p, seen),

@@ -241,12 +241,6 @@ class FoldingWallCase:
         return np.linspace(0.0, 1.0, len(self.frames))
 
 
-def _similarity(scale: float, angle_deg: float, shift: tuple[float, float]):
-    a = math.radians(angle_deg)
-    R = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    return scale * R, np.asarray(shift, float)
-
-
 def make_folding_wall(
     case: str = "folding",
     *,
@@ -319,8 +313,7 @@ def make_folding_wall(
     # camera px -> plane um: (c - centre) * camera_um; plane -> mic: axes^T p + half
     scale = camera_um
     rot = -angle  # axes^T is a rotation by -angle
-    R, _ = _similarity(1.0, rot, (0.0, 0.0))
-    shift = half - scale * (R @ centre)
+    shift = half - scale * (axes.T @ centre)
     transform = {
         "scale_um_per_px": scale,
         "angle_deg": rot,

@@ -119,12 +119,11 @@ def test_the_surface_intensity_is_the_layer_just_below_the_surface():
     from mpm3d.heightmap import surface_intensity
 
     dz, ny, nx, nz = 1.0, 20, 30, 60
-    depth = 10.0 + 0.5 * np.arange(nx)[None, :] + np.zeros((ny, 1))  # on whole slices
+    depth = 10.3 + 0.45 * np.arange(nx)[None, :] + np.zeros((ny, 1))  # between slices
     brightness = 100.0 + 10.0 * np.arange(nx)[None, :] + np.zeros((ny, 1))
     z = np.arange(nz)[:, None, None] * dz
     layer = (z >= depth) & (z < depth + 6.0)
     volume = np.where(layer, brightness, np.where(z >= depth + 6.0, 20.0, 0.0))
-    depth = np.ceil(depth)  # the layer starts on the first slice at or below the surface
     got = surface_intensity(volume, depth, dz)
     np.testing.assert_allclose(got, brightness, rtol=1e-6)
 

@@ -52,6 +52,31 @@ def test_a_path_across_a_sine_has_the_elliptic_arc_length():
     assert across[0] == pytest.approx(190.0, rel=1e-12)
 
 
+def test_an_edge_beside_a_gap_leaves_the_others_their_shortest_paths():
+    """The edges are one optimisation: one whose shortest path would step into a gap must
+    not hold the others back to their chords (folds of slope 1.1, edges at every angle)."""
+    pixel, lam = 3.0, 110.0
+    x = np.arange(480) * pixel
+    z = np.tile(20.0 * np.sin(2 * np.pi * x / lam), (480, 1))
+    rng = np.random.default_rng(1)
+    starts = rng.uniform(300, 1100, (100, 2))
+    angle, length = rng.uniform(0, np.pi, 100), rng.uniform(60, 150, 100)
+    ends = starts + length[:, None] * np.column_stack([np.cos(angle), np.sin(angle)])
+    clean = surface_lengths(SurfaceMap(z, (pixel, pixel)), starts, ends)
+    # a strip 2.5-6.5 um beside one more edge's chord, at 45 degrees across the folds
+    yy, xx = np.mgrid[0:480, 0:480] * pixel
+    beside = np.abs(xx - yy) / np.sqrt(2)
+    gapped = z.copy()
+    gapped[(beside > 2.5) & (beside < 6.5) & (xx > 1150) & (xx < 1350)] = np.nan
+    with_gap = surface_lengths(
+        SurfaceMap(gapped, (pixel, pixel)),
+        np.vstack([starts, [[1200.0, 1200.0]]]),
+        np.vstack([ends, [[1300.0, 1300.0]]]),
+    )
+    assert np.isfinite(with_gap).all()
+    np.testing.assert_allclose(with_gap[:100], clean, rtol=1e-4)
+
+
 def test_paths_off_the_map_or_over_a_gap_have_no_length():
     heights = np.zeros((50, 50))
     heights[20:25, 20:25] = np.nan
@@ -105,19 +130,22 @@ def test_the_fold_aware_strain_recovers_the_true_stretch(name):
     n = case.wall.axes[:, 0]
     assert np.einsum("i,mij,j->m", n, projected, n).max() < true @ n @ n - 0.1
     assert np.isfinite(result["E"]).all()
-    assert np.abs(result["E"] - true).max() < 0.01
-    # along the surface every edge is longer than its projection
-    assert (result["L1"] >= result["P1"] - 1e-9).all()
+    # the issue asks for 0.01; every triangle is within 0.002 (chords would be 0.005-0.012 off)
+    assert np.abs(result["E"] - true).max() < 0.003
 
 
-def test_the_chord_over_oblique_folds_is_too_long_and_the_shortest_path_is_not():
-    _, transform, X, x, triangles, (before, after) = _case("folding")
+@pytest.mark.parametrize("name", list(FOLD_CASES))
+def test_the_chord_over_oblique_folds_is_too_long_and_the_shortest_path_is_not(name):
+    case, transform, X, x, triangles, (before, after) = _case(name)
+    true = case.wall.true_strain()
     chord = fold_aware_strain(X, x, triangles, before, after, transform, path="chord")
     geodesic = fold_aware_strain(X, x, triangles, before, after, transform)
-    # the diagonals cross the folds at 45 degrees: their chords climb more than the wall's
-    # material lines, which the shear takes up
-    assert np.abs(chord["E"][:, 0, 1]).min() > 0.005
-    assert np.abs(geodesic["E"][:, 0, 1]).max() < 0.002
+    # edges that cross the folds obliquely: their chords climb more than the wall's material
+    # lines, which the strain takes up
+    assert np.abs(chord["E"] - true).max() > 0.005
+    assert np.abs(geodesic["E"] - true).max() < 0.003
+    if name == "folding":  # the 45-degree diagonals, all one way: a shear
+        assert np.abs(chord["E"][:, 0, 1]).min() > 0.005
 
 
 @pytest.mark.parametrize("name", list(FOLD_CASES))
@@ -129,12 +157,13 @@ def test_the_statistics_only_correction_recovers_the_mean_strain(name):
     ta = directional_tortuosity(after, segment)
     result = tortuosity_correction(F, tb, ta, transform)
     true = case.wall.true_strain()
-    assert np.abs(result["E"].mean(axis=0) - true).max() < 0.02
+    # the issue asks for 0.02; the means are within 0.004
+    assert np.abs(result["E"].mean(axis=0) - true).max() < 0.006
     # each triangle is off by what the spread of the tortuosity over the field allows
     V = np.linalg.eigh(np.swapaxes(F, 1, 2) @ F)[1][:, :, ::-1]
     true_principal = np.einsum("mik,ij,mjk->mk", V, true, V)
     error = np.abs(result["E_principal"] - true_principal)
-    assert (error <= 3 * result["E_principal_sd"] + 0.005).all()
+    assert (error <= 3 * result["E_principal_sd"] + 0.001).all()
 
 
 def test_tortuosity_of_a_sine_along_and_across_its_folds():
@@ -146,6 +175,11 @@ def test_tortuosity_of_a_sine_along_and_across_its_folds():
     assert tort.mean[0] == pytest.approx(exact, rel=1e-3)
     assert tort.mean[1] == pytest.approx(1.0, abs=1e-12)
     assert tort.at(np.array([180.0, 270.0]))[0] == pytest.approx(tort.mean, rel=1e-12)
+    # periodic on both sides of the directions measured: 5 and 185 degrees lie between
+    # 100 and 10 + 180
+    shifted = directional_tortuosity(surface, 2 * lam, angles_deg=[10, 100])
+    below = shifted.at(np.array([5.0, 185.0]))[0]
+    assert below[0] == pytest.approx(below[1]) and below[0] > shifted.mean[1]
     with pytest.raises(InputError, match="do not fit"):
         directional_tortuosity(surface, 1000.0)
 
@@ -195,7 +229,7 @@ def test_the_synthetic_wall_maps_material_to_projection_and_back():
     # the projected length of a material segment along the folds is its length over the
     # tortuosity
     ends = folding.project(np.array([[-600.0, 0.0], [600.0, 0.0]]), 1.0)
-    assert (ends[1, 0] - ends[0, 0]) * folding.tortuosity(1.0) == pytest.approx(1200.0, rel=2e-3)
+    assert (ends[1, 0] - ends[0, 0]) * folding.tortuosity(1.0) == pytest.approx(1200.0, rel=1e-6)
 
 
 def test_tiles_at_their_stage_positions_measure_what_the_stitched_map_does(tmp_path):
