@@ -82,6 +82,11 @@ def read_surface_map(
         )
     if np.isinf(height).any():
         raise InputError(f"{path}: infinite heights (give NaN where nothing was measured)")
+    finite = height[np.isfinite(height)]
+    if finite.size and np.ptp(finite) > 1e6:
+        raise InputError(
+            f"{path}: heights span {np.ptp(finite):.3g} um, over a metre: are they in um?"
+        )
     return SurfaceMap(height, (dy, dx), source=str(path), measured=measured)
 
 

@@ -97,6 +97,7 @@ BAD = [
     (["--frame", "99"], "outside the run's frames"),
     (["--landmarks", "bad_landmarks.csv"], "needs a header with columns camera_x"),
     (["--before", "nopixel.tif"], "pixel size is unknown"),
+    (["--before", "huge.tif"], "over a metre"),
 ]
 
 
@@ -107,6 +108,10 @@ def test_bad_input_ends_with_one_line(wall, tmp_path, extra, message):
     _, files, folder = wall
     (tmp_path / "bad_landmarks.csv").write_text("x,y\n1,2\n")
     tifffile.imwrite(tmp_path / "nopixel.tif", np.zeros((20, 20), np.float32))
+    huge = np.zeros((20, 20), np.float32)
+    huge[3, 4] = 1e30
+    tifffile.imwrite(tmp_path / "huge.tif", huge, imagej=True, resolution=(1 / 3.0, 1 / 3.0),
+                     metadata={"unit": "um"})  # fmt: skip
     options = {"--before": str(files["before"]), "--after": str(files["after"]),
                "--transform": str(files["transform"])}  # fmt: skip
     given = dict(zip(extra[::2], extra[1::2], strict=True))
