@@ -168,55 +168,28 @@ def _registration_figure(path: Path, frame, image, size: float, found) -> None:
     fig.savefig(path, dpi=100)
 
 
-def _triangles(run_dir: Path) -> np.ndarray:
+def _triangles(run_dir: Path, n_points: int) -> np.ndarray:
+    """The run's mesh (the first frame's rows of its strain_elements.csv), checked against its
+    points."""
     from tissue_core.tables import read_number_columns
 
-    folder = run_dir / "strain" if (run_dir / "strain" / "summary.json").is_file() else run_dir
-    table = read_number_columns(
-        folder / "strain_elements.csv", ("frame", "p0", "p1", "p2"), what="elements"
-    )
+    file = run_dir / "strain_elements.csv"
+    table = read_number_columns(file, ("frame", "p0", "p1", "p2"), what="elements")
     first = table[table[:, 0] == table[:, 0].min(), 1:] if len(table) else table[:, 1:]
     if not len(first) or not np.all(first == np.round(first)):
-        raise InputError(f"{folder / 'strain_elements.csv'}: no triangles of whole point numbers")
-    return first.astype(np.intp)
-
-
-def _check_triangles(triangles: np.ndarray, n_points: int, run_dir: Path) -> None:
-    file = run_dir / "strain_elements.csv"
+        raise InputError(f"{file}: no triangles of whole point numbers")
+    triangles = first.astype(np.intp)
     if triangles.min() < 0 or triangles.max() >= n_points:
         raise InputError(f"{file}: a triangle names a point outside 0..{n_points - 1}")
     if (np.diff(np.sort(triangles, axis=1), axis=1) == 0).any():
         raise InputError(f"{file}: a triangle names one point twice")
+    return triangles
 
 
-def _map_files(text: str) -> list[Path]:
-    """A height map's files: an mpm3d folder's heightmap.tif, a TIFF, or a mosaic's CSV and
-    its tiles (those it names that exist)."""
-    import csv
-
-    path = Path(text)
-    if path.is_dir():
-        return [path / "heightmap.tif"]
-    if path.suffix.lower() != ".csv" or not path.is_file():
-        return [path]
-    tiles = []
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            for row in csv.DictReader(f):
-                name = next((v for k, v in row.items() if k and k.strip().lower() == "file"), "")
-                if name and name.strip():
-                    tile = path.parent / name.strip()
-                    tiles.append(tile / "heightmap.tif" if tile.is_dir() else tile)
-    except (OSError, UnicodeDecodeError, csv.Error):
-        pass  # read_surface_map says what is wrong with it
-    return [path, *tiles]
-
-
-def _inputs(args) -> list[Path]:
-    maps = [f for p in (args.before, args.after) for f in _map_files(p)]
-    files = [Path(args.run) / "summary.json", Path(args.run) / "strain_elements.csv", *maps]
-    files += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
-    return files
+def _map_files(surface) -> list[Path]:
+    """The files a height map was read from: its own, or a mosaic's CSV and its tiles'."""
+    tiles = getattr(surface, "tiles", [])
+    return [Path(p.source) for p in [surface, *tiles] if p.source]
 
 
 def _cmd_strain(args) -> int:
@@ -227,7 +200,6 @@ def _cmd_strain(args) -> int:
     from tissue_core.outputs import atomic_dir, check_writable
     from tissue_core.progress import Progress
 
-    check_writable(args.out, overwrite=args.overwrite, inputs=_inputs(args))
     say = Progress(quiet=args.quiet)
     run = load_run(args.run)
     if run.positions.shape[-1] != 2:
@@ -238,8 +210,7 @@ def _cmd_strain(args) -> int:
     frame = run.endpoint if args.frame is None else args.frame
     if not 0 < frame < run.n_frames:
         raise InputError(f"--frame {frame} is outside the run's frames 1..{run.n_frames - 1}")
-    triangles = _triangles(Path(args.run))
-    _check_triangles(triangles, run.n_points, Path(args.run))
+    triangles = _triangles(Path(args.run), run.n_points)
     before = _named_map("--before", args.before, args.pixel_um)
     after = _named_map("--after", args.after, args.pixel_um)
     residual = None
@@ -252,22 +223,22 @@ def _cmd_strain(args) -> int:
             transform = Similarity(
                 transform.scale, transform.angle_deg, transform.shift_um, mirrored=True
             )
-    _check_scale(transform, before, after)
-    try:
-        result = fold_strain_run(run, triangles, frame, before, after, transform, path=args.path)
-    except InputError as exc:
-        raise InputError(f"the height maps ({args.before}, {args.after}): {exc}") from None
+    inputs = [Path(args.run) / "summary.json", Path(args.run) / "strain_elements.csv"]
+    inputs += [*_map_files(before), *_map_files(after)]
+    inputs += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
+    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
+    result = fold_strain_run(run, triangles, frame, before, after, transform, path=args.path)
     fit = "" if residual is None else f", landmarks {np.sqrt(np.mean(residual**2)):.3g} um RMS"
     say(
         f"{args.run}: {run.n_points} nodes, {len(triangles)} triangles; frame {frame} against "
         f"frame 0; camera to microscope: {transform.scale:.4g} um/px, "
         f"{transform.angle_deg:.3g} deg{fit}"
     )
-    with atomic_dir(args.out, overwrite=args.overwrite, inputs=_inputs(args)) as tmp:
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
         summary = write_fold_run(
             tmp, result, run=run, frame=frame, before=before, after=after,
             transform=transform, residual=residual, path=args.path,
-            inputs=[p for p in _inputs(args) if p.is_file()],
+            inputs=[p for p in inputs if p.is_file()],
         )  # fmt: skip
     means = summary["mean_strain"]
 
@@ -295,19 +266,6 @@ def _named_map(option: str, text: str, pixel_um: float | None):
     except InputError as exc:
         message = str(exc)
         raise InputError(message if text in message else f"{option} {text}: {message}") from None
-
-
-def _check_scale(transform, before, after) -> None:
-    """A transform whose scale would put the mesh's edges inside a pixel of the maps, or
-    make the paths longer than memory holds, is a unit mistake (mm for um), not data."""
-    pixel = min(*before.pixel_um, *after.pixel_um)
-    if not 1e-6 <= pixel <= 1e6:
-        raise InputError(f"a height map's pixel size of {pixel:g} um is not a microscope's")
-    if not 1e-6 <= transform.scale <= 1e6:
-        raise InputError(
-            f"the transform's scale of {transform.scale:g} um per camera pixel is not plausible "
-            "(are the landmarks' microscope coordinates in um?)"
-        )
 
 
 def main(argv: list[str] | None = None) -> int:

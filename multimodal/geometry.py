@@ -66,6 +66,10 @@ EDGES = ((0, 1), (0, 2), (1, 2))
 #: far below a pixel)
 SAMPLES_PER_PIXEL = 4
 
+#: micrometres: the pixel sizes and camera scales taken as real (a picometre to a metre);
+#: beyond them, a unit was mistaken
+_PLAUSIBLE = (1e-6, 1e6)
+
 #: map pixels between the knots of a shortest path's offsets across its chord
 KNOT_PIXELS = 2.0
 
@@ -110,8 +114,11 @@ class SurfaceMap:
         if not np.isfinite(z).any():
             raise InputError("the height map has no measured (finite) height")
         dy, dx = (float(v) for v in self.pixel_um)
-        if not (math.isfinite(dx) and math.isfinite(dy) and dx > 0 and dy > 0):
-            raise InputError(f"the height map's pixel size must be positive, got {self.pixel_um}")
+        if not (_PLAUSIBLE[0] <= dx <= _PLAUSIBLE[1] and _PLAUSIBLE[0] <= dy <= _PLAUSIBLE[1]):
+            raise InputError(
+                f"the height map's pixel size {self.pixel_um} um is not a microscope's "
+                f"({_PLAUSIBLE[0]:g} to {_PLAUSIBLE[1]:g} um)"
+            )
         x0, y0 = (float(v) for v in self.origin_um)
         if not (math.isfinite(x0) and math.isfinite(y0)):
             raise InputError(f"the height map's origin must be finite, got {self.origin_um}")
@@ -268,6 +275,11 @@ class Similarity:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.scale) and self.scale > 0):
             raise InputError(f"the transform's scale must be positive, got {self.scale}")
+        if not _PLAUSIBLE[0] <= self.scale <= _PLAUSIBLE[1]:
+            raise InputError(
+                f"the transform's scale of {self.scale:g} um per camera pixel is not plausible "
+                "(are the microscope's coordinates in um?)"
+            )
         if not math.isfinite(self.angle_deg) or not all(map(math.isfinite, self.shift_um)):
             raise InputError("the transform's angle and shift must be finite")
 
@@ -630,7 +642,8 @@ def fold_aware_strain(
     dict
         ``E`` (M, 2, 2): membrane strain on the surface (the reference
         surface's frame, first axis over projected x); ``E_projected`` (M, 2,
-        2): the camera's 2D strain of the same triangles; ``L0``, ``L1`` (M,
+        2): the camera's 2D strain of the same triangles, and ``F`` (M, 2,
+        2) its deformation gradient; ``L0``, ``L1`` (M,
         3): the edges' surface lengths before and after (um); ``P0``, ``P1``
         (M, 3): their projected lengths (um); ``G0``, ``G1`` (M, 2, 2): the
         surface metrics in reference projected pixels.  A triangle with an
@@ -653,7 +666,8 @@ def fold_aware_strain(
     G0 = surface_metric(D, L0 / transform.scale)
     G1 = surface_metric(D, L1 / transform.scale)
     E = _strain_from_metrics(G0, G1)
-    E_proj = green_lagrange(deformation_gradient(X, x, tri))
+    F = deformation_gradient(X, x, tri)
+    E_proj = green_lagrange(F)
     filled = (
         np.maximum(_filled_share(before, X_um[i], X_um[j]), _filled_share(after, x_um[i], x_um[j]))
         .reshape(M, 3)
@@ -662,6 +676,7 @@ def fold_aware_strain(
     return {
         "E": E,
         "E_projected": E_proj,
+        "F": F,
         "L0": L0,
         "L1": L1,
         "P0": np.hypot(*(X_um[j] - X_um[i]).T).reshape(M, 3),

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from multimodal.geometry import Similarity
+from multimodal.geometry import _PLAUSIBLE, Similarity
 from tissue_core.errors import InputError
 
 __all__ = ["Registration", "register_images"]
@@ -112,7 +112,7 @@ def register_images(
     import cv2
 
     size = float(np.mean(np.broadcast_to(np.asarray(pixel_um, float), 2)))
-    if not (np.isfinite(size) and 1e-6 <= size <= 1e6):
+    if not (np.isfinite(size) and _PLAUSIBLE[0] <= size <= _PLAUSIBLE[1]):
         raise InputError(f"the microscope's pixel size must be positive, got {pixel_um}")
     cam = _gray8(camera)
     if mirrored:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from multimodal.geometry import (
+    EDGES,
     Similarity,
     SurfaceMap,
     Tortuosity,
@@ -50,23 +51,25 @@ def fold_strain_run(
 ) -> FoldStrain:
     """The run's frame ``frame`` against frame 0, along the surface and corrected by the
     surfaces' tortuosity (the segments as long as the mesh's median edge)."""
-    from surface_strain import deformation_gradient
-
     X = np.asarray(run.positions[0], float)
     x = np.where(run.visible[frame][:, None], run.positions[frame], np.nan)
-    surface = fold_aware_strain(X, x, triangles, before, after, transform, path=path)
-    segment = float(np.nanmedian(surface["P0"]))
+    edges = np.concatenate([X[triangles[:, j]] - X[triangles[:, i]] for i, j in EDGES])
+    segment = transform.scale * float(np.median(np.hypot(*edges.T)))
     pixel = max(*before.pixel_um, *after.pixel_um)
     if not segment >= pixel:
         raise InputError(
             f"the mesh's edges measure {segment:.3g} um on the height maps, under one of their "
             f"pixels ({pixel:.3g} um): are the transform's units um per camera pixel?"
         )
-    tort_before = directional_tortuosity(before, segment)
-    tort_after = directional_tortuosity(after, segment)
-    F = deformation_gradient(X, x, triangles)
-    corrected = tortuosity_correction(F, tort_before, tort_after, transform)
-    return FoldStrain(triangles, X, x, surface, corrected, tort_before, tort_after)
+    surface = fold_aware_strain(X, x, triangles, before, after, transform, path=path)
+    tortuosity = []
+    for surface_map in (before, after):
+        try:
+            tortuosity.append(directional_tortuosity(surface_map, segment))
+        except InputError as exc:
+            raise InputError(f"{surface_map.source or 'a height map'}: {exc}") from None
+    corrected = tortuosity_correction(surface["F"], *tortuosity, transform)
+    return FoldStrain(triangles, X, x, surface, corrected, *tortuosity)
 
 
 def _means(E: np.ndarray, use: np.ndarray) -> dict:
