@@ -370,7 +370,7 @@ def surface_lengths(
         (the chord's points moved across it until the length is least).  A
         material line of a wall that folds and stretches evenly is such a
         shortest path; the chord is longer wherever it crosses folds
-        obliquely (0.3-0.9 % at 30-60 degrees to folds of slope 1.2-2).
+        obliquely (0.2-0.9 % at 30-60 degrees to folds of slope 1.2-2).
     samples_per_pixel : int
         Samples per pixel of the map along each path.
 

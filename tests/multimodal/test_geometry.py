@@ -52,6 +52,27 @@ def test_a_path_across_a_sine_has_the_elliptic_arc_length():
     assert across[0] == pytest.approx(190.0, rel=1e-12)
 
 
+@pytest.mark.parametrize("slope", [0.8, 1.2, 1.6, 2.0])
+def test_a_chord_across_oblique_folds_is_longer_than_the_shortest_path(slope):
+    """The documented excess of the chord: 0.2-0.9 % at 30-60 degrees to folds of slope
+    1.2-2 (less on gentler folds), none along or across the folds."""
+    lam = 60.0
+    surface = wave_map(slope * lam / (2 * np.pi), lam, 0.5, 1400)
+    start = np.array([350.0, 350.0])
+    for angle in (0, 30, 45, 60, 90):
+        a = np.radians(angle)
+        end = start + 240.0 * np.array([np.cos(a), np.sin(a)])
+        chord = surface_lengths(surface, start[None], end[None], path="chord")[0]
+        shortest = surface_lengths(surface, start[None], end[None])[0]
+        excess = chord / shortest - 1
+        if angle in (0, 90):
+            assert abs(excess) < 1e-4, (slope, angle, excess)
+        elif slope >= 1.2:
+            assert 0.0015 < excess < 0.0095, (slope, angle, excess)
+        else:
+            assert 0.0003 < excess < 0.0015, (slope, angle, excess)
+
+
 def test_an_edge_beside_a_gap_leaves_the_others_their_shortest_paths():
     """The edges are one optimisation: one whose shortest path would step into a gap must
     not hold the others back to their chords (folds of slope 1.1, edges at every angle)."""
@@ -142,8 +163,8 @@ def test_the_chord_over_oblique_folds_is_too_long_and_the_shortest_path_is_not(n
     geodesic = fold_aware_strain(X, x, triangles, before, after, transform)
     # edges that cross the folds obliquely: their chords climb more than the wall's material
     # lines, which the strain takes up
-    assert np.abs(chord["E"] - true).max() > 0.005
-    assert np.abs(geodesic["E"] - true).max() < 0.003
+    assert np.abs(chord["E"] - true).max() > 0.004  # 0.0055-0.012 here
+    assert np.abs(geodesic["E"] - true).max() < 0.003  # 0.0008-0.0019 here
     if name == "folding":  # the 45-degree diagonals, all one way: a shear
         assert np.abs(chord["E"][:, 0, 1]).min() > 0.005
 
