@@ -141,10 +141,6 @@ class FoldingWall:
         k = 2 * math.pi / self.wavelength_um
         return self._amplitude(t) * np.sin(k * S + self.phase)
 
-    def reference_coordinates(self, material_um: np.ndarray) -> np.ndarray:
-        """The reference wall's projection of material points (where frame 0 shows them)."""
-        return self.project(material_um, 0.0)
-
     def true_strain(self) -> np.ndarray:
         """(2, 2): the membrane strain at ``t = 1`` in the x-y frame of the reference wall
         (exact; the reference's surface frame over x when the reference is folded and the
@@ -236,9 +232,6 @@ class FoldingWallCase:
         """Where the material under ``reference_px`` on frame 0 is at ``t`` (camera px)."""
         material = self.wall.material(self.camera_to_plane(reference_px), 0.0)
         return self.plane_to_camera(self.wall.project(material, t))
-
-    def frame_times(self) -> np.ndarray:
-        return np.linspace(0.0, 1.0, len(self.frames))
 
 
 def make_folding_wall(
