@@ -227,12 +227,18 @@ def _cmd_strain(args) -> int:
     inputs += [*_map_files(before), *_map_files(after)]
     inputs += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
-    result = fold_strain_run(run, triangles, frame, before, after, transform, path=args.path)
     fit = "" if residual is None else f", landmarks {np.sqrt(np.mean(residual**2)):.3g} um RMS"
-    say(
-        f"{args.run}: {run.n_points} nodes, {len(triangles)} triangles; frame {frame} against "
-        f"frame 0; camera to microscope: {transform.scale:.4g} um/px, "
-        f"{transform.angle_deg:.3g} deg{fit}"
+
+    def started(message: str) -> None:  # the inputs hold: what the run is, then the long step
+        say(
+            f"{args.run}: {run.n_points} nodes, {len(triangles)} triangles; frame {frame} "
+            f"against frame 0; camera to microscope: {transform.scale:.4g} um/px, "
+            f"{transform.angle_deg:.3g} deg{fit}"
+        )
+        say(message)
+
+    result = fold_strain_run(
+        run, triangles, frame, before, after, transform, path=args.path, progress=started
     )
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
         summary = write_fold_run(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -48,9 +49,13 @@ def fold_strain_run(
     transform: Similarity,
     *,
     path: str = "geodesic",
+    progress: Callable[[str], None] | None = None,
 ) -> FoldStrain:
     """The run's frame ``frame`` against frame 0, along the surface and corrected by the
-    surfaces' tortuosity (the segments as long as the mesh's median edge)."""
+    surfaces' tortuosity (the segments as long as the mesh's median edge).
+
+    Every error the inputs can cause is raised before the edges are measured
+    (the long step), which ``progress`` is told of first."""
     X = np.asarray(run.positions[0], float)
     x = np.where(run.visible[frame][:, None], run.positions[frame], np.nan)
     edges = np.concatenate([X[triangles[:, j]] - X[triangles[:, i]] for i, j in EDGES])
@@ -61,13 +66,15 @@ def fold_strain_run(
             f"the mesh's edges measure {segment:.3g} um on the height maps, under one of their "
             f"pixels ({pixel:.3g} um): are the transform's units um per camera pixel?"
         )
-    surface = fold_aware_strain(X, x, triangles, before, after, transform, path=path)
     tortuosity = []
     for surface_map in (before, after):
         try:
             tortuosity.append(directional_tortuosity(surface_map, segment))
         except InputError as exc:
             raise InputError(f"{surface_map.source or 'a height map'}: {exc}") from None
+    if progress is not None:
+        progress(f"measuring {3 * len(triangles)} edges along the surfaces ({path} paths)")
+    surface = fold_aware_strain(X, x, triangles, before, after, transform, path=path)
     corrected = tortuosity_correction(surface["F"], *tortuosity, transform)
     return FoldStrain(triangles, X, x, surface, corrected, *tortuosity)
 
