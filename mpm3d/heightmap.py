@@ -561,8 +561,9 @@ def surface_intensity(
 
     Parameters
     ----------
-    volume : (Z, Y, X) array, or anything with ``shape`` and ``rows(y0, y1)`` giving
-        ``volume[:, y0:y1, :]`` (a stack read a band of rows at a time)
+    volume : (Z, Y, X) array, or anything with ``shape`` and ``rows(y0, y1, z0, z1)``
+        giving ``volume[z0:z1, y0:y1, :]`` (a stack read a band of rows at a time: only
+        the slices the band's surface lies in are read)
     depth_um : (Y, X) float
         The surface's depth below slice 0.
     dz : float
@@ -583,10 +584,15 @@ def surface_intensity(
     step = ny if rows is None else max(1, int(rows))
     for y0 in range(0, ny, step):
         y1 = min(ny, y0 + step)
-        band = volume.rows(y0, y1) if hasattr(volume, "rows") else volume[:, y0:y1, :]
+        z0 = int(first[y0:y1].min())
+        z1 = min(nz, int(first[y0:y1].max()) + count)
+        if hasattr(volume, "rows"):
+            band = volume.rows(y0, y1, z0, z1)
+        else:
+            band = volume[z0:z1, y0:y1, :]
         total = np.zeros((y1 - y0, nx), np.float64)
         for k in range(count):
-            index = np.minimum(first[y0:y1] + k, nz - 1)[None]
+            index = (np.minimum(first[y0:y1] + k, nz - 1) - z0)[None]
             total += np.take_along_axis(band, index, axis=0)[0]
         out[y0:y1] = total / count
     out[~np.isfinite(depth)] = np.nan

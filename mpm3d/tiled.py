@@ -285,11 +285,12 @@ class StackBands:
         combine_channels(block, self.lo, self.hi, out)
         return out
 
-    def rows(self, y0: int, y1: int) -> np.ndarray:
-        """``volume[:, y0:y1, :]``: (Z, y1 - y0, X), read now."""
+    def rows(self, y0: int, y1: int, z0: int = 0, z1: int | None = None) -> np.ndarray:
+        """``volume[z0:z1, y0:y1, :]``: (z1 - z0, y1 - y0, X), read now (every slice by
+        default)."""
         if self.channel is None:
-            return self._combine(self.data[:, :, y0:y1, :])
-        return self.data[:, self.channel, y0:y1, :]
+            return self._combine(self.data[z0:z1, :, y0:y1, :])
+        return self.data[z0:z1, self.channel, y0:y1, :]
 
     def sample(self, step: int) -> np.ndarray:
         """``volume[::step, ::step, ::step]``, read now."""

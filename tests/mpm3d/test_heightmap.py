@@ -132,8 +132,8 @@ def test_the_surface_intensity_is_the_layer_just_below_the_surface():
         shape = volume.shape
 
         @staticmethod
-        def rows(y0, y1):
-            return volume[:, y0:y1, :]
+        def rows(y0, y1, z0=0, z1=None):
+            return volume[z0:z1, y0:y1, :]
 
     depth[3, 4] = np.nan
     banded = surface_intensity(Bands(), depth, dz, rows=7)
