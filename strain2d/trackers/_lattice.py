@@ -356,9 +356,25 @@ class Lattice:
         return (D.T @ D).tocsr()
 
 
+def dilated(mask: np.ndarray, steps: int) -> np.ndarray:
+    """``mask`` grown by ``steps`` pixels in the city-block sense: what
+    ``scipy.ndimage.binary_dilation(mask, iterations=steps)`` gives (its cross, repeated:
+    a diamond), in one pass of OpenCV's dilation (a tenth of the time on a full frame)."""
+    if steps <= 0 or not mask.any():
+        return mask.copy()
+    import cv2
+
+    r = np.arange(-steps, steps + 1)
+    diamond = (np.abs(r)[:, None] + np.abs(r)[None, :] <= steps).astype(np.uint8)
+    grown = cv2.dilate(
+        mask.astype(np.uint8), diamond, borderType=cv2.BORDER_CONSTANT, borderValue=0
+    )
+    return grown.astype(bool)
+
+
 def _grown(mask: np.ndarray, blur: float) -> np.ndarray:
     """A mask grown by the reach of a Gaussian blur (two standard deviations)."""
-    return ndimage.binary_dilation(mask, iterations=int(np.ceil(2 * blur))) if blur else mask
+    return dilated(mask, int(np.ceil(2 * blur))) if blur else mask
 
 
 def _shape_functions(h: int, stride: int) -> np.ndarray:

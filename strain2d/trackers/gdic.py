@@ -76,6 +76,7 @@ from strain2d.trackers._lattice import (
     LatticeSolver,
     blob_window,
     bright_blobs,
+    dilated,
     noise_sigma,
     static_highlights,
 )
@@ -1451,7 +1452,7 @@ class _Run:
         light. From their own match where they had one, from the motion guess otherwise;
         their neighbours' test follows (a filled subset that drifted is not kept)."""
         idx = np.flatnonzero(rows)
-        mask = ndimage.binary_dilation(self.static | self.frame_highlights, iterations=2)
+        mask = dilated(self.static | self.frame_highlights, 2)
         start = np.where(ok[idx, None], p[idx], guess[idx])
         result = self._match(
             _coefficients(_filled(frame, mask)), idx, start, sizes, 1,

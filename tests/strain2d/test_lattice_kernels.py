@@ -83,3 +83,17 @@ def test_the_gradient_is_the_einsum_one():
     g0 = np.einsum("mi,cm,cmk->cik", N, r * w[:, None], q)
     expected = np.einsum("ckK,ciK->cik", T, g0) * 4.0
     np.testing.assert_allclose(lattice_gradient(N, r, w, q, T, 4.0), expected, atol=1e-10)
+
+
+@pytest.mark.parametrize("steps", [1, 2, 3, 7])
+def test_dilated_is_scipys_repeated_cross(steps):
+    """One pass of OpenCV's dilation with a diamond is SciPy's cross dilation repeated
+    ``steps`` times, pixel for pixel (the frame's edge included)."""
+    from strain2d.trackers._lattice import dilated
+
+    rng = np.random.default_rng(steps)
+    for density in (0.001, 0.02, 0.3):
+        mask = rng.random((61, 83)) < density
+        mask[0, 5] = mask[-1, -1] = True  # on the border
+        assert np.array_equal(dilated(mask, steps), ndimage.binary_dilation(mask, iterations=steps))
+    assert not dilated(np.zeros((9, 9), bool), steps).any()
