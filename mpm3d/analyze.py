@@ -29,6 +29,7 @@ share one colour scale.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import os
 import warnings
@@ -130,7 +131,9 @@ def analyze_stack(
     Parameters
     ----------
     source : path or Stack
-        A TIFF z-stack (see :func:`mpm3d.io.read_stack`) or a stack already read.
+        A TIFF z-stack (see :func:`mpm3d.io.read_stack`), a mosaic's tile list
+        (a CSV ``file,x_um,y_um``, see :mod:`mpm3d.mosaic`) or a stack already
+        read.
     channel : int or str, optional
         Channel index or name; by default every channel, each scaled to its
         own range, combined by their maximum.
@@ -210,9 +213,9 @@ def _analyze(
 ) -> Analysis:
     say = progress or (lambda message: None)
     if isinstance(source, Stack):
-        stack, plan = source, None
+        stack, plan, mosaic = source, None, None
     else:
-        stack, plan = _open(
+        stack, plan, mosaic = _open(
             source,
             spacing=spacing,
             channel=channel,
@@ -291,6 +294,8 @@ def _analyze(
         "band_um": band_um,
         "decimate": decimate,
         "memory": plan.record() if plan is not None else {"path": "in-memory", "given": "Stack"},
+        # a mosaic's tiles and where each lies (None for one stack)
+        "mosaic": mosaic,
     }
     height = hm.height_um
     height_range = [float(height.min()), float(height.max())]
@@ -303,7 +308,9 @@ def _analyze(
         # names as text (figure titles, tables): bytes that are not UTF-8 as \xNN
         "input": readable(os.path.basename(stack.path)),
         "input_path": readable(stack.path),
-        "inputs": input_records([stack.path]),
+        "inputs": input_records(
+            [stack.path, *(p["file"] for p in mosaic["placements"])] if mosaic else [stack.path]
+        ),
         **{k: metrics[k] for k in metrics},
         "spacing_um": {"z": stack.spacing[0], "y": stack.spacing[1], "x": stack.spacing[2]},
         "spacing_source": stack.spacing_source,
@@ -358,13 +365,15 @@ def _analyze(
 
 
 def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, tile_rows):
-    """The stack, read in memory or opened for reading in bands, and the plan that chose.
+    """The stack, read in memory or opened for reading in bands, the plan that chose, and
+    for a mosaic's tile list (:mod:`mpm3d.mosaic`) where its tiles lie (else None).
 
     The file's metadata are read first (:func:`mpm3d.lazyio.open_stack_lazily`);
     the stack is read whole only when :func:`mpm3d.tiled.plan_memory` says
     it fits.
     """
     from mpm3d.lazyio import open_stack_lazily
+    from mpm3d.mosaic import is_tile_list, mosaic_record, open_mosaic
     from mpm3d.tiled import default_memory_limit, parse_memory, plan_memory
 
     if memory_limit is None:
@@ -379,7 +388,8 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
         raise InputError(f"tile_rows must be a whole number, got {tile_rows!r}")
     with warnings.catch_warnings(record=True) as held:  # raised by the reading that follows
         warnings.simplefilter("always")
-        stack = open_stack_lazily(source, spacing=spacing)
+        mosaic = is_tile_list(source)
+        stack = (open_mosaic if mosaic else open_stack_lazily)(source, spacing=spacing)
     try:
         nc = stack.shape[1]
         dz, dy, dx = stack.spacing
@@ -394,6 +404,7 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
             bin=iso_bin if iso_bin is not None else int(min(4, max(1, round(dz / max(dx, dy))))),
             lazy=lazy,
             tile_rows=tile_rows,
+            copies=2 if mosaic else 1,
         )
         if memory_limit is not None and plan.path == "in-memory":
             # a limit above the memory there is reads the stack whole: into swap, or a failure
@@ -408,13 +419,17 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
     except BaseException:
         stack.data.close()
         raise
-    if plan.path == "in-memory":
+    record = mosaic_record(stack.data) if mosaic else None
+    if plan.path == "in-memory" and not mosaic:
         stack.data.close()
-        return read_stack(source, spacing=spacing), plan
-    for record in held:
-        warnings.warn_explicit(record.message, record.category, record.filename, record.lineno)
+        return read_stack(source, spacing=spacing), plan, None  # its warnings again
+    for said in held:
+        warnings.warn_explicit(said.message, said.category, said.filename, said.lineno)
+    if plan.path == "in-memory":  # a mosaic stitched in memory, from the tiles read whole
+        with stack.data as data:
+            return dataclasses.replace(stack, data=data[:]), plan, record
     log.info("%s: analysed in bands (%s)", stack.path, plan)
-    return stack, plan
+    return stack, plan, record
 
 
 def _lazy_channel(stack: Stack, channel) -> tuple[int | None, str]:

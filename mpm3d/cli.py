@@ -1,4 +1,4 @@
-"""Command line: ``python -m mpm3d {analyze,compare}``.
+"""Command line: ``python -m mpm3d {analyze,stitch,compare,batch}``.
 
 ``analyze STACK.tif --out DIR`` measures one stack (see
 :mod:`mpm3d.analyze` for the files it writes; ``--memory-limit 1.5GiB``
@@ -121,9 +121,30 @@ def _build_parser() -> CommandLine:
     p = cli.command(
         "analyze", _cmd_analyze, help="measure the lumen surface and folds of one stack"
     )
-    p.add_argument("stack", help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF")
+    p.add_argument(
+        "stack",
+        help="z-stack: ImageJ hyperstack, OME-TIFF or multi-page TIFF; or a mosaic's tile "
+        "list, a CSV file,x_um,y_um (each tile's stack and the stage position of its pixel "
+        "(0, 0)), read as one stack a band at a time",
+    )
     _common(p)
     _memory_args(p)
+    p = cli.command(
+        "stitch",
+        _cmd_stitch,
+        help="write a mosaic's tiles as one stack",
+        description="Write the z-stack tiles listed in TILES (a CSV file,x_um,y_um: each "
+        "tile's stack, relative to the CSV, and the stage position in um of its pixel (0, 0)) "
+        "as one ImageJ TIFF stack, a plane at a time. Positions are rounded to the nearest "
+        "pixel; where tiles overlap, each pixel comes from the tile whose centre is nearest. "
+        "`mpm3d analyze TILES` reads the same stack without writing it.",
+    )
+    p.add_argument("tiles", help="the tile list (CSV file,x_um,y_um)")
+    p.add_argument("--out", required=True, help="the stitched stack (.tif)")
+    p.add_argument(
+        "--spacing", type=_spacing, help="voxel spacing Z,Y,X in um (overrides the tiles')"
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
     p = cli.command("compare", _cmd_compare, help="compare two stacks (before / after)")
     p.add_argument("before", help="the first stack (e.g. before contraction)")
     p.add_argument("after", help="the second stack")
@@ -274,7 +295,8 @@ def _cmd_analyze(args) -> int:
     from tissue_core.outputs import atomic_dir
 
     say = _progress(args)
-    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[args.stack]) as tmp:
+    inputs = _input_files(args.stack)
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
         analysis = analyze_stack(
             args.stack, progress=say, **_options(args), **_memory_options(args)
         )
@@ -282,6 +304,37 @@ def _cmd_analyze(args) -> int:
         write_analysis(analysis, tmp, figures=not args.no_figures)
     say(f"{args.stack}: {_summary(analysis.metrics)}")
     say(f"results in {args.out}")
+    return 0
+
+
+def _input_files(path: str) -> list[str]:
+    """The stack, or a mosaic's tile list and its tiles: what an output must not replace."""
+    from mpm3d.mosaic import is_tile_list
+
+    if not is_tile_list(path):
+        return [path]
+    from tissue_core.tables import read_tile_list
+
+    return [path, *(str(tile.path) for tile in read_tile_list(path))]
+
+
+def _cmd_stitch(args) -> int:
+    from mpm3d.mosaic import write_stitched
+
+    say = _progress(args)
+    if not str(args.out).lower().endswith((".tif", ".tiff")):
+        raise InputError(f"--out {args.out}: the stitched stack is a TIFF (.tif)")
+    with say.task("stitching", unit="plane") as progress:
+        record = write_stitched(
+            args.tiles, args.out, spacing=args.spacing, overwrite=args.overwrite,
+            progress=progress,
+        )  # fmt: skip
+    ny, nx = record["shape_yx"]
+    say(
+        f"{record['tiles']} tiles, {nx} x {ny} px, {100 * record['covered_fraction']:.1f} % "
+        f"covered (stage positions rounded by up to {record['max_position_rounding_px']:.2f} px)"
+    )
+    say(f"stitched stack in {args.out}")
     return 0
 
 

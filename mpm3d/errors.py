@@ -13,6 +13,7 @@ from tissue_core.errors import InputError, SourceError
 __all__ = [
     "InputError",
     "MissingSpacingWarning",
+    "MosaicGapWarning",
     "NoDataWarning",
     "SourceError",
     "SurfaceOutsideWarning",
@@ -26,6 +27,10 @@ class MissingSpacingWarning(UserWarning):
 
 class SurfaceOutsideWarning(UserWarning):
     """Part of the surface lies above the first slice: the stack does not contain it."""
+
+
+class MosaicGapWarning(UserWarning):
+    """Part of a mosaic's extent lies in no tile."""
 
 
 class NoDataWarning(UserWarning):

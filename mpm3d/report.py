@@ -74,11 +74,22 @@ def _parameters(metrics: dict) -> dict:
     params = metrics.get("parameters", {})
     quality = metrics.get("quality", {})
     smooth = params.get("smooth_um")
+    mosaic = params.get("mosaic")
+    tiles = (
+        {
+            "mosaic": f"{mosaic['tiles']} tiles, {100 * mosaic['covered_fraction']:.1f} % of "
+            f"the extent covered, stage positions rounded by up to "
+            f"{mosaic['max_position_rounding_px']:.2f} px; overlaps from the nearest tile centre"
+        }
+        if mosaic
+        else {}
+    )
     return {
         "voxel spacing z, y, x (µm)": f"{_number(spacing.get('z'))}, "
         f"{_number(spacing.get('y'))}, {_number(spacing.get('x'))}"
         f" (from {metrics.get('spacing_source', '?')})",
         "stack shape (Z, C, Y, X)": " x ".join(str(n) for n in metrics.get("shape_zcyx", [])),
+        **tiles,
         "channel": metrics.get("channel"),
         "surface threshold (grey value)": f"{_number(metrics.get('threshold'), 6)}, "
         f"{quality.get('threshold_method', '?')}",

@@ -164,6 +164,7 @@ def plan_memory(
     bin: int,
     lazy: bool = False,
     tile_rows: int | None = None,
+    copies: int = 1,
 ) -> MemoryPlan:
     """In memory or in bands, and how many rows a band, within ``limit`` bytes.
 
@@ -191,6 +192,9 @@ def plan_memory(
         Take the tiled path even when the stack fits.
     tile_rows : int, optional
         Rows per band; by default as many as the limit allows.
+    copies : int
+        Copies of what is read that are alive at once while it is read: 2 for
+        a mosaic (:mod:`mpm3d.mosaic`: the band, and one tile's part of it).
 
     Raises
     ------
@@ -207,9 +211,9 @@ def plan_memory(
     grid = nz * by * bx if surface else 0
     # the stack as read, the combined channels, the isosurface's float32 grid
     # and VTK's one byte per grid point of flying-edges bookkeeping
-    in_memory = fixed + voxels * nc * itemsize + (2 * voxels if combined else 0) + 5 * grid
+    in_memory = fixed + copies * voxels * nc * itemsize + (2 * voxels if combined else 0) + 5 * grid
     # one band of rows, every slice: as read, combined, and its grid
-    per_row = nz * nx * (channels_read * itemsize + (2 if combined else 0))
+    per_row = nz * nx * (copies * channels_read * itemsize + (2 if combined else 0))
     per_grid_row = 5 * nz * bx
     height_rows = lambda rows: per_row * (rows + 2)  # noqa: E731 - one halo row each side
     surface_rows = lambda rows: per_row * bin * (rows + 1) + per_grid_row * (rows + 1)  # noqa: E731

@@ -120,36 +120,19 @@ def read_microscope_image(
 
 
 def _mosaic(path: Path, pixel_um: float | None) -> SurfaceMosaic:
-    import csv
+    from tissue_core.tables import read_tile_list
 
-    if not path.is_file():
-        raise InputError(f"mosaic {path} does not exist")
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as f:
-            rows = list(csv.DictReader(f))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"{path}: cannot read it as a CSV of tiles ({exc})") from None
-    if not rows or not {"file", "x_um", "y_um"} <= {k.strip().lower() for k in rows[0]}:
-        raise InputError(f"{path}: a mosaic needs a header file,x_um,y_um and one row per tile")
     tiles = []
-    for line, row in enumerate(rows, start=2):
-        row = {k.strip().lower(): (v or "").strip() for k, v in row.items() if k}
+    for entry in read_tile_list(path):
+        where = f"{path}, line {entry.line}"
+        if entry.path.suffix.lower() == ".csv":
+            raise InputError(f"{where}: a tile cannot be a mosaic itself")
         try:
-            x, y = float(row["x_um"]), float(row["y_um"])
-        except ValueError:
-            raise InputError(f"{path}, line {line}: x_um and y_um must be numbers") from None
-        if not (math.isfinite(x) and math.isfinite(y)):
-            raise InputError(f"{path}, line {line}: x_um and y_um must be finite")
-        name = row.get("file", "")
-        if not name:
-            raise InputError(f"{path}, line {line}: no file named")
-        if Path(name).suffix.lower() == ".csv":
-            raise InputError(f"{path}, line {line}: a tile cannot be a mosaic itself")
-        try:
-            tile = read_surface_map(path.parent / name, pixel_um=pixel_um)
+            tile = read_surface_map(entry.path, pixel_um=pixel_um)
         except InputError as exc:
-            raise InputError(f"{path}, line {line}: {exc}") from None
-        tiles.append(SurfaceMap(tile.height_um, tile.pixel_um, (x, y), tile.source, tile.measured))
+            raise InputError(f"{where}: {exc}") from None
+        origin = (entry.x_um, entry.y_um)
+        tiles.append(SurfaceMap(tile.height_um, tile.pixel_um, origin, tile.source, tile.measured))
     return SurfaceMosaic(tiles, source=str(path))
 
 

@@ -53,7 +53,13 @@ import math
 import numpy as np
 
 from sample_data_synth.cases import CASES, make_case, write_video
-from sample_data_synth.stacks import STACK_CASES, make_stack_case, save_stack_truth, write_stack
+from sample_data_synth.stacks import (
+    STACK_CASES,
+    make_stack_case,
+    save_stack_truth,
+    write_stack,
+    write_stack_tiles,
+)
 from sample_data_synth.stereo import (
     STEREO_CASES,
     default_rig,
@@ -123,6 +129,19 @@ def _build_parser() -> CommandLine:
     )
     p.add_argument("--spacing", default="4,2.5,2.5", help="DZ,DY,DX in um (4,2.5,2.5)")
     p.add_argument("--format", default="imagej", help="imagej or ome (imagej)")
+    p.add_argument(
+        "--tiles",
+        type=_tiles,
+        metavar="RxC",
+        help="also cut each stack into a microscope mosaic of R x C overlapping tiles: "
+        "CASE_tiles/ with the tiles and tiles.csv (their stage positions, for mpm3d analyze)",
+    )
+    p.add_argument(
+        "--overlap",
+        type=float,
+        default=0.1,
+        help="the mosaic's overlap, a fraction of a tile's side in [0, 0.5) (0.1)",
+    )
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -194,6 +213,13 @@ def _build_parser() -> CommandLine:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     cli.command("list", _cmd_list, help="list the cases")
     return cli
+
+
+def _tiles(text: str) -> tuple[int, int]:
+    parts = text.lower().replace(" ", "").split("x")
+    if len(parts) != 2 or not all(p.isdigit() and int(p) >= 1 for p in parts):
+        raise argparse.ArgumentTypeError(f"expected RxC with R, C >= 1, e.g. 3x3; got {text!r}")
+    return int(parts[0]), int(parts[1])
 
 
 def _seed(text: str) -> int:
@@ -304,6 +330,8 @@ def _cmd_stack(args) -> int:
         raise ValueError(f"--size must be >= 16, got {args.size}")
     if args.slices is not None and args.slices < 2:
         raise ValueError(f"--slices must be >= 2, got {args.slices}")
+    if not 0 <= args.overlap < 0.5:
+        raise ValueError(f"--overlap must be in [0, 0.5), got {args.overlap}")
     _check_stack_fits(args, cases, spacing)
     suffix = ".tif" if args.format == "imagej" else ".ome.tif"
     say = Progress(quiet=args.quiet)
@@ -320,6 +348,12 @@ def _cmd_stack(args) -> int:
                 )
             write_stack(tmp / f"{case}{suffix}", stack, format=args.format)
             save_stack_truth(tmp / case, stack)
+            if args.tiles is not None:
+                (tmp / f"{case}_tiles").mkdir()
+                write_stack_tiles(
+                    tmp / f"{case}_tiles", stack, tiles=args.tiles, overlap=args.overlap,
+                    format=args.format, rng=args.seed,
+                )  # fmt: skip
             del stack
     say(f"results in {args.out}")
     return 0
@@ -342,7 +376,8 @@ def _check_stack_fits(args, cases: list[str], spacing: tuple[float, float, float
     check_fits(
         f"{what} ({stacks} of {slices} or more slices of {args.size}x{args.size} px)",
         memory=stack + 2 * 8 * pixels,  # and its depth and height maps, float64
-        disk=len(cases) * stack,
+        # the tiles repeat the stack, and their overlaps once more
+        disk=len(cases) * stack * (1 if args.tiles is None else 2 + 2 * args.overlap),
         out=args.out,
         remedy="use a smaller --size or fewer --slices",
     )

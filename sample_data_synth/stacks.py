@@ -38,6 +38,7 @@ after   contracted: large folds     450 um      650-900 um   8 um RMS
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable, Sequence
@@ -64,6 +65,7 @@ __all__ = [
     "render_stack",
     "save_stack_truth",
     "write_stack",
+    "write_stack_tiles",
 ]
 
 #: channel names of every rendered stack, in channel order
@@ -901,3 +903,71 @@ def save_stack_truth(prefix: str | os.PathLike, case: SyntheticStack) -> None:
                 depth_um=case.depth_um.astype(np.float32),
                 height_um=case.height_um.astype(np.float32),
             )
+
+
+def write_stack_tiles(
+    folder: str | os.PathLike,
+    case: SyntheticStack,
+    *,
+    tiles: tuple[int, int] = (3, 3),
+    overlap: float = 0.1,
+    stage_error_px: float = 0.2,
+    format: StackFormat = "imagej",
+    rng: int | np.random.Generator | None = 0,
+) -> Path:
+    """Cut a stack into a microscope mosaic: overlapping tiles and their tile list.
+
+    The stack is cut into ``tiles`` (rows, columns) tiles of equal size that
+    overlap their neighbours by ``overlap`` of a tile's side; each is written
+    as ``tile_rR_cC.tif`` (see :func:`write_stack`) into ``folder`` (which
+    must exist), with ``tiles.csv`` (``file,x_um,y_um``: the stage position
+    of each tile's pixel (0, 0)).  The positions carry a stage error, uniform
+    within ``stage_error_px`` px per axis (below a quarter of a pixel, so the
+    difference of two positions rounds to the tiles' true offset): the
+    mosaic read from the tiles is the stack, pixel for pixel.
+
+    Returns
+    -------
+    Path
+        The tile list.
+    """
+    from tissue_core.csvtext import csv_writer
+
+    ny_t, nx_t = (int(n) for n in tiles)
+    if ny_t < 1 or nx_t < 1:
+        raise ValueError(f"tiles must be at least 1 x 1, got {tiles}")
+    if not 0 <= overlap < 0.5:
+        raise ValueError(f"overlap must be in [0, 0.5), got {overlap}")
+    if not 0 <= stage_error_px < 0.25:
+        raise ValueError(f"stage_error_px must be in [0, 0.25), got {stage_error_px}")
+    folder = Path(folder)
+    rng = np.random.default_rng(rng)
+    _, _, ny, nx = case.stack.shape
+    _, dy, dx = case.spacing
+
+    def cuts(n: int, k: int) -> list[tuple[int, int]]:
+        # k tiles of one size covering n pixels, each overlapping the next by ~overlap
+        size = min(n, math.ceil(n / (k - (k - 1) * overlap))) if k > 1 else n
+        starts = np.linspace(0, n - size, k).round().astype(int) if k > 1 else [0]
+        return [(int(a), int(a) + size) for a in starts]
+
+    suffix = ".tif" if format == "imagej" else ".ome.tif"
+    rows = []
+    for r, (y0, y1) in enumerate(cuts(ny, ny_t)):
+        for c, (x0, x1) in enumerate(cuts(nx, nx_t)):
+            name = f"tile_r{r}_c{c}{suffix}"
+            part = dataclasses.replace(
+                case,
+                stack=np.ascontiguousarray(case.stack[..., y0:y1, x0:x1]),
+                depth_um=case.depth_um[y0:y1, x0:x1],
+                height_um=case.height_um[y0:y1, x0:x1],
+            )
+            write_stack(folder / name, part, format=format)
+            ex, ey = rng.uniform(-stage_error_px, stage_error_px, 2)
+            rows.append((name, f"{(x0 + ex) * dx:.4f}", f"{(y0 + ey) * dy:.4f}"))
+    listing = folder / "tiles.csv"
+    with replaced_on_success(listing) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        w = csv_writer(f)
+        w.writerow(["file", "x_um", "y_um"])
+        w.writerows(rows)
+    return listing

@@ -35,6 +35,7 @@ __all__ = [
     "cell_count_error",
     "read_long_table",
     "read_number_columns",
+    "read_tile_list",
     "read_xy_csv",
     "write_long_table",
 ]
@@ -418,3 +419,67 @@ def read_number_columns(
             raise
         raise InputError(f"{path}, line {line}: {names} must be numbers ({exc})") from None
     return np.array(rows, dtype=float).reshape(-1, len(columns))
+
+
+@dataclass(frozen=True)
+class Tile:
+    """One row of a mosaic's tile list: the tile's file and the stage position (um) of
+    its pixel (0, 0), with the list's line (for messages)."""
+
+    path: Path
+    x_um: float
+    y_um: float
+    line: int
+
+
+def read_tile_list(path: str | os.PathLike, *, what: str = "mosaic") -> list[Tile]:
+    """A microscope mosaic's tiles: a CSV with a header ``file,x_um,y_um`` (in any order
+    among other columns) and one row per tile: its file, relative to the CSV (or
+    absolute), and the stage position in micrometres of its pixel (0, 0), x along its
+    columns and y along its rows.
+
+    Errors name the file and the line: a missing column, a position that is not a finite
+    number, a row with no file, a tile listed twice, or no tile at all.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a folder, not a {what} CSV file")
+    if not path.is_file():
+        raise InputError(f"{what} {path} does not exist")
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            rows = list(csv.reader(f))
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read it ({exc.strerror})") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"{path}: cannot read it as a CSV of tiles ({exc})") from None
+    header = [c.strip().lower() for c in rows[0]] if rows else []
+    if not {"file", "x_um", "y_um"} <= set(header):
+        raise InputError(f"{path}: a {what} needs a header file,x_um,y_um and one row per tile")
+    at = {name: header.index(name) for name in ("file", "x_um", "y_um")}
+    tiles: list[Tile] = []
+    seen: dict[Path, int] = {}
+    for line, cells in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in cells):
+            continue  # a blank line
+        if len(cells) != len(header):
+            raise cell_count_error(path, line, len(cells), len(header), ",".join(cells))
+        name = cells[at["file"]].strip()
+        if not name:
+            raise InputError(f"{path}, line {line}: no file named")
+        try:
+            x, y = float(cells[at["x_um"]]), float(cells[at["y_um"]])
+        except ValueError:
+            raise InputError(f"{path}, line {line}: x_um and y_um must be numbers") from None
+        if not (math.isfinite(x) and math.isfinite(y)):
+            raise InputError(f"{path}, line {line}: x_um and y_um must be finite")
+        tile = path.parent / name
+        if tile.resolve() in seen:
+            raise InputError(
+                f"{path}, line {line}: {name} is listed twice (line {seen[tile.resolve()]} too)"
+            )
+        seen[tile.resolve()] = line
+        tiles.append(Tile(tile, x, y, line))
+    if not tiles:
+        raise InputError(f"{path}: no tiles listed")
+    return tiles
