@@ -275,8 +275,13 @@ def _analyze(
                 "decimate": decimate,
             }
             if tiled:
-                from mpm3d.tiled import tiled_isosurface
+                from mpm3d.surface import default_bin
+                from mpm3d.tiled import mesh_triangles, plan_surface, tiled_isosurface
 
+                # the bands sized for the mesh these folds make (known from the height map)
+                binning = iso_bin if iso_bin is not None else default_bin(stack.spacing)
+                triangles = mesh_triangles(hm.depth_um, stack.spacing, binning)
+                plan = plan_surface(plan, triangles, iso_bin=binning)
                 mesh = tiled_isosurface(
                     volume, tile_rows=plan.surface_tile_rows, progress=progress, **options
                 )
@@ -374,6 +379,7 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
     """
     from mpm3d.lazyio import open_stack_lazily
     from mpm3d.mosaic import is_tile_list, mosaic_record, open_mosaic
+    from mpm3d.surface import default_bin
     from mpm3d.tiled import default_memory_limit, parse_memory, plan_memory
 
     if memory_limit is None:
@@ -392,7 +398,6 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
         stack = (open_mosaic if mosaic else open_stack_lazily)(source, spacing=spacing)
     try:
         nc = stack.shape[1]
-        dz, dy, dx = stack.spacing
         combined = channel is None and nc > 1
         plan = plan_memory(
             stack.shape,
@@ -401,7 +406,7 @@ def _open(source, *, spacing, channel, surface, iso_bin, memory_limit, lazy, til
             combined=combined,
             channels_read=nc if combined else 1,
             surface=surface,
-            bin=iso_bin if iso_bin is not None else int(min(4, max(1, round(dz / max(dx, dy))))),
+            bin=iso_bin if iso_bin is not None else default_bin(stack.spacing),
             lazy=lazy,
             tile_rows=tile_rows,
             copies=2 if mosaic else 1,

@@ -280,6 +280,12 @@ class IsoPlan:
         return self.top.shape
 
 
+def default_bin(spacing: Sequence[float]) -> int:
+    """The isosurface's lateral binning when none is given: voxels near cubic (1 to 4)."""
+    dz, dy, dx = (float(v) for v in spacing)
+    return int(min(4, max(1, round(dz / max(dx, dy)))))
+
+
 def iso_plan(
     shape: Sequence[int],
     dtype,
@@ -296,7 +302,7 @@ def iso_plan(
     dz, dy, dx = (float(s) for s in spacing)
     nz, ny, nx = (int(n) for n in shape)
     if bin is None:
-        bin = int(min(4, max(1, round(dz / max(dx, dy)))))
+        bin = default_bin(spacing)
     if bin < 1:
         raise InputError(f"bin must be >= 1, got {bin}")
     if ny // bin < 2 or nx // bin < 2:

@@ -31,7 +31,7 @@ import contextlib
 import math
 import re
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,6 +58,17 @@ MAP_BYTES_PER_COLUMN = 200
 #: bytes per binned column of the isosurface: the mesh (about two triangles
 #: each) while it is merged, put in order, smoothed, measured and written
 MESH_BYTES_PER_COLUMN = 1200
+#: bytes per column of the maps still held while the mesh is built and drawn (the height
+#: map and its masks, the surface's intensity; the metrics' work maps are gone)
+KEPT_MAP_BYTES_PER_COLUMN = 40
+#: bytes per triangle of the isosurface at the run's peak: merged and put in order,
+#: smoothed, measured and drawn (measured on a steeply folded 1024 x 1024 px stack:
+#: 3.2 million triangles took the run from 457 MiB to 1176 MiB)
+MESH_BYTES_PER_TRIANGLE = 240
+#: triangles of the isosurface per cell face of surface: a binned pixel's side by the
+#: shorter of it and the z-step (a steep flank is cut by the slices); 2.6 on the
+#: synthetic stacks, flat and steeply folded, binned 2 and 3 (within 6 %)
+TRIANGLES_PER_CELL = 2.6
 #: the default memory limit: this fraction of the memory available now
 DEFAULT_FRACTION = 0.5
 
@@ -134,6 +145,9 @@ class MemoryPlan:
     surface_tile_rows: int | None = None
     tiled_bytes: int | None = None
     smallest_limit_bytes: int = 0
+    #: the model's parts, for :func:`plan_surface`: bytes without the mesh, and per row of
+    #: a band of the isosurface
+    model: dict | None = None
 
     def record(self, **extra) -> dict:
         """For ``metrics.json``: the path, the limit and the bands."""
@@ -149,6 +163,8 @@ class MemoryPlan:
                 surface_tile_rows=self.surface_tile_rows,
                 estimated_peak_bytes=self.tiled_bytes,
             )
+            if self.model and "mesh_triangles" in self.model:
+                out["estimated_mesh_triangles"] = self.model["mesh_triangles"]
         out.update(extra)
         return out
 
@@ -252,6 +268,61 @@ def plan_memory(
         surface_tile_rows=int(grid_rows) if surface else None,
         tiled_bytes=peak(rows, grid_rows),
         smallest_limit_bytes=smallest,
+        model={
+            "without_mesh": BASE_BYTES + KEPT_MAP_BYTES_PER_COLUMN * ny * nx,
+            "per_grid_row": per_row * bin + per_grid_row,
+            "binned_rows": by,
+            "height_peak": BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx + height_rows(rows),
+        },
+    )
+
+
+def mesh_triangles(depth_um: np.ndarray, spacing: Sequence[float], bin: int) -> int:
+    """The isosurface's expected triangle count, from the height map's developed area
+    (:data:`TRIANGLES_PER_CELL` per cell face of it), a band of rows at a time."""
+    dz, dy, dx = (float(v) for v in spacing)
+    area = 0.0
+    ny = depth_um.shape[0]
+    for y0 in range(0, ny, 512):
+        a, b = max(0, y0 - 1), min(ny, y0 + 513)  # a row each side: the same gradient
+        gy, gx = np.gradient(np.asarray(depth_um[a:b], np.float64), dy, dx)
+        keep = slice(y0 - a, y0 - a + min(512, ny - y0))
+        area += float(np.sqrt(1.0 + gx[keep] ** 2 + gy[keep] ** 2).sum()) * dy * dx
+    side = bin * math.sqrt(dy * dx)
+    return int(TRIANGLES_PER_CELL * area / (side * min(side, dz)))
+
+
+def plan_surface(plan: MemoryPlan, triangles: int, *, iso_bin: int) -> MemoryPlan:
+    """The tiled ``plan`` with the isosurface's bands sized for a mesh of ``triangles``
+    (:func:`mesh_triangles`, known once the height map is) in place of the first plan's
+    guess per column.
+
+    Raises
+    ------
+    InputError
+        When such a mesh does not fit the limit even built a row at a time (the
+        message gives the limit that works, and the other ways out).
+    """
+    model = plan.model
+    mesh = MESH_BYTES_PER_TRIANGLE * int(triangles)
+    room = plan.limit_bytes - model["without_mesh"] - mesh
+    smallest = model["without_mesh"] + mesh + 2 * model["per_grid_row"]
+    if room < 2 * model["per_grid_row"]:
+        raise InputError(
+            f"a memory limit of {format_bytes(plan.limit_bytes)} is too small for this "
+            f"surface's mesh: its folds make about {triangles / 1e6:.1f} million triangles "
+            f"at --iso-bin {iso_bin} ({format_bytes(mesh)}); use --memory-limit "
+            f"{format_bytes(smallest)} or more, a coarser --iso-bin, or --no-surface"
+        )
+    rows = max(1, min(model["binned_rows"] - 1, room // model["per_grid_row"] - 1))
+    peak = max(
+        model["height_peak"], model["without_mesh"] + mesh + model["per_grid_row"] * (rows + 1)
+    )
+    return replace(
+        plan,
+        surface_tile_rows=int(rows),
+        tiled_bytes=int(peak),
+        model={**model, "mesh_triangles": int(triangles)},
     )
 
 

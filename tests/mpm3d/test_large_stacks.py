@@ -199,3 +199,56 @@ def test_interrupt_while_banded_leaves_no_output(mpm_small, tmp_path):
     argv = ["-m", "mpm3d", "analyze", path, "--out", out, "--tile-rows", "1", "--no-figures"]
     status, err = interrupt(argv, after=0.05, when="finding the surface", out=out, inputs=[path])
     assert status == 130 and not out.exists(), err
+
+
+@pytest.mark.parametrize(("name", "iso_bin"), [("before", 2), ("after", 2), ("after", 3)])
+def test_mesh_estimate_from_the_height_map(name, iso_bin):
+    """The triangles the bands are sized for, estimated from the height map's developed area
+    before the isosurface is built, are within 15 % of the mesh's, flat or steeply folded."""
+    from mpm3d.tiled import mesh_triangles
+
+    case = make_stack_case(name, size=160, spacing=(4.0, 2.5, 2.5), rng=2)
+    from mpm3d.io import Stack
+
+    stack = Stack(case.stack, case.spacing, "user", case.channel_names, "synthetic", "ZCYX")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run = analyze_stack(stack, iso_bin=iso_bin)
+    estimate = mesh_triangles(run.heightmap.depth_um, case.spacing, iso_bin)
+    assert abs(estimate / run.surface.n_cells - 1) < 0.15
+
+
+def test_a_mesh_too_large_for_the_limit_is_refused_with_the_limit_that_works(tmp_path, capsys):
+    """Steep folds make a mesh that a band plan from the stack's size alone would not
+    hold: the run stops after the height map, names the limit that works, and that
+    limit works (estimated peak within it)."""
+    case = make_stack_case("after", size=160, spacing=(4.0, 2.5, 2.5), rng=2)
+    path = tmp_path / "after.tif"
+    write_stack(path, case)
+    out = tmp_path / "out"
+    first = assert_refused(
+        main,
+        ["analyze", path, "--out", out, "--memory-limit", "100MB"],
+        capsys,
+        prog="mpm3d",
+        fragments=["even one row at a time needs"],
+        inputs=[path],
+        out=out,
+    )
+    enough_for_bands = first.split("--memory-limit ")[-1].split()[0]
+    error = assert_refused(
+        main,
+        ["analyze", path, "--out", out, "--memory-limit", enough_for_bands],
+        capsys,
+        prog="mpm3d",
+        fragments=["too small for this surface's mesh", "--iso-bin", "--no-surface"],
+        inputs=[path],
+        out=out,
+    )
+    smallest = error.split("--memory-limit ")[-1].split()[0]
+    assert parse_memory(smallest) > parse_memory(enough_for_bands)
+    assert cli("analyze", path, "--out", out, "--memory-limit", smallest, "-q") == 0
+    record = json.loads((out / "metrics.json").read_text(encoding="utf-8"))["parameters"]
+    assert record["memory"]["path"] == "tiled"
+    assert record["memory"]["estimated_peak_bytes"] <= parse_memory(smallest)
+    assert record["memory"]["estimated_mesh_triangles"] > 0
