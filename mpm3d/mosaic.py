@@ -104,7 +104,7 @@ class MosaicRows:
         self.shape = (int(nz), int(nc), int(ny), int(nx))
         self.dtype = first.dtype
         self.contiguous = all(t.contiguous for t in self._tiles)
-        self._centres = np.array([p.centre for p in self.placements])
+        self._owners: tuple | None = None
         self.covered_fraction = self._covered() / (ny * nx)
 
     @property
@@ -145,7 +145,15 @@ class MosaicRows:
 
     def owners(self, ys: range, xs: range) -> np.ndarray:
         """Per pixel of rows ``ys`` and columns ``xs``, the index of the tile it is read
-        from (the one holding it whose centre is nearest; -1 in no tile)."""
+        from (the one holding it whose centre is nearest; -1 in no tile).  The last
+        answer is kept: a plane at a time asks the same every time."""
+        if self._owners is not None and self._owners[0] == (ys, xs):
+            return self._owners[1]
+        owner = self._owners_of(ys, xs)
+        self._owners = ((ys, xs), owner)
+        return owner
+
+    def _owners_of(self, ys: range, xs: range) -> np.ndarray:
         y = np.asarray(ys, float)[:, None]
         x = np.asarray(xs, float)[None, :]
         best = np.full((len(ys), len(xs)), np.inf)
