@@ -932,8 +932,6 @@ def load_calibration(
         The unit of T (``--unit``): that of a calibration JSON is replaced,
         other files are taken to be in mm without it.
 
-    Every value is checked (see :class:`Calibration`).
-
     Raises
     ------
     SourceError
@@ -943,6 +941,10 @@ def load_calibration(
         camera model; one line naming the file and the value.
         :class:`stereo.calib_formats.ImageSizeMissing` (an ``InputError``): the
         files hold no image size and ``image_size`` is None.
+
+    Notes
+    -----
+    Every value is checked (see :class:`Calibration`).
     """
     if not paths:
         raise InputError("no calibration file given")

@@ -271,13 +271,14 @@ def strain_from_tracks(
     min_triangle_quality : float, keyword-only
         Delaunay meshes (the default without ``triangles`` or ``grid_shape``)
         drop triangles with a smaller radius ratio.
-
     streamed : bool, keyword-only
         Compute the strain a block of frames at a time when it is read
         (:func:`surface_strain.streamed_strain`): the field then holds no
         more than the tracks, however long the video.  The values are the
         same.
 
+    Notes
+    -----
     Points the tracker lost (``visible`` False) leave their triangles out of
     that frame (NaN) and out of the nodal averages.
     """

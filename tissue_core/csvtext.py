@@ -83,6 +83,8 @@ def number_cell(value) -> str:
     """A number as a table cell: integers whole, others to 8 significant digits, ``nan``
     for NaN or infinity, an empty cell for None.
 
+    Examples
+    --------
     >>> [number_cell(v) for v in (3, 0.1 + 0.2, float("inf"), None)]
     ['3', '0.3', 'nan', '']
     """

@@ -29,9 +29,7 @@ Conventions
 * :func:`strain_limits` gives colour limits shared by every frame, so maps at
   different frames and the animation can be compared by eye.
 
-Modules
--------
-The figures live in private modules by concern and are imported from here:
+Where they live: the figures live in private modules by concern and are imported from here:
 ``_maps`` (maps, tracked grid and error maps over a frame), ``_crosses``,
 ``_curves``, ``_cycles`` (repeated contractions),
 ``_violins``, ``_study`` (the study figures), ``_animation``

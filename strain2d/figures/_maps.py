@@ -348,13 +348,17 @@ def plot_strain_errors(
 ) -> list[Path]:
     """Save contour maps of the signed nodal strain error (cf. the source paper's Figs. 5-9).
 
+    Each panel uses symmetric colour limits and states the component's RMSE.
+
     Parameters
     ----------
     errors : (N, 2, 2) float
         Measured minus true nodal strain on ``frame``.
 
-    Each panel uses symmetric colour limits and states the component's RMSE.
-    Returns the written files (see :func:`save_figure`).
+    Returns
+    -------
+    list of Path
+        The written files (see :func:`save_figure`).
     """
     pos = field.points[frame]
     valid = field.element_valid[frame]
