@@ -7,7 +7,7 @@ DEMO   := demo_output
 # the reports in the tests (tests/test_report_browser.py).
 SYSTEM_LIBS := libgl1 libxrender1 libx11-6
 
-.PHONY: setup demo test lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
+.PHONY: setup demo test docs lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
 
 system-deps:
 	@missing=""; \
@@ -38,6 +38,12 @@ $(BIN)/.installed: pyproject.toml | system-deps
 	touch $@
 
 setup: $(BIN)/.installed
+
+# The documentation site, offline, into site/ (warnings are errors; the API pages first).
+docs: setup
+	$(BIN)/python docs/gen_api.py
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict -d site
+	@echo "documentation in site/index.html"
 
 # Render a synthetic equibiaxial-stretch video (with ground truth) and analyze it.
 demo: setup

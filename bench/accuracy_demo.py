@@ -1,6 +1,6 @@
 """Accuracy of the demo's z-stack and stereo results against the synthetic truth.
 
-Run after ``make demo``; prints the numbers the README's mpm3d and stereo
+Run after ``make demo``; prints the numbers the mpm3d and stereo guides (docs/)
 tables quote:
 
     python bench/accuracy_demo.py [--demo demo_output]

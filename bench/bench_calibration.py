@@ -7,7 +7,7 @@ number of views, calibrates each with ``stereo.calibration.calibrate_stereo``
 and prints a Markdown table of how far each calibration lies from the rig's
 true parameters: views used, reprojection RMS, focal length error (worse
 camera), baseline error, rotation error of R and principal point error
-(worse camera and axis).  These are the numbers the README quotes; the test
+(worse camera and axis).  These are the numbers the stereo guide (docs/stereo.md) quotes; the test
 ``tests/stereo/test_calibration.py::test_dot_grids_calibrate_the_rig_at_least_as_well_as_a_checkerboard``
 checks the same setting.
 

@@ -1,4 +1,4 @@
-"""Run the bad-input matrix and print its counts per command (the README's reliability table).
+"""Run the bad-input matrix and print its counts per command (docs/reliability.md's table).
 
     python scripts/bad_input_counts.py
 

@@ -17,7 +17,7 @@ writes, and :func:`stale_scratch` leaves what such a process leaves, for the
 next run to remove.
 
 ``scripts/bad_input_counts.py`` counts these cases per command for the
-README's reliability section; the tests are named
+reliability guide (docs/reliability.md); the tests are named
 ``test_bad_input[COMMAND-FAMILY-CASE]`` (or ``test_interrupt[COMMAND-...]``)
 so that it can.
 """
@@ -38,7 +38,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: families of bad input, as the README's reliability section names them
+#: families of bad input, as the reliability guide (docs/reliability.md) names them
 FAMILIES = (
     "missing",  # files and folders that are not there
     "empty",  # empty files, folders without images

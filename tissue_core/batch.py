@@ -1317,8 +1317,8 @@ def _run_on_dask(todo, workers, scheduler, log, finished, then=None, extra=None)
         if scheduler and _trimming(client):
             log(
                 "note: these workers run with MALLOC_TRIM_THRESHOLD_ set (Dask's nanny sets it), "
-                "which made runs about a quarter slower in our measurements; the README's "
-                "'Batches on a cluster' says how to unset it"
+                "which made runs about a quarter slower in our measurements; the batches "
+                "guide (docs/batches.md) says how to unset it"
             )
 
         def submit(job: Job, replace: bool):

@@ -399,7 +399,7 @@ def _check_chunk_fits(chunk_frames: int, total: int | None, size: tuple[int, int
     "cotracker3",
     description="Meta's pretrained CoTracker3 (offline); needs PyTorch and its code and weights",
     needs_model=True,
-    group="cotracker3 (needs PyTorch: make setup-torch; see the README)",
+    group="cotracker3 (needs PyTorch: make setup-torch; see docs/strain2d.md)",
     options=[
         TrackerOption(
             "repo",

@@ -1,0 +1,166 @@
+"""The documentation: the site builds with no warning, the API reference covers every public
+module, the README is a front door that links to every guide, and every command the guides
+show is one the command lines accept."""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+#: the command-line module of each package a guide may call with ``python -m``
+CLIS = {
+    "strain2d": "strain2d.cli",
+    "surface_strain": "surface_strain.cli",
+    "stereo": "stereo.cli",
+    "mpm3d": "mpm3d.cli",
+    "multimodal": "multimodal.cli",
+    "sample_data_synth": "sample_data_synth.cli",
+}
+
+
+def _gen_api():
+    spec = importlib.util.spec_from_file_location("gen_api", DOCS / "gen_api.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _nav_pages(entry) -> list[str]:
+    if isinstance(entry, str):
+        return [entry]
+    if isinstance(entry, list):
+        return [p for item in entry for p in _nav_pages(item)]
+    return [p for value in entry.values() for p in _nav_pages(value)]
+
+
+def _config() -> dict:
+    # mkdocs.yml holds no tags that need mkdocs' own loader
+    return yaml.safe_load((ROOT / "mkdocs.yml").read_text(encoding="utf-8"))
+
+
+def test_the_site_builds_offline_with_no_warning(tmp_path):
+    """``mkdocs build --strict``: a broken link, a missing page or a docstring that
+    mkdocstrings cannot parse fails the build."""
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
+    done = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-d", str(tmp_path / "site")],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    site = tmp_path / "site"
+    for page in ("index.html", "strain2d/index.html", "formats/index.html", "api/mpm3d/index.html"):
+        assert (site / page).is_file(), page
+    api = (site / "api" / "mpm3d" / "index.html").read_text(encoding="utf-8")
+    assert 'id="mpm3d.mosaic.open_mosaic"' in api  # rendered from its docstring
+    assert 'id="mpm3d.analyze.analyze_stack"' in api
+
+
+def test_every_page_is_in_the_navigation():
+    pages = set(_nav_pages(_config()["nav"]))
+    on_disk = {p.relative_to(DOCS).as_posix() for p in DOCS.rglob("*.md")}
+    assert on_disk == pages
+
+
+@pytest.mark.parametrize("package", [p for p, _ in _gen_api().PACKAGES])
+def test_the_api_reference_covers_every_public_module(package):
+    """The API pages are what ``docs/gen_api.py`` writes now: every public module of the
+    package (run it after adding one)."""
+    gen = _gen_api()
+    page = (DOCS / "api" / f"{package}.md").read_text(encoding="utf-8")
+    assert page == gen.page(package, dict(gen.PACKAGES)[package])
+    modules = gen.public_modules(package)
+    assert package in modules and len(modules) >= 4
+    for name in modules:
+        assert f"::: {name}\n" in page
+
+
+def test_every_package_has_an_api_page():
+    gen = _gen_api()
+    packages = {p for p, _ in gen.PACKAGES}
+    assert packages == {p.parent.name for p in ROOT.glob("*/__init__.py")} - {"tests"}
+
+
+def test_the_readme_is_a_front_door():
+    """Under 15 KB; it links to every user guide and reference page, and every file it
+    links to or shows exists."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.encode("utf-8")) < 15_000
+    targets = re.findall(r"\]\(([^)\s#]+)(?:#[^)]*)?\)", readme)
+    local = [t for t in targets if not t.startswith(("http://", "https://"))]
+    for target in local:
+        assert (ROOT / target).exists(), target
+    nav = _config()["nav"]
+    guides = [p for item in nav for key, value in item.items() if key in ("User guides",)
+              for p in _nav_pages(value)]  # fmt: skip
+    assert len(guides) >= 8
+    for page in [*guides, "formats.md", "reliability.md", "benchmarks.md", "index.md"]:
+        assert f"docs/{page}" in local, page
+    for command in ("make demo", "make test"):
+        assert command in readme
+
+
+def _commands(text: str):
+    """The ``python -m PACKAGE ...`` lines of a page's code blocks (continuations joined,
+    comments and a shell prompt taken off)."""
+    inside, line_so_far = False, ""
+    for line in text.splitlines():
+        if line.startswith("```"):
+            inside = not inside
+            continue
+        if not inside:
+            continue
+        line = line.rstrip()
+        if line_so_far:
+            line_so_far += " " + line.strip()
+        elif re.match(r"^\$?\s*python -m \w+", line):
+            line_so_far = re.sub(r"^\$\s*", "", line.strip())
+        else:
+            continue
+        if line_so_far.endswith("\\"):
+            line_so_far = line_so_far[:-1]
+            continue
+        yield line_so_far.split(" #")[0].strip()
+        line_so_far = ""
+
+
+def _guide_commands():
+    pages = [*sorted(DOCS.glob("*.md")), ROOT / "README.md"]
+    return [
+        pytest.param(page.name, command, id=f"{page.name}:{k}")
+        for page in pages
+        for k, command in enumerate(_commands(page.read_text(encoding="utf-8")))
+    ]
+
+
+@pytest.mark.parametrize(("page", "command"), _guide_commands())
+def test_every_command_shown_is_accepted(page, command):
+    """Each command in the guides and the README is parsed by its package's own command
+    line: the command, every option and every value's form exist (the files it names
+    are the guide's example; ``make demo`` runs the demo's commands)."""
+    argv = shlex.split(command)
+    assert argv[:2] == ["python", "-m"], command
+    assert argv[2] in CLIS, f"{page}: no command line {argv[2]!r}"
+    cli = importlib.import_module(CLIS[argv[2]])._build_parser()
+    try:
+        cli.parse_args(argv[3:])
+    except SystemExit as exc:
+        assert exc.code in (0, None), f"{page}: {command}"
+
+
+def test_the_guides_show_commands():
+    assert len(_guide_commands()) >= 50
