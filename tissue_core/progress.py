@@ -26,6 +26,22 @@ _OPEN: list[Task] = []
 _RECORDERS: list[Progress] = []
 
 
+#: the environment variable that sets the seconds between a counter's lines in a log (a
+#: program that reads the lines, such as the napari widgets, asks for more of them)
+INTERVAL_VARIABLE = "TISSUE_STRAIN_PROGRESS_INTERVAL"
+
+
+def _default_interval() -> float:
+    """10 s, or :data:`INTERVAL_VARIABLE`'s value (a positive number; others are ignored)."""
+    import os
+
+    try:
+        value = float(os.environ.get(INTERVAL_VARIABLE, "10"))
+    except ValueError:
+        return 10.0
+    return value if value > 0 and value == value and value != float("inf") else 10.0
+
+
 def record_line(text: str) -> None:
     """Add ``text`` (a warning shown on stderr) to what every recording progress keeps."""
     for progress in _RECORDERS:
@@ -54,8 +70,9 @@ class Progress:
         Print nothing.
     stream : text stream, optional
         Default ``sys.stderr`` (looked up when printing, so tests can capture it).
-    interval : float
-        Seconds between the lines a counter prints when ``stream`` is not a terminal.
+    interval : float, optional
+        Seconds between the lines a counter prints when ``stream`` is not a terminal;
+        by default 10, or the environment variable :data:`INTERVAL_VARIABLE`.
     record : bool
         Keep every step, counter's total and warning, timestamped, in :attr:`lines`
         (``quiet`` or not): the run's own log (``run.log``).
@@ -66,12 +83,12 @@ class Progress:
         *,
         quiet: bool = False,
         stream: TextIO | None = None,
-        interval: float = 10.0,
+        interval: float | None = None,
         record: bool = False,
     ) -> None:
         self.quiet = quiet
         self._stream = stream
-        self.interval = interval
+        self.interval = _default_interval() if interval is None else float(interval)
         self.start = time.perf_counter()
         self.lines: list[str] = []
         self._tasks: list[Task] = []
