@@ -12,7 +12,15 @@ STACK.tif --out DIR`` and ``python -m mpm3d compare BEFORE.tif AFTER.tif
 from mpm3d.errors import InputError, MissingSpacingWarning, SourceError
 from tissue_core.lazy import lazy_exports
 
-__getattr__, __dir__ = lazy_exports(__name__, {"tissue_core.version": ["__version__"]})[:2]
+__getattr__, __dir__, _lazy = lazy_exports(
+    __name__,
+    {
+        "tissue_core.version": ["__version__"],
+        "mpm3d.io": ["Stack", "read_stack"],
+        "mpm3d.analyze": ["analyze_stack", "write_analysis"],
+        "mpm3d.mosaic": ["open_mosaic", "write_stitched"],
+        "mpm3d.tiled": ["parse_memory"],
+    },
+)
 
-
-__all__ = ["InputError", "MissingSpacingWarning", "SourceError", "__version__"]
+__all__ = ["InputError", "MissingSpacingWarning", "SourceError", *_lazy]
