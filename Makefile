@@ -4,8 +4,11 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 DEMO   := demo_output
 # Debian packages the core needs at run time (VTK's shared libraries); Chromium renders
-# the reports in the tests (tests/test_report_browser.py).
+# the reports in the tests (tests/test_report_browser.py); the napari plugin's tests draw
+# with Qt in a virtual X display (Xvfb, Mesa's OpenGL, Qt's X libraries).
 SYSTEM_LIBS := libgl1 libxrender1 libx11-6
+QT_LIBS := xvfb libegl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 \
+	libxcb-shape0 libxcb-xinerama0 libfontconfig1 libdbus-1-3
 
 .PHONY: setup demo test docs lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
 
@@ -25,6 +28,15 @@ system-deps:
 	  else \
 	    echo "note: the report tests render report.html in Chromium; install it with:"; \
 	    echo "  sudo apt-get install -y chromium"; fi
+	@missing=""; command -v Xvfb >/dev/null || missing="$$missing Xvfb"; \
+	for lib in libEGL.so.1 libxkbcommon-x11.so.0 libxcb-cursor.so.0 libfontconfig.so.1; do \
+	  ldconfig -p | grep -q "$$lib" || missing="$$missing $$lib"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    apt-get update -qq && apt-get install -y -qq $(QT_LIBS); \
+	  else \
+	    echo "missing for the napari plugin's tests:$$missing; install them with:"; \
+	    echo "  sudo apt-get install -y $(QT_LIBS)"; exit 1; fi; fi
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
 	  { echo "Python >= 3.11 is needed (set PYTHON=python3.11)"; exit 1; }
 	@$(PYTHON) -c 'import venv, ensurepip' 2>/dev/null || \

@@ -4,6 +4,8 @@ import pytest
 
 # Never open windows or pick an interactive backend in tests.
 os.environ.setdefault("MPLBACKEND", "Agg")
+# Qt (the napari plugin's tests) draws off screen: no display needed
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 
 # Property tests draw the same examples on every machine, so `make test` gives the same answer
 # in CI as on the developer's machine. To search for new failures, run
@@ -30,3 +32,11 @@ def computed_blocks(monkeypatch) -> list[int]:
 
     monkeypatch.setattr(streamed, "_strain_field", counting)
     return computed
+
+
+def pytest_addoption(parser):
+    """The options napari's viewer fixture reads: its pytest plugin is off (``-p
+    no:napari``, it imports napari around every test) and tests/tissue_napari imports the
+    fixture itself."""
+    parser.addoption("--show-napari-viewer", action="store_true", default=False)
+    parser.addoption("--save-leaked-object-graph", action="store_true", default=False)

@@ -22,6 +22,7 @@ PACKAGES = (
     "strain2d",
     "stereo",
     "multimodal",
+    "tissue_napari",
 )
 
 
