@@ -23,6 +23,7 @@ PACKAGES = (
     ("mpm3d", "multiphoton z-stacks: lumen surface, height map, fold metrics"),
     ("multimodal", "camera and microscope together: fold-aware strain"),
     ("sample_data_synth", "synthetic videos, stacks and stereo scenes with exact truth"),
+    ("tissue_napari", "the napari plugin: readers of videos, stacks and run folders; widgets"),
 )
 
 

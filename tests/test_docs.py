@@ -84,7 +84,7 @@ def test_the_api_reference_covers_every_public_module(package):
     page = (DOCS / "api" / f"{package}.md").read_text(encoding="utf-8")
     assert page == gen.page(package, dict(gen.PACKAGES)[package])
     modules = gen.public_modules(package)
-    assert package in modules and len(modules) >= 4
+    assert package in modules and len(modules) >= 3
     for name in modules:
         assert f"::: {name}\n" in page
 
@@ -154,6 +154,10 @@ def test_every_command_shown_is_accepted(page, command):
     are the guide's example; ``make demo`` runs the demo's commands)."""
     argv = shlex.split(command)
     assert argv[:2] == ["python", "-m"], command
+    if argv[2] == "tissue_napari":  # opens napari: its arguments are paths to open
+        assert importlib.util.find_spec("tissue_napari.__main__") is not None
+        assert all(not a.startswith("-") for a in argv[3:]), command
+        return
     assert argv[2] in CLIS, f"{page}: no command line {argv[2]!r}"
     cli = importlib.import_module(CLIS[argv[2]])._build_parser()
     try:
