@@ -68,6 +68,26 @@ def test_the_site_builds_offline_with_no_warning(tmp_path):
     api = (site / "api" / "mpm3d" / "index.html").read_text(encoding="utf-8")
     assert 'id="mpm3d.mosaic.open_mosaic"' in api  # rendered from its docstring
     assert 'id="mpm3d.analyze.analyze_stack"' in api
+    # every public name of every public module is on an API page: where it is defined,
+    # or where it is exported (a constant by its name in any module)
+    ids = set()
+    for page in (site / "api").glob("*/index.html"):
+        ids |= set(re.findall(r'id="([\w.]+)"', page.read_text(encoding="utf-8")))
+    gen = _gen_api()
+    missing = []
+    for package, _ in gen.PACKAGES:
+        for name in gen.public_modules(package):
+            module = importlib.import_module(name)
+            for public in getattr(module, "__all__", []):
+                if public.startswith("__"):
+                    continue
+                where = {
+                    f"{name}.{public}",
+                    f"{getattr(getattr(module, public), '__module__', '')}.{public}",
+                }
+                if not where & ids and not any(i.endswith(f".{public}") for i in ids):
+                    missing.append(f"{name}.{public}")
+    assert missing == []
 
 
 def test_every_page_is_in_the_navigation():
