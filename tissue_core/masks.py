@@ -35,7 +35,7 @@ import numpy as np
 
 from tissue_core.errors import InputError, SourceError
 
-__all__ = ["MASK_SUFFIXES", "Mask", "read_mask"]
+__all__ = ["MASK_SUFFIXES", "Mask", "polygon_inside", "read_mask"]
 
 #: the files a mask may be, by suffix
 MASK_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".roi", ".zip", ".csv")
@@ -226,7 +226,7 @@ def _read_tiff(path: Path, option: str) -> np.ndarray:
     return image
 
 
-def _polygon_inside(vertices: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+def polygon_inside(vertices: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
     """The pixels whose centres lie inside the polygon ``vertices`` ``(K, 2)`` of (x, y)."""
     from skimage.draw import polygon
 
@@ -250,7 +250,7 @@ def _from_polygon_csv(path: Path, shape: tuple[int, int], option: str) -> np.nda
         )
     if not np.isfinite(vertices).all():
         raise InputError(f"{option} {path}: every vertex needs a finite x and y")
-    return _polygon_inside(vertices, shape)
+    return polygon_inside(vertices, shape)
 
 
 #: ImageJ ROI types that enclose an area (lines, angles and points do not)
@@ -288,6 +288,6 @@ def _from_imagej(path: Path, shape: tuple[int, int], option: str) -> np.ndarray:
                 continue
             # ImageJ counts from the top-left pixel's corner; the toolkit from its centre.
             # A composite ROI's outlines alternate: holes are removed (even-odd rule)
-            area ^= _polygon_inside(np.asarray(outline, dtype=float) - 0.5, shape)
+            area ^= polygon_inside(np.asarray(outline, dtype=float) - 0.5, shape)
         inside |= area
     return inside
