@@ -153,21 +153,30 @@ class MosaicRows:
         self._owners = ((ys, xs), owner)
         return owner
 
+    def _window(self, p: TilePlacement, ys: range, xs: range) -> tuple[int, int, int, int]:
+        """The rows ``r0:r1`` and columns ``c0:c1`` of ``ys`` x ``xs`` that tile ``p`` holds."""
+        r0, r1 = (int(v) for v in np.searchsorted(np.asarray(ys), [p.row, p.row + p.rows]))
+        c0, c1 = (int(v) for v in np.searchsorted(np.asarray(xs), [p.col, p.col + p.cols]))
+        return r0, r1, c0, c1
+
     def _owners_of(self, ys: range, xs: range) -> np.ndarray:
-        y = np.asarray(ys, float)[:, None]
-        x = np.asarray(xs, float)[None, :]
-        best = np.full((len(ys), len(xs)), np.inf)
+        # twice the squared distance to each centre, in whole numbers (centres lie on half
+        # pixels): exact, and 4 bytes a pixel while the window is under 16,000 px
+        big = 2 * max(self.shape[2], self.shape[3]) > 2**15
+        kind = np.int64 if big else np.int32
+        best = np.full((len(ys), len(xs)), np.iinfo(kind).max, kind)
         owner = np.full((len(ys), len(xs)), -1, np.int32)
+        y2, x2 = 2 * np.asarray(ys, kind), 2 * np.asarray(xs, kind)
         for i, p in enumerate(self.placements):
-            iny = (y >= p.row) & (y < p.row + p.rows)
-            inx = (x >= p.col) & (x < p.col + p.cols)
-            if not (iny.any() and inx.any()):
-                continue
-            cy, cx = p.centre
-            d = (y - cy) ** 2 + (x - cx) ** 2
-            take = iny & inx & (d < best)  # strictly nearer: the first listed keeps a tie
-            best[take] = d[take]
-            owner[take] = i
+            r0, r1, c0, c1 = self._window(p, ys, xs)
+            if r0 >= r1 or c0 >= c1:
+                continue  # only the tile's own rectangle is measured
+            cy, cx = (round(2 * c) for c in p.centre)
+            d = (y2[r0:r1, None] - cy) ** 2 + (x2[None, c0:c1] - cx) ** 2
+            near = best[r0:r1, c0:c1]
+            take = d < near  # strictly nearer: the first listed keeps a tie
+            near[take] = d[take]
+            owner[r0:r1, c0:c1][take] = i
         return owner
 
     def __getitem__(self, key) -> np.ndarray:
@@ -197,17 +206,22 @@ class MosaicRows:
         out = np.zeros((len(zs), len(cs), len(ys), len(xs)), self.dtype)
         if out.size:
             owner = self.owners(ys, xs)
-            for i in np.unique(owner[owner >= 0]):
-                p, tile = self.placements[i], self._tiles[i]
-                mine = owner == i
+            for i, (p, tile) in enumerate(zip(self.placements, self._tiles, strict=True)):
+                w0, w1, v0, v1 = self._window(p, ys, xs)
+                if w0 >= w1 or v0 >= v1:
+                    continue
+                mine = owner[w0:w1, v0:v1] == i  # within the tile's own rectangle
+                if not mine.any():
+                    continue
                 rows, cols = np.flatnonzero(mine.any(axis=1)), np.flatnonzero(mine.any(axis=0))
-                r0, r1, c0, c1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+                r0, r1, c0, c1 = w0 + rows[0], w0 + rows[-1] + 1, v0 + cols[0], v0 + cols[-1] + 1
+                mine = mine[r0 - w0 : r1 - w0, c0 - v0 : c1 - v0]
                 # the same rows and columns in the tile's own pixels (the same steps)
                 ty = slice(ys[r0] - p.row, ys[r1 - 1] - p.row + 1, ys.step)
                 tx = slice(xs[c0] - p.col, xs[c1 - 1] - p.col + 1, xs.step)
                 part = tile[plain[0], plain[1], ty, tx]
                 # in place: no copy of the tile's part
-                np.copyto(out[:, :, r0:r1, c0:c1], part, where=mine[None, None, r0:r1, c0:c1])
+                np.copyto(out[:, :, r0:r1, c0:c1], part, where=mine[None, None])
                 del part
         return out[tuple(0 if d else slice(None) for d in drop)]
 
