@@ -106,7 +106,11 @@ def _frames(p: Path) -> list[LayerData]:
     from strain2d import open_frames
 
     source = open_frames([str(p)], min_frames=1)
-    frames = np.stack([np.asarray(f, np.float32) for f in source])
+    # 8-bit sources stay 8-bit (a quarter of float32's memory); others as float32
+    kind = np.uint8 if tuple(source.value_range) == (0.0, 255.0) else np.float32
+    frames = np.empty((len(source), *source.shape), kind)
+    for k, frame in enumerate(source):
+        frames[k] = np.rint(frame) if kind is np.uint8 else frame
     meta = {"source": str(p), "kind": source.kind, "names": list(source.names)}
     name = p.stem if p.is_file() else p.name
     return [(frames, {"name": name, "metadata": meta, "colormap": "gray"}, "image")]
@@ -357,19 +361,24 @@ def multimodal_layers(folder: str | os.PathLike) -> list[LayerData]:
             import pyvista as pv
 
             mesh = pv.read(path)
-            arrays = list(mesh.cell_data) + list(mesh.point_data)
-            name = next((a for a in arrays if "Exx" in a), None)
-            vertices = np.asarray(mesh.points)[:, ::-1]
-            values = (
-                np.asarray(mesh.point_data[name]) if name in mesh.point_data else vertices[:, 0]
-            )
+            faces = mesh.regular_faces
+            points = np.asarray(mesh.points)[:, ::-1]  # (z, y, x)
+            name = "Exx_surface" if "Exx_surface" in mesh.cell_data else None
+            if name is None:  # no per-triangle strain: coloured by height
+                data = (points, faces, points[:, 0])
+            else:  # each triangle flat in its own value: its three corners of its own
+                data = (
+                    points[faces].reshape(-1, 3),
+                    np.arange(3 * len(faces)).reshape(-1, 3),
+                    np.repeat(np.asarray(mesh.cell_data[name], float), 3),
+                )
             layers.append(
                 (
-                    (vertices, mesh.regular_faces, values),
+                    data,
                     {
                         "name": f"{folder.name} {stem.replace('_', ' ')}",
                         "colormap": "RdBu_r",
-                        "metadata": meta,
+                        "metadata": {**meta, "values": name or "height_um"},
                     },
                     "surface",
                 )

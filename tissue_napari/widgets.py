@@ -43,8 +43,8 @@ __all__ = ["CommandRunner", "MpmWidget", "StrainWidget", "add_layers"]
 _COUNTER = re.compile(r"^\[\s*[\d.]+ s\] (?P<what>.+?): (?P<done>\d+)(?:/(?P<total>\d+))? \w+$")
 #: a step's line: ``[  0.3 s] writing results``
 _STEP = re.compile(r"^\[\s*[\d.]+ s\] (?P<what>.+)$")
-#: an error line of a command: ``strain2d analyze: error: ...``
-_ERROR = re.compile(r"^\S+ \S+: error: (?P<why>.+)$")
+#: an error line of a command: ``strain2d analyze: error: ...`` (or the program's own)
+_ERROR = re.compile(r"^\S+(?: \S+)?: error: (?P<why>.+)$")
 
 
 def add_layers(viewer, layers) -> list:
@@ -185,6 +185,10 @@ class _RunWidget(QWidget):
         self.cancel_button.clicked.connect(self.runner.cancel)
         self.last_status = ""
         self.last_layers: list = []
+        # (path, write) of files the command reads, written once the inputs are good
+        self._pending: list = []
+        self._written: list[Path] = []  # those of the run going on
+        self._run_out: Path | None = None
 
     def _finish_layout(self, extra: list[QWidget] = (), below: list[QWidget] = ()) -> None:
         self.form.addRow("output folder", _path_row(self.out, folder=True, save=True))
@@ -227,8 +231,24 @@ class _RunWidget(QWidget):
 
     def run(self) -> bool:
         """Check the inputs and start the command; False (and a message) if they are bad."""
+        self._pending = []
         try:
             argv = self.command()
+            for arg in argv:  # QProcess passes text: a name that is not UTF-8 would change
+                try:
+                    arg.encode("utf-8")
+                except UnicodeEncodeError:
+                    raise InputError(
+                        f"{arg.encode('utf-8', 'surrogateescape')!r} is not a UTF-8 name: "
+                        "rename it, or run the command in a terminal"
+                    ) from None
+            self._written = []
+            for path, write in self._pending:  # once every check passed
+                new = not path.exists()  # one there before (an earlier run's) stays
+                write()
+                if new:
+                    self._written.append(path)
+            self._run_out = self.output()
         except (InputError, OSError, ValueError) as exc:
             self.say(str(exc), error=True)
             self.last_status = "refused"
@@ -257,8 +277,12 @@ class _RunWidget(QWidget):
         self.bar.setRange(0, 1)
         self.bar.setValue(1 if status == "done" else 0)
         self.last_status = status
+        if status != "done":  # nothing of a refused, failed or cancelled run is left
+            for path in self._written:
+                path.unlink(missing_ok=True)
+        self._written = []
         if status == "done":
-            out = self.output()
+            out = self._run_out
             try:
                 self.last_layers = self.load(out)
             except Exception as exc:  # the run is written; only showing it failed
@@ -312,13 +336,24 @@ class StrainWidget(_RunWidget):
         self._finish_layout([self.preview_button])
         self.tracker.currentTextChanged.connect(self._tracker_options)
         self._tracker_options(self.tracker.currentText())
+        self._watched: set[int] = set()
+        self._chosen: dict = {}
+        self._listing = False
+        self.video.currentTextChanged.connect(self._choose)
+        self.region.currentTextChanged.connect(self._choose)
         self._refresh_layers()
         napari_viewer.layers.events.inserted.connect(self._refresh_layers)
         napari_viewer.layers.events.removed.connect(self._refresh_layers)
 
     # -- the form
     def _refresh_layers(self, *_) -> None:
-        video, region = self.video.currentText(), self.region.currentText()
+        """List the layers again, keeping the chosen ones chosen (under a new name too)."""
+        for layer in self.viewer.layers:  # a renamed layer is listed under its new name
+            if id(layer) not in self._watched:
+                self._watched.add(id(layer))
+                layer.events.name.connect(self._refresh_layers)
+        chosen = {box: self._chosen.get(box) for box in (self.video, self.region)}
+        self._listing = True
         self.video.clear()
         self.region.clear()
         self.region.addItem("(central 70 % of the frame)")
@@ -328,10 +363,19 @@ class StrainWidget(_RunWidget):
                 self.video.addItem(layer.name)
             elif kind in ("Shapes", "Labels"):
                 self.region.addItem(layer.name)
-        if video:
-            self.video.setCurrentText(video)
-        if region:
-            self.region.setCurrentText(region)
+        for box, layer in chosen.items():
+            if layer is not None and layer in self.viewer.layers:
+                box.setCurrentText(layer.name)
+        self._listing = False
+        self._choose()
+
+    def _choose(self, *_) -> None:
+        """Remember the layers chosen (the objects: their names may change)."""
+        if self._listing:
+            return
+        for box in (self.video, self.region):
+            name = box.currentText()
+            self._chosen[box] = self.viewer.layers[name] if name in self.viewer.layers else None
 
     def _tracker_options(self, name: str) -> None:
         import inspect
@@ -349,9 +393,9 @@ class StrainWidget(_RunWidget):
             default = None if parameter is None else parameter.default
             if default is inspect.Parameter.empty:
                 default = None
-            if option.switch is not None:
+            if option.switch is not None:  # ticked: the flag is given
                 field = QCheckBox()
-                field.setChecked(bool(default) if default is not None else False)
+                field.setChecked(False)
             elif option.choices:
                 field = QComboBox()
                 field.addItems(list(option.choices))
@@ -371,48 +415,97 @@ class StrainWidget(_RunWidget):
             if not path.exists():
                 raise InputError(f"no such video or folder: {path}")
             return str(path)
+        return str(self._video_layer().metadata["source"])
+
+    def _video_layer(self):
         name = self.video.currentText()
         if not name:
             raise InputError("open a video (File > Open) or give its path")
-        return str(self.viewer.layers[name].metadata["source"])
+        if name not in self.viewer.layers:
+            raise InputError(f"the video layer {name!r} is gone: choose the video again")
+        return self.viewer.layers[name]
 
     def _frame_shape(self, source: str) -> tuple[int, int]:
-        name = self.video.currentText()
-        if not self.video_path.text().strip() and name:
-            return tuple(self.viewer.layers[name].data.shape[-2:])
+        if not self.video_path.text().strip() and self.video.currentText():
+            return tuple(self._video_layer().data.shape[-2:])
         from strain2d import open_frames
 
         return tuple(open_frames([source], min_frames=1).shape)
 
-    def _region_args(self, out: Path, shape: tuple[int, int]) -> list[str]:
-        """``--roi`` from a rectangle; ``--mask`` from another shape or a labels layer,
-        written beside the output folder (``OUT_region.csv`` or ``OUT_mask.png``)."""
+    def drawn_region(self, shape: tuple[int, int]):
+        """What the region layer says, in the video's pixels: ``None`` (the default
+        region), ``("roi", (x0, y0, x1, y1))`` for one upright rectangle, ``("polygon",
+        (K, 2) x, y)`` for one other closed shape, or ``("mask", (H, W) bool)`` for a
+        labels layer (painted on any frame) or several shapes (their union)."""
+        from tissue_core.masks import polygon_inside
+
         name = self.region.currentText()
-        if not name or name not in self.viewer.layers:
-            return []
+        if not name or name == self.region.itemText(0):
+            return None
+        if name not in self.viewer.layers:
+            raise InputError(f"the region layer {name!r} is gone: choose the region again")
         layer = self.viewer.layers[name]
-        overwrite = self.overwrite.isChecked()
         if type(layer).__name__ == "Labels":
-            data = np.asarray(layer.data)
-            mask = data[0] if data.ndim == 3 else data
-            if mask.shape != shape or not (mask > 0).any():
+            data = np.asarray(layer.data) > 0
+            mask = data.any(axis=0) if data.ndim == 3 else data
+            if mask.shape != shape or not mask.any():
                 raise InputError(f"the labels layer {name!r} holds no tissue on a {shape} frame")
-            path = out.parent / f"{out.name}_mask.png"
-            _write_png(path, (mask > 0).astype(np.uint8) * 255, overwrite)
-            return ["--mask", str(path)]
+            return "mask", mask
         if not len(layer.data):
             raise InputError(f"draw the region on the shapes layer {name!r} first")
-        vertices = np.asarray(layer.data[0])[:, -2:]  # (y, x): the last two of (t, y, x)
-        kind = layer.shape_type[0]
-        if kind == "rectangle":
-            (y0, x0), (y1, x1) = vertices.min(axis=0), vertices.max(axis=0)
+        shapes = []
+        for vertices, kind in zip(layer.data, layer.shape_type, strict=True):
+            if kind in ("line", "path"):
+                raise InputError(f"a {kind} on {name!r} encloses no region: draw a closed shape")
+            yx = self._pixels(layer, np.asarray(vertices, float))
+            if kind == "ellipse":  # inscribed in its box (four corners, maybe turned)
+                a = np.linspace(0, 2 * np.pi, 72, endpoint=False)[:, None]
+                u, v = (yx[1] - yx[0]) / 2, (yx[2] - yx[1]) / 2  # the semi-axes
+                yx = yx.mean(axis=0) + np.cos(a) * u + np.sin(a) * v
+            shapes.append((kind, yx))
+        if len(shapes) == 1:
+            kind, yx = shapes[0]
+            sides = [len(np.unique(yx[:, k].round(6))) for k in (0, 1)]
+            upright = sides == [2, 2]
+            if kind == "rectangle" and upright:
+                (y0, x0), (y1, x1) = yx.min(axis=0), yx.max(axis=0)
+                return "roi", (x0, y0, x1, y1)
+            return "polygon", yx[:, ::-1]
+        mask = np.zeros(shape, bool)
+        for _, yx in shapes:
+            mask |= polygon_inside(yx[:, ::-1], shape)
+        return "mask", mask
+
+    def _pixels(self, layer, vertices: np.ndarray) -> np.ndarray:
+        """A shape's vertices in the video's pixels (y, x): through the world coordinates,
+        so a shape drawn on a scaled or moved layer lands where it is seen."""
+        world = np.array([layer.data_to_world(v) for v in vertices])
+        if not self.video_path.text().strip() and self.video.currentText():
+            video = self._video_layer()
+            pixels = np.array([video.world_to_data(w) for w in world])
+        else:
+            pixels = world
+        return pixels[:, -2:]
+
+    def _region_args(self, out: Path, shape: tuple[int, int]) -> list[str]:
+        """``--roi`` from an upright rectangle; ``--mask`` from any other region, written
+        beside the output folder (``OUT_region.csv``, ``OUT_mask.png``) once the run's
+        inputs are all good (removed again if the run does not end in results)."""
+        region = self.drawn_region(shape)
+        if region is None:
+            return []
+        kind, value = region
+        if kind == "roi":
+            x0, y0, x1, y1 = value
             return ["--roi", f"{x0:.1f},{y0:.1f},{x1:.1f},{y1:.1f}"]
-        if kind == "ellipse":
-            c, r = vertices.mean(axis=0), (vertices.max(axis=0) - vertices.min(axis=0)) / 2
-            a = np.linspace(0, 2 * np.pi, 72, endpoint=False)
-            vertices = np.column_stack([c[0] + r[0] * np.sin(a), c[1] + r[1] * np.cos(a)])
-        path = out.parent / f"{out.name}_region.csv"
-        _write_polygon(path, vertices[:, ::-1], overwrite)
+        overwrite = self.overwrite.isChecked()
+        if kind == "polygon":
+            path = out.parent / f"{out.name}_region.csv"
+            self._pending.append((path, lambda: _write_polygon(path, value, overwrite)))
+        else:
+            path = out.parent / f"{out.name}_mask.png"
+            image = value.astype(np.uint8) * 255
+            self._pending.append((path, lambda: _write_png(path, image, overwrite)))
         return ["--mask", str(path)]
 
     def command(self) -> list[str]:
@@ -431,7 +524,7 @@ class StrainWidget(_RunWidget):
             if field is None:
                 continue
             if isinstance(field, QCheckBox):
-                if field.isChecked() == option.switch:
+                if field.isChecked():
                     argv.append(option.flag)
                 continue
             text = field.currentText() if isinstance(field, QComboBox) else field.text().strip()
@@ -450,20 +543,23 @@ class StrainWidget(_RunWidget):
     # -- preview and results
     def preview(self) -> None:
         """The grid the run will track, as a points layer on the first frame."""
-        from strain2d import default_roi, make_grid, masked_grid, parse_grid, parse_roi
-        from tissue_core.masks import read_mask
+        from strain2d import default_roi, make_grid, masked_grid, parse_grid
+        from tissue_core.masks import Mask, polygon_inside
 
         try:
             source = self.source()
             shape = self._frame_shape(source)
             grid = parse_grid(self.grid.text().strip())
-            out = self.output() if self.out.text().strip() else Path("preview")
-            args = self._region_args(out, shape)
-            if args[:1] == ["--mask"]:
-                points, _, _ = masked_grid(shape, read_mask(args[1], shape), shape=grid)
-            else:
-                roi = parse_roi(args[1]) if args else default_roi(shape)
+            region = self.drawn_region(shape)  # nothing is written for a preview
+            if region is None or region[0] == "roi":
+                roi = default_roi(shape) if region is None else region[1]
                 points = make_grid(shape, shape=grid, roi=roi)
+            else:
+                kind, value = region
+                inside = polygon_inside(value, shape) if kind == "polygon" else value
+                mask = Mask(inside=inside, source=f"the region layer {self.region.currentText()}",
+                            kind="image")  # fmt: skip
+                points, _, _ = masked_grid(shape, mask, shape=grid)
         except (InputError, OSError, ValueError) as exc:
             self.say(str(exc), error=True)
             return

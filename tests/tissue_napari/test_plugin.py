@@ -226,3 +226,97 @@ def test_mpm_widget_shows_the_surface_and_the_metrics(make_napari_viewer, qtbot,
     height = viewer.layers["mpm height (um)"]
     assert tuple(height.scale) == (5.0, 5.0)
     assert "mpm surface" in viewer.layers
+
+
+def test_points3d_and_multimodal_folders_open(tmp_path):
+    """A stereo points3d.csv: the visible points over time in (t, z, y, x); a multimodal
+    run's surfaces and the camera's mesh coloured by its Exx along the surface."""
+    import pyvista as pv
+
+    rows = ["frame,point,X,Y,Z,reproj_error,visible"]
+    for t in range(3):
+        for k in range(4):
+            visible = 0 if (t, k) == (2, 3) else 1
+            rows.append(f"{t},{k},{k * 1.0},{2.0 + t},{10.0 + k},0.1,{visible}")
+    (tmp_path / "points3d.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    layers = read_path(str(tmp_path / "points3d.csv"))
+    (points, _, kind), (tracks, _, kind2) = layers
+    assert (kind, kind2) == ("points", "tracks")
+    assert np.array_equal(np.unique(tracks[:, 0]), [0, 1, 2, 3])  # one track per point
+    assert points.shape == (11, 4)  # the lost point left out
+    assert np.array_equal(points[5], [1.0, 11.0, 3.0, 1.0])  # frame 1, point 1: t, Z, Y, X
+
+    run = tmp_path / "fold"
+    run.mkdir()
+    (run / "fold_strain.csv").write_text("triangle,Exx_surface\n0,0.1\n", encoding="utf-8")
+    grid = pv.Plane(i_resolution=3, j_resolution=3).triangulate()
+    surface = grid.copy()
+    surface.point_data["height_um"] = np.arange(surface.n_points, dtype=float)
+    surface.save(run / "surface_before.vtp")
+    mesh = grid.copy()  # as multimodal writes it: each triangle's strains as cell data
+    mesh.cell_data["Exx_surface"] = np.linspace(-0.1, 0.1, mesh.n_cells)
+    mesh.save(run / "mesh_after.vtp")
+    layers = {kwargs["name"]: data for data, kwargs, _ in read_path(str(run))}
+    assert set(layers) == {"fold surface before", "fold mesh after"}
+    vertices, faces, values = layers["fold mesh after"]
+    assert len(faces) == grid.n_cells and len(vertices) == 3 * grid.n_cells
+    # each triangle flat in its own value
+    assert np.allclose(values[faces], mesh.cell_data["Exx_surface"][:, None])
+    assert np.allclose(vertices[faces[4]], np.asarray(grid.points)[grid.regular_faces[4]][:, ::-1])
+
+
+def test_regions_follow_the_layers(make_napari_viewer, video, tmp_path):
+    """A polygon previews without writing anything; a renamed layer stays the region; a
+    labels layer painted on a later frame is the mask; a scaled shapes layer lands where
+    it is seen; switches start off."""
+    from tissue_napari.widgets import StrainWidget
+
+    viewer = _viewer_with(make_napari_viewer, video)
+    polygon = np.array([[0, 60, 60], [0, 60, 180], [0, 180, 120]])
+    shapes = viewer.add_shapes([polygon], shape_type="polygon", name="outline")
+    widget = StrainWidget(viewer)
+    widget.region.setCurrentText("outline")
+    widget.grid.setText("9x9")
+    widget.out.setText(str(tmp_path / "run"))
+    widget.preview()
+    kept = len(viewer.layers["grid preview"].data)
+    assert 0 < kept < 81  # the triangle keeps part of the grid
+    assert list(tmp_path.iterdir()) == []  # a preview writes nothing
+    argv = widget.command()
+    assert argv[argv.index("--mask") + 1] == str(tmp_path / "run_region.csv")
+    shapes.name = "tissue"
+    assert widget.region.currentText() == "tissue"  # renamed, still chosen
+    labels = np.zeros((8, 240, 240), np.uint8)
+    labels[3, 50:150, 70:190] = 1  # painted on frame 3 only
+    viewer.add_labels(labels, name="painted")
+    widget.region.setCurrentText("painted")
+    kind, mask = widget.drawn_region((240, 240))
+    assert kind == "mask" and mask.sum() == 100 * 120
+    rect = np.array([[0, 30, 30], [0, 30, 90], [0, 90, 90], [0, 90, 30]])
+    viewer.add_shapes([rect], shape_type="rectangle", name="scaled", scale=(1, 2, 2))
+    widget.region.setCurrentText("scaled")
+    assert widget.drawn_region((240, 240)) == ("roi", (60.0, 60.0, 180.0, 180.0))
+    widget.tracker.setCurrentText("cotracker3")
+    switches = [f for f in widget.option_fields.values() if hasattr(f, "isChecked")]
+    assert switches and not any(f.isChecked() for f in switches)
+
+
+def test_a_refused_run_leaves_no_region_file(make_napari_viewer, qtbot, video, tmp_path):
+    """The region's polygon is written for the run and removed when the run fails (here:
+    the output folder exists and is not a result)."""
+    from tissue_napari.widgets import StrainWidget
+
+    viewer = _viewer_with(make_napari_viewer, video)
+    viewer.add_shapes([np.array([[0, 60, 60], [0, 60, 180], [0, 180, 120]])],
+                      shape_type="polygon", name="outline")  # fmt: skip
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("the user's", encoding="utf-8")
+    widget = StrainWidget(viewer)
+    widget.region.setCurrentText("outline")
+    widget.out.setText(str(tmp_path / "mine"))
+    assert widget.run()
+    qtbot.waitUntil(lambda: widget.last_status != "running", timeout=RUN_MS)
+    assert widget.last_status == "failed"
+    assert "exists" in widget.status.text()
+    assert not (tmp_path / "mine_region.csv").exists()
+    assert (tmp_path / "mine" / "notes.txt").read_text(encoding="utf-8") == "the user's"
