@@ -1,4 +1,4 @@
-"""``python -m tissue_napari [PATH ...]``: napari with the strain and MPM widgets docked,
+"""``python -m tissue_napari [PATH ...]``: napari with the plugin's widgets docked,
 and the paths given opened with this plugin's readers."""
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ def main(argv: list[str] | None = None) -> int:
     viewer = napari.Viewer(title="tissue-strain")
     viewer.window.add_plugin_dock_widget("tissue-strain", "Strain from video")
     viewer.window.add_plugin_dock_widget("tissue-strain", "MPM folds")
+    viewer.window.add_plugin_dock_widget("tissue-strain", "Run numbers")
     for path in argv:
         viewer.open(path, plugin="tissue-strain")
     napari.run()

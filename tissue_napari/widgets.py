@@ -37,7 +37,14 @@ from qtpy.QtWidgets import (
 
 from tissue_core.errors import InputError
 
-__all__ = ["CommandRunner", "MpmWidget", "StrainWidget", "add_layers"]
+__all__ = [
+    "CommandRunner",
+    "MpmWidget",
+    "RunNumbersWidget",
+    "StrainWidget",
+    "add_layers",
+    "run_numbers",
+]
 
 #: a counter's line of :mod:`tissue_core.progress`: ``[  1.2 s] tracking (gdic): 10/31 frames``
 _COUNTER = re.compile(r"^\[\s*[\d.]+ s\] (?P<what>.+?): (?P<done>\d+)(?:/(?P<total>\d+))? \w+$")
@@ -666,3 +673,73 @@ def _write_polygon(path: Path, xy: np.ndarray, overwrite: bool) -> None:
             writer = csv_writer(f)
             writer.writerow(["x", "y"])
             writer.writerows([(f"{x:.2f}", f"{y:.2f}") for x, y in xy])
+
+
+def run_numbers(summary: dict) -> list[tuple[str, str]]:
+    """The headline numbers of a run's ``summary.json`` (or an mpm3d ``metrics.json``),
+    as (what, value) rows: what its report opens with."""
+    rows: list[tuple[str, str]] = []
+
+    def number(value, digits: int = 4) -> str:
+        return "-" if value is None else (f"{value:.{digits}g}" if isinstance(value, float)
+                                          else str(value))  # fmt: skip
+
+    if "fold_wavelength_um" in summary:  # mpm3d
+        for key, label in MpmWidget.SHOWN:
+            rows.append((label, number(summary.get(key))))
+        return rows
+    tracker = summary.get("tracker") or {}
+    points = summary.get("points") or {}
+    rows.append(("tracker", str(tracker.get("name", "-"))))
+    rows.append(("points", number(points.get("n"))))
+    rows.append(("points lost on the last frame", number(summary.get("lost_points_last_frame"))))
+    sigma = (summary.get("tracking_uncertainty_px") or {}).get("median")
+    rows.append(("median uncertainty (px)", number(sigma)))
+    endpoint = summary.get("contraction_endpoint") or {}
+    rows.append(
+        ("endpoint frame", f"{number(endpoint.get('frame'))} ({endpoint.get('label', '')})")
+    )
+    final = (summary.get("statistics") or {}).get("nodal_strain") or {}
+    for component in ("Exx", "Eyy", "Exy", "E1", "E2"):
+        stats = final.get(component)
+        if stats:
+            spread = number(stats.get("sd"), 2)
+            rows.append((f"{component} at the endpoint, mean (SD)",
+                         f"{number(stats.get('mean'))} ({spread})"))  # fmt: skip
+    for flag in summary.get("flags") or []:
+        rows.append(("flag", str(flag)))
+    return rows
+
+
+class RunNumbersWidget(QWidget):
+    """The headline numbers of the run behind the selected layer (its report's)."""
+
+    def __init__(self, napari_viewer) -> None:
+        super().__init__()
+        self.viewer = napari_viewer
+        self.title = QLabel("select a layer of a run folder")
+        self.title.setWordWrap(True)
+        self.table = QTableWidget(0, 2)
+        self.table.setHorizontalHeaderLabels(["", "value"])
+        self.table.horizontalHeader().setStretchLastSection(True)
+        self.table.verticalHeader().setVisible(False)
+        layout = QVBoxLayout(self)
+        layout.addWidget(self.title)
+        layout.addWidget(self.table)
+        napari_viewer.layers.selection.events.active.connect(self.show_active)
+        self.show_active()
+
+    def show_active(self, *_) -> None:
+        layer = self.viewer.layers.selection.active
+        meta = getattr(layer, "metadata", {}) or {}
+        summary = meta.get("summary") or meta.get("metrics")
+        self.table.setRowCount(0)
+        if not summary:
+            self.title.setText("select a layer of a run folder")
+            return
+        self.title.setText(str(meta.get("run", "")))
+        for what, value in run_numbers(summary):
+            row = self.table.rowCount()
+            self.table.insertRow(row)
+            self.table.setItem(row, 0, QTableWidgetItem(what))
+            self.table.setItem(row, 1, QTableWidgetItem(value))

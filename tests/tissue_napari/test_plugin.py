@@ -320,3 +320,29 @@ def test_a_refused_run_leaves_no_region_file(make_napari_viewer, qtbot, video, t
     assert "exists" in widget.status.text()
     assert not (tmp_path / "mine_region.csv").exists()
     assert (tmp_path / "mine" / "notes.txt").read_text(encoding="utf-8") == "the user's"
+
+
+def test_run_numbers_show_the_selected_runs_report(make_napari_viewer, video, tmp_path):
+    """Selecting a layer of a run shows the numbers its report opens with (from the run's
+    summary.json); a layer of no run shows nothing."""
+    import json
+
+    from tissue_napari.widgets import RunNumbersWidget, add_layers
+
+    out = tmp_path / "run"
+    command = ["strain2d", "analyze", str(video), "--grid", "4x4", "--roi", "61,61,178,178",
+               "--out", str(out), "-q", "--animation", "none"]  # fmt: skip
+    subprocess.run([sys.executable, "-m", *command], check=True)
+    viewer = _viewer_with(make_napari_viewer, video)
+    widget = RunNumbersWidget(viewer)
+    assert widget.table.rowCount() == 0
+    layers = add_layers(viewer, read_path(str(out)))
+    viewer.layers.selection.active = layers[1]  # the nodes
+    rows = {widget.table.item(r, 0).text(): widget.table.item(r, 1).text()
+            for r in range(widget.table.rowCount())}  # fmt: skip
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    assert rows["tracker"] == "gdic" and rows["points"] == "16"
+    mean = summary["statistics"]["nodal_strain"]["Exx"]["mean"]
+    assert rows["Exx at the endpoint, mean (SD)"].startswith(f"{mean:.4g} (")
+    viewer.layers.selection.active = viewer.layers["stretch"]
+    assert widget.table.rowCount() == 0
