@@ -10,7 +10,7 @@ SYSTEM_LIBS := libgl1 libxrender1 libx11-6
 QT_LIBS := xvfb libegl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 \
 	libxcb-shape0 libxcb-xinerama0 libfontconfig1 libdbus-1-3
 
-.PHONY: setup demo test docs lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
+.PHONY: setup demo test docs docs-check lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
 
 system-deps:
 	@missing=""; \
@@ -56,6 +56,11 @@ docs: setup
 	$(BIN)/python docs/gen_api.py
 	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict -d site
 	@echo "documentation in site/index.html"
+
+# Every command the guides and the README show, run as a user would (those that need
+# the user's data, the demo's, a cluster or a display are marked so and only parsed).
+docs-check: setup
+	$(BIN)/python -m pytest -q -p no:cacheprovider -m guide_commands tests/test_docs.py
 
 # Render a synthetic equibiaxial-stretch video (with ground truth) and analyze it.
 demo: setup

@@ -134,6 +134,48 @@ def test_the_readme_is_a_front_door():
         assert command in readme
 
 
+def _blocks(text: str):
+    """Each fenced block's ``(needs, steps)``: ``needs`` is the reason of a ``<!-- needs:
+    ... -->`` line just before it (its commands need data or means a test does not
+    have), or None; ``steps`` are its ``("run", command)``, ``("cd", folder)`` and
+    ``("mkdir", folder)`` lines in order (continuations joined, comments and a shell prompt taken off)."""
+    lines = text.splitlines()
+    k = 0
+    while k < len(lines):
+        if not lines[k].startswith("```"):
+            k += 1
+            continue
+        before = lines[k - 1].strip() if k else ""
+        m = re.fullmatch(r"<!-- needs: (.+) -->", before)
+        needs = m.group(1) if m else None
+        body = []
+        k += 1
+        while k < len(lines) and not lines[k].startswith("```"):
+            body.append(lines[k])
+            k += 1
+        k += 1
+        steps, so_far = [], ""
+        for line in body:
+            line = line.rstrip()
+            if so_far:
+                so_far += " " + line.strip()
+            elif re.match(r"^\$?\s*python -m \w+", line):
+                so_far = re.sub(r"^\$\s*", "", line.strip())
+            elif re.match(r"^\$?\s*(cd|mkdir -p) \S+(\s+#.*)?$", line.strip()):
+                words = line.strip().lstrip("$ ").split(" #")[0].split()
+                steps.append(("cd", words[1]) if words[0] == "cd" else ("mkdir", words[-1]))
+                continue
+            else:
+                continue
+            if so_far.endswith("\\"):
+                so_far = so_far[:-1]
+                continue
+            steps.append(("run", so_far.split(" #")[0].strip()))
+            so_far = ""
+        if any(kind == "run" for kind, _ in steps):
+            yield needs, steps
+
+
 def _commands(text: str):
     """The ``python -m PACKAGE ...`` lines of a page's code blocks (continuations joined,
     comments and a shell prompt taken off)."""
@@ -188,3 +230,46 @@ def test_every_command_shown_is_accepted(page, command):
 
 def test_the_guides_show_commands():
     assert len(_guide_commands()) >= 50
+
+
+def _pages_with_commands() -> list[Path]:
+    return [p for p in [*sorted(DOCS.glob("*.md")), ROOT / "README.md"]
+            if list(_blocks(p.read_text(encoding="utf-8")))]  # fmt: skip
+
+
+def test_every_block_of_commands_runs_or_says_what_it_needs():
+    """A block of commands is run by ``make docs-check`` unless a ``<!-- needs: ... -->``
+    line says what it needs (the user's data, the demo's, a cluster, a display)."""
+    reasons = []
+    for page in _pages_with_commands():
+        for needs, _ in _blocks(page.read_text(encoding="utf-8")):
+            assert needs is None or len(needs.split()) >= 2, f"{page}: needs {needs!r}"
+            reasons.append(needs)
+    assert reasons.count(None) >= 8  # the worked examples run
+
+
+@pytest.mark.guide_commands
+@pytest.mark.parametrize("page", _pages_with_commands(), ids=lambda p: p.name)
+def test_the_guides_commands_run(page, tmp_path):
+    """Every command of the page's blocks that need nothing, run in order as a user would
+    (in an empty folder; ``cd`` lines followed): each ends with status 0.  Slow (minutes):
+    ``make docs-check`` runs it, the suite does not."""
+    cwd = tmp_path
+    ran = 0
+    for needs, steps in _blocks(page.read_text(encoding="utf-8")):
+        if needs is not None:
+            continue
+        for kind, command in steps:
+            if kind == "cd":
+                cwd = cwd / command
+                continue
+            if kind == "mkdir":
+                (cwd / command).mkdir(parents=True, exist_ok=True)
+                continue
+            argv = shlex.split(command)
+            done = subprocess.run([sys.executable, *argv[1:]], cwd=cwd, capture_output=True,
+                                  text=True, timeout=900)  # fmt: skip
+            assert done.returncode == 0, f"{page.name}: {command}\n{done.stderr[-2000:]}"
+            ran += 1
+    needs = [n for n, _ in _blocks(page.read_text(encoding="utf-8")) if n is not None]
+    assert ran or needs, page
