@@ -138,7 +138,8 @@ def _blocks(text: str):
     """Each fenced block's ``(needs, steps)``: ``needs`` is the reason of a ``<!-- needs:
     ... -->`` line just before it (its commands need data or means a test does not
     have), or None; ``steps`` are its ``("run", command)``, ``("cd", folder)`` and
-    ``("mkdir", folder)`` lines in order (continuations joined, comments and a shell prompt taken off)."""
+    ``("mkdir", folder)`` lines in order (continuations joined, comments and a shell
+    prompt taken off)."""
     lines = text.splitlines()
     k = 0
     while k < len(lines):
