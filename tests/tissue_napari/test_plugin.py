@@ -28,12 +28,13 @@ def video(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def long_video(tmp_path_factory) -> Path:
-    """Long enough that a cancel lands during the tracking."""
-    folder = tmp_path_factory.mktemp("napari_long")
-    path = folder / "long.avi"
-    write_video(make_case("equibiaxial", size=400, n_frames=60, rng=4).frames, path)
-    return path
+def demo_video(tmp_path_factory) -> Path:
+    """The demo's video, made as ``make demo`` makes it (800 x 800 px, 31 frames)."""
+    folder = tmp_path_factory.mktemp("napari_demo")
+    command = ["sample_data_synth", "video", "--case", "equibiaxial", "--formats", "avi",
+               "--out", str(folder / "data"), "-q"]  # fmt: skip
+    subprocess.run([sys.executable, "-m", *command], check=True)
+    return folder / "data" / "equibiaxial.avi"
 
 
 def _nodes(folder: Path) -> dict[str, np.ndarray]:
@@ -97,16 +98,17 @@ def test_a_run_folder_opens_as_tracks_nodes_and_mesh(video, tmp_path):
 # ----------------------------------------------------------------------------- widget
 
 
+@pytest.mark.xdist_group("napari_demo_video")  # rendered once, on one worker
 def test_strain_widget_runs_a_drawn_region_like_the_command_line(
-    make_napari_viewer, qtbot, video, tmp_path
+    make_napari_viewer, qtbot, demo_video, tmp_path
 ):
-    """A rectangle drawn on the video, a 5 x 5 grid, the default tracker: the widget's run
-    folder is the one the command it shows makes, and its layers carry that strain."""
+    """On the demo's video: a rectangle drawn (the demo's region), a 5 x 5 grid, the
+    default tracker: the widget's run folder is the one the command it shows makes, and
+    its layers carry that strain."""
     from tissue_napari.widgets import StrainWidget
 
-    viewer = _viewer_with(make_napari_viewer, video)
-    # the region the stretch keeps in the frame (the case's own)
-    corners = np.array([[0, 61, 61], [0, 61, 178], [0, 178, 178], [0, 178, 61]])
+    viewer = _viewer_with(make_napari_viewer, demo_video)
+    corners = np.array([[0, 202, 202], [0, 202, 597], [0, 597, 597], [0, 597, 202]])
     viewer.add_shapes([corners], shape_type="rectangle", name="region")
     widget = StrainWidget(viewer)
     assert widget.tracker.currentText() == "gdic"  # the default, from the registry
@@ -121,7 +123,7 @@ def test_strain_widget_runs_a_drawn_region_like_the_command_line(
     assert widget.last_status == "done", widget.status.text()
     shown = shlex.split(widget.command_line.text())
     assert shown[:4] == ["python", "-m", "strain2d", "analyze"]
-    assert "--roi" in shown and shown[shown.index("--roi") + 1] == "61.0,61.0,178.0,178.0"
+    assert "--roi" in shown and shown[shown.index("--roi") + 1] == "202.0,202.0,597.0,597.0"
     # the same command typed by hand, into another folder
     typed = shown[2:]
     typed[typed.index("--out") + 1] = str(tmp_path / "typed_run")
@@ -131,7 +133,10 @@ def test_strain_widget_runs_a_drawn_region_like_the_command_line(
         assert np.array_equal(by_hand[key], by_widget[key], equal_nan=True), key
     nodes = viewer.layers["widget_run nodes (Exx)"]
     seen = by_hand["visible"] == 1
-    assert np.allclose(nodes.features["Exx"], by_hand["Exx"][seen], equal_nan=True)
+    assert seen.all()  # the default keeps every point of the demo
+    assert np.allclose(nodes.features["Exx"], by_hand["Exx"], equal_nan=True)
+    last = by_hand["frame"] == 30  # the demo's stretch: Exx = (1.5^2 - 1) / 2 = 0.625
+    assert np.allclose(by_hand["Exx"][last], 0.625, atol=0.005)
     assert "widget_run mesh (Exx)" in viewer.layers
     assert "results in" in widget.status.text()
 
@@ -147,10 +152,11 @@ def test_strain_widget_options_come_from_the_tracker_registry(make_napari_viewer
         assert set(widget.option_fields) == flags
 
 
-def test_cancel_leaves_no_folder(make_napari_viewer, qtbot, long_video, tmp_path):
+@pytest.mark.xdist_group("napari_demo_video")
+def test_cancel_leaves_no_folder(make_napari_viewer, qtbot, demo_video, tmp_path):
     from tissue_napari.widgets import StrainWidget
 
-    viewer = _viewer_with(make_napari_viewer, long_video)
+    viewer = _viewer_with(make_napari_viewer, demo_video)
     widget = StrainWidget(viewer)
     widget.grid.setText("9x9")
     out = tmp_path / "cancelled"
