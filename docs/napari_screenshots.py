@@ -39,7 +39,7 @@ def main() -> int:
 
     from sample_data_synth import make_case, make_stack_case, write_stack, write_video
     from tissue_napari.readers import read_path
-    from tissue_napari.widgets import MpmWidget, StrainWidget, add_layers
+    from tissue_napari.widgets import MpmWidget, RunNumbersWidget, StrainWidget, add_layers
 
     tmp = Path(tempfile.mkdtemp(prefix="napari_shots_"))
     video = tmp / "gaussian.avi"
@@ -67,9 +67,16 @@ def main() -> int:
     app.processEvents()
     viewer.screenshot(str(IMAGES / "napari_strain.png"), canvas_only=False)
 
+    numbers = RunNumbersWidget(viewer)
+    viewer.window.remove_dock_widget(strain)
+    viewer.window.add_dock_widget(numbers, name="Run numbers", area="right")
+    viewer.layers.selection.active = viewer.layers["run nodes (Exx)"]
+    app.processEvents()
+    viewer.screenshot(str(IMAGES / "napari_run_numbers.png"), canvas_only=False)
+    viewer.window.remove_dock_widget(numbers)
+
     for layer in list(viewer.layers):
         viewer.layers.remove(layer)
-    viewer.window.remove_dock_widget(strain)
     stack = make_stack_case("after", size=160, spacing=(4.0, 5.0, 5.0), rng=1)
     write_stack(tmp / "after.tif", stack)
     mpm = MpmWidget(viewer)
@@ -82,7 +89,7 @@ def main() -> int:
     app.processEvents()
     viewer.screenshot(str(IMAGES / "napari_mpm.png"), canvas_only=False)
     viewer.close()
-    print(f"wrote {IMAGES / 'napari_strain.png'} and {IMAGES / 'napari_mpm.png'}")
+    print(f"wrote {IMAGES}/napari_strain.png, napari_run_numbers.png and napari_mpm.png")
     return 0
 
 

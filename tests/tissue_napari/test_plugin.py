@@ -37,6 +37,16 @@ def demo_video(tmp_path_factory) -> Path:
     return folder / "data" / "equibiaxial.avi"
 
 
+@pytest.fixture(scope="module")
+def run_folder(video, tmp_path_factory) -> Path:
+    """A ``strain2d analyze`` run of the small video (4 x 4 grid, the default tracker)."""
+    out = tmp_path_factory.mktemp("napari_run") / "run"
+    command = ["strain2d", "analyze", str(video), "--grid", "4x4", "--roi", "61,61,178,178",
+               "--out", str(out), "-q", "--animation", "none"]  # fmt: skip
+    subprocess.run([sys.executable, "-m", *command], check=True)
+    return out
+
+
 def _nodes(folder: Path) -> dict[str, np.ndarray]:
     with open(folder / "strain_nodes.csv", newline="", encoding="utf-8") as f:
         rows = [r for r in csv.DictReader(line for line in f if not line.startswith("#"))]
@@ -74,13 +84,11 @@ def test_a_stack_opens_with_its_voxel_size(tmp_path):
     assert kwargs["scale"] == (4.0, 2.5, 2.5)
 
 
-def test_a_run_folder_opens_as_tracks_nodes_and_mesh(video, tmp_path):
+@pytest.mark.xdist_group("napari_small_run")  # the run made once, on one worker
+def test_a_run_folder_opens_as_tracks_nodes_and_mesh(run_folder):
     """The nodes carry every strain component of strain_nodes.csv as features, frame by
     frame; the mesh has one copy per frame coloured by Exx."""
-    out = tmp_path / "run"
-    command = ["strain2d", "analyze", str(video), "--grid", "4x4", "--roi", "61,61,178,178",
-               "--out", str(out), "-q", "--animation", "none"]  # fmt: skip
-    subprocess.run([sys.executable, "-m", *command], check=True)
+    out = run_folder
     layers = {kind: (data, kwargs) for data, kwargs, kind in read_path(str(out))}
     assert set(layers) == {"tracks", "points", "surface"}
     nodes = _nodes(out)
@@ -328,17 +336,15 @@ def test_a_refused_run_leaves_no_region_file(make_napari_viewer, qtbot, video, t
     assert (tmp_path / "mine" / "notes.txt").read_text(encoding="utf-8") == "the user's"
 
 
-def test_run_numbers_show_the_selected_runs_report(make_napari_viewer, video, tmp_path):
+@pytest.mark.xdist_group("napari_small_run")
+def test_run_numbers_show_the_selected_runs_report(make_napari_viewer, video, run_folder):
     """Selecting a layer of a run shows the numbers its report opens with (from the run's
     summary.json); a layer of no run shows nothing."""
     import json
 
     from tissue_napari.widgets import RunNumbersWidget, add_layers
 
-    out = tmp_path / "run"
-    command = ["strain2d", "analyze", str(video), "--grid", "4x4", "--roi", "61,61,178,178",
-               "--out", str(out), "-q", "--animation", "none"]  # fmt: skip
-    subprocess.run([sys.executable, "-m", *command], check=True)
+    out = run_folder
     viewer = _viewer_with(make_napari_viewer, video)
     widget = RunNumbersWidget(viewer)
     assert widget.table.rowCount() == 0
