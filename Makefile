@@ -46,7 +46,7 @@ system-deps:
 $(BIN)/.installed: pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/python -m pip install --quiet --no-compile -e ".[dev]"  # .pyc made on first import: half the time
 	touch $@
 
 setup: $(BIN)/.installed
