@@ -43,7 +43,31 @@ from mpm3d.io import (
     _zcyx_order,
 )
 
-__all__ = ["TiffRows", "open_stack_lazily"]
+__all__ = ["TiffRows", "index_ranges", "open_stack_lazily"]
+
+
+def index_ranges(key, shape: Sequence[int], what: str) -> tuple[list[range], list[bool]]:
+    """A ``(Z, C, Y, X)`` view's index ``key`` (integers and slices) as one ``range`` per
+    axis, and whether each axis was an integer (dropped from the result)."""
+    if not isinstance(key, tuple):
+        key = (key,)
+    if len(key) > 4:
+        raise IndexError(f"too many indices for a (Z, C, Y, X) stack: {len(key)}")
+    key = key + (slice(None),) * (4 - len(key))
+    ranges, drop = [], []
+    for k, n in zip(key, shape, strict=True):
+        if isinstance(k, int | np.integer) and not isinstance(k, bool):
+            i = int(k) + n if k < 0 else int(k)
+            if not 0 <= i < n:
+                raise IndexError(f"index {k} out of range for an axis of {n}")
+            ranges.append(range(i, i + 1))
+            drop.append(True)
+        elif isinstance(k, slice):
+            ranges.append(range(*k.indices(n)))
+            drop.append(False)
+        else:
+            raise TypeError(f"{what} takes integers and slices, got {k!r}")
+    return ranges, drop
 
 
 class TiffRows:
@@ -139,24 +163,7 @@ class TiffRows:
         return int(np.ravel_multi_index(index, self._plane_sizes)) if index else 0
 
     def __getitem__(self, key) -> np.ndarray:
-        if not isinstance(key, tuple):
-            key = (key,)
-        if len(key) > 4:
-            raise IndexError(f"too many indices for a (Z, C, Y, X) stack: {len(key)}")
-        key = key + (slice(None),) * (4 - len(key))
-        ranges, drop = [], []
-        for k, n in zip(key, self.shape, strict=True):
-            if isinstance(k, int | np.integer) and not isinstance(k, bool):
-                i = int(k) + n if k < 0 else int(k)
-                if not 0 <= i < n:
-                    raise IndexError(f"index {k} out of range for an axis of {n}")
-                ranges.append(range(i, i + 1))
-                drop.append(True)
-            elif isinstance(k, slice):
-                ranges.append(range(*k.indices(n)))
-                drop.append(False)
-            else:
-                raise TypeError(f"TiffRows takes integers and slices, got {k!r}")
+        ranges, drop = index_ranges(key, self.shape, "TiffRows")
         if self._unreadable:
             raise InputError(self._unreadable)
         zs, cs, ys, xs = ranges

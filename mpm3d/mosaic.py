@@ -180,28 +180,13 @@ class MosaicRows:
         return owner
 
     def __getitem__(self, key) -> np.ndarray:
-        if not isinstance(key, tuple):
-            key = (key,)
-        if len(key) > 4:
-            raise IndexError(f"too many indices for a (Z, C, Y, X) stack: {len(key)}")
-        key = key + (slice(None),) * (4 - len(key))
-        ranges, drop, plain = [], [], []
-        for k, n in zip(key, self.shape, strict=True):
-            if isinstance(k, int | np.integer) and not isinstance(k, bool):
-                i = int(k) + n if k < 0 else int(k)
-                if not 0 <= i < n:
-                    raise IndexError(f"index {k} out of range for an axis of {n}")
-                ranges.append(range(i, i + 1))
-                drop.append(True)
-            elif isinstance(k, slice):
-                ranges.append(range(*k.indices(n)))
-                drop.append(False)
-            else:
-                raise TypeError(f"MosaicRows takes integers and slices, got {k!r}")
-            if ranges[-1].step < 0:
-                raise IndexError("MosaicRows reads each axis in increasing order (step > 0)")
-            r = ranges[-1]
-            plain.append(slice(r.start, r.start + len(r) * r.step, r.step))
+        from mpm3d.lazyio import index_ranges
+
+        ranges, drop = index_ranges(key, self.shape, "MosaicRows")
+        if any(r.step < 0 for r in ranges):
+            raise IndexError("MosaicRows reads each axis in increasing order (step > 0)")
+        # the same ranges as slices, for the tiles' own reads
+        plain = [slice(r.start, r.start + len(r) * r.step, r.step) for r in ranges]
         zs, cs, ys, xs = ranges
         out = np.zeros((len(zs), len(cs), len(ys), len(xs)), self.dtype)
         if out.size:
