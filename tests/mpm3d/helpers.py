@@ -4,6 +4,18 @@ from pathlib import Path
 
 from mpm3d.cli import main
 
+#: what ``mpm3d analyze`` writes without the surface and the figures
+TABLES = frozenset(
+    {
+        "metrics.json",
+        "folds.csv",
+        "crests.csv",
+        "heightmap.tif",
+        "surface_intensity.tif",
+        "report.html",
+    }
+)
+
 
 def cli(*argv) -> int:
     """``main`` as the shell sees it: argparse's own errors leave by SystemExit."""

@@ -12,7 +12,7 @@ import pytest
 import tifffile
 
 from sample_data_synth import make_stack_case, write_stack
-from tests.mpm3d.helpers import axis_diff, cli, listing, rel_err
+from tests.mpm3d.helpers import TABLES, axis_diff, cli, listing, rel_err
 from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SURFACE_RMS_ZSTEPS
 from tissue_core.outputs import MARKER
 
@@ -27,14 +27,6 @@ FIGURES = {
 }
 #: options for a quick, quiet run
 FAST = ("--no-surface", "--no-figures", "-q")
-TABLES = {
-    "metrics.json",
-    "folds.csv",
-    "crests.csv",
-    "heightmap.tif",
-    "surface_intensity.tif",
-    "report.html",
-}
 FULL = TABLES | {"surface.vtp", "surface.ply", "figures", MARKER} | set(FIGURES)
 
 

@@ -12,20 +12,12 @@ from scipy import ndimage
 
 from mpm3d.compare import COMPARED, align_heightmaps, icp_refine, metric_changes
 from mpm3d.errors import InputError
-from tests.mpm3d.helpers import axis_diff, cli, listing, rel_err
+from tests.mpm3d.helpers import TABLES, axis_diff, cli, listing, rel_err
 from tests.tolerances import MPM_FOLD_RELATIVE, MPM_ORIENTATION_DEG, MPM_SHIFT_PX
 from tissue_core.outputs import MARKER
 
 #: one side's analysis without the surface (the comparison needs only the height maps)
-SIDE = {
-    "metrics.json",
-    "folds.csv",
-    "crests.csv",
-    "heightmap.tif",
-    "surface_intensity.tif",
-    "report.html",
-    "figures",
-} | {f"figures/{name}.png" for name in ("heightmap", "profiles", "spectrum")}
+SIDE = TABLES | {"figures"} | {f"figures/{n}.png" for n in ("heightmap", "profiles", "spectrum")}
 
 
 @pytest.fixture
