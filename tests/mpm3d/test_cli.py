@@ -74,6 +74,7 @@ def small(tmp_path_factory):
 # --------------------------------------------------------------------------- analyze, full
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_writes_every_file_and_reports(after_run):
     out = after_run["out"]
     assert after_run["status"] == 0
@@ -87,6 +88,7 @@ def test_analyze_writes_every_file_and_reports(after_run):
     assert all(line.startswith("[") for line in err)  # timestamped progress messages
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_metrics_match_the_truth(after_run):
     m, case = after_run["m"], after_run["case"]
     assert m["command"][:2] == ["mpm3d", "analyze"]  # the recorded command
@@ -119,6 +121,7 @@ def test_analyze_metrics_match_the_truth(after_run):
     assert m["Sdr_percent"] > 0
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_folds_match_the_true_folds(after_run):
     """folds.csv's ``offset_um`` and the truth's ``crest_offset_um`` share one convention:
     distance from the map centre along ``n = (-sin t, cos t)``, t the crest direction
@@ -163,6 +166,7 @@ def test_analyze_folds_match_the_true_folds(after_run):
     assert np.all(np.abs(offsets[:, None] - true_offsets).min(axis=1) < 0.1 * wavelength)
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_heightmap_tiff(after_run):
     case = after_run["case"]
     dz, dy, dx = case.spacing
@@ -183,6 +187,7 @@ def test_analyze_heightmap_tiff(after_run):
     assert measured.mean() == pytest.approx(after_run["m"]["surface_coverage"])
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_surface_meshes(after_run):
     import pyvista as pv
 
@@ -206,6 +211,7 @@ def test_analyze_surface_meshes(after_run):
 
 
 @pytest.mark.parametrize("name", sorted(FIGURES))
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_figures_are_drawn(after_run, name):
     from matplotlib.image import imread
 

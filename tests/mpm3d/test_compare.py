@@ -29,6 +29,7 @@ def no_open3d(monkeypatch):
 # --------------------------------------------------------------------------- compare command
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_writes_every_file(compared):
     out = compared["out"]
     assert compared["status"] == 0
@@ -41,6 +42,7 @@ def test_compare_writes_every_file(compared):
     assert [p.name for p in out.parent.iterdir()] == [out.name]
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_report_holds_both_analyses(compared, mpm_pair):
     report, out = compared["report"], compared["out"]
     assert {"before", "after", "alignment", "changes"} <= set(report)
@@ -58,6 +60,7 @@ def test_compare_report_holds_both_analyses(compared, mpm_pair):
         assert saved["n_surface_triangles"] is None
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_changes_are_after_minus_before(compared):
     report, rows = compared["report"], compared["rows"]
     assert [row["metric"] for row in rows] == list(COMPARED)
@@ -80,6 +83,7 @@ def test_compare_changes_are_after_minus_before(compared):
     assert by_key["n_folds"] == report["after"]["n_folds"] - report["before"]["n_folds"]
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_alignment_skips_icp_without_open3d(compared):
     alignment = compared["report"]["alignment"]
     assert set(alignment) == {
@@ -99,6 +103,7 @@ def test_compare_alignment_skips_icp_without_open3d(compared):
     assert alignment["matched"] is False and "not meaningful" in alignment["note"]
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_figure(compared):
     from matplotlib.image import imread
 

@@ -20,6 +20,7 @@ from tests.report_browser import problems
 # --------------------------------------------------------------------------- the datum
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_one_datum_in_the_mesh_the_height_map_and_the_truth(after_run):
     """The mesh's height_um, heightmap.tif and the true surface share one datum."""
     import pyvista as pv
@@ -125,6 +126,7 @@ def test_alignment_residual_known_answers():
     assert apart["residual_rms_um"] == pytest.approx(expected, rel=0.15)
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_dropouts_add_up_to_what_was_not_measured(after_run):
     q = after_run["m"]["quality"]
     assert sum(q["dropouts"].values()) == pytest.approx(1 - q["surface_coverage"], abs=1e-12)
@@ -148,6 +150,7 @@ def _sha256(path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+@pytest.mark.xdist_group("mpm3d_after_run")  # the session's analyze made once
 def test_analyze_report(after_run):
     out, m = after_run["out"], after_run["m"]
     page = (out / "report.html").read_text(encoding="utf-8")
@@ -165,6 +168,7 @@ def test_analyze_report(after_run):
     assert problems(out / "report.html") == []
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_report(compared, mpm_pair):
     out, report = compared["out"], compared["report"]
     page = (out / "report.html").read_text(encoding="utf-8")
@@ -207,6 +211,7 @@ def test_warnings_are_shown_when_the_analysis_then_fails(mpm_small, tmp_path, ca
     assert error.startswith("mpm3d analyze: error: ") and "no surface found" in error
 
 
+@pytest.mark.xdist_group("mpm3d_compared")  # the session's compare made once
 def test_compare_report_shows_the_icp_residual(compared, tmp_path):
     """The page of a comparison refined by ICP (open3d) lists its fitness and residual."""
     from mpm3d.report import write_comparison_report

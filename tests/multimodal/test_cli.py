@@ -32,6 +32,7 @@ def wall(request, tmp_path_factory):
     return case, files, folder
 
 
+@pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
 def test_the_surface_strain_is_the_true_stretch_where_the_camera_sees_folds(wall):
     case, files, folder = wall
     out = folder / "fold_landmarks"
@@ -70,6 +71,7 @@ def test_the_surface_strain_is_the_true_stretch_where_the_camera_sees_folds(wall
                                                           str(files["after"])]  # fmt: skip
 
 
+@pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
 def test_a_given_transform_and_a_flat_surface_give_the_camera_strain(wall, tmp_path):
     import tifffile
 
@@ -102,6 +104,7 @@ BAD = [
 
 
 @pytest.mark.parametrize("extra, message", BAD)
+@pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
 def test_bad_input_ends_with_one_line(wall, tmp_path, extra, message):
     import tifffile
 
@@ -251,6 +254,7 @@ def _uncalibrated(folder):
     return folder / "plain.tif"
 
 
+@pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
 def test_more_bad_input_ends_with_one_line(wall, tmp_path):
     """What a hostile-input review found: each one line, exit status 2, no folder."""
     import shutil
@@ -290,6 +294,7 @@ def test_more_bad_input_ends_with_one_line(wall, tmp_path):
         assert not out.exists()
 
 
+@pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
 def test_a_grid_off_the_maps_is_flagged_not_a_crash(wall, tmp_path):
     _, files, folder = wall
     out = tmp_path / "off"

@@ -1312,6 +1312,7 @@ NAME_CASES = {
 }
 
 
+@pytest.mark.xdist_group("stereo_latin1_names")  # its names' folder made once, on one worker
 class TestNamesNotUtf8:
     """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
     written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""

@@ -45,6 +45,7 @@ def _true_curves(case, points):
     return np.column_stack([np.nanmean(node[c], axis=1) for c in COMPONENTS])
 
 
+@pytest.mark.xdist_group("strain2d_twitching")  # the dic run made once, on one worker
 def test_every_cycle_of_a_repeated_contraction_is_found_with_its_peak_strains(twitching):
     folder, case = twitching
     summary = json.loads((folder / "run" / "summary.json").read_text())
@@ -90,6 +91,7 @@ def test_every_cycle_of_a_repeated_contraction_is_found_with_its_peak_strains(tw
     assert "peak of cycle 1 of 3" in report
 
 
+@pytest.mark.xdist_group("strain2d_twitching")  # the dic run made once, on one worker
 def test_the_cycles_are_cut_at_the_pulses_of_a_stimulus(twitching):
     """From the stimulus recorded beside the video: the same cycles, each with its pulse; a
     pulse with no contraction after it is reported as such."""
@@ -140,6 +142,7 @@ def test_noise_alone_and_a_single_contraction_make_no_repeated_cycles(small_case
     assert main([*argv[:-1], str(tmp_path / "r2"), "--cycle", "2"]) == 2
 
 
+@pytest.mark.xdist_group("strain2d_twitching")  # the dic run made once, on one worker
 def test_another_cycle_can_be_the_endpoint_and_every_peak_can_get_maps(twitching, tmp_path):
     folder, _ = twitching
     argv = ["-q", "analyze", str(folder / "sheet.avi"), "--grid", "5x4", "--tracker", "dic",
@@ -158,6 +161,7 @@ def test_another_cycle_can_be_the_endpoint_and_every_peak_can_get_maps(twitching
     assert main([*argv[:-1], str(tmp_path / "r4"), "--cycle", "4"]) == 2
 
 
+@pytest.mark.xdist_group("strain2d_twitching")  # the dic run made once, on one worker
 def test_signals_beside_the_video_are_aligned_to_the_frames_with_their_lag(twitching, tmp_path):
     """A force channel sampled at 100 Hz that follows the contraction 0.3 s late and a
     stimulus of 5 ms pulses, by time: per frame the force is the true strain 3 frames
@@ -261,7 +265,7 @@ def test_a_study_of_repeated_contractions_reports_each_cycle_and_each_specimen(t
     runs = []
     for n, (x, y, z) in enumerate(sizes):
         twitches = ((3, 8, 15, x), (18, 22, 29, y), (32, 37, 44, z))
-        case = make_repeated_twitches(shape=(200, 260), twitches=twitches, rng=n)
+        case = make_repeated_twitches(shape=(120, 160), twitches=twitches, rng=n)
         write_video(case.video.frames, tmp_path / f"S{n}.avi")
         argv = ["-q", "analyze", str(tmp_path / f"S{n}.avi"), "--grid", "5x4", "--tracker",
                 "dic", "--fps", "10", "--animation", "none",
@@ -310,6 +314,7 @@ def test_peaks_are_found_by_prominence_as_scipy_finds_them():
         assert np.array_equal(_prominent_peaks(a, least), find_peaks(a, prominence=least)[0])
 
 
+@pytest.mark.xdist_group("strain2d_twitching")  # the dic run made once, on one worker
 def test_signals_with_every_other_frame_keep_their_pulses_and_the_time_axis_its_step(
     twitching, tmp_path
 ):

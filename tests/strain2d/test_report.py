@@ -55,6 +55,7 @@ def run_dir(small_case, tmp_path_factory):
     return out, summary
 
 
+@pytest.mark.xdist_group("strain2d_report_run")  # run_dir made once, on one worker
 def test_run_folder_has_every_figure_and_the_statistics(run_dir):
     out, summary = run_dir
     ep = summary["contraction_endpoint"]
@@ -80,6 +81,7 @@ def test_run_folder_has_every_figure_and_the_statistics(run_dir):
     assert {"report.html", "statistics.json"} <= set(summary["outputs"])
 
 
+@pytest.mark.xdist_group("strain2d_report_run")  # run_dir made once, on one worker
 def test_run_report_is_self_contained(run_dir):
     out, summary = run_dir
     page = _parse(out / "report.html")
@@ -160,6 +162,7 @@ def test_bad_report_options_exit_2(small_case, tmp_path, capsys, extra, message)
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.xdist_group("strain2d_report_run")  # run_dir made once, on one worker
 def test_study_of_runs_writes_report_tables_and_figures(run_dir, small_case, tmp_path, capsys):
     out, _ = run_dir
     other = tmp_path / "run2"
@@ -190,6 +193,7 @@ def test_study_of_runs_writes_report_tables_and_figures(run_dir, small_case, tmp
         (lambda d: (d / "summary.json").write_text("{"), "cannot be read"),
     ],
 )
+@pytest.mark.xdist_group("strain2d_report_run")
 def test_study_of_a_corrupt_run_exits_2(run_dir, tmp_path, capsys, damage, message):
     import shutil
 
@@ -204,6 +208,7 @@ def test_study_of_a_corrupt_run_exits_2(run_dir, tmp_path, capsys, damage, messa
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.xdist_group("strain2d_report_run")  # run_dir made once, on one worker
 def test_study_argument_errors_exit_2(run_dir, tmp_path, capsys):
     out, _ = run_dir
     cases = [
@@ -245,6 +250,7 @@ def tracked_study(tmp_path_factory):
     return rows, truth, json.loads((out / "statistics.json").read_text()), out
 
 
+@pytest.mark.xdist_group("strain2d_tracked_study")  # made once, on one worker
 def test_study_gets_the_known_answer(tracked_study):
     """Significant in the group built with Exx != Eyy, not in the group built without."""
     _, truth, stats, _ = tracked_study
@@ -268,6 +274,7 @@ def test_study_gets_the_known_answer(tracked_study):
     assert effects["mean difference, isotropic"]["t_p"] > 0.05
 
 
+@pytest.mark.xdist_group("strain2d_tracked_study")  # made once, on one worker
 def test_tracked_study_report(tracked_study):
     *_, out = tracked_study
     page = _parse(out / "report.html")
@@ -320,6 +327,7 @@ def test_run_outputs_survive_an_endpoint_without_nodes(tmp_path):
     assert "Not computed" in (tmp_path / "report.html").read_text()
 
 
+@pytest.mark.xdist_group("strain2d_report_run")  # run_dir made once, on one worker
 def test_study_output_inside_a_run_folder_is_refused(run_dir, tmp_path, capsys):
     out, _ = run_dir
     capsys.readouterr()
