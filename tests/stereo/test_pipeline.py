@@ -2,7 +2,9 @@
 checkerboard views (with a realistic bad view), matching across views, and 3D tracks of a
 stretching sheet; and every error a user can cause (exit 2, one line)."""
 
+import contextlib
 import csv
+import io
 import json
 
 import numpy as np
@@ -39,6 +41,11 @@ def one_error_line(capsys) -> str:
     return err[0]
 
 
+#: the module's tests share its rendered scenes, its calibration and its reconstruction: one
+#: xdist worker runs them all (make test: loadgroup), so that each is made once
+pytestmark = pytest.mark.xdist_group("stereo_pipeline")
+
+
 @pytest.fixture(scope="module")
 def calibration_views(tmp_path_factory):
     folder = tmp_path_factory.mktemp("calib") / "views"
@@ -60,16 +67,37 @@ def stretch(tmp_path_factory):
     return folder, truth, points
 
 
-def test_calibration_meets_the_bars_and_names_the_bad_view(calibration_views, tmp_path, capsys):
-    folder, views = calibration_views
-    out = tmp_path / "calib.json"
-    code = cli(
-        "calibrate",
-        "--left", f"{folder}/left/*.png",
-        "--right", f"{folder}/right/*.png",
-        "--board", "checkerboard:9x6:10",
-        "--out", out,
-    )  # fmt: skip
+@pytest.fixture(scope="module")
+def calibrated(calibration_views, tmp_path_factory):
+    """``stereo calibrate`` of the rendered views, once: (exit status, calib.json, stderr)."""
+    folder, _ = calibration_views
+    out = tmp_path_factory.mktemp("calibrated") / "calib.json"
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = cli(
+            "calibrate",
+            "--left", f"{folder}/left/*.png",
+            "--right", f"{folder}/right/*.png",
+            "--board", "checkerboard:9x6:10",
+            "--out", out,
+        )  # fmt: skip
+    return code, out, err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def reconstructed(stretch, tmp_path_factory):
+    """``stereo reconstruct --strain`` of the stretching sheet, once: (exit status, folder)."""
+    folder, _, points = stretch
+    out = tmp_path_factory.mktemp("reconstructed") / "rec"
+    code = cli("reconstruct", "--calib", folder / "rig.json", "--left", folder / "left",
+               "--right", folder / "right", "--points", points, "--strain",
+               "--out", out, "-q")  # fmt: skip
+    return code, out
+
+
+def test_calibration_meets_the_bars_and_names_the_bad_view(calibration_views, calibrated):
+    _, views = calibration_views
+    code, out, err = calibrated
     assert code == 0
     calib = json.loads(out.read_text())
     true = views.rig
@@ -83,7 +111,7 @@ def test_calibration_meets_the_bars_and_names_the_bad_view(calibration_views, tm
     rejected = {r["image"].split(" / ")[0]: r["reason"] for r in calib["rejected"]}
     assert f"view_{partial[0]:02d}.png" in rejected
     assert "no target found" in rejected[f"view_{partial[0]:02d}.png"]
-    assert "rejected view_" in capsys.readouterr().err
+    assert "rejected view_" in err
     for key in ("image_size", "K_left", "dist_left", "K_right", "dist_right", "R", "T", "unit"):
         assert key in calib
     assert calib["flags"] == []  # a good calibration is not flagged
@@ -207,7 +235,7 @@ def test_calibration_survives_jpeg_uneven_light_and_blur():
     views = render_calibration_views(
         default_rig(),
         "checkerboard:9x6:10",
-        n_views=8,
+        n_views=6,
         supersample=2,
         jpeg_quality=75,
         lighting=0.5,
@@ -235,16 +263,15 @@ def test_charuco_calibration():
 
 
 def test_reconstruction_after_calibration_matches_the_truth_up_to_the_frame(
-    calibration_views, stretch, tmp_path
+    calibration_views, calibrated, stretch, tmp_path
 ):
     """Calibrate, then reconstruct: the shape is right; the estimated world frame (the left
     camera, set by the estimated principal point) differs from the true one by a small
     rigid motion only."""
-    folder, views = calibration_views
+    _, views = calibration_views
     scene, truth, points = stretch
-    calib = tmp_path / "calib.json"
-    assert cli("calibrate", "--left", f"{folder}/left/*.png", "--right", f"{folder}/right/*.png",
-               "--board", "checkerboard:9x6:10", "--out", calib, "-q") == 0  # fmt: skip
+    code, calib, _ = calibrated  # the calibration of the views, as calibrate writes it
+    assert code == 0
     got = json.loads(calib.read_text())
     # the right convention: x_right = R x_left + T, as in the true rig
     np.testing.assert_allclose(got["R"], views.rig.R, atol=2e-3)
@@ -290,12 +317,10 @@ def test_match_takes_any_number_of_points(stretch, tmp_path, n):
     assert np.abs(right - truth["right_px"][0][:n]).max() < 0.1
 
 
-def test_reconstruct_with_strain_gives_the_analytic_strain(stretch, tmp_path):
-    folder, truth, points = stretch
-    out = tmp_path / "rec"
-    assert cli("reconstruct", "--calib", folder / "rig.json", "--left", folder / "left",
-               "--right", folder / "right", "--points", points, "--strain",
-               "--out", out, "-q") == 0  # fmt: skip
+def test_reconstruct_with_strain_gives_the_analytic_strain(stretch, reconstructed):
+    _, truth, _ = stretch
+    code, out = reconstructed
+    assert code == 0
     rows = list(csv.DictReader((out / "strain" / "strain_nodes.csv").read_text().splitlines()))
     T, N = truth["positions"].shape[:2]
     w = np.linalg.eigvalsh(truth["strain"])  # (T, N, 2), ascending
@@ -305,18 +330,15 @@ def test_reconstruct_with_strain_gives_the_analytic_strain(stretch, tmp_path):
     assert (out / "strain" / "strain.pvd").is_file()
 
 
-def test_a_study_combines_stereo_runs_with_2d_runs(stretch, tmp_path):
+def test_a_study_combines_stereo_runs_with_2d_runs(reconstructed, tmp_path):
     """strain2d study over a stereo reconstruction, a surface_strain run and two 2D runs."""
     from sample_data_synth import make_case, write_video
     from strain2d import load_run
     from strain2d.cli import main as strain2d
     from surface_strain.cli import main as surface_strain
 
-    folder, _, points = stretch
-    rec = tmp_path / "rec"
-    assert cli("reconstruct", "--calib", folder / "rig.json", "--left", folder / "left",
-               "--right", folder / "right", "--points", points, "--strain",
-               "--out", rec, "-q") == 0  # fmt: skip
+    code, rec = reconstructed  # read here, never written: the reconstruction test reads it too
+    assert code == 0
     assert surface_strain(["compute", str(rec / "points3d.csv"), "--no-figures",
                            "--out", str(tmp_path / "s3d"), "-q"]) == 0  # fmt: skip
     # a 3D run with a point lost from the reference frame on (stereo loses points so)
