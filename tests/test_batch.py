@@ -23,6 +23,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.badinput import assert_no_process_left
 from tissue_core.batch import Job, differences, job_state
 from tissue_core.outputs import foreign_content, read_marker
 
@@ -321,7 +322,9 @@ def test_ctrl_c_stops_a_batch_on_a_local_cluster_and_leaves_whole_runs_only(stud
     assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
     last = stderr.strip().splitlines()[-1]
     assert last.startswith("strain2d batch: interrupted"), stderr
-    time.sleep(3)  # no worker goes on writing runs after the batch has ended
+    # no worker goes on writing runs after the batch has ended: every process of the batch's
+    # session (its cluster's workers too) ends, and only then are its runs looked at
+    assert_no_process_left(batch.pid)
     assert not list(runs.glob(".*")), "scratch of an interrupted run left behind"
     made = sorted(runs.iterdir()) if runs.is_dir() else []
     for run in made:  # whole runs only, each with its marker

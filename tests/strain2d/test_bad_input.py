@@ -793,8 +793,8 @@ def _stale(request, tmp_path, *, command):
     """A run killed (SIGKILL) while writing; the next run removes what it left."""
     c = request.getfixturevalue("inputs")
     out = tmp_path / ("tracks.csv" if command == "track" else "out")
-    if command == "analyze":
-        argv = [*_analyze(c), "--out", out]
+    if command == "analyze":  # killed once it writes: tracked quickly, whatever the tracker
+        argv = [*_analyze(c, "--tracker", "klt"), "--out", out]
         assert killed(["-m", "strain2d", *argv], out=out)  # a real run, killed mid-way
     elif command == "track":  # its file is written in milliseconds: its scratch, as left
         argv = [*_track(c), "--out", out]
@@ -867,8 +867,9 @@ def _batch_stale(request, tmp_path):
     rerun leaves no scratch anywhere."""
     manifest = request.getfixturevalue("small_manifest").with_name("pair.csv")
     out = tmp_path / "b"
+    # killed once a run is written: tracked quickly (klt), whatever the tracker
     argv = ["batch", manifest, "--workers", "1", "--out", out, "--grid", "3x3",
-            "--animation", "none"]  # fmt: skip
+            "--animation", "none", "--tracker", "klt"]  # fmt: skip
     assert killed(["-m", "strain2d", *argv], out=out / "runs" / "S02")  # S01 was made
     stale_scratch(out / "study")
     assert main(["-q", *map(str, argv)]) == 0
@@ -890,6 +891,10 @@ STAGES = [
     ("strain on", 0.02, COARSE, "tables"),
     ("figures and animation", 0.5, COARSE, "figures"),
 ]
+#: the cases that share a module fixture made by a real run: one xdist worker runs them
+#: (make test: loadgroup), so that it is made once
+LONG_VIDEO = pytest.mark.xdist_group("strain2d_long_video")
+TWO_RUNS = pytest.mark.xdist_group("strain2d_two_runs")
 #: SIGTERM (``kill``, ``timeout``, ``scancel``, ``docker stop``) and SIGHUP at stages
 TERMINATE_STAGES = [
     ("frames of", 0.02, "40x40", signal.SIGTERM, "reading"),
@@ -904,6 +909,7 @@ INTERRUPTS = [
             _signalled,
             {"when": w, "after": a, "grid": g, "signum": signal.SIGINT},
             id=f"analyze-interrupt-{stage}",
+            marks=LONG_VIDEO,
         )
         for w, a, g, stage in STAGES
     ),
@@ -912,19 +918,22 @@ INTERRUPTS = [
             _signalled,
             {"when": w, "after": a, "grid": g, "signum": s, "kernel": stage == "in-icgn-kernel"},
             id=f"analyze-terminate-{stage}",
+            marks=LONG_VIDEO,
         )
         for w, a, g, s, stage in TERMINATE_STAGES
     ),
-    pytest.param(_hung_up, {}, id="analyze-terminate-sighup-terminal-closed"),
+    pytest.param(_hung_up, {}, id="analyze-terminate-sighup-terminal-closed", marks=LONG_VIDEO),
     pytest.param(
         _terminated,
         {"command": "track", "when": "tracking 1600", "after": 0.3},
         id="track-terminate-tracking",
+        marks=LONG_VIDEO,
     ),
     pytest.param(
         _terminated,
         {"command": "study", "when": WRITING, "after": 0.1},
         id="study-terminate-writing",
+        marks=TWO_RUNS,
     ),
     pytest.param(
         _terminated,
@@ -936,7 +945,12 @@ INTERRUPTS = [
         _batch_terminated, {"moment": "cluster-start"}, id="batch-terminate-cluster-starting"
     ),
     *(
-        pytest.param(_stale, {"command": command}, id=f"{command}-stale-killed-run")
+        pytest.param(
+            _stale,
+            {"command": command},
+            id=f"{command}-stale-killed-run",
+            marks=TWO_RUNS if command == "study" else (),
+        )
         for command in ("analyze", "track", "study", "benchmark")
     ),
     pytest.param(_batch_stale, {}, id="batch-stale-killed-batch"),
@@ -1115,6 +1129,7 @@ NAME_CASES = {
 }
 
 
+@pytest.mark.xdist_group("strain2d_latin1_names")  # its names' folder made once, on one worker
 class TestNamesNotUtf8:
     """The bad-input matrix's ``filename`` family: names that are not UTF-8 are read and
     written (``test_bad_input[COMMAND-filename-CASE]``, counted with the refusals)."""
