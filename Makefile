@@ -10,7 +10,7 @@ SYSTEM_LIBS := libgl1 libxrender1 libx11-6
 QT_LIBS := xvfb libegl1 libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 \
 	libxcb-shape0 libxcb-xinerama0 libfontconfig1 libdbus-1-3
 
-.PHONY: setup demo test docs docs-check lint bench bench-mpm3d accuracy system-deps setup-3d setup-torch clean
+.PHONY: setup demo test docs docs-check lint bench bench-pages bench-mpm3d accuracy system-deps setup-3d setup-torch clean
 
 system-deps:
 	@missing=""; \
@@ -105,6 +105,14 @@ bench: setup
 	mkdir -p bench/results
 	$(BIN)/python -m strain2d benchmark --sweep grid,subset,noise,contrast,density \
 	    --out bench/results/table1 --overwrite
+
+# The bench scripts quick enough to rerun often, each writing its page in docs/bench/
+# (bench/page.py; about 10 minutes on 2 cores). The long ones: python bench/page.py SCRIPT
+BENCH_PAGES = bench_kinematics.py bench_klt.py bench_trackers.py bench_analyze.py \
+	bench_icgn_threads.py bench_mosaic.py
+bench-pages: setup
+	for script in $(BENCH_PAGES); do $(BIN)/python bench/page.py $$script || exit 1; done
+	$(BIN)/python bench/page.py bench_default_tracker.py --only speed,threads --trackers gdic,dic
 
 # The demo's z-stack and stereo results against the synthetic truth (after make demo)
 accuracy: setup
