@@ -47,6 +47,7 @@ $(BIN)/.installed: pyproject.toml | system-deps
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet --no-compile -e ".[dev]"  # .pyc made on first import: half the time
+	$(BIN)/python scripts/compile_kernels.py  # numba's cache, once (not in every first process)
 	touch $@
 
 setup: $(BIN)/.installed
