@@ -139,7 +139,11 @@ def main(args: list[str] | None = None) -> int:
     lines = []
     try:
         with subprocess.Popen(
-            [sys.executable, str(script), *rest], cwd=ROOT, stdout=subprocess.PIPE, text=True
+            [sys.executable, str(script), *rest],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            encoding="utf-8",
+            errors="replace",  # a byte that is not UTF-8 shows as such, not as a traceback
         ) as child:
             for line in child.stdout:
                 sys.stdout.write(line)
