@@ -7,9 +7,11 @@ comes, and, if it succeeds, writes ``docs/bench/bench_analyze.md``: the
 script's own description (its docstring), the command, when and on what
 machine it ran (processor, cores, memory, Python, the toolkit's version and
 commit), and its output. Markdown tables pass through as tables; the lines
-between them are shown as they were printed. The page is replaced only by another run of its script:
-one whose first line is not this runner's mark is refused without
-``--overwrite``. A failing run leaves the page as it was.
+between them are shown as they were printed. A failing run leaves the page as
+it was; Ctrl-C, SIGTERM or SIGHUP end the script and write nothing. Only this
+runner replaces a page: one without its mark, or changed since it was
+written (the mark holds the SHA-256 of the rest), is refused without
+``--overwrite``.
 
 ``make bench-pages`` writes the pages of the scripts quick enough to rerun
 often; the others are written by hand with this runner (see
@@ -21,17 +23,35 @@ from __future__ import annotations
 import argparse
 import ast
 import datetime
+import hashlib
 import os
 import platform
+import re
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # this checkout's packages
+from tissue_core.interrupt import exit_status, handling_interrupts  # noqa: E402
+
 BENCH = ROOT / "bench"
 PAGES = ROOT / "docs" / "bench"
-#: the first line of every page this runner writes
-MARK = "<!-- written by bench/page.py: rerun the command below to update this page -->"
+#: the first line of every page this runner writes, with the SHA-256 of the rest of the page
+MARK = "<!-- written by bench/page.py (sha256 {}): rerun the command below to update this page -->"
+_MARK = re.compile(re.escape(MARK).replace(re.escape("{}"), "([0-9a-f]{64})"))
+
+
+def _digest(text: str) -> str:
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def as_written(text: str) -> bool:
+    """Whether ``text`` is a page as this runner wrote it (its mark, and nothing changed since)."""
+    first, _, rest = text.partition("\n")
+    found = _MARK.fullmatch(first)
+    return bool(found) and found.group(1) == _digest(rest)
 
 
 def _memory_gib() -> float | None:
@@ -106,8 +126,8 @@ def render(script: Path, argv: list[str], output: str, when: str, on: str) -> st
                 text.append(line.rstrip())
     flush()
     about_md = f"```text\n{about}\n```\n\n" if about else ""
-    return (
-        f"{MARK}\n# {title}\n\n"
+    page = (
+        f"# {title}\n\n"
         f"Written by `python bench/page.py {script.name}"
         + (" " + " ".join(argv) if argv else "")
         + f"` on {when}.\n\n"
@@ -115,6 +135,7 @@ def render(script: Path, argv: list[str], output: str, when: str, on: str) -> st
         f"## What it measures\n\n{about_md}"
         "## Output\n\n" + "\n".join(body).strip() + "\n"
     )
+    return MARK.format(_digest(page)) + "\n" + page
 
 
 def main(args: list[str] | None = None) -> int:
@@ -130,37 +151,45 @@ def main(args: list[str] | None = None) -> int:
         return 2
     page = known.pages / f"{script.stem}.md"
     if page.exists() and not known.overwrite:
-        first = page.read_text(encoding="utf-8", errors="replace").partition("\n")[0]
-        if first != MARK:
-            print(f"error: {page} was not written by this runner (--overwrite replaces it)",
-                  file=sys.stderr)  # fmt: skip
+        if not as_written(page.read_text(encoding="utf-8", errors="replace")):
+            print(f"error: {page} was not written by this runner, or was changed since "
+                  "(--overwrite replaces it)", file=sys.stderr)  # fmt: skip
             return 2
     when = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
     lines = []
-    try:
-        with subprocess.Popen(
-            [sys.executable, str(script), *rest],
-            cwd=ROOT,
-            stdout=subprocess.PIPE,
-            encoding="utf-8",
-            errors="replace",  # a byte that is not UTF-8 shows as such, not as a traceback
-        ) as child:
-            for line in child.stdout:
-                sys.stdout.write(line)
-                sys.stdout.flush()
-                lines.append(line)
-    except KeyboardInterrupt:  # the script got the same Ctrl-C
-        print(f"interrupted: {script.name}; page not written", file=sys.stderr)
-        return 130
+    with handling_interrupts():  # Ctrl-C, SIGTERM and SIGHUP end the script too
+        try:
+            with subprocess.Popen(
+                [sys.executable, str(script), *rest],
+                cwd=ROOT,
+                stdout=subprocess.PIPE,
+                encoding="utf-8",
+                errors="replace",  # a byte that is not UTF-8 shows as such, not as a traceback
+            ) as child:
+                try:
+                    for line in child.stdout:
+                        sys.stdout.write(line)
+                        sys.stdout.flush()
+                        lines.append(line)
+                except KeyboardInterrupt:
+                    child.terminate()
+                    raise
+        except KeyboardInterrupt as stop:
+            print(f"interrupted: {script.name}; page not written", file=sys.stderr)
+            return exit_status(getattr(stop, "signum", signal.SIGINT))
     if child.returncode != 0:
         print(f"error: {script.name} failed (status {child.returncode}); page not written",
               file=sys.stderr)  # fmt: skip
         return 2
     text = render(script, rest, "".join(lines), when, machine())
-    page.parent.mkdir(parents=True, exist_ok=True)
-    tmp = page.with_name(f".{page.name}.partial")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, page)
+    try:
+        page.parent.mkdir(parents=True, exist_ok=True)
+        tmp = page.with_name(f".{page.name}.partial")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, page)
+    except OSError as error:
+        print(f"error: cannot write {page}: {error.strerror or error}", file=sys.stderr)
+        return 2
     print(f"wrote {page.relative_to(ROOT) if page.is_relative_to(ROOT) else page}")
     return 0
 

@@ -29,7 +29,8 @@ def test_a_page_holds_the_description_the_command_the_machine_and_the_output():
         ROOT / "bench" / "bench_kinematics.py", ["--grid", "5"], output, "WHEN", "MACHINE"
     )
     lines = text.splitlines()
-    assert lines[0] == page.MARK
+    assert page.as_written(text)
+    assert lines[0].startswith("<!-- written by bench/page.py (sha256 ")
     assert lines[1] == "# Speed of the vectorized strain computation against a per-triangle loop"
     assert "`python bench/bench_kinematics.py --grid 5`" in text
     assert "on WHEN" in text and "- Machine: MACHINE" in text
@@ -52,7 +53,7 @@ def test_a_run_writes_the_page_and_a_failed_or_foreign_page_is_left_alone(tmp_pa
     assert page.main(argv) == 0
     written = tmp_path / "bench_kinematics.md"
     text = written.read_text(encoding="utf-8")
-    assert text.startswith(page.MARK + "\n")
+    assert page.as_written(text)
     assert "16 points" in text and "speed-up:" in text
     assert "python bench/bench_kinematics.py --grid 4 --frames 2" in text
     assert not list(tmp_path.glob(".*partial"))
@@ -62,13 +63,53 @@ def test_a_run_writes_the_page_and_a_failed_or_foreign_page_is_left_alone(tmp_pa
     assert written.read_text(encoding="utf-8") == text
     assert "page not written" in capsys.readouterr().err
 
-    # a page someone wrote by hand is not replaced without --overwrite
+    # a page the runner wrote and someone then changed is not replaced without --overwrite
+    edited = text.replace("## Output", "## Output\n\nmy remark", 1)
+    written.write_text(edited, encoding="utf-8")
+    assert page.main(argv) == 2
+    assert written.read_text(encoding="utf-8") == edited
+    assert "changed since" in capsys.readouterr().err
+
+    # nor a page someone wrote by hand
     written.write_text("# my notes\n", encoding="utf-8")
     assert page.main(argv) == 2
     assert written.read_text(encoding="utf-8") == "# my notes\n"
     assert "--overwrite" in capsys.readouterr().err
     assert page.main([*argv, "--overwrite"]) == 0
-    assert written.read_text(encoding="utf-8").startswith(page.MARK)
+    assert page.as_written(written.read_text(encoding="utf-8"))
+
+
+def test_sigterm_ends_the_script_and_writes_no_page(tmp_path):
+    import signal
+    import subprocess
+    import time
+
+    # a run of about 30 s: the loop baseline over 400 frames of a 60 x 60 grid
+    args = ["--grid", "60", "--frames", "400", "--pages", str(tmp_path)]
+    pattern = "bench_kinematics.py --grid 60 --frames 400 --pages " + str(tmp_path)
+
+    def script_running() -> bool:
+        found = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
+        return bool(found.stdout.strip())
+
+    runner = subprocess.Popen(
+        [sys.executable, str(ROOT / "bench" / "page.py"), "bench_kinematics.py", *args],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    deadline = time.monotonic() + 30
+    while not script_running():  # the script has started under the runner
+        assert time.monotonic() < deadline and runner.poll() is None
+        time.sleep(0.05)
+    time.sleep(0.5)
+    runner.send_signal(signal.SIGTERM)
+    _, err = runner.communicate(timeout=60)
+    assert runner.returncode == 128 + signal.SIGTERM, err
+    assert "page not written" in err and "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+    deadline = time.monotonic() + 10
+    while script_running():  # the script ends with the runner
+        assert time.monotonic() < deadline, "the script went on after the runner ended"
+        time.sleep(0.05)
 
 
 @pytest.mark.parametrize("name", ["no_such_bench.py", "page.py", "../tests/conftest.py"])
@@ -83,7 +124,7 @@ def test_every_bench_page_was_written_by_the_runner_from_a_script_that_exists():
     assert pages, "docs/bench/ has no page"
     for path in pages:
         text = path.read_text(encoding="utf-8")
-        assert text.startswith(page.MARK + "\n"), f"{path.name} was not written by bench/page.py"
+        assert page.as_written(text), f"{path.name}: not written by bench/page.py, or edited"
         assert (ROOT / "bench" / f"{path.stem}.py").is_file(), f"{path.name}: no such script"
         assert "## Output" in text
 
