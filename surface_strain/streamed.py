@@ -54,11 +54,14 @@ class _Blocks:
         self.n_frames = n_frames
         self.size = block_frames
         self._cache: OrderedDict[int, StrainField] = OrderedDict()
+        # each kept block's per-triangle scalars, once read (the tables read them column
+        # by column)
+        self._elements: dict[int, dict[str, np.ndarray]] = {}
         self.seconds = 0.0  # spent computing blocks
 
     def __getstate__(self) -> dict:
         # a copy sent to another process computes the blocks it reads there: none are sent
-        return {**self.__dict__, "_cache": OrderedDict(), "seconds": 0.0}
+        return {**self.__dict__, "_cache": OrderedDict(), "_elements": {}, "seconds": 0.0}
 
     def block(self, b: int) -> StrainField:
         if b in self._cache:
@@ -71,8 +74,18 @@ class _Blocks:
         self.seconds += time.perf_counter() - began
         self._cache[b] = one
         while len(self._cache) > 2:
-            self._cache.popitem(last=False)
+            gone, _ = self._cache.popitem(last=False)
+            self._elements.pop(gone, None)
         return one
+
+    def element_scalars(self, b: int) -> dict[str, np.ndarray]:
+        """Block ``b``'s per-triangle scalars, computed once while the block is kept."""
+        one = self.block(b)
+        if b not in self._elements:
+            began = time.perf_counter()
+            self._elements[b] = one._element_scalars()
+            self.seconds += time.perf_counter() - began
+        return self._elements[b]
 
     def frames(self, start: int, stop: int) -> list[tuple[int, StrainField]]:
         """(offset of ``start`` in the block, block) for the blocks that frames start:stop touch."""
@@ -107,19 +120,20 @@ class FrameArray:
     def __repr__(self) -> str:
         return f"FrameArray({self._name}, shape={self.shape}, dtype={self.dtype})"
 
-    def _of(self, one: StrainField) -> np.ndarray:
+    def _of(self, one: StrainField, offset: int) -> np.ndarray:
+        """This array's frames in the block ``one`` that starts at frame ``offset``."""
         kind, _, key = self._name.partition(":")
         if kind == "node":
             return nodal_scalars(one)[key]
         if kind == "element":
-            return one._element_scalars()[key]
+            return self._blocks.element_scalars(offset // self._blocks.size)[key]
         return getattr(one, self._name)
 
     def _range(self, start: int, stop: int) -> np.ndarray:
         parts = []
         for offset, one in self._blocks.frames(start, stop):
             lo, hi = max(start - offset, 0), min(stop - offset, one.n_frames)
-            parts.append(self._of(one)[lo:hi])
+            parts.append(self._of(one, offset)[lo:hi])
         if not parts:
             return np.empty((0, *self.shape[1:]), self.dtype)
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
@@ -160,7 +174,7 @@ class FrameArray:
         size = self._blocks.size
         for b in np.unique(flat // size):
             at = np.flatnonzero(flat // size == b)
-            out[at] = self._of(self._blocks.block(int(b)))[flat[at] - b * size]
+            out[at] = self._of(self._blocks.block(int(b)), int(b) * size)[flat[at] - b * size]
         out = out.reshape(*idx.shape, *self.shape[1:])
         return out[(Ellipsis, *rest)] if rest else out
 

@@ -82,6 +82,30 @@ def test_every_array_and_index_equals_the_in_memory_field(d, block):
     assert _same(whole.points, lazy.points) and _same(whole.visible, lazy.visible)
 
 
+def test_a_kept_block_computes_its_triangle_scalars_once(monkeypatch):
+    """The tables read a streamed field's per-triangle scalars a column at a time: each
+    kept block computes them once, and again only after it was dropped."""
+    from surface_strain.field import StrainField
+
+    X, P, tri, visible = _case(2, T=31)
+    lazy = streamed_strain(X, P, tri, visible=visible, block_frames=8)
+    expected = element_scalars(compute_strain(X, P, tri, visible=visible))
+    calls = []
+    original = StrainField._element_scalars
+    monkeypatch.setattr(
+        StrainField, "_element_scalars", lambda self: calls.append(1) or original(self)
+    )
+    columns = element_scalars(lazy)
+    for key in columns:  # every column of frames 0..15: blocks 0 and 1, kept
+        assert _same(columns[key][:16], expected[key][:16]), key
+    assert len(calls) == 2
+    for key in columns:  # frames 16..31: blocks 2 and 3; 0 and 1 are dropped
+        columns[key][16:]
+    assert len(calls) == 4
+    columns["Exx"][0]  # block 0 again: computed again
+    assert len(calls) == 5
+
+
 @pytest.mark.parametrize("block", [1, 6, 64])
 def test_blocks_cover_every_frame_once_and_frames_cross_blocks(block):
     X, P, tri, visible = _case(2, T=31)
