@@ -454,17 +454,19 @@ def _open(args):
     return open_frames(args.source, start=args.start, stop=args.stop, step=args.step)
 
 
-def _track_source(args, options: dict, say, check=None):
+def _track_source(args, options: dict, say, check=None, keep_bytes: int = 0):
     """Open the frames, place the points and track them: (source, point_info, tracks,
     (mesh, mask)), the mesh and the tissue mask None where no mask chose them.
 
     ``check(n_frames, (H, W))`` runs once the frames are counted, before tracking.
     ``source`` is an :class:`~strain2d.frames.EndFrames` wrapper, so the first and
-    last frames need not be decoded again afterwards."""
+    last frames need not be decoded again afterwards (nor the others, when 8-bit
+    and within ``keep_bytes``)."""
     from strain2d.frames import EndFrames
     from strain2d.pipeline import track
 
-    source = EndFrames(_open(args))  # keeps the first and last frames for the figures
+    # keeps the first and last frames for the figures
+    source = EndFrames(_open(args), keep_bytes=keep_bytes)
     h, w = source.shape
     say(f"{source.names[0]}: {len(source)} frames of {w}x{h} px ({source.kind})")
     if check is not None:
@@ -503,6 +505,7 @@ def _cmd_analyze(args) -> int:
     from strain2d.pipeline import analysis_of
     from strain2d.run import check_run_options, write_run
     from tissue_core.outputs import check_writable
+    from tissue_core.resources import available_memory
 
     t_start = time.perf_counter()
     peaks = bool(args.maps_at) and "peaks" in [v.strip() for v in args.maps_at.split(",")]
@@ -561,8 +564,11 @@ def _cmd_analyze(args) -> int:
     # the figures' workers start now, while this process has one thread, and load Matplotlib
     # while the points are tracked
     with FigurePool(warm=True) as pool:
+        # the frames, 8-bit, while they fit an eighth of the memory available (at most
+        # 512 MiB): the animation then decodes none of them again
+        keep = min(512 * 2**20, available_memory() // 8)
         source, point_info, tracks, (mesh, mask) = _track_source(
-            args, tracker_options, say, check=check
+            args, tracker_options, say, check=check, keep_bytes=keep
         )
         t_tracked = time.perf_counter()
         analysis = analysis_of(

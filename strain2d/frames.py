@@ -373,12 +373,19 @@ def open_frames(
 
 
 class EndFrames:
-    """A frame source that keeps its first and last frames as it is iterated.
+    """A frame source that keeps its first and last frames as it is iterated, and every
+    frame too when they fit ``keep_bytes``.
 
     Trackers stream through a source once; wrapping it lets the caller use the
     reference and the final frame afterwards (for figures) without decoding the
-    video again.  Everything else (``len``, ``shape``, ``value_range``, ...)
-    is the wrapped source's.
+    video again.  With ``keep_bytes``, a pass that reads every frame also keeps
+    them, as 8-bit images, when each one's values are whole numbers in 0..255
+    (an 8-bit video, gray or gray stored as colour) and all of them together fit
+    that many bytes: iterating again (the animation of ``strain2d analyze``)
+    then gives the same frames, as float32, without decoding the video a second
+    time.  Other sources (colour, 16-bit, too long) are decoded again as before.
+    Everything else (``len``, ``shape``, ``value_range``, ...) is the wrapped
+    source's.
 
     Attributes
     ----------
@@ -386,10 +393,12 @@ class EndFrames:
         Set once iteration has reached them.
     """
 
-    def __init__(self, source: FrameSource) -> None:
+    def __init__(self, source: FrameSource, *, keep_bytes: int = 0) -> None:
         self.source = source
         self.first: np.ndarray | None = None
         self.last: np.ndarray | None = None
+        self.keep_bytes = int(keep_bytes)
+        self._kept: list[np.ndarray] | None = None
 
     def __len__(self) -> int:
         return len(self.source)
@@ -397,12 +406,34 @@ class EndFrames:
     def __getattr__(self, name: str):
         return getattr(self.source, name)
 
+    @property
+    def kept(self) -> bool:
+        """Whether every frame is kept (a second pass decodes nothing)."""
+        return self._kept is not None
+
     def __iter__(self) -> Iterator[np.ndarray]:
+        if self._kept is not None:
+            for frame in self._kept:
+                yield frame.astype(np.float32)
+            return
+        n = len(self.source)
+        h, w = self.source.shape
+        # 8-bit sources only: their gray values lie in 0..255 (whole, unless mixed from colour)
+        eight_bit = tuple(self.source.value_range) == (0.0, 255.0)
+        keeping = [] if eight_bit and 0 < n * h * w <= self.keep_bytes else None
         for k, frame in enumerate(self.source):
             if k == 0:
                 self.first = frame
             self.last = frame
+            if keeping is not None:
+                small = frame.astype(np.uint8)
+                if np.array_equal(small, frame):
+                    keeping.append(small)
+                else:  # mixed from colour: not kept, decoded again
+                    keeping = None
             yield frame
+        if keeping is not None and len(keeping) == n:
+            self._kept = keeping
 
     def ends(self) -> tuple[np.ndarray, np.ndarray]:
         """First and last frames, read from the source if iteration did not reach them."""

@@ -135,6 +135,57 @@ def test_end_frames_keeps_first_and_last_without_a_second_pass(tmp_path, smooth_
     np.testing.assert_array_equal(untouched.ends()[1], smooth_frames[-1])
 
 
+def _counted(source):
+    """``source``, counting its decoding passes in the list returned with it."""
+    reads = []
+    original = source._iter_raw
+
+    def counting():
+        reads.append(1)
+        yield from original()
+
+    source._iter_raw = counting
+    return source, reads
+
+
+def test_end_frames_keep_every_eight_bit_frame_within_the_budget(tmp_path, smooth_frames):
+    from strain2d.frames import EndFrames
+
+    path = tmp_path / "v.avi"
+    write_video(smooth_frames, path)
+    size = smooth_frames[0].size
+    source, reads = _counted(open_frames(path))
+    wrapped = EndFrames(source, keep_bytes=5 * size)
+    first_pass = list(wrapped)
+    assert wrapped.kept
+    second_pass = list(wrapped)
+    assert len(reads) == 1  # the second pass decoded nothing
+    assert all(f.dtype == np.float32 for f in second_pass)
+    np.testing.assert_array_equal(np.stack(second_pass), np.stack(first_pass))
+    np.testing.assert_array_equal(np.stack(second_pass), smooth_frames)
+    # one byte short of the frames: decoded again, as without a budget
+    source, reads = _counted(open_frames(path))
+    short = EndFrames(source, keep_bytes=5 * size - 1)
+    list(short), list(short)
+    assert not short.kept and len(reads) == 2
+
+
+def test_end_frames_do_not_keep_colour_or_sixteen_bit_frames(tmp_path, smooth_frames):
+    from strain2d.frames import EndFrames
+
+    colour = np.stack([smooth_frames, np.roll(smooth_frames, 3, axis=2), smooth_frames], -1)
+    tifffile.imwrite(tmp_path / "colour.tif", colour, photometric="rgb")
+    deep = tmp_path / "deep.tif"
+    tifffile.imwrite(deep, smooth_frames.astype(np.uint16) * 200)
+    for path in (tmp_path / "colour.tif", deep):
+        source, reads = _counted(open_frames(path))
+        wrapped = EndFrames(source, keep_bytes=2**30)
+        first_pass = np.stack(list(wrapped))
+        assert not wrapped.kept  # mixed from colour, or beyond 8 bits: decoded again
+        np.testing.assert_array_equal(np.stack(list(wrapped)), first_pass)
+        assert len(reads) == 2
+
+
 @pytest.mark.parametrize(
     ("name", "codec", "params"),
     [
