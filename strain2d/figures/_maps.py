@@ -62,8 +62,16 @@ def _length_axes(ax, shape: tuple[int, int], length=None) -> None:
 
 
 def _show_image(ax, image: np.ndarray, *, vmin=None, vmax=None, length=None):
+    # nearest samples coloured after sampling ("data"), not before: the same pixels, without
+    # colouring every pixel of a large frame first (a 1080p frame's map: 5-10 times faster)
     artist = ax.imshow(
-        image, cmap="gray", interpolation="nearest", origin="upper", vmin=vmin, vmax=vmax
+        image,
+        cmap="gray",
+        interpolation="nearest",
+        interpolation_stage="data",
+        origin="upper",
+        vmin=vmin,
+        vmax=vmax,
     )
     _length_axes(ax, image.shape[:2], length)
     ax.set_xlim(-0.5, image.shape[1] - 0.5)
