@@ -115,10 +115,11 @@ bench: setup
 
 # The bench scripts quick enough to rerun often, each writing its page in docs/bench/
 # (bench/page.py; about 10 minutes on 2 cores). The long ones: python bench/page.py SCRIPT
-BENCH_PAGES = bench_kinematics.py bench_klt.py bench_trackers.py bench_analyze.py \
+BENCH_PAGES = bench_kinematics.py bench_klt.py bench_trackers.py \
 	bench_icgn_threads.py bench_mosaic.py
 bench-pages: setup
 	for script in $(BENCH_PAGES); do $(BIN)/python bench/page.py $$script || exit 1; done
+	$(BIN)/python bench/page.py bench_analyze.py --sheet --repeat 2
 	$(BIN)/python bench/page.py bench_default_tracker.py --only speed,threads --trackers gdic,dic
 
 # The demo's z-stack and stereo results against the synthetic truth (after make demo)
