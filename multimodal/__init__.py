@@ -6,7 +6,9 @@ folds.  This package lifts the camera's mesh onto the height maps and
 measures each triangle along the surface, separating true stretch from
 length hidden in folds (:mod:`multimodal.geometry`); the two are
 registered from landmark pairs or automatically from the images
-(:mod:`multimodal.registration`).
+(:mod:`multimodal.registration`).  A stereo run's surface and the
+microscope's are registered in 3D (:mod:`multimodal.surface3d`: landmarks,
+refined by ICP where the surfaces' shapes allow).
 """
 
 from tissue_core.lazy import lazy_exports
@@ -29,11 +31,19 @@ __getattr__, __dir__, __all__ = lazy_exports(
         ],
         "multimodal.io": [
             "read_landmarks",
+            "read_landmarks3d",
             "read_microscope_image",
             "read_surface_map",
             "read_transform",
         ],
         "multimodal.registration": ["Registration", "register_images"],
+        "multimodal.surface3d": [
+            "IcpResult",
+            "Similarity3D",
+            "closest_points_on_mesh",
+            "heightmap_points",
+            "refine_icp",
+        ],
         "multimodal.run": ["FoldStrain", "fold_strain_run", "write_fold_run"],
     },
 )

@@ -84,7 +84,276 @@ def _build_parser():
     )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p = cli.command(
+        "register3d",
+        _cmd_register3d,
+        help="the microscope's surface onto a stereo run's: landmarks, refined by ICP",
+    )
+    p.add_argument("camera", help="a stereo reconstruct output folder (its points3d.csv)")
+    p.add_argument(
+        "microscope", help="the microscope's height map: an mpm3d analyze folder or a TIFF"
+    )
+    how = p.add_mutually_exclusive_group(required=True)
+    how.add_argument(
+        "--landmarks",
+        help="CSV of landmark pairs: camera_x,camera_y,camera_z (the stereo run's units), "
+        "microscope_x,microscope_y (um) and microscope_z (the height, um)",
+    )
+    how.add_argument(
+        "--transform",
+        help="a start instead of landmarks: a JSON file with scale_per_um, rotation and "
+        "shift (this command's registration.json)",
+    )
+    p.add_argument(
+        "--frame", type=int, default=0, help="the stereo run's frame the map shows (default 0)"
+    )
+    p.add_argument(
+        "--scale",
+        type=float,
+        metavar="PER_UM",
+        help="the stereo run's units per micrometre when known (0.001 for mm): kept, not fitted",
+    )
+    p.add_argument(
+        "--mirrored", action="store_true", help="the microscope sees the tissue mirrored"
+    )
+    p.add_argument("--pixel-um", type=float, help="the height map's pixel size, um")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     return cli
+
+
+def _camera_surface(folder: Path, frame: int):
+    """A stereo run's points at ``frame`` (visible ones), its mesh among them, its unit."""
+    import json
+
+    from surface_strain import delaunay_triangles, read_points3d
+
+    points_file = folder / "points3d.csv"
+    if not points_file.is_file():
+        raise InputError(f"{folder}: no points3d.csv; give a stereo reconstruct output folder")
+    tracks = read_points3d(points_file)
+    if not 0 <= frame < tracks.n_frames:
+        raise InputError(f"--frame {frame} is outside the run's frames 0..{tracks.n_frames - 1}")
+    unit = "camera units"
+    try:
+        unit = json.loads((folder / "summary.json").read_text(encoding="utf-8"))["unit"]
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    points = tracks.positions[frame]
+    seen = tracks.visible[frame] & np.isfinite(points).all(axis=1)
+    elements = folder / "strain" / "strain_elements.csv"
+    if elements.is_file():
+        triangles = _triangles(folder / "strain", tracks.n_points)
+        triangles = triangles[seen[triangles].all(axis=1)]
+    else:  # reconstructed without --strain: a mesh of the points seen
+        kept = np.flatnonzero(seen)
+        triangles = kept[delaunay_triangles(points[kept])] if len(kept) >= 3 else kept[:0]
+    if len(triangles) < 2:
+        raise InputError(f"{folder}: fewer than 2 triangles with every point seen at frame {frame}")
+    return points, triangles, unit, [points_file, *([elements] if elements.is_file() else [])]
+
+
+def _cmd_register3d(args) -> int:
+    from multimodal.geometry import SurfaceMap
+    from multimodal.io import read_landmarks3d
+    from multimodal.surface3d import (
+        Similarity3D,
+        closest_points_on_mesh,
+        heightmap_points,
+        refine_icp,
+    )
+    from tissue_core.jsonio import write_json
+    from tissue_core.outputs import atomic_dir, check_writable
+    from tissue_core.progress import Progress
+    from tissue_core.version import __version__
+
+    say = Progress(quiet=args.quiet)
+    if args.scale is not None and not (np.isfinite(args.scale) and args.scale > 0):
+        raise InputError(f"--scale must be a positive number, got {args.scale}")
+    folder = Path(args.camera)
+    vertices, triangles, unit, camera_files = _camera_surface(folder, args.frame)
+    surface = _named_map("microscope", args.microscope, args.pixel_um)
+    if not isinstance(surface, SurfaceMap):
+        raise InputError(f"{args.microscope}: give one height map, not a mosaic's tiles")
+    inputs = [*camera_files, *_map_files(surface)]
+    inputs += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
+    check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
+    residual = None
+    if args.landmarks:
+        camera_lm, microscope_lm = read_landmarks3d(args.landmarks)
+        start, residual = Similarity3D.from_landmarks(
+            microscope_lm, camera_lm, mirrored=args.mirrored, scale=args.scale
+        )
+    else:
+        import json
+
+        try:
+            record = json.loads(Path(args.transform).read_text(encoding="utf-8-sig"))
+        except OSError as exc:
+            raise InputError(f"--transform {args.transform}: {exc.strerror or exc}") from None
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            raise InputError(f"--transform {args.transform}: not a JSON file") from None
+        if not isinstance(record, dict):
+            raise InputError(f"--transform {args.transform}: not a JSON object")
+        start = Similarity3D.from_dict(record.get("transform", record))
+    step = max(1, int(np.ceil(np.sqrt(np.isfinite(surface.height_um).sum() / 40_000))))
+    points = heightmap_points(surface, step=step)
+    say(
+        f"{folder}: {len(vertices)} points, {len(triangles)} triangles at frame {args.frame} "
+        f"({unit}); microscope: {len(points)} points of {args.microscope} (every {step})"
+    )
+    found = refine_icp(points, vertices, triangles, start, fit_scale=args.scale is None)
+    t = found.transform
+    fixed = [k for k, v in found.fixed_by_surfaces.items() if v >= 0.5]
+    loose = [k for k, v in found.fixed_by_surfaces.items() if v < 0.5]
+    flags = []
+    if loose:
+        flags.append(
+            "the surfaces' shapes do not fix " + ", ".join(loose) + ": they are the landmarks' "
+            "(or the start's), as good as those are"
+        )
+    if found.fitness < 0.5:
+        flags.append(
+            f"only {found.fitness:.0%} of the microscope's points were paired with the camera's "
+            "surface: the surfaces may not correspond"
+        )
+    if not found.converged:
+        flags.append(f"ICP stopped after {found.iterations} iterations without converging")
+    per_um = 1.0 / t.scale  # um per camera unit
+    summary = {
+        "software": {"name": "multimodal", "version": __version__},
+        "camera": str(folder),
+        "frame": args.frame,
+        "camera_unit": unit,
+        "microscope": str(args.microscope),
+        "microscope_pixel_um": list(surface.pixel_um),
+        "microscope_points_used": len(points),
+        "transform": t.as_dict(),
+        "start": start.as_dict(),
+        "landmarks": None
+        if residual is None
+        else {
+            "pairs": len(residual),
+            "residual_rms": float(np.sqrt(np.mean(residual**2))),
+            "residual_max": float(residual.max()),
+            "unit": unit,
+        },
+        "icp": {
+            **found.as_dict(),
+            "rms_before_um": found.rms_before * per_um,
+            "rms_after_um": found.rms_after * per_um,
+            "unit": unit,
+            "scale_fitted": args.scale is None,
+        },
+        "flags": flags,
+    }
+    # the microscope's surface in the camera's frame, for one ParaView scene with the run
+    shown = max(1, int(np.ceil(np.sqrt(np.isfinite(surface.height_um).sum() / 250_000))))
+    mesh_points, mesh_triangles, height = _grid_mesh(surface, shown)
+    moved = t.apply(mesh_points)
+    closest, _, which, outside = closest_points_on_mesh(moved, vertices, triangles)
+    # signed: positive towards the cameras (the stereo frame's origin), as a height is
+    normals = np.cross(
+        vertices[triangles[:, 1]] - vertices[triangles[:, 0]],
+        vertices[triangles[:, 2]] - vertices[triangles[:, 0]],
+    )
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals[np.einsum("ij,ij->i", normals, vertices[triangles[:, 0]]) > 0] *= -1
+    distance = np.einsum("ij,ij->i", normals[which], moved - closest)
+    distance = np.where(outside, np.nan, distance)
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
+        from tissue_core.vtkio import write_triangles
+
+        write_json(tmp / "registration.json", summary)
+        units = {"length_unit": [unit]}
+        write_triangles(
+            tmp / "microscope_surface.vtp",
+            moved,
+            mesh_triangles,
+            {"height_um": height, "above_camera_surface": distance},
+            field_data=units,
+        )
+        write_triangles(tmp / "camera_surface.vtp", vertices, triangles, field_data=units)
+        if residual is not None:
+            rows = ["camera_x,camera_y,camera_z,microscope_x,microscope_y,microscope_z,residual"]
+            for c, m, r in zip(camera_lm, microscope_lm, residual, strict=True):
+                values = (*c, m[0], m[1], -m[2], r)
+                rows.append(",".join(f"{float(v):.6g}" for v in values))
+            (tmp / "landmarks.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+        (tmp / "figures").mkdir()
+        _distance_figure(
+            tmp / "figures" / "registration3d.png", surface, shown, distance * per_um, summary
+        )
+    say(
+        f"microscope onto camera: {t.scale:.6g} {unit}/um, turned {t.angle_deg:.4g} deg; "
+        + (
+            ""
+            if residual is None
+            else f"landmarks {summary['landmarks']['residual_rms']:.3g} {unit} RMS; "
+        )
+        + f"ICP {found.rms_before * per_um:.3g} to {found.rms_after * per_um:.3g} um RMS off "
+        f"the camera's surface, {found.fitness:.0%} paired"
+    )
+    say("fixed by the surfaces: " + (", ".join(fixed) or "none"))
+    for flag in flags:
+        say(f"flagged: {flag}")
+    say(f"results in {args.out} (open microscope_surface.vtp with the run's strain/strain.pvd)")
+    return 0
+
+
+def _grid_mesh(surface, step: int):
+    """The height map every ``step`` pixels as a triangle mesh: its pixels with a height as
+    ``(x, y, depth)`` um points (row by row), triangles between four such corners, and each
+    point's height."""
+    z = surface.height_um[::step, ::step]
+    ny, nx = z.shape
+    dy, dx = surface.pixel_um
+    x0, y0 = surface.origin_um
+    rows, cols = np.mgrid[0:ny, 0:nx]
+    points = np.column_stack(
+        [(x0 + cols * step * dx).ravel(), (y0 + rows * step * dy).ravel(), -z.ravel()]
+    )
+    ok = np.isfinite(z)
+    quad = ok[:-1, :-1] & ok[1:, :-1] & ok[:-1, 1:] & ok[1:, 1:]
+    r, c = np.nonzero(quad)
+    a = r * nx + c
+    triangles = np.concatenate(
+        [np.column_stack([a, a + 1, a + nx + 1]), np.column_stack([a, a + nx + 1, a + nx])]
+    )
+    index = np.full(ny * nx, -1)
+    index[ok.ravel()] = np.arange(int(ok.sum()))
+    return points[ok.ravel()], index[triangles], z[ok]
+
+
+def _distance_figure(path: Path, surface, step: int, distance_um, summary: dict) -> None:
+    """The microscope's surface seen from above, coloured by its height above the camera's
+    surface once registered (its folds, and what the registration left)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    z = surface.height_um[::step, ::step]
+    grid = np.full(z.shape, np.nan)
+    grid[np.isfinite(z)] = distance_um  # the mesh's points: the pixels with a height, in order
+    dy, dx = surface.pixel_um
+    x0, y0 = surface.origin_um
+    extent = (x0 - step * dx / 2, x0 + (z.shape[1] - 0.5) * step * dx,
+              y0 + (z.shape[0] - 0.5) * step * dy, y0 - step * dy / 2)  # fmt: skip
+    fig = Figure(figsize=(6.4, 5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    top = float(np.nanmax(np.abs(grid))) if np.isfinite(grid).any() else 1.0
+    shown = ax.imshow(grid, extent=extent, cmap="RdBu_r", vmin=-top, vmax=top,
+                      interpolation="nearest")  # fmt: skip
+    fig.colorbar(shown, ax=ax, label="height above the camera's surface (um)")
+    icp = summary["icp"]
+    ax.set_title(
+        f"microscope on the camera's surface: {icp['rms_after_um']:.3g} um RMS, "
+        f"{icp['fitness']:.0%} paired",
+        fontsize=10,
+    )
+    ax.set_xlabel("x (um)")
+    ax.set_ylabel("y (um)")
+    fig.savefig(path, dpi=100)
 
 
 def _cmd_register(args) -> int:

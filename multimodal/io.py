@@ -12,7 +12,13 @@ import numpy as np
 from multimodal.geometry import Similarity, SurfaceMap, SurfaceMosaic
 from tissue_core.errors import InputError
 
-__all__ = ["read_landmarks", "read_microscope_image", "read_surface_map", "read_transform"]
+__all__ = [
+    "read_landmarks",
+    "read_landmarks3d",
+    "read_microscope_image",
+    "read_surface_map",
+    "read_transform",
+]
 
 
 def _calibrated(path: Path, pixel_um: float | None, what: str) -> tuple[np.ndarray, tuple]:
@@ -144,6 +150,20 @@ def read_landmarks(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     columns = ("camera_x", "camera_y", "microscope_x", "microscope_y")
     table = read_number_columns(path, columns, what="landmarks")
     return table[:, :2], table[:, 2:]
+
+
+def read_landmarks3d(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """3D landmark pairs from a CSV: ``camera_x, camera_y, camera_z`` (the stereo run's
+    units), ``microscope_x, microscope_y, microscope_z`` (um; z is the height, as in the
+    height map), one pair per row; returned as camera ``(K, 3)`` and microscope
+    ``(x, y, depth)`` ``(K, 3)`` with ``depth = -height``."""
+    from tissue_core.tables import read_number_columns
+
+    columns = ("camera_x", "camera_y", "camera_z", "microscope_x", "microscope_y", "microscope_z")
+    table = read_number_columns(path, columns, what="landmarks")
+    microscope = table[:, 3:].copy()
+    microscope[:, 2] *= -1
+    return table[:, :3], microscope
 
 
 def read_transform(text: str) -> Similarity:

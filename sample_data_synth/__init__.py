@@ -46,6 +46,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "save_stack_truth",
             "write_stack",
         ],
+        "sample_data_synth.patch": ["MicroscopePatch", "microscope_patch", "write_patch"],
         "sample_data_synth.stereo": [
             "STEREO_CASES",
             "CalibrationViews",

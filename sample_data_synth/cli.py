@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -208,6 +209,24 @@ def _build_parser() -> CommandLine:
     )
     p.add_argument("--frames", type=int, default=11, help="frames of the video (11)")
     p.add_argument("--stacks", action="store_true", help="also the multiphoton z-stacks")
+    p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p = cli.command(
+        "patch",
+        _cmd_patch,
+        help="a microscope's height map of a patch of a stereo scene, with 3D landmarks",
+    )
+    p.add_argument("scene", help="a stereo scene folder (sample_data_synth stereo: dome/)")
+    p.add_argument("--frame", type=int, default=0, help="the scene's frame (0)")
+    p.add_argument("--center", default="4,-3", help="the patch's centre, material mm X,Y (4,-3)")
+    p.add_argument("--size-um", type=float, default=2000.0, help="side of the patch (2000)")
+    p.add_argument("--pixel-um", type=float, default=5.0, help="pixel size (5)")
+    p.add_argument("--angle", type=float, default=25.0, help="the microscope's turn, deg (25)")
+    p.add_argument("--fold-um", type=float, default=15.0, help="folds peak to peak (15)")
+    p.add_argument(
+        "--landmark-mm", type=float, default=0.05, help="landmark picking error, mm (0.05)"
+    )
     p.add_argument("--seed", type=_seed, default=0, help="random seed, a whole number >= 0 (0)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
@@ -559,6 +578,46 @@ def _cmd_folds(args) -> int:
             for stack in folding_wall_stacks(case, rng=args.seed):
                 write_stack(tmp / f"{stack.params['state']}_stack.tif", stack)
     say(f"video.avi, height maps, landmarks.csv, transform.json and truth.json in {args.out}")
+    return 0
+
+
+def _cmd_patch(args) -> int:
+    from sample_data_synth.patch import microscope_patch, write_patch
+    from sample_data_synth.stereo import load_stereo_scene
+
+    try:
+        center = tuple(float(v) for v in args.center.split(","))
+    except ValueError:
+        center = ()
+    if len(center) != 2 or not all(math.isfinite(v) for v in center):
+        raise ValueError(f"--center must be X,Y in mm, got {args.center!r}")
+    for flag, value in (("--size-um", args.size_um), ("--pixel-um", args.pixel_um)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{flag} must be a positive number, got {value}")
+    if args.size_um / args.pixel_um > 4000:
+        raise ValueError("--size-um / --pixel-um must be 4000 pixels or fewer")
+    for flag, value in (("--fold-um", args.fold_um), ("--landmark-mm", args.landmark_mm)):
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"{flag} must be 0 or more, got {value}")
+    if not math.isfinite(args.angle):
+        raise ValueError(f"--angle must be a number, got {args.angle}")
+    say = Progress(quiet=args.quiet)
+    if not (Path(args.scene) / "rig.json").is_file():
+        raise ValueError(
+            f"{args.scene}: not a stereo scene (no rig.json); give a case folder that "
+            "sample_data_synth stereo wrote, such as dome/"
+        )
+    scene = load_stereo_scene(args.scene)
+    if not 0 <= args.frame < scene.n_frames:
+        raise ValueError(f"--frame must be 0 to {scene.n_frames - 1}, got {args.frame}")
+    patch = microscope_patch(
+        scene, frame=args.frame, center=center, size_um=args.size_um, pixel_um=args.pixel_um,
+        angle_deg=args.angle, fold_um=args.fold_um, landmark_mm=args.landmark_mm,
+        rng=args.seed,
+    )  # fmt: skip
+    with atomic_dir(args.out, overwrite=args.overwrite, inputs=[Path(args.scene)]) as tmp:
+        write_patch(patch, tmp)
+    say(f"heightmap.tif, landmarks3d.csv and truth.json in {args.out}")
     return 0
 
 

@@ -77,6 +77,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
         ],
         "surface_strain.report": ["measurement_quality", "write_run_report"],
         "surface_strain.tracks": ["Tracks"],
+        "surface_strain.io": ["PointsError", "read_points3d", "read_triangles"],
         "surface_strain.run": [
             "RUN_SCHEMA",
             "Mesh",
