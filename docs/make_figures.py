@@ -245,8 +245,56 @@ def mask_figure() -> None:
                     OUT / "mask_tracked_grid.png")  # fmt: skip
 
 
+def register3d_figures() -> None:
+    """docs/multimodal.md's 3D registration: a microscope patch of the demo's dome onto its
+    stereo run; the height map above the camera's surface, and both surfaces in one scene."""
+    import shutil
+    import tempfile
+
+    import pyvista as pv
+
+    from multimodal.cli import main as multimodal
+    from sample_data_synth.cli import main as synth
+
+    scene, run = (
+        ROOT / "demo_output" / "stereo_scene" / "dome",
+        ROOT / "demo_output" / "stereo_dome",
+    )
+    if not (scene.is_dir() and run.is_dir()):
+        raise SystemExit("run `make demo` first")
+    with tempfile.TemporaryDirectory() as tmp:
+        patch, out = Path(tmp) / "patch", Path(tmp) / "reg"
+        if synth(["-q", "patch", str(scene), "--out", str(patch)]) != 0:
+            raise SystemExit("sample_data_synth patch failed")
+        argv = ["-q", "register3d", str(run), str(patch / "heightmap.tif"), "--landmarks",
+                str(patch / "landmarks3d.csv"), "--out", str(out)]  # fmt: skip
+        if multimodal(argv) != 0:
+            raise SystemExit("multimodal register3d failed")
+        shutil.copy(out / "figures" / "registration3d.png", OUT / "register3d_heights.png")
+        camera = pv.read(out / "camera_surface.vtp")
+        micro = pv.read(out / "microscope_surface.vtp")
+        plotter = pv.Plotter(off_screen=True, window_size=[900, 600])
+        plotter.set_background("white")
+        plotter.add_mesh(camera, style="wireframe", color="dimgray", line_width=1.5)
+        plotter.add_points(camera.points, color="black", point_size=8)
+        micro.point_data["above_um"] = 1000 * micro.point_data["above_camera_surface"]
+        top = float(np.nanmax(np.abs(micro.point_data["above_um"])))
+        plotter.add_mesh(
+            micro, scalars="above_um", cmap="RdBu_r", clim=(-top, top),
+            scalar_bar_args={"title": "height above the stereo surface (um)", "color": "black"},
+        )  # fmt: skip
+        centre = np.asarray(micro.center)
+        plotter.camera.focal_point = centre
+        plotter.camera.position = centre * (1 - 12.0 / np.linalg.norm(centre))  # the cameras'
+        plotter.camera.azimuth = 20
+        plotter.camera.up = (0.0, -1.0, 0.0)
+        plotter.screenshot(OUT / "register3d_scene.png", transparent_background=False)
+        plotter.close()
+
+
 if __name__ == "__main__":
     OUT.mkdir(parents=True, exist_ok=True)
+    register3d_figures()
     demo_figures()
     mask_figure()
     synthetic_cases()
