@@ -14,6 +14,11 @@ from strain2d.errors import InputError, SourceError
 
 log = logging.getLogger(__name__)
 
+#: ``strain2d analyze`` keeps a video's frames (8-bit) while it tracks them if they fit this
+#: many bytes (and an eighth of the memory available): short videos are then decoded once;
+#: longer ones are decoded again for the animation, so memory stays bounded by this
+KEEP_FRAMES_BYTES = 256 * 2**20
+
 
 def _add_source_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
@@ -564,9 +569,9 @@ def _cmd_analyze(args) -> int:
     # the figures' workers start now, while this process has one thread, and load Matplotlib
     # while the points are tracked
     with FigurePool(warm=True) as pool:
-        # the frames, 8-bit, while they fit an eighth of the memory available (at most
-        # 512 MiB): the animation then decodes none of them again
-        keep = min(512 * 2**20, available_memory() // 8)
+        # the frames, 8-bit, while they fit KEEP_FRAMES_BYTES and an eighth of the memory
+        # available: the animation then decodes none of them again
+        keep = min(KEEP_FRAMES_BYTES, available_memory() // 8)
         source, point_info, tracks, (mesh, mask) = _track_source(
             args, tracker_options, say, check=check, keep_bytes=keep
         )
