@@ -32,7 +32,10 @@ def _build_parser():
         _cmd_strain,
         help="membrane strain along the microscope's surface for a camera run's triangles",
     )
-    p.add_argument("run", help="a strain2d analyze output folder")
+    p.add_argument(
+        "run",
+        help="a strain2d analyze output folder, or a stereo reconstruct one (with --strain)",
+    )
     p.add_argument("--before", required=True, help="height map of the reference state "
                    "(an mpm3d analyze folder or a height-map TIFF, in um)")  # fmt: skip
     p.add_argument("--after", required=True, help="height map of the deformed state")
@@ -45,7 +48,13 @@ def _build_parser():
     how.add_argument(
         "--transform",
         help="camera px to microscope um: a JSON file (scale_um_per_px, angle_deg, shift_um, "
-        "mirrored) or SCALE,ANGLE,SHIFT_X,SHIFT_Y",
+        "mirrored) or SCALE,ANGLE,SHIFT_X,SHIFT_Y; for a stereo run, the registration.json "
+        "of multimodal register3d (the --before map on the run's frame 0)",
+    )
+    p.add_argument(
+        "--transform-after",
+        help="a stereo run: register3d's registration.json of the --after map on the run's "
+        "--frame (default: --transform's, the microscope and the cameras kept still)",
     )
     p.add_argument(
         "--mirrored", action="store_true", help="the microscope sees the tissue mirrored"
@@ -470,20 +479,26 @@ def _cmd_strain(args) -> int:
     from tissue_core.progress import Progress
 
     say = Progress(quiet=args.quiet)
-    run = load_run(args.run)
-    if run.positions.shape[-1] != 2:
-        raise InputError(
-            f"{args.run}: a 3D run; give a camera run of strain2d analyze (the surface of a "
-            "stereo run is not registered to a microscope yet)"
-        )
+    run_dir = Path(args.run)
+    if (run_dir / "strain" / "strain_nodes.csv").is_file() and not (
+        run_dir / "strain_nodes.csv"
+    ).is_file():  # a stereo reconstruct folder: its strain run
+        run_dir = run_dir / "strain"
+    run = load_run(run_dir)
+    stereo = run.positions.shape[-1] == 3
+    if args.transform_after and not stereo:
+        raise InputError("--transform-after is for a stereo run; a 2D run has one transform")
     frame = run.endpoint if args.frame is None else args.frame
     if not 0 < frame < run.n_frames:
         raise InputError(f"--frame {frame} is outside the run's frames 1..{run.n_frames - 1}")
-    triangles = _triangles(Path(args.run), run.n_points)
+    triangles = _triangles(run_dir, run.n_points)
     before = _named_map("--before", args.before, args.pixel_um)
     after = _named_map("--after", args.after, args.pixel_um)
     residual = None
-    if args.landmarks:
+    registration = None
+    if stereo:
+        run, transform, registration = _on_microscope_plane(run, frame, args)
+    elif args.landmarks:
         camera, microscope = read_landmarks(args.landmarks)
         transform, residual = Similarity.from_landmarks(camera, microscope, mirrored=args.mirrored)
     else:
@@ -492,17 +507,23 @@ def _cmd_strain(args) -> int:
             transform = Similarity(
                 transform.scale, transform.angle_deg, transform.shift_um, mirrored=True
             )
-    inputs = [Path(args.run) / "summary.json", Path(args.run) / "strain_elements.csv"]
+    inputs = [run_dir / "summary.json", run_dir / "strain_elements.csv"]
     inputs += [*_map_files(before), *_map_files(after)]
-    inputs += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
+    given = (args.landmarks, args.transform, args.transform_after)
+    inputs += [Path(p) for p in given if p and Path(p).is_file()]
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
     fit = "" if residual is None else f", landmarks {np.sqrt(np.mean(residual**2)):.3g} um RMS"
 
     def started(message: str) -> None:  # the inputs hold: what the run is, then the long step
+        how = (
+            "registered in 3D (register3d)"
+            if stereo
+            else f"camera to microscope: {transform.scale:.4g} um/px, "
+            f"{transform.angle_deg:.3g} deg{fit}"
+        )
         say(
             f"{args.run}: {run.n_points} nodes, {len(triangles)} triangles; frame {frame} "
-            f"against frame 0; camera to microscope: {transform.scale:.4g} um/px, "
-            f"{transform.angle_deg:.3g} deg{fit}"
+            f"against frame 0; {how}"
         )
         say(message)
 
@@ -513,7 +534,7 @@ def _cmd_strain(args) -> int:
         summary = write_fold_run(
             tmp, result, run=run, frame=frame, before=before, after=after,
             transform=transform, residual=residual, path=args.path,
-            inputs=[p for p in inputs if p.is_file()],
+            inputs=[p for p in inputs if p.is_file()], registration=registration,
         )  # fmt: skip
     means = summary["mean_strain"]
 
@@ -530,6 +551,68 @@ def _cmd_strain(args) -> int:
         say(f"flagged: {flag}")
     say(f"results in {args.out}")
     return 0
+
+
+def _registration3d(path: str, option: str):
+    """register3d's transform from its registration.json (or a JSON of the transform)."""
+    import json
+
+    from multimodal.surface3d import Similarity3D
+
+    if not Path(path).is_file():
+        raise InputError(
+            f"{option} {path}: no such file; a stereo run needs the 3D registration that "
+            "multimodal register3d writes (its registration.json)"
+        )
+    try:
+        record = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+    except OSError as exc:
+        raise InputError(f"{option} {path}: {exc.strerror or exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError):
+        raise InputError(f"{option} {path}: not a JSON file") from None
+    if not isinstance(record, dict):
+        raise InputError(f"{option} {path}: not a JSON object")
+    inner = record.get("transform", record)
+    if not isinstance(inner, dict) or "rotation" not in inner:
+        raise InputError(
+            f"{option} {path}: a stereo run needs the 3D registration of multimodal "
+            "register3d (its registration.json), not a 2D transform"
+        )
+    return Similarity3D.from_dict(inner), record
+
+
+def _on_microscope_plane(run, frame: int, args):
+    """A stereo run's nodes in the microscope's x-y (um): frame 0 through --transform's 3D
+    registration, ``frame`` through --transform-after's (or the same); the run as a 2D one
+    in micrometres, the identity as its transform, and what summary.json records."""
+    from dataclasses import replace
+
+    from multimodal.geometry import Similarity
+
+    if args.landmarks or args.mirrored:
+        raise InputError(
+            "a stereo run is registered in 3D: run multimodal register3d first (with your "
+            "landmarks) and give its registration.json with --transform"
+        )
+    first, record = _registration3d(args.transform, "--transform")
+    then, record_after = first, record
+    if args.transform_after:
+        then, record_after = _registration3d(args.transform_after, "--transform-after")
+    planar = np.empty((*run.positions.shape[:2], 2))
+    for k in range(run.n_frames):
+        planar[k] = (then if k == frame else first).inverse(run.positions[k])[:, :2]
+    registration = {
+        "before": {"file": str(args.transform), "frame": 0, **first.as_dict()},
+        "after": {
+            "file": str(args.transform_after or args.transform),
+            "frame": int(frame),
+            **then.as_dict(),
+        },
+        "icp": {"before": record.get("icp"), "after": record_after.get("icp")},
+        "note": "the stereo run's nodes in the microscope's x-y (um): 'projected' strain is "
+        "that of the triangles projected on the microscope's plane",
+    }
+    return replace(run, positions=planar), Similarity(1.0), registration
 
 
 def _named_map(option: str, text: str, pixel_um: float | None):

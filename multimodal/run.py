@@ -100,9 +100,14 @@ def write_fold_run(
     residual: np.ndarray | None,
     path: str,
     inputs: list[Path],
+    registration: dict | None = None,
 ) -> dict:
     """Write ``fold_strain.csv``, ``tortuosity.csv``, ``summary.json`` and
-    ``figures/fold_strain.png`` into ``folder``; returns the summary."""
+    ``figures/fold_strain.png`` into ``folder``; returns the summary.
+
+    ``registration``: a stereo run's 3D registrations (its nodes were brought
+    onto the microscope's plane, in micrometres, and ``transform`` is the
+    identity), recorded in ``summary.json``."""
     from tissue_core.csvtext import number_cell
     from tissue_core.html import input_records
     from tissue_core.jsonio import write_json
@@ -164,9 +169,12 @@ def write_fold_run(
             for name, m in (("before", before), ("after", after))
         },
         "inputs": input_records(inputs),
+        **({"registration_3d": registration} if registration is not None else {}),
         "transform": {
             **transform.as_dict(),
-            "from": "landmarks" if residual is not None else "given",
+            "from": "landmarks"
+            if residual is not None
+            else ("the 3D registration" if registration is not None else "given"),
             **(
                 {
                     "landmarks": len(residual),
@@ -197,12 +205,20 @@ def write_fold_run(
             "after": {"x": float(ta.at(0.0)[0]), "y": float(ta.at(90.0)[0])},
             "directions": "the microscope's x and y",
         },
-        "units": {"strain": "-", "lengths": "um", "camera": "px"},
+        "units": {
+            "strain": "-",
+            "lengths": "um",
+            "camera": "px" if registration is None else "um (the microscope's plane)",
+        },
         "definitions": {
-            "projected": "the camera's 2D Green-Lagrange strain of each triangle",
+            "projected": "the camera's 2D Green-Lagrange strain of each triangle"
+            if registration is None
+            else "the 2D Green-Lagrange strain of each triangle of the stereo run projected "
+            "on the microscope's plane, in the microscope's x-y",
             "fold_aware": "membrane strain along the surface: each edge's length on the "
             "height maps (before and after), over the triangles both maps cover; frame of "
-            "the reference surface, first axis over the camera's x",
+            "the reference surface, first axis over the "
+            + ("camera's x" if registration is None else "microscope's x"),
             "corrected": "the projected principal stretches scaled by the surfaces' "
             "tortuosity along them (after / before), over every tracked triangle",
             "folding_share": "(projected - fold_aware) / projected of the means over the "

@@ -308,3 +308,82 @@ def test_a_grid_off_the_maps_is_flagged_not_a_crash(wall, tmp_path):
     assert summary["mean_strain"]["fold_aware"]["Exx"] is None
     assert any("No triangle lies on both height maps" in f for f in summary["flags"])
     assert summary["mean_strain"]["corrected"]["Exx"] is not None
+
+
+@pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
+def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(wall, tmp_path):
+    """The wall's camera run lifted into 3D (the plane z = 450, the camera's pixels as its
+    units) and registered by the 3D similarity equal to the landmarks' 2D one: every
+    triangle's strain, projected and along the surface, is the 2D run's, in the
+    microscope's axes (a stereo run has no camera x-y to give them in)."""
+    from multimodal.geometry import Similarity
+    from multimodal.io import read_landmarks
+    from multimodal.surface3d import Similarity3D
+    from strain2d import load_run
+    from surface_strain import Mesh
+    from surface_strain import write_run as write_3d_run
+
+    _, files, folder = wall
+    flat = load_run(folder / "run")
+    triangles = np.loadtxt(folder / "run" / "strain_elements.csv", delimiter=",", skiprows=1,
+                           usecols=(2, 3, 4), dtype=int)  # fmt: skip
+    header = (folder / "run" / "strain_elements.csv").read_text().splitlines()[0].split(",")
+    assert header[:5] == ["frame", "triangle", "p0", "p1", "p2"]
+    triangles = triangles[: len(triangles) // flat.n_frames]
+    points = np.concatenate(
+        [flat.positions, np.full((*flat.positions.shape[:2], 1), 450.0)], axis=-1
+    )
+    stereo = tmp_path / "stereo"
+    (stereo / "strain").mkdir(parents=True)
+    write_3d_run(stereo / "strain", points, flat.visible, Mesh(triangles, "grid", "grid"),
+                 unit="px", figures=False)  # fmt: skip
+    s2, _ = Similarity.from_landmarks(*read_landmarks(files["landmarks"]))
+    # microscope (x, y, depth) -> camera: the inverse of s2 in x-y, z = 450 + depth / scale
+    a = np.radians(s2.angle_deg)
+    inverse_turn = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
+    rotation = np.eye(3)
+    rotation[:2, :2] = inverse_turn
+    k = 1.0 / s2.scale
+    shift = np.array([*(-k * inverse_turn @ np.asarray(s2.shift_um)), 450.0])
+    registration = {"transform": Similarity3D(k, rotation, shift).as_dict()}
+    (tmp_path / "registration.json").write_text(json.dumps(registration), encoding="utf-8")
+    # chords: the geodesic paths are found to a tolerance, about 1e-8 of strain
+    common = ["--before", str(files["before"]), "--after", str(files["after"]), "--frame",
+              str(flat.n_frames - 1), "--path", "chord"]  # fmt: skip
+    _run("multimodal", "strain", str(folder / "run"), *common, "--transform",
+         f"{s2.scale},{s2.angle_deg},{s2.shift_um[0]},{s2.shift_um[1]}",
+         "--out", str(tmp_path / "two"))  # fmt: skip
+    done = _run("multimodal", "strain", str(stereo), *common, "--transform",
+                str(tmp_path / "registration.json"), "--out", str(tmp_path / "three"))  # fmt: skip
+    assert "registered in 3D" in done.stderr + done.stdout
+    two = np.genfromtxt(tmp_path / "two" / "fold_strain.csv", delimiter=",", names=True)
+    three = np.genfromtxt(tmp_path / "three" / "fold_strain.csv", delimiter=",", names=True)
+    turn = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])  # camera -> microscope
+
+    def tensors(table, kind):
+        xx, yy, xy = (table[f"E{c}_{kind}"] for c in ("xx", "yy", "xy"))
+        return np.stack([np.stack([xx, xy], -1), np.stack([xy, yy], -1)], -2)
+
+    for kind in ("projected", "surface", "corrected"):
+        E2, E3 = tensors(two, kind), tensors(three, kind)
+        assert np.isfinite(E2).all(axis=(1, 2)).sum() > 20, kind
+        if kind == "surface":  # its frame's first axis lies over the other x: the same
+            # principal strains (the two frames differ by a turn within the tangent plane)
+            np.testing.assert_allclose(
+                np.linalg.eigvalsh(E3), np.linalg.eigvalsh(E2), atol=1e-9, err_msg=kind
+            )
+        else:
+            np.testing.assert_allclose(E3, turn @ E2 @ turn.T, atol=1e-9, err_msg=kind)
+    summary = json.loads((tmp_path / "three" / "summary.json").read_text())
+    assert summary["transform"]["from"] == "the 3D registration"
+    assert summary["registration_3d"]["before"]["scale_per_um"] == pytest.approx(k)
+    assert summary["units"]["camera"].startswith("um")
+    # a 3D run refuses a 2D transform and landmarks, in one line
+    for extra, message in (
+        (["--transform", "6,-12,0,0"], "3D registration"),
+        (["--landmarks", str(files["landmarks"])], "register3d first"),
+    ):
+        done = _run("multimodal", "strain", str(stereo), *common, *extra, "--out",
+                    str(tmp_path / "bad"), check=False)  # fmt: skip
+        assert done.returncode == 2 and message in done.stderr, done.stderr
+        assert len(done.stderr.strip().splitlines()) == 1
