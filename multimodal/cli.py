@@ -145,20 +145,32 @@ def _camera_surface(folder: Path, frame: int):
         raise InputError(f"--frame {frame} is outside the run's frames 0..{tracks.n_frames - 1}")
     unit = "camera units"
     try:
-        unit = json.loads((folder / "summary.json").read_text(encoding="utf-8"))["unit"]
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
+        found = json.loads((folder / "summary.json").read_text(encoding="utf-8"))["unit"]
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        found = None
+    if isinstance(found, str) and 0 < len(found) <= 20 and found.isprintable():
+        unit = found
     points = tracks.positions[frame]
     seen = tracks.visible[frame] & np.isfinite(points).all(axis=1)
+    if seen.any() and np.abs(points[seen]).max() >= 1e9:
+        raise InputError(f"{folder}: a point lies beyond 1e9 {unit}: not a plausible position")
     elements = folder / "strain" / "strain_elements.csv"
     if elements.is_file():
         triangles = _triangles(folder / "strain", tracks.n_points)
         triangles = triangles[seen[triangles].all(axis=1)]
     else:  # reconstructed without --strain: a mesh of the points seen
         kept = np.flatnonzero(seen)
-        triangles = kept[delaunay_triangles(points[kept])] if len(kept) >= 3 else kept[:0]
+        try:
+            triangles = kept[delaunay_triangles(points[kept])] if len(kept) >= 3 else kept[:0]
+        except ValueError as exc:
+            raise InputError(f"{folder}: its points at frame {frame} make no mesh: {exc}") from None
     if len(triangles) < 2:
         raise InputError(f"{folder}: fewer than 2 triangles with every point seen at frame {frame}")
+    V = points[triangles]
+    area = 0.5 * np.linalg.norm(np.cross(V[:, 1] - V[:, 0], V[:, 2] - V[:, 0]), axis=1)
+    edge = np.linalg.norm(V[:, 1] - V[:, 0], axis=1)
+    if not area.sum() > 1e-6 * np.sum(edge**2):
+        raise InputError(f"{folder}: its mesh at frame {frame} has no area (its points on a line)")
     return points, triangles, unit, [points_file, *([elements] if elements.is_file() else [])]
 
 
@@ -177,36 +189,41 @@ def _cmd_register3d(args) -> int:
     from tissue_core.version import __version__
 
     say = Progress(quiet=args.quiet)
+    landmarks = args.landmarks is not None
     if args.scale is not None and not (np.isfinite(args.scale) and args.scale > 0):
         raise InputError(f"--scale must be a positive number, got {args.scale}")
+    if not landmarks and (args.scale is not None or args.mirrored):
+        flag = "--scale" if args.scale is not None else "--mirrored"
+        raise InputError(
+            f"{flag} goes with --landmarks: a --transform gives its own scale and says whether "
+            "it is mirrored"
+        )
     folder = Path(args.camera)
     vertices, triangles, unit, camera_files = _camera_surface(folder, args.frame)
     surface = _named_map("microscope", args.microscope, args.pixel_um)
     if not isinstance(surface, SurfaceMap):
         raise InputError(f"{args.microscope}: give one height map, not a mosaic's tiles")
-    inputs = [*camera_files, *_map_files(surface)]
+    # the folders too: no output inside the run or the microscope's folder
+    inputs = [folder, *camera_files, *_map_files(surface)]
+    inputs += [Path(args.microscope)] if Path(args.microscope).is_dir() else []
     inputs += [Path(p) for p in (args.landmarks, args.transform) if p and Path(p).is_file()]
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
     residual = None
-    if args.landmarks:
+    if landmarks:
         camera_lm, microscope_lm = read_landmarks3d(args.landmarks)
+        _landmarks_on_map(microscope_lm, surface)
         start, residual = Similarity3D.from_landmarks(
             microscope_lm, camera_lm, mirrored=args.mirrored, scale=args.scale
         )
     else:
-        import json
-
-        try:
-            record = json.loads(Path(args.transform).read_text(encoding="utf-8-sig"))
-        except OSError as exc:
-            raise InputError(f"--transform {args.transform}: {exc.strerror or exc}") from None
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            raise InputError(f"--transform {args.transform}: not a JSON file") from None
-        if not isinstance(record, dict):
-            raise InputError(f"--transform {args.transform}: not a JSON object")
-        start = Similarity3D.from_dict(record.get("transform", record))
+        start = _start_transform(args.transform)
     step = max(1, int(np.ceil(np.sqrt(np.isfinite(surface.height_um).sum() / 40_000))))
     points = heightmap_points(surface, step=step)
+    if len(points) < 10:
+        raise InputError(
+            f"{args.microscope}: only {len(points)} of its pixels have a measured height; the "
+            "registration needs 10 or more"
+        )
     say(
         f"{folder}: {len(vertices)} points, {len(triangles)} triangles at frame {args.frame} "
         f"({unit}); microscope: {len(points)} points of {args.microscope} (every {step})"
@@ -228,6 +245,8 @@ def _cmd_register3d(args) -> int:
         )
     if not found.converged:
         flags.append(f"ICP stopped after {found.iterations} iterations without converging")
+    flags += _registration_flags(points, start, found, residual, camera_lm if landmarks else None,
+                                 unit)  # fmt: skip
     per_um = 1.0 / t.scale  # um per camera unit
     summary = {
         "software": {"name": "multimodal", "version": __version__},
@@ -308,6 +327,90 @@ def _cmd_register3d(args) -> int:
         say(f"flagged: {flag}")
     say(f"results in {args.out} (open microscope_surface.vtp with the run's strain/strain.pvd)")
     return 0
+
+
+def _start_transform(path: str):
+    """``--transform``: register3d's registration.json, or a JSON of the transform."""
+    import json
+
+    from multimodal.surface3d import Similarity3D
+
+    try:
+        record = json.loads(Path(path).read_text(encoding="utf-8-sig"))
+    except OSError as exc:
+        raise InputError(f"--transform {path}: {exc.strerror or exc}") from None
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        raise InputError(f"--transform {path}: not a readable JSON file") from None
+    if not isinstance(record, dict):
+        raise InputError(f"--transform {path}: not a JSON object")
+    try:
+        return Similarity3D.from_dict(record.get("transform", record))
+    except InputError as exc:
+        raise InputError(f"--transform {path}: {exc}") from None
+
+
+def _landmarks_on_map(microscope: np.ndarray, surface) -> None:
+    """Refuse landmarks that are not on the height map (wrong units, or pixel size)."""
+    dy, dx = surface.pixel_um
+    x0, y0 = surface.origin_um
+    ny, nx = surface.height_um.shape
+    x1, y1 = x0 + (nx - 1) * dx, y0 + (ny - 1) * dy
+    off = (
+        (microscope[:, 0] < x0 - dx)
+        | (microscope[:, 0] > x1 + dx)
+        | (microscope[:, 1] < y0 - dy)
+        | (microscope[:, 1] > y1 + dy)
+    )
+    if off.any():
+        k = int(np.flatnonzero(off)[0])
+        raise InputError(
+            f"landmark {k + 1} ({microscope[k, 0]:.6g}, {microscope[k, 1]:.6g} um) is not on the "
+            f"height map ({x0:.6g}..{x1:.6g}, {y0:.6g}..{y1:.6g} um): are the landmarks in um, "
+            "and the map's pixel size right?"
+        )
+
+
+#: camera units per micrometre of the units a stereo run may be in
+_UNITS_PER_UM = {"mm": 1e-3, "cm": 1e-4, "m": 1e-6, "um": 1.0, "µm": 1.0, "nm": 1e3}
+
+
+def _registration_flags(points, start, found, residual, camera_lm, unit: str) -> list[str]:
+    """What makes a registration doubtful though it ran: a microscope upside down, landmarks
+    that disagree with each other, a scale the run's unit does not give, or ICP moving the
+    patch far from where the start put it."""
+    flags = []
+    t = found.transform
+    moved = t.apply(points)
+    centre = moved.mean(axis=0)
+    size = float(np.sqrt(np.mean(np.sum((moved - centre) ** 2, axis=1))))
+    if np.dot(t.rotation[:, 2], centre) < 0:
+        flags.append(
+            "the microscope's depth points towards the cameras: right if it imaged the tissue "
+            "from the other side; otherwise check the landmarks' columns and --mirrored"
+        )
+    if residual is not None:
+        spread = float(np.sqrt(np.mean(np.sum((camera_lm - camera_lm.mean(axis=0)) ** 2, 1))))
+        rms = float(np.sqrt(np.mean(residual**2)))
+        if rms > 0.2 * spread:
+            flags.append(
+                f"the landmarks disagree: {rms:.3g} {unit} RMS off their fit, "
+                f"{rms / spread:.0%} of their spread (a pair mismatched, or a unit?)"
+            )
+    expected = _UNITS_PER_UM.get(unit)
+    if expected is not None and not 0.8 < t.scale / expected < 1.25:
+        flags.append(
+            f"the scale is {t.scale:.4g} {unit} per um where the units make {expected:g}: "
+            "check the landmarks' units and the map's pixel size"
+        )
+    shift = float(np.linalg.norm(centre - start.apply(points).mean(axis=0)))
+    landmark_rms = float(np.sqrt(np.mean(residual**2))) if residual is not None else 0.0
+    if shift > max(5 * landmark_rms, 0.25 * size):
+        times = f", {shift / landmark_rms:.0f} times the landmarks' residual" * bool(landmark_rms)
+        flags.append(
+            f"ICP moved the patch {shift:.3g} {unit} from where the start put it{times}: do the "
+            "landmarks, the height map and --frame belong together?"
+        )
+    return flags
 
 
 def _grid_mesh(surface, step: int):
@@ -507,8 +610,10 @@ def _cmd_strain(args) -> int:
             transform = Similarity(
                 transform.scale, transform.angle_deg, transform.shift_um, mirrored=True
             )
-    inputs = [run_dir / "summary.json", run_dir / "strain_elements.csv"]
+    # the folders too: no output inside the run or a height map's folder
+    inputs = [Path(args.run), run_dir, run_dir / "summary.json", run_dir / "strain_elements.csv"]
     inputs += [*_map_files(before), *_map_files(after)]
+    inputs += [Path(m) for m in (args.before, args.after) if Path(m).is_dir()]
     given = (args.landmarks, args.transform, args.transform_after)
     inputs += [Path(p) for p in given if p and Path(p).is_file()]
     check_writable(args.out, overwrite=args.overwrite, inputs=inputs)
@@ -554,7 +659,8 @@ def _cmd_strain(args) -> int:
 
 
 def _registration3d(path: str, option: str):
-    """register3d's transform from its registration.json (or a JSON of the transform)."""
+    """register3d's transform from its registration.json (or a JSON of the transform), and
+    the file's record."""
     import json
 
     from multimodal.surface3d import Similarity3D
@@ -568,8 +674,8 @@ def _registration3d(path: str, option: str):
         record = json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except OSError as exc:
         raise InputError(f"{option} {path}: {exc.strerror or exc}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise InputError(f"{option} {path}: not a JSON file") from None
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        raise InputError(f"{option} {path}: not a readable JSON file") from None
     if not isinstance(record, dict):
         raise InputError(f"{option} {path}: not a JSON object")
     inner = record.get("transform", record)
@@ -578,7 +684,10 @@ def _registration3d(path: str, option: str):
             f"{option} {path}: a stereo run needs the 3D registration of multimodal "
             "register3d (its registration.json), not a 2D transform"
         )
-    return Similarity3D.from_dict(inner), record
+    try:
+        return Similarity3D.from_dict(inner), record
+    except InputError as exc:
+        raise InputError(f"{option} {path}: {exc}") from None
 
 
 def _on_microscope_plane(run, frame: int, args):

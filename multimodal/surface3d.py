@@ -57,6 +57,10 @@ PARAMETERS = (
     "turn_about_normal",
     "scale",
 )
+#: camera units per micrometre a 3D similarity may have: from kilometres to nanometres
+PLAUSIBLE_SCALE = (1e-9, 1e3)
+#: landmarks whose second spread is under this share of their first lie (nearly) on a line
+LINE_SHARE = 1e-2
 #: a direction counts as fixed by the surfaces when its curvature of the summed squared
 #: distances is at least this share of the best-fixed direction's
 FIXED_SHARE = 1e-3
@@ -88,10 +92,19 @@ class Similarity3D:
         t = np.asarray(self.shift, dtype=float)
         if Q.shape != (3, 3) or t.shape != (3,):
             raise InputError("a 3D similarity needs a 3 x 3 rotation and a shift of 3 values")
-        if not (math.isfinite(self.scale) and self.scale > 0):
-            raise InputError(f"a 3D similarity's scale must be positive, got {self.scale}")
-        if not np.allclose(Q @ Q.T, np.eye(3), atol=1e-6) or np.linalg.det(Q) < 0:
+        if not (np.isfinite(Q).all() and np.isfinite(t).all() and np.abs(t).max() < 1e12):
+            raise InputError("a 3D similarity's rotation and shift must be finite numbers")
+        low, high = PLAUSIBLE_SCALE
+        if not (math.isfinite(self.scale) and low <= self.scale <= high):
+            raise InputError(
+                f"a 3D similarity's scale of {self.scale:.3g} camera units per um is not "
+                f"plausible ({low:g} to {high:g}; 0.001 for millimetres)"
+            )
+        # a rotation written with a few decimals: its nearest rotation (polar decomposition)
+        if not np.allclose(Q @ Q.T, np.eye(3), atol=1e-3) or np.linalg.det(Q) < 0:
             raise InputError("a 3D similarity's rotation must be a rotation matrix")
+        u, _, vt = np.linalg.svd(Q)
+        Q = u @ vt
         object.__setattr__(self, "rotation", Q)
         object.__setattr__(self, "shift", t)
         object.__setattr__(self, "scale", float(self.scale))
@@ -146,17 +159,29 @@ class Similarity3D:
 
     @classmethod
     def from_dict(cls, d: dict) -> Similarity3D:
-        try:
-            return cls(
-                float(d["scale_per_um"]),
-                np.asarray(d["rotation"], dtype=float),
-                np.asarray(d["shift"], dtype=float),
-                bool(d.get("mirrored", False)),
-            )
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(
-                f"a 3D transform needs scale_per_um, rotation (3 x 3) and shift (3 values): {exc}"
-            ) from None
+        """From :meth:`as_dict`'s keys: ``scale_per_um`` (a number), ``rotation`` (3 x 3
+        numbers), ``shift`` (3 numbers), ``mirrored`` (true or false, default false)."""
+        if not isinstance(d, dict):
+            raise InputError("a 3D transform must be a JSON object")
+        missing = [k for k in ("scale_per_um", "rotation", "shift") if k not in d]
+        if missing:
+            raise InputError(f"a 3D transform needs {', '.join(missing)}")
+        mirrored = d.get("mirrored", False)
+        if not isinstance(mirrored, bool):
+            raise InputError(f"a 3D transform's mirrored must be true or false, got {mirrored!r}")
+        values = {}
+        for name, shape in (("scale_per_um", ()), ("rotation", (3, 3)), ("shift", (3,))):
+            a = np.asarray(d[name], dtype=object)
+            if a.shape != shape or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in a.ravel()
+            ):
+                size = " x ".join(map(str, shape)) or "one"
+                raise InputError(f"a 3D transform's {name} must be {size} number(s)")
+            try:
+                values[name] = np.asarray(a, dtype=float)
+            except OverflowError:
+                raise InputError(f"a 3D transform's {name} is out of range") from None
+        return cls(float(values["scale_per_um"]), values["rotation"], values["shift"], mirrored)
 
     @classmethod
     def from_landmarks(
@@ -200,6 +225,15 @@ class Similarity3D:
             raise InputError(f"a 3D registration needs 3 landmark pairs or more, got {len(src)}")
         if not (np.isfinite(src).all() and np.isfinite(dst).all()):
             raise InputError("a landmark coordinate is not a finite number")
+        if max(np.abs(src).max(), np.abs(dst).max()) >= 1e12:
+            raise InputError("a landmark coordinate is beyond 1e12: not a plausible position")
+        if scale is not None and not (
+            math.isfinite(scale) and PLAUSIBLE_SCALE[0] <= scale <= PLAUSIBLE_SCALE[1]
+        ):
+            raise InputError(
+                f"a scale of {scale:.3g} camera units per um is not plausible "
+                f"({PLAUSIBLE_SCALE[0]:g} to {PLAUSIBLE_SCALE[1]:g}; 0.001 for millimetres)"
+            )
         flipped = src.copy()
         if mirrored:
             flipped[:, 0] *= -1
@@ -207,10 +241,10 @@ class Similarity3D:
         a, b = flipped - mu_s, dst - mu_d
         for name, centred in (("microscope", a), ("camera", b)):
             s = np.linalg.svd(centred, compute_uv=False)
-            if s[1] <= 1e-9 * max(s[0], 1e-300):
+            if s[1] <= LINE_SHARE * max(s[0], 1e-300):
                 raise InputError(
-                    f"the {name} landmarks lie on one line: a 3D registration needs three "
-                    "pairs or more that do not"
+                    f"the {name} landmarks lie on one line, or nearly: a 3D registration needs "
+                    "three pairs or more spread across the patch"
                 )
         U, D, Vt = np.linalg.svd(b.T @ a / len(src))
         S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U) * np.linalg.det(Vt)) or 1.0])
@@ -321,8 +355,9 @@ def closest_points_on_mesh(
     V = np.asarray(vertices, dtype=float)
     T = np.asarray(triangles, dtype=np.intp)
     k = int(min(candidates, len(T)))
-    _, near = cKDTree(V[T].mean(axis=1)).query(p, k=k)
+    _, near = cKDTree(V[T].mean(axis=1)).query(np.nan_to_num(p, nan=np.inf), k=k)
     near = np.asarray(near).reshape(len(p), k)
+    near[near >= len(T)] = 0  # a point with no neighbour (not finite): any, its distance inf
     best = np.full(len(p), np.inf)
     closest = np.zeros_like(p)
     which = np.zeros(len(p), np.intp)
@@ -331,7 +366,7 @@ def closest_points_on_mesh(
         t = near[:, j]
         q, feature = _closest_on_triangles(p, V[T[t, 0]], V[T[t, 1]], V[T[t, 2]])
         d = np.linalg.norm(q - p, axis=1)
-        better = d < best
+        better = d < best  # NaN never is: such a point keeps an infinite distance
         best = np.where(better, d, best)
         closest[better] = q[better]
         which[better] = t[better]
@@ -488,8 +523,8 @@ def refine_icp(
     if keep.sum() < 10:
         raise InputError(
             f"only {int(keep.sum())} of the microscope's {len(P)} points lie over the camera's "
-            "surface where the landmarks put them: check the landmarks (their units, and "
-            "which side is which)"
+            "surface where the start (the landmarks, or --transform) puts them: check its "
+            "units, which side is which, and the run's --frame"
         )
     rms_before = float(np.sqrt(np.mean(distance[keep] ** 2)))
     frame = _patch_frame(moved[keep], normals[which][keep])
@@ -517,6 +552,12 @@ def refine_icp(
             sigma = step[6] / length if scaled else 0.0
             R = _rotation(omega)
             new_shift = (1 + sigma) * (R @ (current.shift - c)) + c + shift
+            if not (np.isfinite(new_shift).all() and math.isfinite(sigma) and sigma > -0.5):
+                raise InputError(
+                    "ICP diverged: the start (the landmarks, or --transform) puts the patch "
+                    "where the two surfaces do not match; check its units and the height "
+                    "map's pixel size"
+                )
             current = Similarity3D(
                 current.scale * (1 + sigma), R @ current.rotation, new_shift, current.mirrored
             )

@@ -72,7 +72,7 @@ from sample_data_synth.stereo import (
 )
 from sample_data_synth.tissue import TISSUE_CASES, make_tissue_case
 from tissue_core.cli import CommandLine
-from tissue_core.outputs import atomic_dir
+from tissue_core.outputs import atomic_dir, check_writable
 from tissue_core.progress import Progress
 from tissue_core.resources import check_fits
 
@@ -594,22 +594,43 @@ def _cmd_patch(args) -> int:
     for flag, value in (("--size-um", args.size_um), ("--pixel-um", args.pixel_um)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{flag} must be a positive number, got {value}")
-    if args.size_um / args.pixel_um > 4000:
-        raise ValueError("--size-um / --pixel-um must be 4000 pixels or fewer")
+    if not 16 <= args.size_um / args.pixel_um <= 4000:
+        raise ValueError("--size-um / --pixel-um must make 16 to 4000 pixels a side")
     for flag, value in (("--fold-um", args.fold_um), ("--landmark-mm", args.landmark_mm)):
         if not (math.isfinite(value) and value >= 0):
             raise ValueError(f"{flag} must be 0 or more, got {value}")
+    if args.fold_um > args.size_um / 4:
+        raise ValueError(f"--fold-um must be at most a quarter of --size-um, got {args.fold_um}")
+    if args.landmark_mm > 10:
+        raise ValueError(f"--landmark-mm must be at most 10 (mm), got {args.landmark_mm}")
     if not math.isfinite(args.angle):
         raise ValueError(f"--angle must be a number, got {args.angle}")
+    check_writable(args.out, overwrite=args.overwrite, inputs=[Path(args.scene)])
     say = Progress(quiet=args.quiet)
     if not (Path(args.scene) / "rig.json").is_file():
         raise ValueError(
             f"{args.scene}: not a stereo scene (no rig.json); give a case folder that "
             "sample_data_synth stereo wrote, such as dome/"
         )
-    scene = load_stereo_scene(args.scene)
+    try:
+        scene = load_stereo_scene(args.scene)
+    except ValueError as exc:
+        text = str(exc)
+        raise ValueError(text if args.scene in text else f"{args.scene}: {text}") from None
+    except Exception as exc:  # a scene folder changed by hand: any of its files unreadable
+        raise ValueError(
+            f"{args.scene}: not a readable stereo scene ({type(exc).__name__}: {exc})"
+        ) from None
     if not 0 <= args.frame < scene.n_frames:
         raise ValueError(f"--frame must be 0 to {scene.n_frames - 1}, got {args.frame}")
+    x0, y0, x1, y1 = scene.surface.texture_extent()
+    reach = args.size_um * 1e-3 / math.sqrt(2) * 1.5  # the patch's corner, and a margin (mm)
+    if not (x0 + reach <= center[0] <= x1 - reach and y0 + reach <= center[1] <= y1 - reach):
+        raise ValueError(
+            f"--center {args.center} with --size-um {args.size_um:g} does not lie on the "
+            f"scene's surface (material mm {x0:g}..{x1:g}, {y0:g}..{y1:g})"
+        )
+    say(f"rendering a {args.size_um:g} um patch at {args.pixel_um:g} um pixels")
     patch = microscope_patch(
         scene, frame=args.frame, center=center, size_um=args.size_um, pixel_um=args.pixel_um,
         angle_deg=args.angle, fold_um=args.fold_um, landmark_mm=args.landmark_mm,

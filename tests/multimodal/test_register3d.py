@@ -278,3 +278,84 @@ def test_register3d_bad_input_is_one_line(tmp_path):
         assert message in done.stderr, (argv, done.stderr)
         assert "Traceback" not in done.stderr and len(done.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.xdist_group("register3d")
+def test_register3d_flags_what_makes_a_registration_doubtful(tmp_path):
+    """Registrations that run but are doubtful say why: a microscope upside down (x and y
+    swapped), landmark pairs mismatched, a scale the run's unit does not give."""
+    scene = _Cap()
+    _stereo_run(tmp_path / "run", scene)
+    files = write_patch(microscope_patch(scene, rng=2), tmp_path / "patch")
+    rows = files["landmarks"].read_text().splitlines()
+    cells = [r.split(",") for r in rows[1:]]
+    swapped = [",".join([*c[:3], c[4], c[3], c[5]]) for c in cells]
+    mismatched = [rows[2], rows[1], *rows[3:]]  # the camera side of two pairs exchanged
+    mismatched = [",".join(m.split(",")[:3] + c[3:]) for m, c in zip(mismatched, cells,
+                                                                       strict=True)]  # fmt: skip
+    good = _run("register3d", str(tmp_path / "run"), str(files["heightmap"]), "--landmarks",
+                str(files["landmarks"]), "--out", str(tmp_path / "good"))  # fmt: skip
+    assert good.returncode == 0 and "flagged: the surfaces' shapes do not fix" in good.stderr
+    for name, lines, expected in (
+        ("swapped", swapped, "depth points towards the cameras"),
+        ("mismatched", mismatched, "the landmarks disagree"),
+    ):
+        path = tmp_path / f"{name}.csv"
+        path.write_text("\n".join([rows[0], *lines]) + "\n", encoding="utf-8")
+        done = _run("register3d", str(tmp_path / "run"), str(files["heightmap"]), "--landmarks",
+                    str(path), "--out", str(tmp_path / name))  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        assert expected in done.stderr, (name, done.stderr)
+        assert expected not in good.stderr
+        record = json.loads((tmp_path / name / "registration.json").read_text())
+        assert any(expected in f for f in record["flags"])
+    wrong = _run("register3d", str(tmp_path / "run"), str(files["heightmap"]), "--landmarks",
+                 str(files["landmarks"]), "--scale", "1e-6", "--out",
+                 str(tmp_path / "um"))  # fmt: skip
+    assert wrong.returncode == 0 and "where the units make 0.001" in wrong.stderr
+
+
+@pytest.mark.xdist_group("register3d")
+def test_register3d_refuses_landmarks_off_the_map_and_outputs_inside_an_input(tmp_path):
+    scene = _Cap()
+    _stereo_run(tmp_path / "run", scene)
+    files = write_patch(microscope_patch(scene, rng=2), tmp_path / "patch")
+    base = ["register3d", str(tmp_path / "run"), str(files["heightmap"])]
+    cases = [
+        (["--landmarks", str(files["landmarks"]), "--pixel-um", "2"], "is not on the height map"),
+        (["--landmarks", str(files["landmarks"]), "--out", str(tmp_path / "run" / "reg")],
+         "inside the input folder"),
+        (["--transform", str(files["truth"]), "--scale", "0.001"], "--scale goes with"),
+        (["--transform", str(files["truth"]), "--mirrored"], "--mirrored goes with"),
+        (["--landmarks", ""], "landmarks"),
+    ]  # fmt: skip
+    for extra, message in cases:
+        out = [] if "--out" in extra else ["--out", str(tmp_path / "out")]
+        done = _run(*base, *extra, *out)
+        assert done.returncode == 2 and message in done.stderr, (extra, done.stderr)
+        assert len(done.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists() and not (tmp_path / "run" / "reg").exists()
+    # the truth's own placement is a start register3d takes
+    done = _run(*base, "--transform", str(files["truth"]), "--out", str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+
+
+def test_a_transform_written_with_few_decimals_is_taken_and_bad_ones_are_refused():
+    truth = _truth()
+    d = truth.as_dict()
+    d["rotation"] = np.round(truth.rotation, 5).tolist()
+    near = Similarity3D.from_dict(d)
+    np.testing.assert_allclose(near.rotation @ near.rotation.T, np.eye(3), atol=1e-12)
+    assert np.abs(near.rotation - truth.rotation).max() < 1e-5
+    for change, message in (
+        ({"mirrored": "false"}, "true or false"),
+        ({"scale_per_um": True}, "scale_per_um"),
+        ({"scale_per_um": "0.001"}, "scale_per_um"),
+        ({"scale_per_um": 1e300}, "not plausible"),
+        ({"shift": [0.0, float("nan"), 1.0]}, "finite"),
+        ({"rotation": [[1, 0, 0], [0, 1, 0]]}, "rotation"),
+    ):
+        with pytest.raises(InputError, match=message):
+            Similarity3D.from_dict({**truth.as_dict(), **change})
+    with pytest.raises(InputError, match="JSON object"):
+        Similarity3D.from_dict(None)
