@@ -311,11 +311,19 @@ def test_a_grid_off_the_maps_is_flagged_not_a_crash(wall, tmp_path):
 
 
 @pytest.mark.xdist_group("multimodal_wall")  # each wall rendered and run once, on one worker
-def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(wall, tmp_path):
-    """The wall's camera run lifted into 3D (the plane z = 450, the camera's pixels as its
-    units) and registered by the 3D similarity equal to the landmarks' 2D one: every
-    triangle's strain, projected and along the surface, is the 2D run's, in the
-    microscope's axes (a stereo run has no camera x-y to give them in)."""
+@pytest.mark.parametrize(
+    ("tilt_deg", "tolerance"),
+    # tilted, the nodes' coordinates are not the 2D run's digits: the tables' 6 decimals
+    [(0.0, 1e-9), (35.0, 1e-7)],
+)
+def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(
+    wall, tmp_path, tilt_deg, tolerance
+):
+    """The wall's camera run lifted into 3D (its plane facing the cameras at z = 450, or
+    tilted 35 degrees; the camera's pixels as its units) and registered by the 3D similarity
+    equal to the landmarks' 2D one: every triangle's strain, projected and along the
+    surface, is the 2D run's, in the microscope's axes (a stereo run has no camera x-y to
+    give them in)."""
     from multimodal.geometry import Similarity
     from multimodal.io import read_landmarks
     from multimodal.surface3d import Similarity3D
@@ -330,22 +338,30 @@ def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(wall, tmp_p
     header = (folder / "run" / "strain_elements.csv").read_text().splitlines()[0].split(",")
     assert header[:5] == ["frame", "triangle", "p0", "p1", "p2"]
     triangles = triangles[: len(triangles) // flat.n_frames]
-    points = np.concatenate(
-        [flat.positions, np.full((*flat.positions.shape[:2], 1), 450.0)], axis=-1
-    )
+    # the wall's plane in the cameras' frame: px (x, y, 0) -> W @ p + w
+    axis = np.array([1.0, 1.0, 0.0]) / np.sqrt(2)
+    W = Similarity3D(1.0, np.eye(3), np.zeros(3)).rotation
+    if tilt_deg:
+        from multimodal.surface3d import _rotation
+
+        W = _rotation(np.radians(tilt_deg) * axis)
+    w = np.array([10.0, -20.0, 450.0])
+    on_plane = np.concatenate([flat.positions, np.zeros((*flat.positions.shape[:2], 1))], -1)
+    points = on_plane @ W.T + w
     stereo = tmp_path / "stereo"
     (stereo / "strain").mkdir(parents=True)
     write_3d_run(stereo / "strain", points, flat.visible, Mesh(triangles, "grid", "grid"),
                  unit="px", figures=False)  # fmt: skip
     s2, _ = Similarity.from_landmarks(*read_landmarks(files["landmarks"]))
-    # microscope (x, y, depth) -> camera: the inverse of s2 in x-y, z = 450 + depth / scale
+    # microscope (x, y, depth) -> px: the inverse of s2 in x-y, depth / scale off the plane;
+    # then onto the cameras' plane
     a = np.radians(s2.angle_deg)
     inverse_turn = np.array([[np.cos(a), np.sin(a)], [-np.sin(a), np.cos(a)]])
-    rotation = np.eye(3)
-    rotation[:2, :2] = inverse_turn
+    B = np.eye(3)
+    B[:2, :2] = inverse_turn
     k = 1.0 / s2.scale
-    shift = np.array([*(-k * inverse_turn @ np.asarray(s2.shift_um)), 450.0])
-    registration = {"transform": Similarity3D(k, rotation, shift).as_dict()}
+    shift = w - k * W @ np.array([*(inverse_turn @ np.asarray(s2.shift_um)), 0.0])
+    registration = {"transform": Similarity3D(k, W @ B, shift).as_dict()}
     (tmp_path / "registration.json").write_text(json.dumps(registration), encoding="utf-8")
     # chords: the geodesic paths are found to a tolerance, about 1e-8 of strain
     common = ["--before", str(files["before"]), "--after", str(files["after"]), "--frame",
@@ -370,10 +386,10 @@ def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(wall, tmp_p
         if kind == "surface":  # its frame's first axis lies over the other x: the same
             # principal strains (the two frames differ by a turn within the tangent plane)
             np.testing.assert_allclose(
-                np.linalg.eigvalsh(E3), np.linalg.eigvalsh(E2), atol=1e-9, err_msg=kind
+                np.linalg.eigvalsh(E3), np.linalg.eigvalsh(E2), atol=tolerance, err_msg=kind
             )
         else:
-            np.testing.assert_allclose(E3, turn @ E2 @ turn.T, atol=1e-9, err_msg=kind)
+            np.testing.assert_allclose(E3, turn @ E2 @ turn.T, atol=tolerance, err_msg=kind)
     summary = json.loads((tmp_path / "three" / "summary.json").read_text())
     assert summary["transform"]["from"] == "the 3D registration"
     assert summary["registration_3d"]["before"]["scale_per_um"] == pytest.approx(k)
