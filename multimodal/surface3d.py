@@ -460,10 +460,15 @@ def _patch_frame(y: np.ndarray, n: np.ndarray) -> np.ndarray:
     return frame
 
 
-def _jacobian(y, n, frame, fit_scale: bool):
+def _jacobian(q, n, centre, frame, fit_scale: bool):
     """Rows: each pair's signed distance against the step's parameters, in the patch's
-    frame; the turns and the scale times the patch's size (all in length units)."""
-    d = y - y.mean(axis=0)
+    frame; the turns and the scale times the patch's size (all in length units).
+
+    The lever arms of the turns and the scale about ``centre`` are taken on the camera's
+    surface (its closest points ``q``), not on the microscope's points: folds that the
+    camera does not resolve then fix no turn and no scale (a scale fitted to them would
+    flatten the folds onto the camera's smooth surface)."""
+    d = q - centre
     length = float(np.sqrt(np.mean(np.sum(d**2, axis=1)))) or 1.0
     J = np.column_stack(
         [n @ frame.T, (np.cross(d, n) @ frame.T) / length, np.einsum("ij,ij->i", n, d) / length]
@@ -518,8 +523,7 @@ def refine_icp(
     moved = current.apply(P)
     size = float(np.sqrt(np.mean(np.sum((moved - moved.mean(axis=0)) ** 2, axis=1))))
     floor = 1e-6 * max(size, 1e-300)  # a perfect fit pairs every point
-    _, distance, _, keep = _pairs(moved, V, T, normals, reject, floor)
-    which = closest_points_on_mesh(moved, V, T)[2]
+    _, distance, n, keep = _pairs(moved, V, T, normals, reject, floor)
     if keep.sum() < 10:
         raise InputError(
             f"only {int(keep.sum())} of the microscope's {len(P)} points lie over the camera's "
@@ -527,7 +531,7 @@ def refine_icp(
             "units, which side is which, and the run's --frame"
         )
     rms_before = float(np.sqrt(np.mean(distance[keep] ** 2)))
-    frame = _patch_frame(moved[keep], normals[which][keep])
+    frame = _patch_frame(moved[keep], n[keep])
     converged = False
     iterations = 0
     # rigid first, then with the scale: a patch tilted against a flat surface moves as a
@@ -542,7 +546,7 @@ def refine_icp(
             y, q, n = moved[keep], closest[keep], n[keep]
             c = y.mean(axis=0)
             r = np.einsum("ij,ij->i", n, y - q)
-            J, length = _jacobian(y, n, frame, scaled)
+            J, length = _jacobian(q, n, c, frame, scaled)
             evals, evecs = np.linalg.eigh(J.T @ J)
             fixed = evals >= FIXED_SHARE * max(float(evals[-1]), 1e-300)
             # the step in the directions the shapes fix; none in the others (the landmarks')
@@ -567,12 +571,19 @@ def refine_icp(
                 converged = True
                 break
     closest, distance, n, keep = _pairs(moved, V, T, normals, reject, floor)
+    if keep.sum() < 10:
+        raise InputError(
+            f"ICP lost the camera's surface: {int(keep.sum())} of the microscope's points "
+            "are paired at the end; check the start (the landmarks, or --transform)"
+        )
     # what the shapes fix, at the end
-    J, _ = _jacobian(moved[keep], n[keep], frame, fit_scale)
+    J, _ = _jacobian(closest[keep], n[keep], moved[keep].mean(axis=0), frame, fit_scale)
     evals, evecs = np.linalg.eigh(J.T @ J)
     constrained = evecs[:, evals >= FIXED_SHARE * max(float(evals[-1]), 1e-300)]
     share = np.sum(constrained**2, axis=1)
-    fixed = {name: round(float(v), 3) for name, v in zip(PARAMETERS, share)}  # noqa: B905
+    fixed = {
+        name: round(float(v), 3) for name, v in zip(PARAMETERS[: len(share)], share, strict=True)
+    }
     if not fit_scale:
         fixed["scale"] = 0.0
     distances = np.where(keep, distance, np.nan)

@@ -359,3 +359,23 @@ def test_a_transform_written_with_few_decimals_is_taken_and_bad_ones_are_refused
             Similarity3D.from_dict({**truth.as_dict(), **change})
     with pytest.raises(InputError, match="JSON object"):
         Similarity3D.from_dict(None)
+
+
+def test_folds_the_camera_does_not_see_fix_no_scale():
+    """A small field of view with deep folds (400 um, folds 30 um high) on a flat wall: the
+    folds are the microscope's alone; fitting the scale to them would flatten them onto the
+    camera's plane. The scale stays the start's and ICP converges."""
+    vertices, triangles = _grid_mesh(lambda x, y: 0 * x, n=9)  # the plane z = 0, mm
+    xs = np.linspace(-200, 200, 81)
+    x, y = np.meshgrid(xs, xs)
+    microscope = np.column_stack([x.ravel(), y.ravel(), 15 * np.cos(2 * np.pi * x / 90).ravel()])
+    start = Similarity3D(
+        1.03e-3, _rotation(np.radians([2.0, -1.0, 4.0])), np.array([0.01, 0.02, 0.03])
+    )
+    found = refine_icp(microscope, vertices, triangles, start)
+    assert found.converged
+    assert found.transform.scale == pytest.approx(start.scale, rel=1e-12)
+    assert found.fixed_by_surfaces["scale"] < 0.01
+    assert found.fixed_by_surfaces["shift_normal"] > 0.99
+    # the folds' mean plane on the camera's: the folds' RMS is what is left (15 / sqrt 2 um)
+    assert found.rms_after * 1e3 == pytest.approx(15 / np.sqrt(2), rel=0.05)
