@@ -78,14 +78,17 @@ class _Blocks:
             self._elements.pop(gone, None)
         return one
 
-    def element_scalars(self, b: int) -> dict[str, np.ndarray]:
-        """Block ``b``'s per-triangle scalars, computed once while the block is kept."""
-        one = self.block(b)
-        if b not in self._elements:
-            began = time.perf_counter()
-            self._elements[b] = one._element_scalars()
-            self.seconds += time.perf_counter() - began
-        return self._elements[b]
+    def element_scalars(self, b: int, one: StrainField) -> dict[str, np.ndarray]:
+        """The per-triangle scalars of block ``b`` (``one``, as :meth:`block` gave it):
+        computed once while the block is kept, from ``one`` itself otherwise."""
+        if b in self._elements and self._cache.get(b) is one:
+            return self._elements[b]
+        began = time.perf_counter()
+        values = one._element_scalars()
+        self.seconds += time.perf_counter() - began
+        if self._cache.get(b) is one:
+            self._elements[b] = values
+        return values
 
     def frames(self, start: int, stop: int) -> list[tuple[int, StrainField]]:
         """(offset of ``start`` in the block, block) for the blocks that frames start:stop touch."""
@@ -126,7 +129,7 @@ class FrameArray:
         if kind == "node":
             return nodal_scalars(one)[key]
         if kind == "element":
-            return self._blocks.element_scalars(offset // self._blocks.size)[key]
+            return self._blocks.element_scalars(offset // self._blocks.size, one)[key]
         return getattr(one, self._name)
 
     def _range(self, start: int, stop: int) -> np.ndarray:

@@ -106,6 +106,30 @@ def test_a_kept_block_computes_its_triangle_scalars_once(monkeypatch):
     assert len(calls) == 5
 
 
+def test_a_whole_triangle_column_computes_each_block_once(monkeypatch):
+    """Reading a whole per-triangle column (all 4 blocks) computes each block's strain and
+    scalars once, though only two blocks are kept."""
+    import surface_strain.streamed as streamed
+    from surface_strain.field import StrainField
+
+    X, P, tri, visible = _case(2, T=31)
+    lazy = streamed_strain(X, P, tri, visible=visible, block_frames=8)
+    expected = element_scalars(compute_strain(X, P, tri, visible=visible))
+    fields, scalars = [], []
+    original_field, original_scalars = streamed._strain_field, StrainField._element_scalars
+    monkeypatch.setattr(
+        streamed, "_strain_field", lambda *a: fields.append(1) or original_field(*a)
+    )
+    monkeypatch.setattr(
+        StrainField, "_element_scalars", lambda self: scalars.append(1) or original_scalars(self)
+    )
+    whole = element_scalars(lazy)["Exx"][:]
+    assert _same(whole, expected["Exx"])
+    assert len(fields) == 4 and len(scalars) == 4
+    assert _same(np.asarray(element_scalars(lazy)["Eyy"]), expected["Eyy"])
+    assert len(fields) == 8 and len(scalars) == 8  # the blocks kept are the last two: 4 again
+
+
 @pytest.mark.parametrize("block", [1, 6, 64])
 def test_blocks_cover_every_frame_once_and_frames_cross_blocks(block):
     X, P, tri, visible = _case(2, T=31)
