@@ -707,6 +707,17 @@ def _on_microscope_plane(run, frame: int, args):
     then, record_after = first, record
     if args.transform_after:
         then, record_after = _registration3d(args.transform_after, "--transform-after")
+    # a registration.json says which of the run's frames it placed the map on
+    for option, rec, wanted in (
+        ("--transform", record, 0),
+        ("--transform-after", record_after if args.transform_after else None, frame),
+    ):
+        made = rec.get("frame") if isinstance(rec, dict) else None
+        if isinstance(made, int) and not isinstance(made, bool) and made != wanted:
+            raise InputError(
+                f"{option}: its registration was made on the run's frame {made}, not "
+                f"{wanted}; run register3d with --frame {wanted}"
+            )
     planar = np.empty((*run.positions.shape[:2], 2))
     for k in range(run.n_frames):
         planar[k] = (then if k == frame else first).inverse(run.positions[k])[:, :2]
@@ -719,7 +730,13 @@ def _on_microscope_plane(run, frame: int, args):
         },
         "icp": {"before": record.get("icp"), "after": record_after.get("icp")},
         "note": "the stereo run's nodes in the microscope's x-y (um): 'projected' strain is "
-        "that of the triangles projected on the microscope's plane",
+        "that of the triangles projected on the microscope's plane"
+        + (
+            ""
+            if args.transform_after
+            else "; the --after map placed by the --before map's registration (the "
+            "microscope and the cameras kept still)"
+        ),
     }
     return replace(run, positions=planar), Similarity(1.0), registration
 

@@ -64,7 +64,8 @@ def fold_strain_run(
     if not segment >= pixel:
         raise InputError(
             f"the mesh's edges measure {segment:.3g} um on the height maps, under one of their "
-            f"pixels ({pixel:.3g} um): are the transform's units um per camera pixel?"
+            f"pixels ({pixel:.3g} um): are the transform's units right (um per camera pixel, "
+            "or the run's units per um for a stereo run)?"
         )
     tortuosity = []
     for surface_map in (before, after):

@@ -383,11 +383,18 @@ def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(
     for kind in ("projected", "surface", "corrected"):
         E2, E3 = tensors(two, kind), tensors(three, kind)
         assert np.isfinite(E2).all(axis=(1, 2)).sum() > 20, kind
-        if kind == "surface":  # its frame's first axis lies over the other x: the same
-            # principal strains (the two frames differ by a turn within the tangent plane)
-            np.testing.assert_allclose(
-                np.linalg.eigvalsh(E3), np.linalg.eigvalsh(E2), atol=tolerance, err_msg=kind
-            )
+        if kind == "surface":  # its frame's first axis lies over the other x: the two
+            # frames differ by a turn within the tangent plane, close to the maps' turn
+            np.testing.assert_allclose(np.trace(E3, axis1=1, axis2=2),
+                                       np.trace(E2, axis1=1, axis2=2), atol=tolerance)  # fmt: skip
+            z2 = (E2[:, 0, 0] - E2[:, 1, 1]) / 2 + 1j * E2[:, 0, 1]  # turns by twice the angle
+            z3 = (E3[:, 0, 0] - E3[:, 1, 1]) / 2 + 1j * E3[:, 0, 1]
+            np.testing.assert_allclose(np.abs(z3), np.abs(z2), atol=tolerance, err_msg=kind)
+            big = np.abs(z2) > 1e-4
+            assert big.sum() > 10
+            turned = np.degrees(np.angle(z3[big] / z2[big])) / 2
+            off = (turned - s2.angle_deg + 90) % 180 - 90
+            assert np.abs(off).max() < 3, off  # an axis or a sign of Exy wrong: far off
         else:
             np.testing.assert_allclose(E3, turn @ E2 @ turn.T, atol=tolerance, err_msg=kind)
     summary = json.loads((tmp_path / "three" / "summary.json").read_text())
@@ -395,9 +402,12 @@ def test_a_flat_stereo_run_registered_in_3d_gives_the_2d_runs_strain(
     assert summary["registration_3d"]["before"]["scale_per_um"] == pytest.approx(k)
     assert summary["units"]["camera"].startswith("um")
     # a 3D run refuses a 2D transform and landmarks, in one line
+    elsewhere = tmp_path / "frame3.json"
+    elsewhere.write_text(json.dumps({**registration, "frame": 3}), encoding="utf-8")
     for extra, message in (
         (["--transform", "6,-12,0,0"], "3D registration"),
         (["--landmarks", str(files["landmarks"])], "register3d first"),
+        (["--transform", str(elsewhere)], "made on the run's frame 3, not 0"),
     ):
         done = _run("multimodal", "strain", str(stereo), *common, *extra, "--out",
                     str(tmp_path / "bad"), check=False)  # fmt: skip
