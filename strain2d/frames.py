@@ -399,6 +399,7 @@ class EndFrames:
         self.last: np.ndarray | None = None
         self.keep_bytes = int(keep_bytes)
         self._kept: list[np.ndarray] | None = None
+        self._keeping = False  # a pass is keeping the frames now
 
     def __len__(self) -> int:
         return len(self.source)
@@ -418,22 +419,30 @@ class EndFrames:
             return
         n = len(self.source)
         h, w = self.source.shape
-        # 8-bit sources only: their gray values lie in 0..255 (whole, unless mixed from colour)
+        # 8-bit sources only: their gray values lie in 0..255 (whole, unless mixed from colour);
+        # one pass at a time keeps them (a tracker's reader thread and a second pass beside it
+        # would each hold a copy)
         eight_bit = tuple(self.source.value_range) == (0.0, 255.0)
-        keeping = [] if eight_bit and 0 < n * h * w <= self.keep_bytes else None
-        for k, frame in enumerate(self.source):
-            if k == 0:
-                self.first = frame
-            self.last = frame
-            if keeping is not None:
-                small = frame.astype(np.uint8)
-                if np.array_equal(small, frame):
-                    keeping.append(small)
-                else:  # mixed from colour: not kept, decoded again
-                    keeping = None
-            yield frame
-        if keeping is not None and len(keeping) == n:
-            self._kept = keeping
+        keeping, mine = None, False
+        if eight_bit and 0 < n * h * w <= self.keep_bytes and not self._keeping:
+            keeping, self._keeping, mine = [], True, True
+        try:
+            for k, frame in enumerate(self.source):
+                if k == 0:
+                    self.first = frame
+                self.last = frame
+                if keeping is not None:
+                    small = frame.astype(np.uint8)
+                    if np.array_equal(small, frame):
+                        keeping.append(small)
+                    else:  # mixed from colour: not kept, decoded again
+                        keeping = None
+                yield frame
+            if keeping is not None and len(keeping) == n:
+                self._kept = keeping
+        finally:
+            if mine:
+                self._keeping = False
 
     def ends(self) -> tuple[np.ndarray, np.ndarray]:
         """First and last frames, read from the source if iteration did not reach them."""

@@ -309,3 +309,55 @@ def test_a_truncated_tiff_is_one_line_on_the_terminal(tmp_path, smooth_frames, w
     assert line.startswith(f"strain2d analyze: error: {named} is truncated"), line
     assert said is None or said in verbose.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_one_pass_at_a_time_keeps_the_frames(tmp_path, smooth_frames):
+    """A second pass beside a keeping one (a reader thread and a check, say) keeps nothing,
+    and a pass stopped early leaves the keeping to the next."""
+    from strain2d.frames import EndFrames
+
+    path = tmp_path / "v.avi"
+    write_video(smooth_frames, path)
+    wrapped = EndFrames(open_frames(path), keep_bytes=2**20)
+    first = iter(wrapped)
+    next(first)
+    assert len(list(wrapped)) == 5 and not wrapped.kept  # beside the first: not kept
+    assert len(list(first)) == 4 and wrapped.kept
+    stopped = EndFrames(open_frames(path), keep_bytes=2**20)
+    early = iter(stopped)
+    next(early)
+    early.close()
+    assert not stopped.kept
+    list(stopped)
+    assert stopped.kept
+
+
+def test_analyze_decodes_a_short_video_once_for_tracking_and_animation(
+    tmp_path, smooth_frames, monkeypatch
+):
+    """``strain2d analyze`` with its animation decodes the video's first frame when it opens
+    it and the whole video once, for the tracking: every later pass (the animation's, and
+    the checks') reads the frames kept."""
+    import strain2d.cli as cli
+    from strain2d.frames import FrameSource
+
+    path = tmp_path / "v.avi"
+    write_video(np.repeat(smooth_frames, 2, axis=0), path)
+    passes = []
+    original = FrameSource._iter_raw
+
+    def counting(self):
+        passes.append(1)
+        yield from original(self)
+
+    monkeypatch.setattr(FrameSource, "_iter_raw", counting)
+    counts = []
+    for keep in (cli.KEEP_FRAMES_BYTES, 0):
+        monkeypatch.setattr(cli, "KEEP_FRAMES_BYTES", keep)
+        passes.clear()
+        argv = ["-q", "analyze", str(path), "--grid", "3x3", "--tracker", "klt",
+                "--out", str(tmp_path / f"run{keep}")]  # fmt: skip
+        assert cli.main(argv) == 0
+        assert (tmp_path / f"run{keep}" / "figures" / "strain_animation.mp4").is_file()
+        counts.append(len(passes))
+    assert counts[0] == 2 and counts[1] > 2, counts
