@@ -63,7 +63,8 @@ def _length_axes(ax, shape: tuple[int, int], length=None) -> None:
 
 def _show_image(ax, image: np.ndarray, *, vmin=None, vmax=None, length=None):
     # nearest samples coloured after sampling ("data"), not before: the same pixels, without
-    # colouring every pixel of a large frame first (a 1080p frame's map: 5-10 times faster)
+    # colouring every pixel of a large frame first (three 1080p frames at 150 dpi: 0.08 s
+    # against 0.41-0.74 s)
     artist = ax.imshow(
         image,
         cmap="gray",

@@ -825,3 +825,27 @@ def test_limits_cover_the_frames_drawn_as_maps():
     assert (last > hi).mean() > 0.05  # the 0.5 % percentile alone saturates the peak frame
     lo, hi = strain_limits(field, ["Exx"], cover=[30])["Exx"]
     assert lo <= last.min() and last.max() <= hi
+
+
+@pytest.mark.parametrize("shape", [(1080, 1920), (300, 200), (97, 131)])
+def test_frames_are_shown_with_the_pixels_colouring_them_first_would_give(shape):
+    """A frame under a figure is sampled to the panel and coloured then, not coloured whole
+    first: the same pixels, down-sampled (a large frame), up-sampled or near 1:1."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from strain2d.figures._maps import _show_image
+
+    image = np.random.default_rng(0).uniform(0, 255, shape).astype(np.float32)
+    drawn = []
+    for stage in ("data", "rgba"):
+        fig = Figure(figsize=(5, 3.5), dpi=150)
+        canvas = FigureCanvasAgg(fig)
+        ax = fig.add_axes((0.1, 0.1, 0.8, 0.8))
+        ax.imshow(image, cmap="gray", interpolation="nearest", interpolation_stage=stage)
+        ax.set_xlim(-0.5, shape[1] - 0.5)
+        ax.set_ylim(shape[0] - 0.5, -0.5)
+        canvas.draw()
+        drawn.append(np.asarray(canvas.buffer_rgba()).copy())
+    np.testing.assert_array_equal(drawn[0], drawn[1])
+    artist = _show_image(Figure().add_subplot(), image)
+    assert (artist.get_interpolation(), artist.get_interpolation_stage()) == ("nearest", "data")
