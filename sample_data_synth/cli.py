@@ -594,8 +594,8 @@ def _cmd_patch(args) -> int:
     for flag, value in (("--size-um", args.size_um), ("--pixel-um", args.pixel_um)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{flag} must be a positive number, got {value}")
-    if not 16 <= args.size_um / args.pixel_um <= 4000:
-        raise ValueError("--size-um / --pixel-um must make 16 to 4000 pixels a side")
+    if not 16 <= args.size_um / args.pixel_um <= 2000:
+        raise ValueError("--size-um / --pixel-um must make 16 to 2000 pixels a side")
     for flag, value in (("--fold-um", args.fold_um), ("--landmark-mm", args.landmark_mm)):
         if not (math.isfinite(value) and value >= 0):
             raise ValueError(f"{flag} must be 0 or more, got {value}")

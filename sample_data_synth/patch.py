@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sample_data_synth._common import Rng
+
 __all__ = ["MicroscopePatch", "microscope_patch", "write_patch"]
 
 
@@ -67,7 +69,7 @@ def microscope_patch(
     wavelength_um: float = 170.0,
     landmarks: int = 4,
     landmark_mm: float = 0.05,
-    rng=0,
+    rng: Rng = 0,
 ) -> MicroscopePatch:
     """The height map of a ``size_um`` square of ``scene``'s surface at ``frame``.
 
@@ -86,6 +88,11 @@ def microscope_patch(
         Landmark pairs near the patch's corners, the camera side off by
         ``landmark_mm`` per axis (RMS).
     """
+    if not 3 <= int(landmarks) <= 5:
+        raise ValueError(f"landmarks must be 3 to 5, got {landmarks}")
+    n = round(size_um / pixel_um) + 1
+    if not 16 <= n <= 2001:
+        raise ValueError(f"size_um / pixel_um must make 16 to 2000 pixels a side, got {n - 1}")
     rng = np.random.default_rng(rng)
     c = np.asarray(center, dtype=float).reshape(1, 2)
     p0 = scene.positions(c, frame)[0]
@@ -101,7 +108,6 @@ def microscope_patch(
     v = np.cross(normal, u)
     Q = np.column_stack([u, v, normal])
     scale = 1e-3  # mm per um
-    n = round(size_um / pixel_um) + 1
     origin = np.zeros(2)  # pixel (0, 0) at x = y = 0, as a height map's TIFF places it
     datum = -180.0  # depth of the patch's centre (um): heights around 180
     centre_um = np.array([*(origin + (n - 1) / 2 * pixel_um), datum])
@@ -122,8 +128,6 @@ def microscope_patch(
         depth = depth + 0.5 * fold_um * np.sin(2 * np.pi * (xy[:, 0] - origin[0]) / wavelength_um)
     height = (-depth).reshape(n, n).astype(np.float32)
     # landmarks: near the corners and the centre, the camera side off by the picking error
-    if not 3 <= int(landmarks) <= 5:
-        raise ValueError(f"landmarks must be 3 to 5, got {landmarks}")
     inset, far = max(1, n // 5), n - 1 - max(1, n // 5)
     picks = [(inset, inset), (inset, far), (far, inset), (far, far), (n // 2, n // 3)]
     rows_cols = np.array(picks[: int(landmarks)])
