@@ -42,6 +42,7 @@ __getattr__, __dir__, __all__ = lazy_exports(
             "Similarity3D",
             "closest_points_on_mesh",
             "heightmap_points",
+            "mesh_index",
             "refine_icp",
         ],
         "multimodal.run": ["FoldStrain", "fold_strain_run", "write_fold_run"],

@@ -179,6 +179,7 @@ def _cmd_register3d(args) -> int:
     from multimodal.io import read_landmarks3d
     from multimodal.surface3d import (
         Similarity3D,
+        _normals,
         closest_points_on_mesh,
         heightmap_points,
         refine_icp,
@@ -281,11 +282,7 @@ def _cmd_register3d(args) -> int:
     moved = t.apply(mesh_points)
     closest, _, which, outside = closest_points_on_mesh(moved, vertices, triangles)
     # signed: positive towards the cameras (the stereo frame's origin), as a height is
-    normals = np.cross(
-        vertices[triangles[:, 1]] - vertices[triangles[:, 0]],
-        vertices[triangles[:, 2]] - vertices[triangles[:, 0]],
-    )
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = _normals(vertices, triangles)
     normals[np.einsum("ij,ij->i", normals, vertices[triangles[:, 0]]) > 0] *= -1
     distance = np.einsum("ij,ij->i", normals[which], moved - closest)
     distance = np.where(outside, np.nan, distance)
@@ -331,22 +328,7 @@ def _cmd_register3d(args) -> int:
 
 def _start_transform(path: str):
     """``--transform``: register3d's registration.json, or a JSON of the transform."""
-    import json
-
-    from multimodal.surface3d import Similarity3D
-
-    try:
-        record = json.loads(Path(path).read_text(encoding="utf-8-sig"))
-    except OSError as exc:
-        raise InputError(f"--transform {path}: {exc.strerror or exc}") from None
-    except (ValueError, UnicodeDecodeError, RecursionError):
-        raise InputError(f"--transform {path}: not a readable JSON file") from None
-    if not isinstance(record, dict):
-        raise InputError(f"--transform {path}: not a JSON object")
-    try:
-        return Similarity3D.from_dict(record.get("transform", record))
-    except InputError as exc:
-        raise InputError(f"--transform {path}: {exc}") from None
+    return _registration3d(path, "--transform")[0]
 
 
 def _landmarks_on_map(microscope: np.ndarray, surface) -> None:

@@ -13,8 +13,9 @@ look at the tissue from the same side, so that ``Q`` is a rotation; a
 microscope that sees the tissue mirrored flips its x first, ``mirrored``).
 
 It starts from landmark pairs (:meth:`Similarity3D.from_landmarks`, the
-least-squares similarity of Umeyama, 1991, with its residual per pair) and
-is refined by :func:`refine_icp`: point-to-plane ICP of the microscope's
+least-squares similarity of Umeyama, 1991, doi:10.1109/34.88573, with its
+residual per pair) and is refined by :func:`refine_icp`: point-to-plane ICP
+(Chen and Medioni, 1992, doi:10.1016/0262-8856(92)90066-C) of the microscope's
 points onto the camera's triangle mesh (each point paired with its closest
 point on the mesh; pairs much farther than the rest, or beyond the mesh's
 border, left out), one damped Gauss-Newton step of the seven parameters
@@ -33,16 +34,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from tissue_core.errors import InputError
+
+if TYPE_CHECKING:
+    from multimodal.geometry import SurfaceMap
 
 __all__ = [
     "IcpResult",
     "Similarity3D",
     "closest_points_on_mesh",
     "heightmap_points",
+    "mesh_index",
     "refine_icp",
 ]
 
@@ -257,7 +263,9 @@ class Similarity3D:
         return transform, residual
 
 
-def heightmap_points(surface, *, step: int = 1, measured_only: bool = True) -> np.ndarray:
+def heightmap_points(
+    surface: SurfaceMap, *, step: int = 1, measured_only: bool = True
+) -> np.ndarray:
     """A height map's points as ``(x, y, depth)`` um ``(N, 3)``, every ``step``-th pixel.
 
     ``surface`` is a :class:`multimodal.geometry.SurfaceMap`; ``depth`` is
@@ -276,7 +284,9 @@ def heightmap_points(surface, *, step: int = 1, measured_only: bool = True) -> n
     )
 
 
-def _closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
+def _closest_on_triangles(
+    p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """The closest point of each triangle ``(a, b, c)`` to ``p`` (all ``(n, 3)``), and where
     on the triangle it lies: 0 inside, 1 on edge ab, 2 on bc, 3 on ca, 4 at a, 5 at b, 6 at c.
 
@@ -332,8 +342,13 @@ def _rim(triangles: np.ndarray, n_vertices: int) -> np.ndarray:
 
 
 def closest_points_on_mesh(
-    points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray, *, candidates: int = 8
-):
+    points: np.ndarray,
+    vertices: np.ndarray,
+    triangles: np.ndarray,
+    *,
+    candidates: int = 8,
+    index: tuple | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The closest point on a triangle mesh to each point.
 
     Each point is tried against the ``candidates`` triangles whose centroids
@@ -348,14 +363,15 @@ def closest_points_on_mesh(
     outside : (N,) bool
         The closest point lies on the mesh's outer border, not within it: the
         point lies beyond the mesh.
-    """
-    from scipy.spatial import cKDTree
 
+    ``index`` is :func:`mesh_index` of the mesh, made once for many calls.
+    """
     p = np.asarray(points, dtype=float).reshape(-1, 3)
     V = np.asarray(vertices, dtype=float)
     T = np.asarray(triangles, dtype=np.intp)
+    tree, rim = index if index is not None else mesh_index(V, T)
     k = int(min(candidates, len(T)))
-    _, near = cKDTree(V[T].mean(axis=1)).query(np.nan_to_num(p, nan=np.inf), k=k)
+    _, near = tree.query(np.nan_to_num(p, nan=np.inf), k=k)
     near = np.asarray(near).reshape(len(p), k)
     near[near >= len(T)] = 0  # a point with no neighbour (not finite): any, its distance inf
     best = np.full(len(p), np.inf)
@@ -371,8 +387,18 @@ def closest_points_on_mesh(
         closest[better] = q[better]
         which[better] = t[better]
         where[better] = feature[better]
-    outside = _rim(T, len(V))[which, where]
+    outside = rim[which, where]
     return closest, best, which, outside
+
+
+def mesh_index(vertices: np.ndarray, triangles: np.ndarray) -> tuple:
+    """What :func:`closest_points_on_mesh` needs of a mesh, made once: a k-d tree of the
+    triangles' centroids and where the mesh's border is."""
+    from scipy.spatial import cKDTree
+
+    V = np.asarray(vertices, dtype=float)
+    T = np.asarray(triangles, dtype=np.intp)
+    return cKDTree(V[T].mean(axis=1)), _rim(T, len(V))
 
 
 def _normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -437,11 +463,13 @@ class IcpResult:
         }
 
 
-def _pairs(moved, vertices, triangles, normals, reject: float, floor: float):
+def _pairs(moved, vertices, triangles, normals, reject: float, floor: float, index=None):
     """Each moved point's closest point on the mesh, its distance, the normal there, and
     whether the pair counts: over the mesh, and within ``reject`` times the 90th percentile
     of the distances (or ``floor``), so that folds, whose crests lie farthest, all count."""
-    closest, distance, which, outside = closest_points_on_mesh(moved, vertices, triangles)
+    closest, distance, which, outside = closest_points_on_mesh(
+        moved, vertices, triangles, index=index
+    )
     keep = ~outside & np.isfinite(distance)
     if keep.any():
         keep &= distance <= reject * max(float(np.quantile(distance[keep], 0.9)), floor)
@@ -519,11 +547,12 @@ def refine_icp(
     V = np.asarray(vertices, dtype=float)
     T = np.asarray(triangles, dtype=np.intp)
     normals = _normals(V, T)
+    index = mesh_index(V, T)
     current = initial
     moved = current.apply(P)
     size = float(np.sqrt(np.mean(np.sum((moved - moved.mean(axis=0)) ** 2, axis=1))))
     floor = 1e-6 * max(size, 1e-300)  # a perfect fit pairs every point
-    _, distance, n, keep = _pairs(moved, V, T, normals, reject, floor)
+    _, distance, n, keep = _pairs(moved, V, T, normals, reject, floor, index)
     if keep.sum() < 10:
         raise InputError(
             f"only {int(keep.sum())} of the microscope's {len(P)} points lie over the camera's "
@@ -540,7 +569,7 @@ def refine_icp(
         converged = False
         for _ in range(max_iterations):
             iterations += 1
-            closest, distance, n, keep = _pairs(moved, V, T, normals, reject, floor)
+            closest, distance, n, keep = _pairs(moved, V, T, normals, reject, floor, index)
             if keep.sum() < 10:
                 break
             y, q, n = moved[keep], closest[keep], n[keep]
@@ -570,7 +599,7 @@ def refine_icp(
             if np.max(np.linalg.norm(moved - before, axis=1)) <= tolerance * max(size, 1e-300):
                 converged = True
                 break
-    closest, distance, n, keep = _pairs(moved, V, T, normals, reject, floor)
+    closest, distance, n, keep = _pairs(moved, V, T, normals, reject, floor, index)
     if keep.sum() < 10:
         raise InputError(
             f"ICP lost the camera's surface: {int(keep.sum())} of the microscope's points "
