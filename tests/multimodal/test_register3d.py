@@ -327,7 +327,7 @@ def test_register3d_refuses_landmarks_off_the_map_and_outputs_inside_an_input(tm
          "inside the input folder"),
         (["--transform", str(files["truth"]), "--scale", "0.001"], "--scale goes with"),
         (["--transform", str(files["truth"]), "--mirrored"], "--mirrored goes with"),
-        (["--landmarks", ""], "landmarks"),
+        (["--landmarks", ""], "no such landmarks file"),
     ]  # fmt: skip
     for extra, message in cases:
         out = [] if "--out" in extra else ["--out", str(tmp_path / "out")]
