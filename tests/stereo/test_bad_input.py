@@ -1129,7 +1129,7 @@ STAGES = [
         "reconstruct-terminate-sighup-tracking",
     ),
     ("calibrate", "detecting the target", 0.1, signal.SIGTERM, "calibrate-terminate-detecting"),
-    ("import-calib", None, 0.15, signal.SIGTERM, "import-calib-terminate-imports"),
+    ("import-calib", None, 0.1, signal.SIGTERM, "import-calib-terminate-imports"),
     ("match", None, 0.3, signal.SIGTERM, "match-terminate-start"),
     ("batch", WRITING, 0.05, signal.SIGTERM, "batch-terminate-first-run"),
     # the scratch of a run killed outright (SIGKILL), removed by the next run
