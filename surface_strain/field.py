@@ -181,10 +181,18 @@ class StrainField:
             meta=self.meta,
         )
 
-    def _element_scalars(self) -> dict[str, FloatArray]:
+    @cached_property
+    def _element_scalar_arrays(self) -> dict[str, FloatArray]:
         out = scalar_fields(self.E)
         out["J"] = area_ratio(self.F)
+        for v in out.values():
+            v.setflags(write=False)
         return out
+
+    def _element_scalars(self) -> dict[str, FloatArray]:
+        # computed once per field, as the nodal ones (a streamed field's tables read a
+        # block's columns one at a time)
+        return dict(self._element_scalar_arrays)
 
 
 def _frame_range(start: int, stop: int, n_frames: int) -> tuple[int, int]:

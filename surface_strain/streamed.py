@@ -54,14 +54,11 @@ class _Blocks:
         self.n_frames = n_frames
         self.size = block_frames
         self._cache: OrderedDict[int, StrainField] = OrderedDict()
-        # each kept block's per-triangle scalars, once read (the tables read them column
-        # by column)
-        self._elements: dict[int, dict[str, np.ndarray]] = {}
         self.seconds = 0.0  # spent computing blocks
 
     def __getstate__(self) -> dict:
         # a copy sent to another process computes the blocks it reads there: none are sent
-        return {**self.__dict__, "_cache": OrderedDict(), "_elements": {}, "seconds": 0.0}
+        return {**self.__dict__, "_cache": OrderedDict(), "seconds": 0.0}
 
     def block(self, b: int) -> StrainField:
         if b in self._cache:
@@ -74,21 +71,8 @@ class _Blocks:
         self.seconds += time.perf_counter() - began
         self._cache[b] = one
         while len(self._cache) > 2:
-            gone, _ = self._cache.popitem(last=False)
-            self._elements.pop(gone, None)
+            self._cache.popitem(last=False)
         return one
-
-    def element_scalars(self, b: int, one: StrainField) -> dict[str, np.ndarray]:
-        """The per-triangle scalars of block ``b`` (``one``, as :meth:`block` gave it):
-        computed once while the block is kept, from ``one`` itself otherwise."""
-        if b in self._elements and self._cache.get(b) is one:
-            return self._elements[b]
-        began = time.perf_counter()
-        values = one._element_scalars()
-        self.seconds += time.perf_counter() - began
-        if self._cache.get(b) is one:
-            self._elements[b] = values
-        return values
 
     def frames(self, start: int, stop: int) -> list[tuple[int, StrainField]]:
         """(offset of ``start`` in the block, block) for the blocks that frames start:stop touch."""
@@ -123,20 +107,19 @@ class FrameArray:
     def __repr__(self) -> str:
         return f"FrameArray({self._name}, shape={self.shape}, dtype={self.dtype})"
 
-    def _of(self, one: StrainField, offset: int) -> np.ndarray:
-        """This array's frames in the block ``one`` that starts at frame ``offset``."""
+    def _of(self, one: StrainField) -> np.ndarray:
         kind, _, key = self._name.partition(":")
         if kind == "node":
             return nodal_scalars(one)[key]
-        if kind == "element":
-            return self._blocks.element_scalars(offset // self._blocks.size, one)[key]
+        if kind == "element":  # computed once per block (the block's own cache)
+            return one._element_scalars()[key]
         return getattr(one, self._name)
 
     def _range(self, start: int, stop: int) -> np.ndarray:
         parts = []
         for offset, one in self._blocks.frames(start, stop):
             lo, hi = max(start - offset, 0), min(stop - offset, one.n_frames)
-            parts.append(self._of(one, offset)[lo:hi])
+            parts.append(self._of(one)[lo:hi])
         if not parts:
             return np.empty((0, *self.shape[1:]), self.dtype)
         return parts[0] if len(parts) == 1 else np.concatenate(parts)
@@ -177,7 +160,7 @@ class FrameArray:
         size = self._blocks.size
         for b in np.unique(flat // size):
             at = np.flatnonzero(flat // size == b)
-            out[at] = self._of(self._blocks.block(int(b)), int(b) * size)[flat[at] - b * size]
+            out[at] = self._of(self._blocks.block(int(b)))[flat[at] - b * size]
         out = out.reshape(*idx.shape, *self.shape[1:])
         return out[(Ellipsis, *rest)] if rest else out
 

@@ -82,19 +82,27 @@ def test_every_array_and_index_equals_the_in_memory_field(d, block):
     assert _same(whole.points, lazy.points) and _same(whole.visible, lazy.visible)
 
 
+def _count_triangle_scalars(monkeypatch) -> list:
+    """Count the computations of a field's per-triangle scalars (cached per field)."""
+    from functools import cached_property
+
+    from surface_strain.field import StrainField
+
+    calls = []
+    original = StrainField.__dict__["_element_scalar_arrays"].func
+    counted = cached_property(lambda self: calls.append(1) or original(self))
+    counted.__set_name__(StrainField, "_element_scalar_arrays")
+    monkeypatch.setattr(StrainField, "_element_scalar_arrays", counted)
+    return calls
+
+
 def test_a_kept_block_computes_its_triangle_scalars_once(monkeypatch):
     """The tables read a streamed field's per-triangle scalars a column at a time: each
     kept block computes them once, and again only after it was dropped."""
-    from surface_strain.field import StrainField
-
     X, P, tri, visible = _case(2, T=31)
     lazy = streamed_strain(X, P, tri, visible=visible, block_frames=8)
     expected = element_scalars(compute_strain(X, P, tri, visible=visible))
-    calls = []
-    original = StrainField._element_scalars
-    monkeypatch.setattr(
-        StrainField, "_element_scalars", lambda self: calls.append(1) or original(self)
-    )
+    calls = _count_triangle_scalars(monkeypatch)
     columns = element_scalars(lazy)
     for key in columns:  # every column of frames 0..15: blocks 0 and 1, kept
         assert _same(columns[key][:16], expected[key][:16]), key
@@ -104,25 +112,24 @@ def test_a_kept_block_computes_its_triangle_scalars_once(monkeypatch):
     assert len(calls) == 4
     columns["Exx"][0]  # block 0 again: computed again
     assert len(calls) == 5
+    with pytest.raises(ValueError, match="read-only"):
+        expected["Exx"][0, 0] = 1.0  # shared by every reader: copy to change
 
 
 def test_a_whole_triangle_column_computes_each_block_once(monkeypatch):
     """Reading a whole per-triangle column (all 4 blocks) computes each block's strain and
     scalars once, though only two blocks are kept."""
     import surface_strain.streamed as streamed
-    from surface_strain.field import StrainField
 
     X, P, tri, visible = _case(2, T=31)
     lazy = streamed_strain(X, P, tri, visible=visible, block_frames=8)
     expected = element_scalars(compute_strain(X, P, tri, visible=visible))
-    fields, scalars = [], []
-    original_field, original_scalars = streamed._strain_field, StrainField._element_scalars
+    fields = []
+    original_field = streamed._strain_field
     monkeypatch.setattr(
         streamed, "_strain_field", lambda *a: fields.append(1) or original_field(*a)
     )
-    monkeypatch.setattr(
-        StrainField, "_element_scalars", lambda self: scalars.append(1) or original_scalars(self)
-    )
+    scalars = _count_triangle_scalars(monkeypatch)
     whole = element_scalars(lazy)["Exx"][:]
     assert _same(whole, expected["Exx"])
     assert len(fields) == 4 and len(scalars) == 4
