@@ -37,3 +37,17 @@ def non_negative(value: float, name: str) -> float:
     if not (math.isfinite(value) and value >= 0):
         raise ValueError(f"{name} must be a finite number >= 0, got {value}")
     return value
+
+
+def write_calibrated_tiff(path, image: np.ndarray, pixel_um: float, **metadata) -> None:
+    """An image (a height map, a projection) as an ImageJ TIFF with its pixel size in um, as
+    ``mpm3d analyze`` writes them and the toolkit's readers take them."""
+    import tifffile
+
+    tifffile.imwrite(
+        path,
+        image,
+        imagej=True,
+        resolution=(1 / pixel_um, 1 / pixel_um),
+        metadata={"unit": "um", **metadata},
+    )

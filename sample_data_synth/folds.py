@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sample_data_synth._common import positive, version
+from sample_data_synth._common import positive, version, write_calibrated_tiff
 
 __all__ = [
     "FOLD_CASES",
@@ -356,8 +356,6 @@ def write_folding_wall(case: FoldingWallCase, out: str | os.PathLike) -> dict[st
     ``landmarks.csv``, ``transform.json`` and ``truth.json``."""
     import json
 
-    import tifffile
-
     from sample_data_synth.cases import write_video
 
     out = Path(out)
@@ -374,21 +372,9 @@ def write_folding_wall(case: FoldingWallCase, out: str | os.PathLike) -> dict[st
     write_video(case.frames, paths["video"])
     for name in ("before", "after"):
         heights = getattr(case, name).astype(np.float32)
-        tifffile.imwrite(
-            paths[name],
-            heights,
-            imagej=True,
-            resolution=(1 / case.microscope_um, 1 / case.microscope_um),
-            metadata={"unit": "um", "spacing": 1.0},
-        )
+        write_calibrated_tiff(paths[name], heights, case.microscope_um, spacing=1.0)
     if case.surface_image is not None:
-        tifffile.imwrite(
-            paths["surface"],
-            case.surface_image,
-            imagej=True,
-            resolution=(1 / case.microscope_um, 1 / case.microscope_um),
-            metadata={"unit": "um"},
-        )
+        write_calibrated_tiff(paths["surface"], case.surface_image, case.microscope_um)
     rows = ["camera_x,camera_y,microscope_x,microscope_y"]
     rows += [",".join(f"{v:.6f}" for v in row) for row in case.landmarks]
     paths["landmarks"].write_text("\n".join(rows) + "\n", encoding="utf-8")

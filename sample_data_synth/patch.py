@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sample_data_synth._common import Rng
+from sample_data_synth._common import Rng, write_calibrated_tiff
 
 __all__ = ["MicroscopePatch", "microscope_patch", "write_patch"]
 
@@ -162,8 +162,6 @@ def microscope_patch(
 def write_patch(patch: MicroscopePatch, out: str | os.PathLike) -> dict[str, Path]:
     """Write ``heightmap.tif`` (float32 um, with its pixel size), ``landmarks3d.csv`` and
     ``truth.json`` (the similarity and the parameters) into folder ``out``."""
-    import tifffile
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     paths = {
@@ -171,13 +169,7 @@ def write_patch(patch: MicroscopePatch, out: str | os.PathLike) -> dict[str, Pat
         "landmarks": out / "landmarks3d.csv",
         "truth": out / "truth.json",
     }
-    tifffile.imwrite(
-        paths["heightmap"],
-        patch.height_um,
-        imagej=True,
-        resolution=(1 / patch.pixel_um, 1 / patch.pixel_um),
-        metadata={"unit": "um"},
-    )
+    write_calibrated_tiff(paths["heightmap"], patch.height_um, patch.pixel_um)
     rows = ["camera_x,camera_y,camera_z,microscope_x,microscope_y,microscope_z"]
     rows += [",".join(f"{v:.6f}" for v in row) for row in patch.landmarks]
     paths["landmarks"].write_text("\n".join(rows) + "\n", encoding="utf-8")

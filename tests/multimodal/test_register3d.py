@@ -17,6 +17,7 @@ from multimodal.surface3d import (
 )
 from sample_data_synth.patch import microscope_patch, write_patch
 from surface_strain.mesh import grid_triangles
+from tests.scenes import SphereCap
 from tissue_core.errors import InputError
 
 
@@ -152,25 +153,6 @@ def test_icp_on_a_plane_fixes_the_normal_and_tilts_and_keeps_the_landmarks_in_pl
     assert np.abs(start.apply(microscope)[:, :2].mean(axis=0)).max() > 0.02  # the start's
 
 
-class _Cap:
-    """A stand-in stereo scene: a spherical cap (radius 60 mm) seen 450 mm away."""
-
-    radius = 60.0
-
-    def positions(self, X, frame):
-        X = np.asarray(X, float).reshape(-1, 2)
-        z = 450.0 - (self.radius - np.sqrt(self.radius**2 - np.sum(X**2, axis=1)))
-        return np.column_stack([X, z])
-
-    def gradient(self, X, frame):
-        X = np.asarray(X, float).reshape(-1, 2)
-        s = np.sqrt(self.radius**2 - np.sum(X**2, axis=1))
-        F = np.zeros((len(X), 3, 2))
-        F[:, 0, 0] = F[:, 1, 1] = 1.0
-        F[:, 2, 0], F[:, 2, 1] = -X[:, 0] / s, -X[:, 1] / s
-        return F
-
-
 def _stereo_run(folder, scene, n=41, half=12.0):
     from tissue_core.tables import write_long_table
 
@@ -196,7 +178,7 @@ def _run(*argv):
 
 @pytest.mark.xdist_group("register3d")
 def test_register3d_puts_the_patch_on_the_stereo_surface(tmp_path):
-    scene = _Cap()
+    scene = SphereCap()
     _stereo_run(tmp_path / "run", scene)
     patch = microscope_patch(scene, center=(4.0, -3.0), landmark_mm=0.05, rng=3)
     files = write_patch(patch, tmp_path / "patch")
@@ -253,7 +235,7 @@ def test_register3d_puts_the_patch_on_the_stereo_surface(tmp_path):
 
 @pytest.mark.xdist_group("register3d")
 def test_register3d_bad_input_is_one_line(tmp_path):
-    scene = _Cap()
+    scene = SphereCap()
     _stereo_run(tmp_path / "run", scene)
     files = write_patch(microscope_patch(scene, rng=1), tmp_path / "patch")
     bad = tmp_path / "bad.csv"
@@ -284,7 +266,7 @@ def test_register3d_bad_input_is_one_line(tmp_path):
 def test_register3d_flags_what_makes_a_registration_doubtful(tmp_path):
     """Registrations that run but are doubtful say why: a microscope upside down (x and y
     swapped), landmark pairs mismatched, a scale the run's unit does not give."""
-    scene = _Cap()
+    scene = SphereCap()
     _stereo_run(tmp_path / "run", scene)
     files = write_patch(microscope_patch(scene, rng=2), tmp_path / "patch")
     rows = files["landmarks"].read_text().splitlines()
@@ -317,7 +299,7 @@ def test_register3d_flags_what_makes_a_registration_doubtful(tmp_path):
 
 @pytest.mark.xdist_group("register3d")
 def test_register3d_refuses_landmarks_off_the_map_and_outputs_inside_an_input(tmp_path):
-    scene = _Cap()
+    scene = SphereCap()
     _stereo_run(tmp_path / "run", scene)
     files = write_patch(microscope_patch(scene, rng=2), tmp_path / "patch")
     base = ["register3d", str(tmp_path / "run"), str(files["heightmap"])]

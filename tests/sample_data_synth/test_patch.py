@@ -9,28 +9,11 @@ import pytest
 import tifffile
 
 from sample_data_synth.patch import microscope_patch, write_patch
-
-
-class _Sphere:
-    """A stand-in scene: a sphere of radius 60 mm whose apex faces the cameras at 450 mm."""
-
-    radius = 60.0
-
-    def positions(self, X, frame):
-        X = np.asarray(X, float).reshape(-1, 2)
-        return np.column_stack([X, 390.0 + np.sqrt(self.radius**2 - np.sum(X**2, axis=1))])
-
-    def gradient(self, X, frame):
-        X = np.asarray(X, float).reshape(-1, 2)
-        s = np.sqrt(self.radius**2 - np.sum(X**2, axis=1))
-        F = np.zeros((len(X), 3, 2))
-        F[:, 0, 0] = F[:, 1, 1] = 1.0
-        F[:, 2, 0], F[:, 2, 1] = -X[:, 0] / s, -X[:, 1] / s
-        return F
+from tests.scenes import SphereCap
 
 
 def test_the_patch_lies_on_the_surface_with_its_folds_and_its_true_placement(tmp_path):
-    scene = _Sphere()
+    scene = SphereCap()
     flat = microscope_patch(scene, center=(5.0, -4.0), fold_um=0.0, landmark_mm=0.0, rng=1)
     folded = microscope_patch(scene, center=(5.0, -4.0), fold_um=12.0, landmark_mm=0.0, rng=1)
     n = flat.height_um.shape[0]

@@ -110,31 +110,6 @@ def test_errors(tmp_path, smooth_frames):
         open_frames(tmp_path / "v.avi", start=10)
 
 
-def test_end_frames_keeps_first_and_last_without_a_second_pass(tmp_path, smooth_frames):
-    from strain2d.frames import EndFrames
-
-    path = tmp_path / "v.avi"
-    write_video(smooth_frames, path)
-    source = open_frames(path)
-    reads = []
-    original = source._iter_raw
-
-    def counting():
-        reads.append(1)
-        yield from original()
-
-    source._iter_raw = counting
-    wrapped = EndFrames(source)
-    assert len(wrapped) == 5 and wrapped.shape == (48, 64)
-    assert len(list(wrapped)) == 5
-    first, last = wrapped.ends()
-    assert len(reads) == 1  # one decoding pass in all
-    np.testing.assert_array_equal(first, smooth_frames[0])
-    np.testing.assert_array_equal(last, smooth_frames[-1])
-    untouched = EndFrames(open_frames(path))  # a tracker that never iterates (imported)
-    np.testing.assert_array_equal(untouched.ends()[1], smooth_frames[-1])
-
-
 def _counted(source):
     """``source``, counting its decoding passes in the list returned with it."""
     reads = []
@@ -146,6 +121,23 @@ def _counted(source):
 
     source._iter_raw = counting
     return source, reads
+
+
+def test_end_frames_keeps_first_and_last_without_a_second_pass(tmp_path, smooth_frames):
+    from strain2d.frames import EndFrames
+
+    path = tmp_path / "v.avi"
+    write_video(smooth_frames, path)
+    source, reads = _counted(open_frames(path))
+    wrapped = EndFrames(source)
+    assert len(wrapped) == 5 and wrapped.shape == (48, 64)
+    assert len(list(wrapped)) == 5
+    first, last = wrapped.ends()
+    assert len(reads) == 1  # one decoding pass in all
+    np.testing.assert_array_equal(first, smooth_frames[0])
+    np.testing.assert_array_equal(last, smooth_frames[-1])
+    untouched = EndFrames(open_frames(path))  # a tracker that never iterates (imported)
+    np.testing.assert_array_equal(untouched.ends()[1], smooth_frames[-1])
 
 
 def test_end_frames_keep_every_eight_bit_frame_within_the_budget(tmp_path, smooth_frames):
