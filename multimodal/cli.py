@@ -177,6 +177,7 @@ def _camera_surface(folder: Path, frame: int):
 def _cmd_register3d(args) -> int:
     from multimodal.geometry import SurfaceMap
     from multimodal.io import read_landmarks3d
+    from multimodal.run import _surface_mesh, _surface_step
     from multimodal.surface3d import (
         Similarity3D,
         _normals,
@@ -276,16 +277,18 @@ def _cmd_register3d(args) -> int:
         },
         "flags": flags,
     }
-    # the microscope's surface in the camera's frame, for one ParaView scene with the run
-    shown = max(1, int(np.ceil(np.sqrt(np.isfinite(surface.height_um).sum() / 250_000))))
-    mesh_points, mesh_triangles, height = _grid_mesh(surface, shown)
-    moved = t.apply(mesh_points)
+    # the microscope's surface in the camera's frame, for one ParaView scene with the run: the
+    # mesh multimodal strain draws, its (x, y, height) as (x, y, depth)
+    mesh_points, mesh_triangles = _surface_mesh(surface)
+    k = _surface_step(surface)
+    height = surface.height_um[::k, ::k].ravel()
+    moved = t.apply(mesh_points * [1.0, 1.0, -1.0])
     closest, _, which, outside = closest_points_on_mesh(moved, vertices, triangles)
     # signed: positive towards the cameras (the stereo frame's origin), as a height is
     normals = _normals(vertices, triangles)
     normals[np.einsum("ij,ij->i", normals, vertices[triangles[:, 0]]) > 0] *= -1
     distance = np.einsum("ij,ij->i", normals[which], moved - closest)
-    distance = np.where(outside, np.nan, distance)
+    distance = np.where(outside | ~np.isfinite(height), np.nan, distance)
     with atomic_dir(args.out, overwrite=args.overwrite, inputs=inputs) as tmp:
         from tissue_core.vtkio import write_triangles
 
@@ -307,7 +310,7 @@ def _cmd_register3d(args) -> int:
             (tmp / "landmarks.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
         (tmp / "figures").mkdir()
         _distance_figure(
-            tmp / "figures" / "registration3d.png", surface, shown, distance * per_um, summary
+            tmp / "figures" / "registration3d.png", surface, k, distance * per_um, summary
         )
     say(
         f"microscope onto camera: {t.scale:.6g} {unit}/um, turned {t.angle_deg:.4g} deg; "
@@ -395,30 +398,6 @@ def _registration_flags(points, start, found, residual, camera_lm, unit: str) ->
     return flags
 
 
-def _grid_mesh(surface, step: int):
-    """The height map every ``step`` pixels as a triangle mesh: its pixels with a height as
-    ``(x, y, depth)`` um points (row by row), triangles between four such corners, and each
-    point's height."""
-    z = surface.height_um[::step, ::step]
-    ny, nx = z.shape
-    dy, dx = surface.pixel_um
-    x0, y0 = surface.origin_um
-    rows, cols = np.mgrid[0:ny, 0:nx]
-    points = np.column_stack(
-        [(x0 + cols * step * dx).ravel(), (y0 + rows * step * dy).ravel(), -z.ravel()]
-    )
-    ok = np.isfinite(z)
-    quad = ok[:-1, :-1] & ok[1:, :-1] & ok[:-1, 1:] & ok[1:, 1:]
-    r, c = np.nonzero(quad)
-    a = r * nx + c
-    triangles = np.concatenate(
-        [np.column_stack([a, a + 1, a + nx + 1]), np.column_stack([a, a + nx + 1, a + nx])]
-    )
-    index = np.full(ny * nx, -1)
-    index[ok.ravel()] = np.arange(int(ok.sum()))
-    return points[ok.ravel()], index[triangles], z[ok]
-
-
 def _distance_figure(path: Path, surface, step: int, distance_um, summary: dict) -> None:
     """The microscope's surface seen from above, coloured by its height above the camera's
     surface once registered (its folds, and what the registration left)."""
@@ -426,8 +405,7 @@ def _distance_figure(path: Path, surface, step: int, distance_um, summary: dict)
     from matplotlib.figure import Figure
 
     z = surface.height_um[::step, ::step]
-    grid = np.full(z.shape, np.nan)
-    grid[np.isfinite(z)] = distance_um  # the mesh's points: the pixels with a height, in order
+    grid = np.reshape(distance_um, z.shape)  # the mesh's points: a pixel each, row by row
     dy, dx = surface.pixel_um
     x0, y0 = surface.origin_um
     extent = (x0 - step * dx / 2, x0 + (z.shape[1] - 0.5) * step * dx,

@@ -358,10 +358,16 @@ def _report(folder: Path, summary: dict) -> None:
 _SURFACE_SIDE = 240
 
 
+def _surface_step(surface: SurfaceMap) -> int:
+    """Every how many pixels :func:`_surface_mesh` takes a point."""
+    return max(1, int(np.ceil(max(surface.shape) / _SURFACE_SIDE)))
+
+
 def _surface_mesh(surface: SurfaceMap) -> tuple[np.ndarray, np.ndarray]:
-    """The height map as a triangle mesh (um), every k-th pixel; no triangle over a gap."""
+    """The height map as a triangle mesh (um), every k-th pixel (:func:`_surface_step`), a
+    point per pixel row by row (height 0 in a gap); no triangle over a gap."""
     Y, X = surface.shape
-    k = max(1, int(np.ceil(max(Y, X) / _SURFACE_SIDE)))
+    k = _surface_step(surface)
     rows, cols = np.arange(0, Y, k), np.arange(0, X, k)
     (dy, dx), (x0, y0) = surface.pixel_um, surface.origin_um
     z = surface.height_um[np.ix_(rows, cols)]
