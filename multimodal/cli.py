@@ -185,6 +185,7 @@ def _cmd_register3d(args) -> int:
         heightmap_points,
         refine_icp,
     )
+    from tissue_core.csvtext import number_cell
     from tissue_core.jsonio import write_json
     from tissue_core.outputs import atomic_dir, check_writable
     from tissue_core.progress import Progress
@@ -306,7 +307,7 @@ def _cmd_register3d(args) -> int:
             rows = ["camera_x,camera_y,camera_z,microscope_x,microscope_y,microscope_z,residual"]
             for c, m, r in zip(camera_lm, microscope_lm, residual, strict=True):
                 values = (*c, m[0], m[1], -m[2], r)
-                rows.append(",".join(f"{float(v):.6g}" for v in values))
+                rows.append(",".join(number_cell(float(v)) for v in values))
             (tmp / "landmarks.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
         (tmp / "figures").mkdir()
         _distance_figure(
