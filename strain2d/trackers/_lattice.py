@@ -219,7 +219,9 @@ def static_highlights(
     A blob of the reference is a highlight when the frame has a blob at the
     same image position that covers 60 % of it and overlaps it better (by 0.1
     of its area) than the blob would if it had moved with the tissue (``motion(points) -> (N, 2)``
-    displacements); where the tissue moved less than 2 px, nothing is decided.
+    displacements), or whose centroid stayed where it was (:func:`_blob_shift`: a blob
+    much larger than the motion overlaps its moved self nearly as well); where the
+    tissue moved less than 2 px, nothing is decided.
     Returns the reference's and the frame's highlight masks, and with
     ``with_tissue`` the reference's blobs seen to move with the tissue (the
     other way round: bright tissue, never a highlight).
@@ -231,6 +233,7 @@ def static_highlights(
     labels, _ = ndimage.label(reference_blobs)
     ref_mask, frame_mask, tissue = empty.copy(), empty.copy(), empty.copy()
     frame_labels, _ = ndimage.label(frame_blobs)
+    frame_boxes = ndimage.find_objects(frame_labels)
     for k, box in enumerate(ndimage.find_objects(labels), start=1):
         yy, xx = np.nonzero(labels[box] == k)
         yy, xx = yy + box[0].start, xx + box[1].start
@@ -241,13 +244,46 @@ def static_highlights(
         mx = np.clip(np.rint(xx + u[0]).astype(int), 0, W - 1)
         my = np.clip(np.rint(yy + u[1]).astype(int), 0, H - 1)
         moved = frame_blobs[my, mx].mean()
-        if same > 0.6 and same > moved + 0.1:
+        stays, goes = _blob_shift(frame_labels, frame_boxes, xx, yy, mx, my, u)
+        if same > 0.6 and (same > moved + 0.1 or stays):
             ref_mask[yy, xx] = True
             hit = np.unique(frame_labels[yy, xx])
             frame_mask |= np.isin(frame_labels, hit[hit > 0])
-        elif moved > 0.6 and moved > same + 0.1:
+        elif moved > 0.6 and (moved > same + 0.1 or goes):
             tissue[yy, xx] = True
     return (ref_mask, frame_mask, tissue) if with_tissue else (ref_mask, frame_mask)
+
+
+def _blob_shift(frame_labels, frame_boxes, xx, yy, mx, my, u) -> tuple[bool, bool]:
+    """Whether the frame's blob over a reference blob (pixels ``xx, yy``; moved with the
+    tissue, ``mx, my``; ``frame_boxes``: the boxes of the frame's labelled blobs) has its
+    centroid where the reference blob was (it stayed) or where the tissue took it (it
+    moved): within a third of the tissue's motion ``u`` of one and beyond two thirds of it
+    from the other, and of a similar area (0.7-1.4 times).
+
+    The overlaps :func:`static_highlights` compares change by the motion's share of the
+    blob's size, which is small for a blob much larger than the motion; the centroid moves
+    with the blob whatever its size."""
+    hit = np.unique(np.concatenate([frame_labels[yy, xx], frame_labels[my, mx]]))
+    hit = hit[hit > 0]
+    if hit.size == 0:
+        return False, False
+    parts = []
+    for label in hit:
+        box = frame_boxes[label - 1]
+        fy, fx = np.nonzero(frame_labels[box] == label)
+        parts.append((fy + box[0].start, fx + box[1].start))
+    fy = np.concatenate([a for a, _ in parts])
+    fx = np.concatenate([b for _, b in parts])
+    if not 0.7 <= fx.size / xx.size <= 1.4:  # merged with other blobs, or only a part
+        return False, False
+    c = np.array([fx.mean(), fy.mean()])
+    ref = np.array([xx.mean(), yy.mean()])
+    step = float(np.hypot(*u))
+    to_ref, to_moved = np.hypot(*(c - ref)), np.hypot(*(c - ref - u))
+    stays = to_ref <= step / 3 and to_moved >= 2 * step / 3
+    goes = to_moved <= step / 3 and to_ref >= 2 * step / 3
+    return bool(stays), bool(goes)
 
 
 #: at the finer levels, how far (px) the field may stray from the coarser level's answer

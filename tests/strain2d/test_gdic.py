@@ -355,6 +355,38 @@ def test_static_highlights_are_found_and_moving_bright_texture_is_not():
     assert not bright_blobs(speckle, noise_sigma(speckle)).any()
 
 
+def test_a_highlight_much_larger_than_the_motion_is_told_by_its_centroid():
+    """A spot 50 px across that the tissue moved 3 px under: its blob overlaps its moved
+    self nearly as well as itself (the overlaps alone cannot tell), but its centroid has
+    not moved; a bright blob of the tissue the same size, carried 3 px, is tissue."""
+    rng = np.random.default_rng(4)
+    yy, xx = np.mgrid[0:300, 0:300].astype(float)
+    texture = 100 + 25 * ndimage.gaussian_filter(rng.standard_normal((340, 340)), 3)
+    spot = 90 * np.exp(-((xx - 150) ** 2 + (yy - 140) ** 2) / (2 * 16.0**2))
+
+    def frame(tissue, light):
+        return tissue + light + rng.normal(0, 1.5, light.shape)
+
+    reference = frame(texture[20:320, 20:320], spot)
+    noise = noise_sigma(reference)
+    ref_blobs = bright_blobs(reference, noise)
+    assert ref_blobs[140, 150] and ref_blobs.sum() > 1500  # about 50 px across
+
+    def motion(p):
+        return np.tile([3.0, 0.0], (len(p), 1))
+
+    stayed = frame(texture[20:320, 17:317], spot)  # the tissue moved 3 px right, the light not
+    ref_mask, frame_mask, tissue = static_highlights(
+        ref_blobs, bright_blobs(stayed, noise), motion, with_tissue=True
+    )
+    assert ref_mask[140, 150] and frame_mask[140, 150] and not tissue.any()
+    carried = frame(texture[20:320, 17:317], np.roll(spot, 3, axis=1))
+    ref_mask, _, tissue = static_highlights(
+        ref_blobs, bright_blobs(carried, noise), motion, with_tissue=True
+    )
+    assert not ref_mask.any() and tissue[140, 150]
+
+
 @pytest.mark.parametrize("photograph", ["immunohistochemistry", "retina"])
 def test_gdic_sigma_matches_the_scatter_on_a_still_video_of_a_photograph(photograph):
     """Frames that differ only by fresh sensor noise: the reported sigma is the scatter
