@@ -16,6 +16,11 @@ order:
    compiled kernel, in parallel over points) with an affine warp. A match is
    kept when it converged, correlates at least ``zncc_min``, stays in the
    frame, and moved as its neighbours did (the normalized median test).
+   A subset that holds a **specular highlight** (a bright smooth blob seen to
+   stay put in the image while the tissue moves) is matched again on the
+   pixels that neither the highlight nor its halo covers, on the reference
+   and on the frame, from its best matched neighbour's warp: it follows the
+   tissue, not the light.
 3. **Where it failed:** if most points failed (a jump, a turn of tens of
    degrees between frames), SIFT features of the reference matched to the
    frame and a RANSAC affine transform give every failed point a new start;
@@ -31,13 +36,14 @@ order:
    an affine warp by half its noise or more: the Bayesian information criterion
    ``n ln(SSD / n) + k ln n`` picks the warp per point and frame.
 5. **Visibility.** A point is ``visible = 0`` when it is out of the frame,
-   under a specular highlight that stays put while the tissue moves, matched
-   by neither its subset nor the field, or when it has no texture: a point
-   farther than half the smallest subset from any texture (a blank
-   background beside textured pieces: :func:`texture_distance`), or whose
-   largest subset cannot pin a match to ``_TEXTURELESS`` px against the
-   noise, is never reported as a measurement, whatever a larger subset or
-   the field would extrapolate there.
+   so far under a highlight that its subset keeps too few pixels and the
+   field does not see it, matched by neither its subset nor the field, or
+   when it has no texture: a point farther than half the smallest subset
+   from any texture (a blank background beside textured pieces:
+   :func:`texture_distance`), or whose largest subset cannot pin a match to
+   ``_TEXTURELESS`` px against the noise, is never reported as a
+   measurement, whatever a larger subset or the field would extrapolate
+   there.
 
 Each point and frame gets an uncertainty (px, standard deviation per
 coordinate). For a local match it is the noise's, ``c 2 sigma_n^2 (J'J)^-1``
@@ -79,6 +85,7 @@ from strain2d.trackers._lattice import (
     dilated,
     noise_sigma,
     static_highlights,
+    with_halos,
 )
 from strain2d.trackers._series import FrameSeries
 from strain2d.trackers._threads import (
@@ -1049,11 +1056,11 @@ class _Run:
         ref = self.cached[key]
         return ref if len(rows) == len(members) else _take(ref, np.searchsorted(members, rows))
 
-    def _hinv(self, size: int, order: int, rows: np.ndarray, ref, own: bool) -> np.ndarray:
+    def _hinv(self, size: int, order: int, rows: np.ndarray, ref) -> np.ndarray:
         """The two diagonal entries of ``(J'J)^-1`` of ``rows``' subsets ``ref`` (once per
         point for the cached reference subsets: they do not change from frame to frame)."""
         key, members = (size, order), self.members.get(size)
-        if own and key in self.cached and np.isin(rows, members).all():
+        if key in self.cached and np.isin(rows, members).all():
             if key not in self.cached_hinv:
                 G = self.cached[key].G[:, :2]
                 self.cached_hinv[key] = np.einsum("nks,nks->nk", G, G, dtype=float)
@@ -1061,10 +1068,7 @@ class _Run:
         G = ref.G[:, :2]
         return np.einsum("nks,nks->nk", G, G, dtype=float)
 
-    def _match(
-        self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int,
-        ref_coeff=None,
-    ):  # fmt: skip
+    def _match(self, coeff, rows: np.ndarray, p0: np.ndarray, sizes: np.ndarray, order: int):
         """IC-GN of ``rows`` from warps ``p0`` (6 or 12 columns): the warps, their ZNCC,
         whether each is accepted, and per row the residual variance per pixel, the two
         diagonal entries of ``(J'J)^-1`` and the subset's pixel count (for the
@@ -1088,10 +1092,7 @@ class _Run:
             for part in _chunks(len(sel), chunk):
                 k = sel[part]
                 corr = self._correlator(int(size), order)
-                if ref_coeff is None:
-                    ref = self._reference(int(size), order, rows[k])
-                else:  # another reference image (highlights filled in): not cached
-                    ref = _subsets(corr, ref_coeff, self.points[rows[k]])
+                ref = self._reference(int(size), order, rows[k])
                 pk, zk, ck = corr.match(
                     coeff, ref, np.arange(len(k)), start[k], self.tolerances[rows[k]]
                 )
@@ -1100,7 +1101,7 @@ class _Run:
                 n_px[k] = size * size
                 norm2 = ref.norm[:, 0].astype(float) ** 2
                 s2[k] = np.maximum(2 * (1 - zk), 1e-12) * norm2 / max(size * size - n_params, 1)
-                hinv[k] = self._hinv(int(size), order, rows[k], ref, ref_coeff is None)
+                hinv[k] = self._hinv(int(size), order, rows[k], ref)
         return p, z, ok, s2, hinv, n_px
 
     # ------------------------------------------------------------------ one frame
@@ -1191,10 +1192,11 @@ class _Run:
             # blobs under the other subsets need deciding on this frame
             clean = ok & (s2 / self.gain <= _CLEAN_RESIDUAL * self.noise2)
             lit = self._highlights(shared, p, ok, sizes, clean)
-            matched_here = ok & lit  # their own match, a start for the filled subsets
+            matched_here = ok & lit  # their own match, a start for the masked subsets
             ok &= ~lit
-            if lit.any():  # matched again with the highlights filled in on both images
-                take(*self._around_highlights(frame, lit & active, p0, p, matched_here, sizes))
+            if lit.any():  # matched again on the pixels no highlight covers on either image
+                take(*self._around_highlights(coeff, lit & active, p0, p, matched_here, sizes,
+                                              ok, z))  # fmt: skip
                 lit &= ~ok
 
         # 3b. a point whose own match fell short of convergence or of zncc_min (weak texture,
@@ -1445,20 +1447,97 @@ class _Run:
         grid = np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
         return bool(np.any(np.hypot(*moving(grid).T) >= 2.0))
 
-    def _around_highlights(self, frame, rows, guess, p, ok, sizes):
-        """Rows of points whose subsets hold a highlight, and their IC-GN matched on both
-        images with every highlight (of the reference and of this frame: they stay put)
-        filled in smoothly: the subset follows the tissue's texture around it, not the
-        light. From their own match where they had one, from the motion guess otherwise;
-        their neighbours' test follows (a filled subset that drifted is not kept)."""
+    def _around_highlights(self, coeff, rows, guess, p, ok, sizes, measured, z):
+        """Rows of points whose subsets hold a highlight, and their IC-GN matched (on the
+        frame's spline coefficients ``coeff``) on the pixels that no highlight (of the
+        reference or of this frame: they stay put) nor its halo covers on either image
+        (:meth:`_masked_match`): the subset follows the tissue's texture around it, not
+        the light. From their own match where they had one, else
+        from their best ``measured`` neighbour's warp (``z``: the neighbours' ZNCC),
+        evaluated at the point, else from the motion ``guess``; their neighbours' test
+        follows (a match that drifted is not kept)."""
+        from strain2d.trackers.dic import _best_neighbours
+
         idx = np.flatnonzero(rows)
-        mask = dilated(self.static | self.frame_highlights, 2)
         start = np.where(ok[idx, None], p[idx], guess[idx])
-        result = self._match(
-            _coefficients(_filled(frame, mask)), idx, start, sizes, 1,
-            ref_coeff=_coefficients(_filled(self.reference, mask)),
-        )  # fmt: skip
+        f_idx, b_idx = _best_neighbours(self.near, idx, measured, z)
+        f_idx, b_idx = f_idx[~ok[f_idx]], b_idx[~ok[f_idx]]
+        if f_idx.size:
+            F = _gradient(p[b_idx])
+            d = self.points[f_idx] - self.points[b_idx]
+            at = self.points[b_idx] + p[b_idx, :2] + np.einsum("nij,nj->ni", F, d)
+            start[np.searchsorted(idx, f_idx)] = _warps(self.points[f_idx], at, F)
+        highlights = self.static | self.frame_highlights
+        masks = (with_halos(highlights), dilated(highlights, 2))
+        result = self._masked_match(coeff, idx, start, sizes, masks)
         return idx, result
+
+    def _masked_match(self, coeff, rows, start, sizes, masks):
+        """IC-GN (affine) of ``rows`` from warps ``start`` on the pixels of each subset that
+        a mask of highlights (fixed in the image) leaves on both images: where the
+        reference has them, and where the start's warp puts them on the frame (with 2 px
+        more, for the match's own motion). The subset's mean, norm and Hessian are those of
+        the pixels kept, so the correlation is the ZNCC over them alone.
+
+        ``masks``: the highlights with their halos, then without; each subset takes the
+        first that leaves it :data:`_MASKED_MIN_PIXELS` pixels (and
+        :data:`_MASKED_MIN_SHARE` of its square), and is not matched where none does.
+        Returns what :meth:`_match` returns."""
+        from strain2d.trackers._icgn_kernel import icgn
+        from strain2d.trackers.dic import _sample
+
+        m = len(rows)
+        p = np.zeros((m, 6))
+        z = np.full(m, -1.0)
+        ok = np.zeros(m, bool)
+        s2 = np.full(m, np.nan)
+        hinv = np.full((m, 2), np.nan)
+        n_px = np.zeros(m)
+        H, W = self.shape
+        masks = [(hidden, dilated(hidden, 2)) for hidden in masks]
+        for j, i in enumerate(rows):
+            size = int(sizes[i])
+            corr = self._correlator(size, 1)
+            cx, cy = self.points[i]
+            ex, ey = corr.ex, corr.ey
+            rx = np.clip(np.rint(cx + ex).astype(int), 0, W - 1)
+            ry = np.clip(np.rint(cy + ey).astype(int), 0, H - 1)
+            q = start[j]
+            fxp = cx + q[0] + (1 + q[2]) * ex + q[3] * ey
+            fyp = cy + q[1] + q[4] * ex + (1 + q[5]) * ey
+            gx = np.clip(np.rint(fxp).astype(int), 0, W - 1)
+            gy = np.clip(np.rint(fyp).astype(int), 0, H - 1)
+            least = max(_MASKED_MIN_PIXELS, _MASKED_MIN_SHARE * size * size)
+            for hidden, wide in masks:  # the widest mask that leaves pixels enough
+                keep = ~hidden[ry, rx] & ~wide[gy, gx]
+                count = int(keep.sum())
+                if count >= least:
+                    break
+            else:
+                continue
+            exk, eyk = ex[keep], ey[keep]
+            X, Y = cx + exk, cy + eyk
+            f = _sample(self.ref_coeff, X, Y)
+            fx = 0.5 * (_sample(self.ref_coeff, X + 1, Y) - _sample(self.ref_coeff, X - 1, Y))
+            fy = 0.5 * (_sample(self.ref_coeff, X, Y + 1) - _sample(self.ref_coeff, X, Y - 1))
+            J = np.stack([fx, fy, fx * exk, fx * eyk, fy * exk, fy * eyk])
+            Hinv = np.linalg.pinv(J @ J.T)
+            fm = f - f.mean()
+            norm = float(np.sqrt(np.sum(fm**2))) or 1.0
+            G = Hinv @ J
+            pk, zk, ck = icgn(
+                coeff, np.array([[cx, cy]]), (fm / norm)[None], np.array([norm]), G[None],
+                q[None, :6].astype(np.float64), np.ascontiguousarray(exk),
+                np.ascontiguousarray(eyk), corr.half, self.tolerances[[i]],
+                self.max_iterations, self.zncc_min,
+            )  # fmt: skip
+            inside = _inside(corr, self.points[[i]], pk, self.shape)[0]
+            p[j], z[j] = pk[0], zk[0]
+            ok[j] = bool(ck[0]) and zk[0] >= self.zncc_min and inside
+            n_px[j] = count
+            s2[j] = max(2 * (1 - zk[0]), 1e-12) * norm**2 / max(count - 6, 1)
+            hinv[j] = np.einsum("ks,ks->k", G[:2], G[:2])
+        return p, z, ok, s2, hinv, n_px
 
     def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
         """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
@@ -1499,6 +1578,11 @@ class _Run:
         field[1], field[2] = t, (previous if last == t - 1 else None)
         return solver
 
+
+#: a subset matched around highlights keeps at least this many pixels, and this share of
+#: its square
+_MASKED_MIN_PIXELS = 200
+_MASKED_MIN_SHARE = 0.1
 
 #: px the warped subset keeps from the frame's edge beyond the spline margin (the motion
 #: between the guess and the match)
@@ -1645,20 +1729,6 @@ def _displacement_at(
     w = 1.0 / np.maximum(distance, 1e-6) ** 2
     inner = np.einsum("mk,mkc->mc", w, rest[nearest]) / w.sum(axis=1)[:, None]
     return _apply(affine, where) - where + inner
-
-
-def _filled(image: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``image`` with the pixels of ``mask`` replaced by the mean of their surroundings
-    (a normalized Gaussian convolution of the other pixels, 10 px): smooth, no texture."""
-    from strain2d.trackers._lattice import _blur
-
-    keep = (~mask).astype(float)
-    weight = _blur(keep, 10.0)
-    smooth = _blur(image * keep, 10.0)
-    fill = smooth / np.maximum(weight, 1e-6)
-    far = weight < 1e-6  # a mask wider than the blur's reach: the image's mean
-    fill[far] = image[~mask].mean() if (~mask).any() else image.mean()
-    return np.where(mask, fill, image)
 
 
 def _box_mean(image: np.ndarray, points: np.ndarray, size: int) -> np.ndarray:
