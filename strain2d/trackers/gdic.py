@@ -1485,6 +1485,7 @@ class _Run:
         Returns what :meth:`_match` returns."""
         from strain2d.trackers._icgn_kernel import icgn
         from strain2d.trackers.dic import _sample
+        from tissue_core.interrupt import deferred_interrupt
 
         m = len(rows)
         p = np.zeros((m, 6))
@@ -1525,12 +1526,13 @@ class _Run:
             fm = f - f.mean()
             norm = float(np.sqrt(np.sum(fm**2))) or 1.0
             G = Hinv @ J
-            pk, zk, ck = icgn(
-                coeff, np.array([[cx, cy]]), (fm / norm)[None], np.array([norm]), G[None],
-                q[None, :6].astype(np.float64), np.ascontiguousarray(exk),
-                np.ascontiguousarray(eyk), corr.half, self.tolerances[[i]],
-                self.max_iterations, self.zncc_min,
-            )  # fmt: skip
+            with deferred_interrupt():  # Ctrl-C inside the kernel would be a SystemError
+                pk, zk, ck = icgn(
+                    coeff, np.array([[cx, cy]]), (fm / norm)[None], np.array([norm]), G[None],
+                    q[None, :6].astype(np.float64), np.ascontiguousarray(exk),
+                    np.ascontiguousarray(eyk), corr.half, self.tolerances[[i]],
+                    self.max_iterations, self.zncc_min,
+                )  # fmt: skip
             inside = _inside(corr, self.points[[i]], pk, self.shape)[0]
             p[j], z[j] = pk[0], zk[0]
             ok[j] = bool(ck[0]) and zk[0] >= self.zncc_min and inside
