@@ -1518,9 +1518,13 @@ class _Run:
                 continue
             exk, eyk = ex[keep], ey[keep]
             X, Y = cx + exk, cy + eyk
-            f = _sample(self.ref_coeff, X, Y)
-            fx = 0.5 * (_sample(self.ref_coeff, X + 1, Y) - _sample(self.ref_coeff, X - 1, Y))
-            fy = 0.5 * (_sample(self.ref_coeff, X, Y + 1) - _sample(self.ref_coeff, X, Y - 1))
+            # the pixels and their four neighbours (central differences), in one call
+            f, right, left, down, up = _sample(
+                self.ref_coeff,
+                np.concatenate([X, X + 1, X - 1, X, X]),
+                np.concatenate([Y, Y, Y, Y + 1, Y - 1]),
+            ).reshape(5, -1)
+            fx, fy = 0.5 * (right - left), 0.5 * (down - up)
             J = np.stack([fx, fy, fx * exk, fx * eyk, fy * exk, fy * eyk])
             Hinv = np.linalg.pinv(J @ J.T)
             fm = f - f.mean()
