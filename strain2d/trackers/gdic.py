@@ -1187,6 +1187,8 @@ class _Run:
         ok &= ~_inconsistent(self.points, p[:, :2], ok, self.near)
         # highlights: blobs that stay put in the image while the tissue moves
         lit = np.zeros(n, bool)
+        masked = np.zeros(n, bool)  # matched on the pixels the highlights leave
+        fallback = np.zeros(n, bool)  # and of those, with the halos kept in
         if self.blobs.any():
             # a match whose residual is the noise's is not disturbed by a blob: only the
             # blobs under the other subsets need deciding on this frame
@@ -1195,8 +1197,27 @@ class _Run:
             matched_here = ok & lit  # their own match, a start for the masked subsets
             ok &= ~lit
             if lit.any():  # matched again on the pixels no highlight covers on either image
-                take(*self._around_highlights(coeff, lit & active, p0, p, matched_here, sizes,
-                                              ok, z))  # fmt: skip
+                idx, result, halo_kept = self._around_highlights(
+                    coeff, lit & active, p0, p, matched_here, sizes, ok, z
+                )
+                taken = idx[take(idx, result)]
+                fallback[idx[halo_kept]] = True
+                # a masked match that its neighbours' motion does not predict, by more than
+                # 3 of its own sigma (the residual's, with a halo left in), has drifted
+                judged = np.zeros(n, bool)
+                judged[taken] = True
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    own = _local_sigma(hinv, n_px, 2 * self.noise_scale * self.noise2,
+                                       self.noise2)[0]  # fmt: skip
+                    excess = np.maximum(s2 / self.gain / self.noise2, 1.0)
+                own = np.where(fallback, own * np.sqrt(excess), own)
+                bar = np.maximum(0.3, 3 * np.where(np.isfinite(own), own, 0.0))
+                drifted = _inconsistent(
+                    self.points, p[:, :2], ok, self.near, judge=judged, floor=bar
+                )
+                ok &= ~drifted
+                masked[taken] = ~drifted[taken]
+                fallback &= masked
                 lit &= ~ok
 
         # 3b. a point whose own match fell short of convergence or of zncc_min (weak texture,
@@ -1285,12 +1306,14 @@ class _Run:
         half = sizes // 2
         bias = _affine_bias(second, half, lap_noise2)
         if 2 in self.orders:
+            # (not the subsets matched around a highlight: the quadratic warp would take
+            # the highlight in again)
             if self.orders == (2,):
-                tries = np.flatnonzero(active & (ok | from_field))
+                tries = np.flatnonzero(active & (ok | from_field) & ~masked)
             else:
                 # where the bias is large and the curvature that makes it stands out of
                 # the displacements' noise (a flat field's noisy fits do not pass)
-                tries = np.flatnonzero(ok & (bias > _QUADRATIC_BIAS * sigma) &
+                tries = np.flatnonzero(ok & ~masked & (bias > _QUADRATIC_BIAS * sigma) &
                                        _curves(second, lap_noise2))  # fmt: skip
             if tries.size:
                 pq, zq, okq, s2q, hq, nq = self._match(coeff, tries, p[tries], sizes, 2)
@@ -1310,6 +1333,11 @@ class _Run:
                 s2[i], hinv[i], n_px[i] = s2q[better], hq[better], nq[better]
                 noise_s2 = 2 * self.noise_scale * noise2
                 sigma, _ = _local_sigma(hinv, n_px, noise_s2, self.noise2)
+        # a subset matched with a highlight's halo left in holds some of its light: the
+        # residual's excess over the noise model's is counted as position noise there
+        with np.errstate(invalid="ignore", divide="ignore"):
+            excess = np.maximum((s2 / self.gain) / noise2, 1.0)
+        sigma = np.where(fallback & np.isfinite(excess), sigma * np.sqrt(excess), sigma)
         affine = ok & ~quadratic
         sigma = np.where(affine, np.sqrt(sigma**2 + bias**2), sigma)
 
@@ -1454,8 +1482,10 @@ class _Run:
         (:meth:`_masked_match`): the subset follows the tissue's texture around it, not
         the light. From their own match where they had one, else
         from their best ``measured`` neighbour's warp (``z``: the neighbours' ZNCC),
-        evaluated at the point, else from the motion ``guess``; their neighbours' test
-        follows (a match that drifted is not kept)."""
+        evaluated at the point, else from the motion ``guess``. Returns the rows, the
+        matches (as :meth:`_match` returns them) and which rows kept the halos in (their
+        subsets matched with the blobs alone left out). The caller judges the matches by
+        their neighbours' motion (a match that drifted is not kept)."""
         from strain2d.trackers.dic import _best_neighbours
 
         idx = np.flatnonzero(rows)
@@ -1469,8 +1499,8 @@ class _Run:
             start[np.searchsorted(idx, f_idx)] = _warps(self.points[f_idx], at, F)
         highlights = self.static | self.frame_highlights
         masks = (with_halos(highlights), dilated(highlights, 2))
-        result = self._masked_match(coeff, idx, start, sizes, masks)
-        return idx, result
+        *result, which = self._masked_match(coeff, idx, start, sizes, masks)
+        return idx, tuple(result), which == 1
 
     def _masked_match(self, coeff, rows, start, sizes, masks):
         """IC-GN (affine) of ``rows`` from warps ``start`` on the pixels of each subset that
@@ -1495,6 +1525,7 @@ class _Run:
         hinv = np.full((m, 2), np.nan)
         n_px = np.zeros(m)
         H, W = self.shape
+        which = np.full(m, -1)  # the mask each row was matched with (-1: none)
         masks = [(hidden, dilated(hidden, 2)) for hidden in masks]
         for j, i in enumerate(rows):
             size = int(sizes[i])
@@ -1509,12 +1540,13 @@ class _Run:
             gx = np.clip(np.rint(fxp).astype(int), 0, W - 1)
             gy = np.clip(np.rint(fyp).astype(int), 0, H - 1)
             least = max(_MASKED_MIN_PIXELS, _MASKED_MIN_SHARE * size * size)
-            for hidden, wide in masks:  # the widest mask that leaves pixels enough
+            for which[j], (hidden, wide) in enumerate(masks):  # the widest that leaves enough
                 keep = ~hidden[ry, rx] & ~wide[gy, gx]
                 count = int(keep.sum())
                 if count >= least:
                     break
             else:
+                which[j] = -1
                 continue
             exk, eyk = ex[keep], ey[keep]
             X, Y = cx + exk, cy + eyk
@@ -1543,7 +1575,7 @@ class _Run:
             n_px[j] = count
             s2[j] = max(2 * (1 - zk[0]), 1e-12) * norm**2 / max(count - 6, 1)
             hinv[j] = np.einsum("ks,ks->k", G[:2], G[:2])
-        return p, z, ok, s2, hinv, n_px
+        return p, z, ok, s2, hinv, n_px, which
 
     def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
         """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
