@@ -1480,12 +1480,12 @@ class _Run:
         frame's spline coefficients ``coeff``) on the pixels that no highlight (of the
         reference or of this frame: they stay put) nor its halo covers on either image
         (:meth:`_masked_match`): the subset follows the tissue's texture around it, not
-        the light. From their own match where they had one, else
-        from their best ``measured`` neighbour's warp (``z``: the neighbours' ZNCC),
-        evaluated at the point, else from the motion ``guess``. Returns the rows, the
-        matches (as :meth:`_match` returns them) and which rows kept the halos in (their
-        subsets matched with the blobs alone left out). The caller judges the matches by
-        their neighbours' motion (a match that drifted is not kept)."""
+        the light. From their own match where they had one, else from their best
+        ``measured`` neighbour's warp (``z``: the neighbours' ZNCC), evaluated at the
+        point, else from the motion ``guess``. Returns the rows, the matches (as
+        :meth:`_match` returns them) and which rows kept the halos in (their subsets
+        matched with the blobs alone left out). The caller judges the matches by their
+        neighbours' motion (a match that drifted is not kept)."""
         from strain2d.trackers.dic import _best_neighbours
 
         idx = np.flatnonzero(rows)
@@ -1512,7 +1512,8 @@ class _Run:
         ``masks``: the highlights with their halos, then without; each subset takes the
         first that leaves it :data:`_MASKED_MIN_PIXELS` pixels (and
         :data:`_MASKED_MIN_SHARE` of its square), and is not matched where none does.
-        Returns what :meth:`_match` returns."""
+        Returns what :meth:`_match` returns, then per row the index of the mask it was
+        matched with (-1 where none left it pixels enough)."""
         from strain2d.trackers._icgn_kernel import icgn
         from strain2d.trackers.dic import _sample
         from tissue_core.interrupt import deferred_interrupt
