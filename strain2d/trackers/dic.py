@@ -145,6 +145,28 @@ class _Subsets:
 SUBSET_FIELDS = tuple(f.name for f in fields(_Subsets))
 
 
+def step_operator(
+    f: np.ndarray, fx: np.ndarray, fy: np.ndarray, ex: np.ndarray, ey: np.ndarray, order: int = 1
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What IC-GN needs of reference subsets (n, S2): their intensities ``f`` and central
+    differences ``fx``, ``fy`` at pixel offsets ``ex``, ``ey`` (S2,) from their centres.
+
+    Returns the zero-mean subsets over their norm, the norm (n, 1; 1 for a flat subset)
+    and the Gauss-Newton step operator ``G = (J J')^+ J`` (n, P, S2), P = 6 for the
+    affine warp (``order`` 1) or 12 for the quadratic one. A textureless subset has a
+    singular Hessian: it is kept, and simply never matches."""
+    columns = [fx, fy, fx * ex, fx * ey, fy * ex, fy * ey]
+    if order == 2:
+        q = (0.5 * ex * ex, ex * ey, 0.5 * ey * ey)
+        columns += [fx * q[0], fx * q[1], fx * q[2], fy * q[0], fy * q[1], fy * q[2]]
+    J = np.stack(columns, axis=1)  # (n, P, S2)
+    Hinv = np.linalg.pinv(J @ np.swapaxes(J, 1, 2))
+    fm = f - f.mean(axis=1, keepdims=True)
+    norm = np.sqrt(np.sum(fm**2, axis=1, keepdims=True))
+    norm[norm == 0] = 1.0
+    return fm / norm, norm, Hinv @ J
+
+
 class _Correlator:
     """IC-GN machinery for one subset size."""
 
@@ -180,19 +202,9 @@ class _Correlator:
         f = patch[:, 1:-1, 1:-1].reshape(n, -1)
         fx = 0.5 * (patch[:, 1:-1, 2:] - patch[:, 1:-1, :-2]).reshape(n, -1)
         fy = 0.5 * (patch[:, 2:, 1:-1] - patch[:, :-2, 1:-1]).reshape(n, -1)
-        ex, ey = self.ex, self.ey
-        columns = [fx, fy, fx * ex, fx * ey, fy * ex, fy * ey]
-        if self.order == 2:
-            q = (0.5 * ex * ex, ex * ey, 0.5 * ey * ey)
-            columns += [fx * q[0], fx * q[1], fx * q[2], fy * q[0], fy * q[1], fy * q[2]]
-        J = np.stack(columns, axis=1)  # (n, P, S2)
-        # textureless subsets have a singular Hessian: keep them, they simply never match
-        Hinv = np.linalg.pinv(J @ np.swapaxes(J, 1, 2))
-        fm = f - f.mean(axis=1, keepdims=True)
-        norm = np.sqrt(np.sum(fm**2, axis=1, keepdims=True))
-        norm[norm == 0] = 1.0
+        f_normed, norm, G = step_operator(f, fx, fy, self.ex, self.ey, self.order)
         template = patch[:, 1:-1, 1:-1].astype(np.float32)
-        return _Subsets(centers.copy(), np.full(n, frame), fm / norm, norm, Hinv @ J, template)
+        return _Subsets(centers.copy(), np.full(n, frame), f_normed, norm, G, template)
 
     def match(
         self,

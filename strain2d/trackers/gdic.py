@@ -561,6 +561,19 @@ def _chunks(n: int, size: int) -> list[np.ndarray]:
     return [np.arange(a, min(a + size, n)) for a in range(0, n, max(size, 1))]
 
 
+def _no_matches(m: int, n_params: int = 6):
+    """What :meth:`_Run._match` returns for ``m`` rows before any is matched: warps of
+    ``n_params`` zeros, ZNCC -1, none accepted, no residual, ``(J'J)^-1`` or pixels."""
+    return (
+        np.zeros((m, n_params)),
+        np.full(m, -1.0),
+        np.zeros(m, bool),
+        np.full(m, np.nan),
+        np.full((m, 2), np.nan),
+        np.zeros(m),
+    )
+
+
 def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
     """Reference subsets of many points, built 256 at a time (on every thread allowed)
     into float32 arrays (the float64 ones of a whole dense grid would not fit the cache
@@ -1075,12 +1088,7 @@ class _Run:
         uncertainty)."""
         m = len(rows)
         n_params = 6 if order == 1 else 12
-        p = np.zeros((m, n_params))
-        z = np.full(m, -1.0)
-        ok = np.zeros(m, bool)
-        s2 = np.full(m, np.nan)
-        hinv = np.full((m, 2), np.nan)
-        n_px = np.zeros(m)
+        p, z, ok, s2, hinv, n_px = _no_matches(m, n_params)
         if m == 0:
             return p, z, ok, s2, hinv, n_px
         start = np.zeros((m, n_params))
@@ -1136,12 +1144,7 @@ class _Run:
         rows = np.flatnonzero(active)
 
         # 1. every textured point from the motion guess (affine warp)
-        p = np.zeros((n, 6))
-        z = np.full(n, -1.0)
-        ok = np.zeros(n, bool)
-        s2 = np.full(n, np.nan)
-        hinv = np.full((n, 2), np.nan)
-        n_px = np.zeros(n)
+        p, z, ok, s2, hinv, n_px = _no_matches(n)
 
         def take(idx, result, better=None):
             pk, zk, okk, s2k, hk, nk = result
@@ -1515,16 +1518,11 @@ class _Run:
         Returns what :meth:`_match` returns, then per row the index of the mask it was
         matched with (-1 where none left it pixels enough)."""
         from strain2d.trackers._icgn_kernel import icgn
-        from strain2d.trackers.dic import _sample
+        from strain2d.trackers.dic import _sample, step_operator
         from tissue_core.interrupt import deferred_interrupt
 
         m = len(rows)
-        p = np.zeros((m, 6))
-        z = np.full(m, -1.0)
-        ok = np.zeros(m, bool)
-        s2 = np.full(m, np.nan)
-        hinv = np.full((m, 2), np.nan)
-        n_px = np.zeros(m)
+        p, z, ok, s2, hinv, n_px = _no_matches(m)
         H, W = self.shape
         which = np.full(m, -1)  # the mask each row was matched with (-1: none)
         masks = [(hidden, dilated(hidden, 2)) for hidden in masks]
@@ -1558,14 +1556,10 @@ class _Run:
                 np.concatenate([Y, Y, Y, Y + 1, Y - 1]),
             ).reshape(5, -1)
             fx, fy = 0.5 * (right - left), 0.5 * (down - up)
-            J = np.stack([fx, fy, fx * exk, fx * eyk, fy * exk, fy * eyk])
-            Hinv = np.linalg.pinv(J @ J.T)
-            fm = f - f.mean()
-            norm = float(np.sqrt(np.sum(fm**2))) or 1.0
-            G = Hinv @ J
+            f_normed, norm, G = step_operator(f[None], fx[None], fy[None], exk, eyk)
             with deferred_interrupt():  # Ctrl-C inside the kernel would be a SystemError
                 pk, zk, ck = icgn(
-                    coeff, np.array([[cx, cy]]), (fm / norm)[None], np.array([norm]), G[None],
+                    coeff, np.array([[cx, cy]]), f_normed, norm[:, 0], G,
                     q[None, :6].astype(np.float64), np.ascontiguousarray(exk),
                     np.ascontiguousarray(eyk), corr.half, self.tolerances[[i]],
                     self.max_iterations, self.zncc_min,
@@ -1574,8 +1568,8 @@ class _Run:
             p[j], z[j] = pk[0], zk[0]
             ok[j] = bool(ck[0]) and zk[0] >= self.zncc_min and inside
             n_px[j] = count
-            s2[j] = max(2 * (1 - zk[0]), 1e-12) * norm**2 / max(count - 6, 1)
-            hinv[j] = np.einsum("ks,ks->k", G[:2], G[:2])
+            s2[j] = max(2 * (1 - zk[0]), 1e-12) * float(norm[0, 0]) ** 2 / max(count - 6, 1)
+            hinv[j] = np.einsum("ks,ks->k", G[0, :2], G[0, :2])
         return p, z, ok, s2, hinv, n_px, which
 
     def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
