@@ -271,14 +271,11 @@ def _capture(
     frames: Iterable[np.ndarray],
     wanted: set[int],
     seen: Callable[[int, np.ndarray], None],
-    tick: Callable[[], None],
 ) -> Iterable[np.ndarray]:
-    """The frames, passing those in ``wanted`` to ``seen(k, image)`` and calling ``tick()``
-    on the way."""
+    """The frames, passing those in ``wanted`` to ``seen(k, image)`` on the way."""
     for k, image in enumerate(frames):
         if k in wanted:
             seen(k, np.array(image))
-        tick()
         yield image
 
 
@@ -569,7 +566,7 @@ def run_outputs(
         path = figdir / f"strain_animation.{animation}"
         fg.write_strain_animation(
             path,
-            _capture(frames(), wanted, draw_on, pool.poll),
+            _capture(frames(), wanted, draw_on),
             field,
             components=tuple(c for c in components if c != "Exy")[:2] or tuple(components[:1]),
             limits=limits,
@@ -582,7 +579,7 @@ def run_outputs(
         if runtime_s is not None:
             runtime_s["animation"] = time.perf_counter() - started
     elif wanted:
-        for k, _ in enumerate(_capture(frames(), wanted, draw_on, pool.poll)):
+        for k, _ in enumerate(_capture(frames(), wanted, draw_on)):
             if k >= max(wanted):
                 break
     missing = set(maps) - set(drawn)

@@ -392,6 +392,22 @@ def _figure_pool(pool, workers: int | None):
         raise
 
 
+def _write_tables(folder: Path, tracks, field, times, time_unit: str, length: dict) -> float:
+    """The run's tables and ParaView series in ``folder`` (a task for a worker process);
+    returns the seconds they took."""
+    import time
+
+    from strain2d.export import write_pvd, write_strain_elements_csv, write_strain_nodes_csv
+    from strain2d.tracks import write_tracks_csv
+
+    started = time.perf_counter()
+    write_tracks_csv(folder / "tracks.csv", tracks, **length)
+    write_strain_nodes_csv(folder / "strain_nodes.csv", field, tracks.uncertainty, **length)
+    write_strain_elements_csv(folder / "strain_elements.csv", field)
+    write_pvd(folder, field, name="strain", times=times, time_unit=time_unit, **length)
+    return time.perf_counter() - started
+
+
 def write_run(
     out: str | os.PathLike,
     analysis,
@@ -461,11 +477,13 @@ def write_run(
         Timings to record (the command line passes tracking and strain).  The
         time a streamed field (:func:`surface_strain.streamed_strain`) spends
         computing its frames while the outputs are written is added to
-        ``strain``.  Then, in seconds of the clock: ``tables`` (the tables
-        and the ParaView series) and ``animation``, as written here;
-        ``figures``, from the start of the writing until the last figure was
-        drawn (by worker processes, meanwhile); ``report`` (``summary.json``
-        and ``report.html``); ``outputs``, the whole writing less the strain.
+        ``strain`` (but where a worker process writes the tables).  Then, in
+        seconds of the clock: ``tables`` (the tables and the ParaView series,
+        written by a worker process when there is one) and ``animation``
+        (written here); ``figures``, from the start of the writing until the
+        last figure was drawn (by worker processes, meanwhile); ``report``
+        (``summary.json`` and ``report.html``); ``outputs``, the whole writing
+        less the strain.
     scale : PixelScale or str, keyword-only
         The pixel size (``"0.012mm/px"``, see :mod:`strain2d.scale`): the
         tables gain positions and displacements in its unit (``x_mm``...),
@@ -521,10 +539,8 @@ def write_run(
     import warnings
     from datetime import UTC, datetime
 
-    from strain2d.export import write_pvd, write_strain_elements_csv, write_strain_nodes_csv
     from strain2d.figures import plot_tracked_grid
     from strain2d.report import run_outputs, write_run_report
-    from strain2d.tracks import write_tracks_csv
     from surface_strain import RUN_SCHEMA, Mesh
     from tissue_core.html import sequence_record
     from tissue_core.jsonio import write_json
@@ -569,9 +585,9 @@ def write_run(
     mesh = analysis.mesh or Mesh(field.triangles, "given", "given")
     tracker = analysis.tracker or tracks.meta.get("tracker") or "unknown"
     spent: dict[str, float] = {}
-    # the video's files are inputs too: no output may replace them; the figures are drawn in
-    # worker processes (when there are cores for them) while the tables and the animation
-    # are written here
+    # the video's files are inputs too: no output may replace them; the figures and the
+    # tables are written by worker processes (when there are cores for them) while the
+    # animation is written here
     with (
         atomic_dir(out, overwrite=overwrite, inputs=[*inputs, *names]) as tmp,
         _figure_pool(pool, workers) as pool,
@@ -590,15 +606,13 @@ def write_run(
             outline=[] if mask is None else mask.outline(),
         )
 
-        def tables() -> None:
-            started = time.perf_counter()
-            write_tracks_csv(tmp / "tracks.csv", tracks, **length)
-            write_strain_nodes_csv(tmp / "strain_nodes.csv", field, tracks.uncertainty, **length)
-            write_strain_elements_csv(tmp / "strain_elements.csv", field)
-            write_pvd(
-                tmp, field, name="strain", times=times, time_unit="s" if fps else "frame", **length
-            )
-            spent["tables"] = time.perf_counter() - started
+        tables: list = []  # the tables, written by a worker once the figures are on their way
+
+        def meanwhile() -> None:
+            tables.append(
+                pool.submit(_write_tables, tmp, tracks, field, times, "s" if fps else "frame",
+                            length)
+            )  # fmt: skip
 
         extra = run_outputs(
             tmp,
@@ -617,13 +631,14 @@ def write_run(
             length=scale,
             images={0: first_img, T - 1: last_img},
             pool=pool,
-            meanwhile=tables,
+            meanwhile=meanwhile,
             runtime_s=spent,
             cycle=cycle,
             maps_at_peaks=maps_at_peaks,
             signals=signals,
             trigger=trigger,
         )
+        spent["tables"] = tables[0].result()
         extra["figures"].insert(
             0,
             {

@@ -9,8 +9,9 @@ worker's, which may not start processes) the same calls run here, one after
 the other, when submitted.
 
 Each worker has a pipe of its own (no shared queues, whose semaphores would
-outlive an interrupted run); a task goes to an idle worker whenever the
-caller submits, polls or waits.  The workers ignore Ctrl-C (the command
+outlive an interrupted run); a thread of the pool gives a task to a worker
+as soon as the worker is idle, whatever the caller is doing meanwhile (the
+tables, the animation).  The workers ignore Ctrl-C (the command
 handles it): leaving the pool on an error or an interrupt ends them before
 the caller removes what they were writing into.  A task runs with the
 caller's Matplotlib settings, and its warnings are raised again here: as if
@@ -27,7 +28,7 @@ import sys
 import threading
 import traceback
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 __all__ = ["FigurePool"]
@@ -103,12 +104,13 @@ class _RemoteTraceback(Exception):
         return self.args[0]
 
 
-def _serve(connection, inherited: list, warm: bool = False) -> None:
+def _serve(connection, inherited: list, warm: bool = False, preload: Sequence[str] = ()) -> None:
     """A worker: run the tasks that come down ``connection`` until told to stop.
 
     ``inherited`` are the caller's ends of the workers' pipes that a fork
     copied here: closed, so that each worker sees its pipe end with the caller.
-    ``warm``: load Matplotlib's fonts and math text before the first task.
+    ``warm``: load Matplotlib's fonts and math text before the first task, and the modules
+    ``preload`` names.
     """
     import pickle
     import signal
@@ -121,6 +123,8 @@ def _serve(connection, inherited: list, warm: bool = False) -> None:
         __import__(name)
     if warm:
         _warm_up()
+        for name in preload:
+            __import__(name)
     while True:
         try:
             task = connection.recv()
@@ -171,6 +175,9 @@ class FigurePool:
         caller has one thread: the workers are then forked (not started
         from a fresh server, as they are once threads run), and load while
         the caller works.
+    preload : sequence of str, keyword-only
+        Modules a warm pool's workers import too, while the caller works
+        (``scipy.stats`` for a run's statistics: a third of a second).
 
     Examples
     --------
@@ -180,7 +187,9 @@ class FigurePool:
     (3, 1)
     """
 
-    def __init__(self, workers: int | None = None, *, warm: bool = False) -> None:
+    def __init__(
+        self, workers: int | None = None, *, warm: bool = False, preload: Sequence[str] = ()
+    ) -> None:
         if workers is None:
             workers = _available_cores()
             workers = 0 if workers < 2 else min(workers, MAX_WORKERS)
@@ -190,12 +199,19 @@ class FigurePool:
             workers = 0  # a daemonic process (a Dask worker's) may not start processes
         self.workers = workers
         self.warm = warm
+        self.preload = tuple(preload)
         self._processes: list = []
         self._idle: list = []  # connections of the workers without a task
         self._busy: dict = {}  # connection -> the number of its task
         self._queued: collections.deque = collections.deque()
         self._done: dict[int, tuple[bool, Any]] = {}
         self._count = 0
+        # the pool's state is shared with its dispatching thread (started with the workers)
+        self._lock = threading.RLock()
+        self._finished = threading.Condition(self._lock)  # notified as tasks end
+        self._dispatcher: threading.Thread | None = None
+        self._ending = False
+        self._lost: list = []  # connections of workers left busy when the dispatcher failed
 
     def __enter__(self) -> FigurePool:
         if self.workers:
@@ -206,7 +222,9 @@ class FigurePool:
                     mine, theirs = context.Pipe()
                     inherited = [*self._idle, mine] if forked else []
                     process = context.Process(
-                        target=_serve, args=(theirs, inherited, self.warm), daemon=True
+                        target=_serve,
+                        args=(theirs, inherited, self.warm, self.preload),
+                        daemon=True,
                     )
                     process.start()
                     theirs.close()
@@ -216,52 +234,101 @@ class FigurePool:
                 log.debug("figures drawn in this process: %s", exc)
                 self._stop(kill=True)
                 self.workers = 0
+                return self
+            # started after the forks: the workers are forked while this process has one thread
+            self._wake_reader, self._wake_writer = multiprocessing.Pipe(duplex=False)
+            self._dispatcher = threading.Thread(
+                target=self._dispatch, name="figure-pool", daemon=True
+            )
+            self._dispatcher.start()
         return self
 
     def submit(self, fn: Callable, /, *args, **kwargs) -> _Result:
         """Call ``fn(*args, **kwargs)`` in a worker, or here without workers."""
         if not self._processes:
             return _Result(None, 0, fn(*args, **kwargs))
-        self._count += 1
-        self._queued.append((self._count, fn, args, kwargs, _style()))
-        self.poll()
-        return _Result(self, self._count)
+        with self._lock:
+            self._count += 1
+            self._queued.append((self._count, fn, args, kwargs, _style()))
+            number = self._count
+        self._wake_up()
+        return _Result(self, number)
 
-    def poll(self) -> None:
-        """Take in what the workers finished and give the idle ones the next tasks."""
-        self._receive(timeout=0)
+    def _wake_up(self) -> None:
+        try:
+            self._wake_writer.send_bytes(b"")
+        except (OSError, AttributeError):  # the dispatcher has ended
+            pass
 
-    def _receive(self, timeout: float | None) -> None:
+    def _dispatch(self) -> None:
+        """The pool's thread: give each idle worker the next task as soon as it is idle, and
+        take in what the workers finish, until the pool ends."""
         from multiprocessing.connection import wait
 
-        if self._busy:
-            for connection in wait(list(self._busy), timeout):
-                number = self._busy.pop(connection)
-                try:
-                    _, ok, outcome = connection.recv()
-                except EOFError:  # the worker died (killed, out of memory): not given more
-                    connection.close()
-                    error = RuntimeError("a process drawing the figures ended unexpectedly")
-                    self._done[number] = (False, (error, ""))
-                    continue
-                self._idle.append(connection)
-                self._done[number] = (ok, outcome)
+        try:
+            while True:
+                with self._lock:
+                    if self._ending:
+                        return
+                    self._hand_out()
+                    watched = [*self._busy, self._wake_reader]
+                for connection in wait(watched):
+                    if connection is self._wake_reader:
+                        while self._wake_reader.poll():
+                            self._wake_reader.recv_bytes()
+                        continue
+                    with self._lock:
+                        self._take_in(connection)
+                        self._finished.notify_all()
+        except Exception as exc:  # never leave the caller waiting for tasks nobody runs
+            with self._lock:
+                for number in [*self._busy.values(), *(task[0] for task in self._queued)]:
+                    self._done[number] = (False, (exc, traceback.format_exc()))
+                self._lost.extend(self._busy)  # their workers are ended with the pool
+                self._busy.clear()
+                self._queued.clear()
+                self._finished.notify_all()
+
+    def _hand_out(self) -> None:
+        """Queued tasks to idle workers (the lock held)."""
         while self._idle and self._queued:
             connection = self._idle.pop()
             task = self._queued.popleft()
-            connection.send(task)
-            self._busy[connection] = task[0]
-        while self._queued and not (self._idle or self._busy):  # no worker left: here
-            number, fn, args, kwargs, _ = self._queued.popleft()
             try:
-                self._done[number] = (True, (fn(*args, **kwargs), []))
-            except Exception as exc:
-                self._done[number] = (False, (exc, traceback.format_exc()))
+                connection.send(task)
+            except OSError:  # the worker is gone (killed while idle): another one, or here
+                connection.close()
+                self._queued.appendleft(task)
+                self._finished.notify_all()
+                continue
+            except Exception as exc:  # the task cannot travel (pickling): its error
+                self._done[task[0]] = (False, (exc, traceback.format_exc()))
+                self._idle.append(connection)
+                self._finished.notify_all()
+                continue
+            self._busy[connection] = task[0]
+
+    def _take_in(self, connection) -> None:
+        """A busy worker's reply (the lock held)."""
+        number = self._busy.pop(connection)
+        try:
+            _, ok, outcome = connection.recv()
+        except (EOFError, OSError):  # the worker died (killed, out of memory): not given more
+            connection.close()
+            error = RuntimeError("a process drawing the figures ended unexpectedly")
+            self._done[number] = (False, (error, ""))
+            return
+        self._idle.append(connection)
+        self._done[number] = (ok, outcome)
 
     def _wait(self, number: int) -> Any:
-        while number not in self._done:
-            self._receive(timeout=None)
-        ok, outcome = self._done.pop(number)
+        with self._lock:
+            while number not in self._done:
+                if not (self._idle or self._busy) and self._queued:
+                    self._run_here()  # no worker left
+                    continue
+                self._finished.wait()
+            ok, outcome = self._done.pop(number)
         if not ok:
             error, where = outcome
             raise error from _RemoteTraceback(where)
@@ -270,6 +337,15 @@ class FigurePool:
             warnings.warn(message, category, stacklevel=3)
         return value
 
+    def _run_here(self) -> None:
+        """The queued tasks, here (the lock held): every worker has died."""
+        while self._queued:
+            number, fn, args, kwargs, _ = self._queued.popleft()
+            try:
+                self._done[number] = (True, (fn(*args, **kwargs), []))
+            except Exception as exc:
+                self._done[number] = (False, (exc, traceback.format_exc()))
+
     def cancel(self) -> None:
         """End the workers at once, their tasks unfinished (what leaving on an error does)."""
         self._stop(kill=True)
@@ -277,6 +353,15 @@ class FigurePool:
 
     def _stop(self, *, kill: bool) -> None:
         """End the workers: after their tasks, or at once (``kill``)."""
+        if self._dispatcher is not None:
+            with self._lock:
+                self._ending = True
+            self._wake_up()
+            self._dispatcher.join()
+            self._dispatcher = None
+            self._wake_reader.close()
+            self._wake_writer.close()
+        kill = kill or bool(self._lost)
         for connection in [*self._idle, *self._busy]:
             if not kill:
                 try:
@@ -287,12 +372,16 @@ class FigurePool:
             if kill:
                 process.terminate()
             process.join()
-        for connection in [*self._idle, *self._busy]:
+        for connection in [*self._idle, *self._busy, *self._lost]:
             connection.close()
-        self._processes, self._idle, self._busy = [], [], {}
+        self._processes, self._idle, self._busy, self._lost = [], [], {}, []
 
     def __exit__(self, kind, error, traceback) -> None:
         if self._processes and kind is None:
-            while self._busy or self._queued:  # what was submitted and not waited for
-                self._receive(timeout=None)
+            with self._lock:
+                while self._busy or self._queued:  # what was submitted and not waited for
+                    if not (self._idle or self._busy):
+                        self._run_here()  # no worker left
+                        break
+                    self._finished.wait()
         self._stop(kill=kind is not None)

@@ -107,13 +107,14 @@ def test_existing_output_needs_overwrite(small_case, tmp_path, capsys):
 
 
 def test_interrupted_run_leaves_nothing_behind(small_case, tmp_path, monkeypatch, capsys):
+    """Ctrl-C while the animation is written here, the figures and tables by the workers."""
     folder, _ = small_case
-    import strain2d.export
+    import strain2d.figures
 
     def boom(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(strain2d.export, "write_pvd", boom)
+    monkeypatch.setattr(strain2d.figures, "write_strain_animation", boom)
     out = tmp_path / "run"
     assert (
         main(["-q", "analyze", str(folder / "eq.avi"), "--grid", "3x3", "--out", str(out)]) == 130

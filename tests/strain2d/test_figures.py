@@ -724,6 +724,28 @@ def test_a_warm_pool_loads_matplotlib_in_its_workers_not_here():
     assert out.stdout.strip() == "[True, True] True [False, False]"
 
 
+def _touch(path):
+    open(path, "w").close()
+
+
+def test_figure_pool_hands_a_task_to_a_worker_as_it_becomes_idle(tmp_path):
+    """A task queued behind another starts once the worker is free, while the caller works
+    on without calling the pool (as it does while it writes the animation)."""
+    from strain2d.figures._pool import FigurePool
+
+    go, second = tmp_path / "go", tmp_path / "second"
+    with FigurePool(1) as pool:
+        first = pool.submit(_wait_for, go)  # keeps the only worker busy until "go"
+        queued = pool.submit(_touch, second)
+        go.touch()
+        waited = 0.0
+        while not second.exists() and waited < 60:  # no call to the pool meanwhile
+            time.sleep(0.01)
+            waited += 0.01
+        assert second.exists()
+        first.result(), queued.result()
+
+
 def test_figure_pool_ends_its_workers_when_left_by_an_error(tmp_path):
     from strain2d.figures._pool import FigurePool
 
