@@ -567,8 +567,8 @@ def _cmd_analyze(args) -> int:
             say(f"pixel size {scale.per_px:.6g} {scale.unit} ({scale.source})")
 
     # the figures' workers start now, while this process has one thread, and load Matplotlib
-    # (and SciPy's statistics, for the violins' tests) while the points are tracked
-    with FigurePool(warm=True, preload=["scipy.stats"]) as pool:
+    # while the points are tracked
+    with FigurePool(warm=True) as pool:
         # the frames, 8-bit, while they fit KEEP_FRAMES_BYTES and an eighth of the memory
         # available: the animation then decodes none of them again
         keep = min(KEEP_FRAMES_BYTES, available_memory() // 8)

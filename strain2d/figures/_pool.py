@@ -28,7 +28,7 @@ import sys
 import threading
 import traceback
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Any
 
 __all__ = ["FigurePool"]
@@ -104,13 +104,12 @@ class _RemoteTraceback(Exception):
         return self.args[0]
 
 
-def _serve(connection, inherited: list, warm: bool = False, preload: Sequence[str] = ()) -> None:
+def _serve(connection, inherited: list, warm: bool = False) -> None:
     """A worker: run the tasks that come down ``connection`` until told to stop.
 
     ``inherited`` are the caller's ends of the workers' pipes that a fork
     copied here: closed, so that each worker sees its pipe end with the caller.
-    ``warm``: load Matplotlib's fonts and math text before the first task, and the modules
-    ``preload`` names.
+    ``warm``: load Matplotlib's fonts and math text before the first task.
     """
     import pickle
     import signal
@@ -123,8 +122,6 @@ def _serve(connection, inherited: list, warm: bool = False, preload: Sequence[st
         __import__(name)
     if warm:
         _warm_up()
-        for name in preload:
-            __import__(name)
     while True:
         try:
             task = connection.recv()
@@ -175,9 +172,6 @@ class FigurePool:
         caller has one thread: the workers are then forked (not started
         from a fresh server, as they are once threads run), and load while
         the caller works.
-    preload : sequence of str, keyword-only
-        Modules a warm pool's workers import too, while the caller works
-        (``scipy.stats`` for a run's statistics: a third of a second).
 
     Examples
     --------
@@ -187,9 +181,7 @@ class FigurePool:
     (3, 1)
     """
 
-    def __init__(
-        self, workers: int | None = None, *, warm: bool = False, preload: Sequence[str] = ()
-    ) -> None:
+    def __init__(self, workers: int | None = None, *, warm: bool = False) -> None:
         if workers is None:
             workers = _available_cores()
             workers = 0 if workers < 2 else min(workers, MAX_WORKERS)
@@ -199,7 +191,6 @@ class FigurePool:
             workers = 0  # a daemonic process (a Dask worker's) may not start processes
         self.workers = workers
         self.warm = warm
-        self.preload = tuple(preload)
         self._processes: list = []
         self._idle: list = []  # connections of the workers without a task
         self._busy: dict = {}  # connection -> the number of its task
@@ -223,7 +214,7 @@ class FigurePool:
                     inherited = [*self._idle, mine] if forked else []
                     process = context.Process(
                         target=_serve,
-                        args=(theirs, inherited, self.warm, self.preload),
+                        args=(theirs, inherited, self.warm),
                         daemon=True,
                     )
                     process.start()
