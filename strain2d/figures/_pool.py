@@ -202,9 +202,11 @@ class FigurePool:
         self._finished = threading.Condition(self._lock)  # notified as tasks end
         self._dispatcher: threading.Thread | None = None
         self._ending = False
+        self._broken = False  # the dispatcher failed: the tasks run here
         self._lost: list = []  # connections of workers left busy when the dispatcher failed
 
     def __enter__(self) -> FigurePool:
+        self._ending, self._broken, self._lost = False, False, []
         if self.workers:
             try:
                 context = _context(warm_here=not self.warm)
@@ -226,12 +228,16 @@ class FigurePool:
                 self._stop(kill=True)
                 self.workers = 0
                 return self
-            # started after the forks: the workers are forked while this process has one thread
-            self._wake_reader, self._wake_writer = multiprocessing.Pipe(duplex=False)
-            self._dispatcher = threading.Thread(
-                target=self._dispatch, name="figure-pool", daemon=True
-            )
-            self._dispatcher.start()
+            try:  # started after the forks: they are made while this process has one thread
+                self._wake_reader, self._wake_writer = multiprocessing.Pipe(duplex=False)
+                self._dispatcher = threading.Thread(
+                    target=self._dispatch, name="figure-pool", daemon=True
+                )
+                self._dispatcher.start()
+            except BaseException:
+                self._dispatcher = None
+                self._stop(kill=True)
+                raise
         return self
 
     def submit(self, fn: Callable, /, *args, **kwargs) -> _Result:
@@ -254,8 +260,11 @@ class FigurePool:
     def _dispatch(self) -> None:
         """The pool's thread: give each idle worker the next task as soon as it is idle, and
         take in what the workers finish, until the pool ends."""
+        import signal
         from multiprocessing.connection import wait
 
+        if hasattr(signal, "pthread_sigmask"):  # signals are the caller's to take
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             while True:
                 with self._lock:
@@ -273,28 +282,31 @@ class FigurePool:
                         self._finished.notify_all()
         except Exception as exc:  # never leave the caller waiting for tasks nobody runs
             with self._lock:
-                for number in [*self._busy.values(), *(task[0] for task in self._queued)]:
+                for number in self._busy.values():
                     self._done[number] = (False, (exc, traceback.format_exc()))
                 self._lost.extend(self._busy)  # their workers are ended with the pool
                 self._busy.clear()
-                self._queued.clear()
+                self._broken = True  # what is queued, and submitted from now on, runs here
                 self._finished.notify_all()
 
     def _hand_out(self) -> None:
         """Queued tasks to idle workers (the lock held)."""
+        from multiprocessing.reduction import ForkingPickler
+
         while self._idle and self._queued:
-            connection = self._idle.pop()
             task = self._queued.popleft()
             try:
-                connection.send(task)
+                data = ForkingPickler.dumps(task)
+            except Exception as exc:  # the task cannot travel: its error
+                self._done[task[0]] = (False, (exc, traceback.format_exc()))
+                self._finished.notify_all()
+                continue
+            connection = self._idle.pop()
+            try:
+                connection.send_bytes(data)
             except OSError:  # the worker is gone (killed while idle): another one, or here
                 connection.close()
                 self._queued.appendleft(task)
-                self._finished.notify_all()
-                continue
-            except Exception as exc:  # the task cannot travel (pickling): its error
-                self._done[task[0]] = (False, (exc, traceback.format_exc()))
-                self._idle.append(connection)
                 self._finished.notify_all()
                 continue
             self._busy[connection] = task[0]
@@ -309,14 +321,23 @@ class FigurePool:
             error = RuntimeError("a process drawing the figures ended unexpectedly")
             self._done[number] = (False, (error, ""))
             return
+        except Exception as exc:  # a reply that cannot be rebuilt here (read whole, though)
+            self._idle.append(connection)
+            self._done[number] = (False, (exc, traceback.format_exc()))
+            return
         self._idle.append(connection)
         self._done[number] = (ok, outcome)
+
+    def _left_here(self) -> bool:
+        """Whether the queued tasks must run here: no worker left, or no thread to give them
+        out (the lock held)."""
+        return bool(self._queued) and (self._broken or not (self._idle or self._busy))
 
     def _wait(self, number: int) -> Any:
         with self._lock:
             while number not in self._done:
-                if not (self._idle or self._busy) and self._queued:
-                    self._run_here()  # no worker left
+                if self._left_here():
+                    self._run_here()
                     continue
                 self._finished.wait()
             ok, outcome = self._done.pop(number)
@@ -329,7 +350,7 @@ class FigurePool:
         return value
 
     def _run_here(self) -> None:
-        """The queued tasks, here (the lock held): every worker has died."""
+        """The queued tasks, here (the lock held)."""
         while self._queued:
             number, fn, args, kwargs, _ = self._queued.popleft()
             try:
@@ -340,10 +361,10 @@ class FigurePool:
     def cancel(self) -> None:
         """End the workers at once, their tasks unfinished (what leaving on an error does)."""
         self._stop(kill=True)
-        self._queued.clear()
 
     def _stop(self, *, kill: bool) -> None:
-        """End the workers: after their tasks, or at once (``kill``)."""
+        """End the workers: after their tasks, or at once (``kill``: the tasks not finished
+        fail, as cancelled)."""
         if self._dispatcher is not None:
             with self._lock:
                 self._ending = True
@@ -365,14 +386,24 @@ class FigurePool:
             process.join()
         for connection in [*self._idle, *self._busy, *self._lost]:
             connection.close()
-        self._processes, self._idle, self._busy, self._lost = [], [], {}, []
+        with self._lock:
+            cancelled = RuntimeError("the figure's pool was ended before the task was done")
+            for number in [*self._busy.values(), *(task[0] for task in self._queued)]:
+                self._done[number] = (False, (cancelled, ""))
+            self._queued.clear()
+            self._processes, self._idle, self._busy, self._lost = [], [], {}, []
+            self._finished.notify_all()
 
     def __exit__(self, kind, error, traceback) -> None:
         if self._processes and kind is None:
-            with self._lock:
-                while self._busy or self._queued:  # what was submitted and not waited for
-                    if not (self._idle or self._busy):
-                        self._run_here()  # no worker left
-                        break
-                    self._finished.wait()
+            try:
+                with self._lock:
+                    while self._busy or self._queued:  # submitted and not waited for
+                        if self._left_here():
+                            self._run_here()
+                            break
+                        self._finished.wait()
+            except BaseException:  # Ctrl-C while waiting: the workers end at once
+                self._stop(kill=True)
+                raise
         self._stop(kill=kind is not None)

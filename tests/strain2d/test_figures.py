@@ -746,6 +746,40 @@ def test_figure_pool_hands_a_task_to_a_worker_as_it_becomes_idle(tmp_path):
         first.result(), queued.result()
 
 
+def test_figure_pool_fails_a_task_whose_call_or_reply_cannot_travel_and_goes_on():
+    """A task whose arguments raise as they are pickled (here an OSError, as a file-backed
+    object may), or whose error cannot be rebuilt here: that task's error, raised here,
+    and the workers go on with the next tasks (run in a subprocess: a pool that waited
+    forever would fail it, not hang the tests)."""
+    code = (
+        "import os\n"
+        "from strain2d.figures._pool import FigurePool\n"
+        "class Unreadable:\n"
+        "    def __reduce__(self):\n"
+        "        raise FileNotFoundError('the file behind it is gone')\n"
+        "class TwoArgError(Exception):\n"
+        "    def __init__(self, what, why):\n"
+        "        super().__init__(f'{what}: {why}')\n"
+        "def fail():\n"
+        "    raise TwoArgError('frame 3', 'no strain')\n"
+        "def ident(x):\n"
+        "    return x, os.getpid()\n"
+        "if __name__ == '__main__':\n"
+        "    with FigurePool(2) as pool:\n"
+        "        for task in (pool.submit(ident, Unreadable()), pool.submit(fail)):\n"
+        "            try:\n"
+        "                task.result()\n"
+        "            except Exception as exc:\n"
+        "                print(type(exc).__name__)\n"
+        "        value, pid = pool.submit(ident, 7).result()\n"
+        "        print(value, pid != os.getpid(), all(p.is_alive() for p in pool._processes))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert out.stdout.split() == ["FileNotFoundError", "TypeError", "7", "True", "True"]
+
+
 def test_figure_pool_ends_its_workers_when_left_by_an_error(tmp_path):
     from strain2d.figures._pool import FigurePool
 
