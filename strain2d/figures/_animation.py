@@ -274,7 +274,22 @@ def _animation_figure(
         "gray": (vmin, vmax, _colour_table(images[0])),
         "bands": {c: _bands(scales[c], alpha) for c in components},
         "edges": _mesh_edges(field.triangles),
+        "compiled": _compiled(field.n_frames),
     }
+
+
+#: frames from which the animation fills its bands with the compiled kernel even where no
+#: tracker loaded numba: loading it (0.2 s) and its compiler (0.15-0.35 s) costs what the
+#: kernel saves on about 60 frames (9 ms a frame of two panels at 960 px)
+_COMPILED_FROM = 100
+
+
+def _compiled(n_frames: int) -> bool:
+    """Whether to fill the bands with the compiled kernel: numba already loaded here (by
+    gdic or dic), or a video long enough to pay for loading it.  The pixels are the same."""
+    import sys
+
+    return "numba" in sys.modules or n_frames >= _COMPILED_FROM
 
 
 def _rgb(canvas, size: tuple[int, int], rows: int | None = None) -> np.ndarray:
@@ -396,7 +411,8 @@ def _animation_frame(state, image, field, k, scalars, components, label) -> np.n
         if good.any():
             sx, tx, sy, ty = panel["to_window"]
             xy = np.column_stack([pos[:, 0] * sx + tx, pos[:, 1] * sy + ty])
-            _fill_bands(rgb, xy, values, triangles, good, state["bands"][comp])
+            _fill_bands(rgb, xy, values, triangles, good, state["bands"][comp],
+                        state["compiled"])  # fmt: skip
             _shade_edges(rgb, xy, state["edges"], good)
         shown = panel["dark"] + panel["through"] * rgb
         out[panel["window"]] = shown.clip(0.0, 255.0).round().astype(np.uint8)
@@ -438,7 +454,7 @@ def _gray(state: dict, image: np.ndarray, panel: dict) -> np.ndarray:
     return rgb
 
 
-def _fill_bands(rgb, xy, values, triangles, good, bands) -> None:
+def _fill_bands(rgb, xy, values, triangles, good, bands, compiled: bool = False) -> None:
     """Blend the banded field on the triangles ``good`` over ``rgb`` (h, w, 3) float32, in place.
 
     ``xy`` (N, 2) are the nodes in the pixel coordinates of ``rgb`` (pixel
@@ -446,7 +462,8 @@ def _fill_bands(rgb, xy, values, triangles, good, bands) -> None:
     (clipped to its nodes' range) and coloured by band at the bands'
     opacity.  As ``tricontourf`` without antialiasing fills each band up to
     the pixels its edge touches, a pixel beside a higher band is covered by
-    both: the higher band's colour is blended over it again.
+    both: the higher band's colour is blended over it again.  ``compiled``:
+    the same pixels from :func:`strain2d.figures._band_kernel.fill_bands`.
     """
     used = np.flatnonzero(good)
     corners = xy[triangles[used]]  # (m, 3, 2)
@@ -469,6 +486,12 @@ def _fill_bands(rgb, xy, values, triangles, good, bands) -> None:
     plane[:, 1] = (dv2 * d1[:, 0] - dv1 * d2[:, 0]) / det
     plane[:, 2] = v[:, 0] - plane[:, 0] * corners[:, 0, 0] - plane[:, 1] * corners[:, 0, 1]
     plane[:, 3], plane[:, 4] = v.min(axis=1), v.max(axis=1)
+    if compiled:
+        from strain2d.figures._band_kernel import fill_bands
+
+        fill_bands(rgb, np.ascontiguousarray(corners), plane, bands["low"], bands["step"],
+                   bands["n"], bands["colours"], bands["opacity"])  # fmt: skip
+        return
     r, c, t = _raster_triangles(corners, rgb.shape[:2])
     gx, gy, g0, low, high = plane.take(t, axis=0).T
     field = (gx * c.astype(np.float32) + gy * r.astype(np.float32) + g0).clip(low, high)

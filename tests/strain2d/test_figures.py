@@ -637,6 +637,40 @@ def test_raster_triangles_lists_the_pixels_whose_centres_lie_inside():
     }
 
 
+def test_compiled_band_filling_gives_the_pixels_of_the_numpy_one():
+    """The animation's compiled kernel against its NumPy path, bit for bit: meshes moved,
+    scaled and reaching outside the raster, triangles without area or with a horizontal
+    edge on a pixel row, every component's scale."""
+    from strain2d.figures._animation import _bands, _fill_bands
+    from strain2d.figures._style import _colour_scale
+
+    rng = np.random.default_rng(11)
+    field = _wavy_field()
+    values = nodal_scalars(field)
+    checked = 0
+    for comp in ("Exx", "Eyy", "Exy"):
+        finite = np.concatenate([v[np.isfinite(v)] for v in values[comp]])
+        bands = _bands(_colour_scale(comp, float(finite.min()), float(finite.max())), 0.6)
+        for k in range(field.n_frames):
+            for scale, shift in ((1.0, 0.0), (2.7, -40.0), (0.4, 3.3), (3.1, 15.5)):
+                xy = field.points[k] * scale + shift
+                if checked % 3 == 0:
+                    xy = xy.copy()
+                    a, b, c = field.triangles[checked % len(field.triangles)]
+                    xy[b] = xy[a]  # a triangle (or more) without area
+                    xy[c, 1] = np.round(xy[a, 1])  # a horizontal edge on a row
+                    xy[a, 1] = xy[c, 1]
+                v = values[comp][k]
+                good = field.element_valid[k] & np.all(np.isfinite(v[field.triangles]), axis=1)
+                base = rng.uniform(0, 255, (130, 170, 3)).astype(np.float32)
+                plain, compiled = base.copy(), base.copy()
+                _fill_bands(plain, xy, v, field.triangles, good, bands)
+                _fill_bands(compiled, xy, v, field.triangles, good, bands, compiled=True)
+                assert np.array_equal(plain, compiled), (comp, k, scale)
+                checked += (plain != base).any()
+    assert checked > 30
+
+
 def test_animation_title_is_each_frames_label_over_the_same_figure():
     field = _wavy_field()
     image = np.random.default_rng(2).uniform(0, 255, (120, 160)).astype(np.uint8)
