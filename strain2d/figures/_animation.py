@@ -404,18 +404,23 @@ def _animation_frame(state, image, field, k, scalars, components, label) -> np.n
     pos = field.points[k]
     valid = field.element_valid[k]
     triangles = field.triangles
+    compiled = state["compiled"]
     for panel, comp in zip(state["panels"], components, strict=True):
-        rgb = _gray(state, image, panel)
+        rgb = _gray(state, image, panel, compiled)
         values = scalars[comp][k]
         good = valid & np.all(np.isfinite(values[triangles]), axis=1)
         if good.any():
             sx, tx, sy, ty = panel["to_window"]
             xy = np.column_stack([pos[:, 0] * sx + tx, pos[:, 1] * sy + ty])
-            _fill_bands(rgb, xy, values, triangles, good, state["bands"][comp],
-                        state["compiled"])  # fmt: skip
+            _fill_bands(rgb, xy, values, triangles, good, state["bands"][comp], compiled)
             _shade_edges(rgb, xy, state["edges"], good)
-        shown = panel["dark"] + panel["through"] * rgb
-        out[panel["window"]] = shown.clip(0.0, 255.0).round().astype(np.uint8)
+        if compiled:
+            from strain2d.figures._animation_kernels import compose
+
+            compose(out[panel["window"]], panel["dark"], panel["through"], rgb)
+        else:
+            shown = panel["dark"] + panel["through"] * rgb
+            out[panel["window"]] = shown.clip(0.0, 255.0).round().astype(np.uint8)
     rows = state["title_rows"]
     if rows:
         fig, canvas = state["fig"], state["canvas"]
@@ -426,15 +431,21 @@ def _animation_frame(state, image, field, k, scalars, components, label) -> np.n
     return out
 
 
-def _gray(state: dict, image: np.ndarray, panel: dict) -> np.ndarray:
-    """The frame as the panel shows it: (h, w, 3) float32 at the panel's pixels."""
+def _gray(state: dict, image: np.ndarray, panel: dict, compiled: bool = False) -> np.ndarray:
+    """The frame as the panel shows it: (h, w, 3) float32 at the panel's pixels
+    (``compiled``: 8-bit gray frames through :func:`~strain2d.figures._animation_kernels.gray`,
+    the same pixels)."""
     shape = image.shape[:2]
     if shape != panel["shape"]:
         panel["shape"] = shape
         panel["sample"] = _sampling(panel["x_data"], panel["y_data"], panel["extent"], shape)
     rows, cols = panel["sample"]
-    seen = image.take(rows, axis=0).take(cols, axis=1)
     vmin, vmax, table = state["gray"]
+    if compiled and image.ndim == 2 and image.dtype == np.uint8 and (vmin, vmax) == (0.0, 255.0):
+        from strain2d.figures._animation_kernels import gray
+
+        return gray(image, rows, cols, table)
+    seen = image.take(rows, axis=0).take(cols, axis=1)
     if seen.ndim == 2:  # the colour map over vmin..vmax, quantised as imshow quantises it
         if seen.dtype != np.uint8 or (vmin, vmax) != (0.0, 255.0):
             scaled = seen.astype(np.float32)
@@ -463,7 +474,7 @@ def _fill_bands(rgb, xy, values, triangles, good, bands, compiled: bool = False)
     opacity.  As ``tricontourf`` without antialiasing fills each band up to
     the pixels its edge touches, a pixel beside a higher band is covered by
     both: the higher band's colour is blended over it again.  ``compiled``:
-    the same pixels from :func:`strain2d.figures._band_kernel.fill_bands`.
+    the same pixels from :func:`strain2d.figures._animation_kernels.fill_bands`.
     """
     used = np.flatnonzero(good)
     corners = xy[triangles[used]]  # (m, 3, 2)
@@ -487,7 +498,7 @@ def _fill_bands(rgb, xy, values, triangles, good, bands, compiled: bool = False)
     plane[:, 2] = v[:, 0] - plane[:, 0] * corners[:, 0, 0] - plane[:, 1] * corners[:, 0, 1]
     plane[:, 3], plane[:, 4] = v.min(axis=1), v.max(axis=1)
     if compiled:
-        from strain2d.figures._band_kernel import fill_bands
+        from strain2d.figures._animation_kernels import fill_bands
 
         fill_bands(rgb, np.ascontiguousarray(corners), plane, bands["low"], bands["step"],
                    bands["n"], bands["colours"], bands["opacity"])  # fmt: skip

@@ -671,6 +671,28 @@ def test_compiled_band_filling_gives_the_pixels_of_the_numpy_one():
     assert checked > 30
 
 
+def test_compiled_animation_frames_are_the_numpy_ones():
+    """Whole frames drawn through the compiled kernels (the gray frame sampled, the bands,
+    the panel put in place) against the NumPy path, bit for bit: an 8-bit frame, a float
+    frame (its gray through NumPy either way), a frame of another size."""
+    from strain2d.figures._animation import _animation_frame
+
+    field = _wavy_field()
+    values = nodal_scalars(field)
+    rng = np.random.default_rng(5)
+    for image in (
+        rng.uniform(0, 255, (120, 160)).astype(np.uint8),
+        rng.uniform(30, 220, (120, 160)),
+    ):
+        _, state, _ = _drawn_frame(image, field, 0, "frame 0")
+        for k, shown in ((1, image), (2, image[::2, ::2].copy())):
+            frames = []
+            for compiled in (False, True):
+                state["compiled"] = compiled
+                frames.append(_animation_frame(state, shown, field, k, values, ("Exx", "Eyy"), "f"))
+            assert np.array_equal(*frames), (image.dtype, k)
+
+
 def test_animation_title_is_each_frames_label_over_the_same_figure():
     field = _wavy_field()
     image = np.random.default_rng(2).uniform(0, 255, (120, 160)).astype(np.uint8)

@@ -1,13 +1,14 @@
-"""Compiled (numba) filling of the animation's banded strain field: the pixels of each
-triangle, their band, its colour blended over the frame, and the higher band beside.
+"""Compiled (numba) steps of the animation's frames: the gray frame sampled into a
+panel, the banded strain field filled over it, and the panel put into the output.
 
-:func:`fill_bands` gives the same pixels, bit for bit, as the NumPy path of
-:func:`strain2d.figures._animation._fill_bands` (a test checks it on meshes of
-every shape): the same float32 arithmetic in the same order, a pixel on an
-edge between two triangles taking the later triangle's band.  It runs some
-four times faster, once numba's compiler is loaded: the animation uses it
-where a tracker already loaded it (gdic, dic) or the video is long enough to
-pay for loading it (see ``_animation._COMPILED_FROM``).
+Each gives the same pixels, bit for bit, as the NumPy path it stands for in
+:mod:`strain2d.figures._animation` (tests check them): the same float32
+arithmetic in the same order, a pixel on an edge between two triangles
+taking the later triangle's band.  :func:`fill_bands` runs some four times
+faster than NumPy, the two others some three times, once numba's compiler
+is loaded: the animation uses them where a tracker already loaded it (gdic,
+dic) or the video is long enough to pay for loading it (see
+``_animation._COMPILED_FROM``).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["fill_bands"]
+__all__ = ["compose", "fill_bands", "gray"]
 
 
 @njit(cache=True)
@@ -86,3 +87,28 @@ def fill_bands(rgb, corners, plane, low, step, n, colours, opacity):  # pragma: 
                 for k in range(3):
                     rgb[r, c, k] += (colours[beside, k] - rgb[r, c, k]) * opacity[beside]
     return band
+
+
+@njit(cache=True)
+def gray(image, rows, cols, table):  # pragma: no cover
+    """(h, w, 3) float32: ``table[image[rows[i], cols[j]]]``, an 8-bit frame sampled at the
+    panel's pixels and coloured by the gray map's (257, 3) table."""
+    out = np.empty((rows.size, cols.size, 3), np.float32)
+    for i in range(rows.size):
+        for j in range(cols.size):
+            v = image[rows[i], cols[j]]
+            for k in range(3):
+                out[i, j, k] = table[v, k]
+    return out
+
+
+@njit(cache=True)
+def compose(out, dark, through, rgb):  # pragma: no cover
+    """``out`` (h, w, 3) uint8 = ``dark + through * rgb``, within 0..255, rounded half to
+    even (what ``clip``, ``round`` and ``astype(uint8)`` give)."""
+    lowest, highest = np.float32(0.0), np.float32(255.0)
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            for k in range(3):
+                v = dark[i, j, k] + through[i, j, k] * rgb[i, j, k]
+                out[i, j, k] = np.uint8(np.rint(min(max(v, lowest), highest)))
