@@ -11,8 +11,8 @@ peak resident memory (the child's own, from ``os.wait4``), the ratio of the
 3,000-frame run to the 300-frame one, and wall times.  The target of issue 17
 is a ratio of at most 1 (within a few MiB of noise).
 
-The default (klt, 7x7 grid, every output) takes 10-17 minutes on 2 cores,
-most of it drawing the 3,000-frame animation; ``--trackers gdic,klt --grids
+The default (klt, 7x7 grid, every output) takes about two minutes on 2
+cores (the 3,000-frame run about one, most of it the animation); ``--trackers gdic,klt --grids
 7x7,15x15`` is the whole matrix (over an hour), ``--animation none`` leaves
 the animation out of a sweep.
 
