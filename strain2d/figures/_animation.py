@@ -413,7 +413,7 @@ def _animation_frame(state, image, field, k, scalars, components, label) -> np.n
             sx, tx, sy, ty = panel["to_window"]
             xy = np.column_stack([pos[:, 0] * sx + tx, pos[:, 1] * sy + ty])
             _fill_bands(rgb, xy, values, triangles, good, state["bands"][comp], compiled)
-            _shade_edges(rgb, xy, state["edges"], good)
+            _shade_edges(rgb, xy, state["edges"], good, compiled)
         if compiled:
             from strain2d.figures._animation_kernels import compose
 
@@ -556,11 +556,12 @@ def _raster_triangles(corners: np.ndarray, shape: tuple[int, int]):
     return row[span], col, tri[span]
 
 
-def _shade_edges(rgb, xy, edges, good) -> None:
+def _shade_edges(rgb, xy, edges, good, compiled: bool = False) -> None:
     """Darken ``rgb`` in place along the edges of the triangles ``good``, as thin lines.
 
     Each edge is drawn on its own, so where several meet at a node they
-    darken it together, as the strain maps' edges do.
+    darken it together, as the strain maps' edges do.  ``compiled``: the
+    same pixels through :func:`~strain2d.figures._animation_kernels.shade_edges`.
     """
     import cv2
 
@@ -570,14 +571,21 @@ def _shade_edges(rgb, xy, edges, good) -> None:
     ends = xy[pairs[drawn]]  # (e, 2, 2)
     cover = np.zeros(rgb.shape[:2], np.uint8)
     cv2.polylines(cover, list(np.round(ends * 16).astype(np.int32)), False, 255, 1, cv2.LINE_AA, 4)
-    shade = 1.0 - (np.float32(_EDGE_SHADE) / 255) * cover
     # the pixel of a node: each edge that ends there covers about half of it
     node = np.round(ends.reshape(-1, 2)).astype(np.intp)
     inside = (node[:, 0] >= 0) & (node[:, 0] < rgb.shape[1])
     inside &= (node[:, 1] >= 0) & (node[:, 1] < rgb.shape[0])
+    per_level = np.float32(_EDGE_SHADE) / 255
     at, count = np.unique(node[inside, 1] * rgb.shape[1] + node[inside, 0], return_counts=True)
+    darkest = (1.0 - _EDGE_SHADE / 2) ** count
+    if compiled:
+        from strain2d.figures._animation_kernels import shade_edges
+
+        shade_edges(rgb, cover, per_level, at // rgb.shape[1], at % rgb.shape[1], darkest)
+        return
+    shade = 1.0 - per_level * cover
     flat = shade.reshape(-1)
-    flat[at] = np.minimum(flat[at], (1.0 - _EDGE_SHADE / 2) ** count)
+    flat[at] = np.minimum(flat[at], darkest)
     rgb *= shade[..., None]
 
 

@@ -1,5 +1,6 @@
 """Compiled (numba) steps of the animation's frames: the gray frame sampled into a
-panel, the banded strain field filled over it, and the panel put into the output.
+panel, the banded strain field filled over it, the mesh's edges shaded, and the panel
+put into the output.
 
 Each gives the same pixels, bit for bit, as the NumPy path it stands for in
 :mod:`strain2d.figures._animation` (tests check them): the same float32
@@ -18,7 +19,7 @@ import math
 import numpy as np
 from numba import njit
 
-__all__ = ["compose", "fill_bands", "gray"]
+__all__ = ["compose", "fill_bands", "gray", "shade_edges"]
 
 
 @njit(cache=True)
@@ -112,3 +113,25 @@ def compose(out, dark, through, rgb):  # pragma: no cover
             for k in range(3):
                 v = dark[i, j, k] + through[i, j, k] * rgb[i, j, k]
                 out[i, j, k] = np.uint8(np.rint(min(max(v, lowest), highest)))
+
+
+@njit(cache=True)
+def shade_edges(rgb, cover, per_level, node_rows, node_cols, darkest):  # pragma: no cover
+    """Darken ``rgb`` (h, w, 3) float32 in place by the edges' coverage ``cover`` (h, w)
+    uint8: by ``1 - per_level * cover`` (``per_level`` float32), and at the pixel of each
+    node (``node_rows``, ``node_cols``, once each) by at most ``darkest`` (float64, one
+    per node)."""
+    h, w = cover.shape
+    one = np.float32(1.0)
+    shade = np.empty((h, w), np.float32)
+    for i in range(h):
+        for j in range(w):
+            shade[i, j] = one - per_level * np.float32(cover[i, j])
+    for e in range(node_rows.size):
+        i, j = node_rows[e], node_cols[e]
+        shade[i, j] = np.float32(min(np.float64(shade[i, j]), darkest[e]))
+    for i in range(h):
+        for j in range(w):
+            s = shade[i, j]
+            for k in range(3):
+                rgb[i, j, k] *= s
