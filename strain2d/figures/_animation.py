@@ -7,9 +7,11 @@ Matplotlib draw: the video frame sampled into each panel as
 nodal strain rasterised on the deformed mesh (linear within each triangle,
 banded at the colour scale's levels as ``tricontourf`` bands them), the
 mesh's edges, all seen through what Matplotlib draws over the image (the
-axes' frame); only the time label is drawn by Matplotlib.  MP4 frames stream
-to imageio-ffmpeg's ffmpeg as H.264, GIF frames go to imageio's pillow
-plugin.  Both are imported when a video is written.
+axes' frame); only the time label is drawn by Matplotlib.  These steps run
+in NumPy, or compiled (:mod:`strain2d.figures._animation_kernels`, the same
+pixels) where numba is loaded already or the video is long.  MP4 frames
+stream to imageio-ffmpeg's ffmpeg as H.264, GIF frames go to imageio's
+pillow plugin.  Both are imported when a video is written.
 """
 
 from __future__ import annotations
