@@ -9,7 +9,8 @@ taking the later triangle's band.  :func:`fill_bands` runs some four times
 faster than NumPy, the two others some three times, once numba's compiler
 is loaded: the animation uses them where a tracker already loaded it (gdic,
 dic) or the video is long enough to pay for loading it (see
-``_animation._COMPILED_FROM``).
+``_animation._COMPILED_FROM``).  They are compiled on their first use, about
+2 s once: numba keeps them in its cache.
 """
 
 from __future__ import annotations
