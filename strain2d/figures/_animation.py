@@ -280,15 +280,16 @@ def _animation_figure(
     }
 
 
-#: frames from which the animation fills its bands with the compiled kernel even where no
-#: tracker loaded numba: loading it (0.2 s) and its compiler (0.15-0.35 s) costs what the
-#: kernel saves on about 60 frames (9 ms a frame of two panels at 960 px)
+#: frames from which the animation draws its frames with the compiled kernels even where
+#: no tracker loaded numba: loading it (0.2 s) and its compiler (0.15-0.35 s) costs what the
+#: kernels save on some 40-60 frames of two panels at 960 px
 _COMPILED_FROM = 100
 
 
 def _compiled(n_frames: int) -> bool:
-    """Whether to fill the bands with the compiled kernel: numba already loaded here (by
-    gdic or dic), or a video long enough to pay for loading it.  The pixels are the same."""
+    """Whether to draw the frames with the compiled kernels
+    (:mod:`strain2d.figures._animation_kernels`): numba already loaded here (by gdic or
+    dic), or a video long enough to pay for loading it.  The pixels are the same."""
     import sys
 
     return "numba" in sys.modules or n_frames >= _COMPILED_FROM
