@@ -13,8 +13,11 @@ only ``(Y, X)`` maps and the mesh are ever whole:
   depends on the column and its 3 x 3 lateral neighbours only: bands
   overlap by one row on each side and give every column the value the
   whole stack gives;
-* the gap filling, the outlier test and the smoothing run on the whole
-  ``(Y, X)`` map as in memory (:func:`mpm3d.heightmap.from_crossings`);
+* the crossings go to files, and the gap filling, the outlier test and the
+  smoothing (:func:`mpm3d.heightmap.from_crossings`) run on them a band of
+  rows or a strip of columns at a time (:mod:`mpm3d.diskmaps`: the same
+  values, bit for bit; ``TMPDIR`` chooses where the files go); the finished
+  maps are read back whole;
 * the isosurface's grid (lateral binning, per-column scaling and tissue
   filling) is per column too; each band of binned rows is contoured on the
   whole grid's coordinates (:func:`mpm3d.surface.contour_rows`), bands
@@ -69,6 +72,9 @@ MESH_BYTES_PER_TRIANGLE = 240
 #: shorter of it and the z-step (a steep flank is cut by the slices); 2.6 on the
 #: synthetic stacks, flat and steeply folded, binned 2 and 3 (within 6 %)
 TRIANGLES_PER_CELL = 2.6
+#: bytes per column of the height map's work maps on disk (:mod:`mpm3d.diskmaps`): the
+#: crossings, the contrast, the masks, the filled and filtered maps alive at once
+DISK_BYTES_PER_COLUMN = 80
 #: the default memory limit: this fraction of the memory available now
 DEFAULT_FRACTION = 0.5
 
@@ -409,9 +415,9 @@ def tiled_height_map(
     stack in memory (see the module's notes).
     """
     from mpm3d._kernels import first_crossing
+    from mpm3d.diskmaps import MapFolder, from_crossings_on_disk
     from mpm3d.heightmap import (
         check_options,
-        from_crossings,
         levels_of_sample,
         otsu_separability,
         sample_step,
@@ -430,37 +436,41 @@ def tiled_height_map(
     threshold, background, noise = levels_of_sample(sub, threshold=threshold)
     separability = otsu_separability(sub, threshold)
     del sub
-    depth = np.empty((ny, nx), np.float64)
-    peak = np.empty((ny, nx), np.float64)
     rows = max(1, int(tile_rows))
     starts = range(0, ny, rows)
-    with _counter(progress, "finding the surface") as tick:
-        tick(0, len(starts))
-        for k, y0 in enumerate(starts):
-            y1 = min(ny, y0 + rows)
-            a, b = max(0, y0 - 1), min(ny, y1 + 1)  # a halo row each side: the 3 x 3 mean
-            band = volume.rows(a, b)
-            d = np.empty((b - a, nx), np.float64)
-            p = np.empty((b - a, nx), np.float64)
-            first_crossing(band, float(threshold), float(background), int(window), d, p)
-            del band
-            depth[y0:y1] = d[y0 - a : y1 - a]
-            peak[y0:y1] = p[y0 - a : y1 - a]
-            tick(k + 1, len(starts))
-    return from_crossings(
-        depth,
-        peak,
-        spacing=spacing,
-        n_slices=nz,
-        levels=(threshold, background, noise),
-        threshold_given=threshold_given,
-        separability=separability,
-        peak_window_um=peak_window_um,
-        smooth_um=sigma_um,
-        min_cnr=min_cnr,
-        outlier_um=outlier_um,
-        min_coverage=min_coverage,
-    )
+    # the crossings and every step after them in files: the (Y, X) maps' work is
+    # a band of rows (or a strip of columns) at a time, as the stack's is
+    with MapFolder(DISK_BYTES_PER_COLUMN * ny * nx) as folder:
+        depth = folder.new((ny, nx), np.float64, "depth")
+        peak = folder.new((ny, nx), np.float64, "peak")
+        with _counter(progress, "finding the surface") as tick:
+            tick(0, len(starts))
+            for k, y0 in enumerate(starts):
+                y1 = min(ny, y0 + rows)
+                a, b = max(0, y0 - 1), min(ny, y1 + 1)  # a halo row each side: the 3 x 3 mean
+                band = volume.rows(a, b)
+                d = np.empty((b - a, nx), np.float64)
+                p = np.empty((b - a, nx), np.float64)
+                first_crossing(band, float(threshold), float(background), int(window), d, p)
+                del band
+                depth.write_rows(y0, d[y0 - a : y1 - a])
+                peak.write_rows(y0, p[y0 - a : y1 - a])
+                tick(k + 1, len(starts))
+        return from_crossings_on_disk(
+            depth,
+            peak,
+            folder,
+            spacing=spacing,
+            n_slices=nz,
+            levels=(threshold, background, noise),
+            threshold_given=threshold_given,
+            separability=separability,
+            peak_window_um=peak_window_um,
+            smooth_um=sigma_um,
+            min_cnr=min_cnr,
+            outlier_um=outlier_um,
+            min_coverage=min_coverage,
+        )
 
 
 def tiled_isosurface(

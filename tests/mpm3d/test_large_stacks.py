@@ -9,6 +9,7 @@ bench/bench_mpm3d_memory.py shows the peak memory on a stack 4x the limit.
 
 import json
 import math
+import signal
 import warnings
 
 import numpy as np
@@ -193,12 +194,20 @@ def test_lazy_reader_equals_read_stack(mpm_small, tmp_path):
                 assert got.dtype == want.dtype and np.array_equal(got, want), (name, key)
 
 
-def test_interrupt_while_banded_leaves_no_output(mpm_small, tmp_path):
+@pytest.mark.parametrize(("signum", "expected"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupt_while_banded_leaves_no_output(signum, expected, mpm_small, tmp_path,
+                                                 monkeypatch):  # fmt: skip
     path, _ = mpm_small
     out = tmp_path / "out"
+    work = tmp_path / "tmp"  # where the height map's work maps go: left empty
+    work.mkdir()
+    monkeypatch.setenv("TMPDIR", str(work))
     argv = ["-m", "mpm3d", "analyze", path, "--out", out, "--tile-rows", "1", "--no-figures"]
-    status, err = interrupt(argv, after=0.05, when="finding the surface", out=out, inputs=[path])
-    assert status == 130 and not out.exists(), err
+    # while the bands are read: the work maps' folder exists
+    status, err = interrupt(argv, after=0.0, when="finding the surface: 0/", out=out,
+                            inputs=[path], signum=signum)  # fmt: skip
+    assert status == expected and not out.exists(), err
+    assert list(work.iterdir()) == []
 
 
 @pytest.mark.parametrize(("name", "iso_bin"), [("before", 2), ("after", 2), ("after", 3)])
