@@ -259,6 +259,7 @@ def _analyze(
             mask=hm.valid,
             min_fold_height_um=min_fold_height_um,
             resolution_um=stack.spacing[0],
+            overwrite=True,  # a new array: the metrics work in it
         )
         mesh = None
         if surface:

@@ -41,6 +41,7 @@ __all__ = [
     "DiskMap",
     "MapFolder",
     "exact_median",
+    "exact_percentiles",
     "fill_gaps_on_disk",
     "from_crossings_on_disk",
     "gaussian_on_disk",
@@ -346,24 +347,29 @@ def _value(key: int) -> float:
     return float(np.array([bits], np.uint64).view(np.float64)[0])
 
 
-def _select(read: Callable[[], Iterator[np.ndarray]], rank: int) -> float:
-    """The ``rank``-th smallest (0-based) of the values ``read()`` yields, band by band:
-    a radix search over their keys, 16 bits a pass."""
-    prefix, shift = 0, 48
+def _select(read: Callable[[], Iterator[np.ndarray]], ranks: list[int]) -> list[float]:
+    """The ``ranks``-th smallest (0-based) of the values ``read()`` yields, band by band:
+    a radix search over their keys, 16 bits a pass (four passes for any number of
+    ranks)."""
+    ranks = [int(r) for r in ranks]
+    prefixes = [0] * len(ranks)
+    shift = 48
     while shift >= 0:
-        counts = np.zeros(1 << 16, np.int64)
+        counts = np.zeros((len(ranks), 1 << 16), np.int64)
         for values in read():
-            k = _keys(values)
-            if shift < 48:
-                k = k[(k >> np.uint64(shift + 16)) == np.uint64(prefix)]
-            counts += np.bincount(((k >> np.uint64(shift)) & np.uint64(0xFFFF)).astype(np.intp),
-                                  minlength=1 << 16)  # fmt: skip
-        total = np.cumsum(counts)
-        b = int(np.searchsorted(total, rank, side="right"))
-        rank -= int(total[b - 1]) if b else 0
-        prefix = (prefix << 16) | b
+            keys = _keys(values)
+            high = keys >> np.uint64(shift + 16) if shift < 48 else None
+            low = ((keys >> np.uint64(shift)) & np.uint64(0xFFFF)).astype(np.intp)
+            for i, prefix in enumerate(prefixes):
+                digits = low if high is None else low[high == np.uint64(prefix)]
+                counts[i] += np.bincount(digits, minlength=1 << 16)
+        for i in range(len(ranks)):
+            total = np.cumsum(counts[i])
+            b = int(np.searchsorted(total, ranks[i], side="right"))
+            ranks[i] -= int(total[b - 1]) if b else 0
+            prefixes[i] = (prefixes[i] << 16) | b
         shift -= 16
-    return _value(prefix)
+    return [_value(p) for p in prefixes]
 
 
 def exact_median(read: Callable[[], Iterator[np.ndarray]], count: int) -> float:
@@ -371,11 +377,30 @@ def exact_median(read: Callable[[], Iterator[np.ndarray]], count: int) -> float:
     bands): the middle one, or the mean of the two middle ones."""
     if count <= 0:
         return float("nan")
-    hi = _select(read, count // 2)
     if count % 2:
-        return hi
-    lo = _select(read, count // 2 - 1)
+        return _select(read, [count // 2])[0]
+    lo, hi = _select(read, [count // 2 - 1, count // 2])
     return float(np.mean(np.array([lo, hi])))
+
+
+def exact_percentiles(read: Callable[[], Iterator[np.ndarray]], count: int, q) -> np.ndarray:
+    """What :func:`numpy.percentile` (linear) gives for the ``count`` values ``read()``
+    yields (in bands), ``q`` in percent: the two order statistics around each
+    quantile, found exactly, and NumPy's interpolation between them."""
+    q = np.asarray(q, np.float64)
+    if count <= 0:
+        return np.full(q.shape, np.nan)
+    index = np.true_divide(q, 100) * (count - 1)
+    below = np.floor(index).astype(np.int64)
+    above = np.minimum(below + 1, count - 1)
+    ranks = sorted({int(r) for r in (*below, *above)})
+    value = dict(zip(ranks, _select(read, ranks), strict=True))
+    a = np.array([value[int(r)] for r in below])
+    b = np.array([value[int(r)] for r in above])
+    t = index - below
+    diff = b - a
+    out = a + diff * t
+    return np.where(t >= 0.5, b - diff * (1 - t), out)
 
 
 # ----------------------------------------------------------------------------- the height map

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,12 +63,79 @@ def _coords(shape: tuple[int, int], spacing: tuple[float, float]):
     return y - y.mean(), x - x.mean()
 
 
+#: rows of a map that the metrics take at a time: a map's work copies are a band's, not the
+#: whole map's (a 4096 x 4096 px map is 128 MiB a copy); the bands are fixed, so a metric
+#: does not depend on how the map was made
+BAND_ROWS = 256
+
+
+def _bands(n: int, rows: int = BAND_ROWS):
+    for a in range(0, n, rows):
+        yield a, min(n, a + rows)
+
+
+def _mask_rows(mask, h: np.ndarray, a: int, b: int) -> np.ndarray:
+    """Rows ``a:b`` of ``mask`` (all True when None) and of the finite heights."""
+    m = np.isfinite(h[a:b])
+    if mask is not None:
+        m &= np.asarray(mask[a:b], bool)
+    return m
+
+
+def _least_squares(columns, h: np.ndarray, mask, n_terms: int) -> np.ndarray:
+    """Coefficients of the least-squares fit of ``h`` (over ``mask`` and its finite values)
+    by the basis ``columns(a, b)`` gives for rows ``a:b`` (``(rows * X, n_terms)``): the
+    normal equations summed over bands of rows, solved in the least-squares sense."""
+    ata = np.zeros((n_terms, n_terms))
+    atb = np.zeros(n_terms)
+    count = 0
+    for a, b in _bands(h.shape[0]):
+        use = _mask_rows(mask, h, a, b).ravel()
+        if not use.any():
+            continue
+        basis = columns(a, b)[use]
+        ata += basis.T @ basis
+        atb += basis.T @ h[a:b].ravel()[use]
+        count += int(use.sum())
+    if count < n_terms:
+        raise InputError("too few valid heights to remove the form")
+    coef, *_ = np.linalg.lstsq(ata, atb, rcond=None)
+    return coef
+
+
+def _quantiles(h: np.ndarray, q: Sequence[float], mask=None) -> np.ndarray:
+    """:func:`numpy.percentile` of the finite heights (over ``mask``), ``q`` in percent,
+    without a copy of the map: the order statistics found exactly, band by band
+    (:func:`mpm3d.diskmaps.exact_percentiles`)."""
+    from mpm3d.diskmaps import exact_percentiles
+
+    def read():
+        for a, b in _bands(h.shape[0]):
+            yield h[a:b][_mask_rows(mask, h, a, b)]
+
+    count = sum(int(_mask_rows(mask, h, a, b).sum()) for a, b in _bands(h.shape[0]))
+    return exact_percentiles(read, count, q)
+
+
+def _block_mean(h: np.ndarray, f: int) -> np.ndarray:
+    """``h`` averaged over blocks of ``f x f`` pixels (the last partial row and column of
+    blocks dropped), a band of block rows at a time."""
+    ny, nx = h.shape[0] // f, h.shape[1] // f
+    out = np.empty((ny, nx))
+    step = max(1, BAND_ROWS // f)
+    for a, b in _bands(ny, step):
+        block = np.asarray(h[a * f : b * f, : nx * f], np.float64)
+        out[a:b] = block.reshape(b - a, f, nx, f).mean(axis=(1, 3))
+    return out
+
+
 def detrend(
     height: np.ndarray,
     *,
     spacing: Sequence[float],
     mask: np.ndarray | None = None,
     order: int = 1,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Remove the least-squares plane (``order=1``) or quadric (``order=2``).
 
@@ -81,6 +148,8 @@ def detrend(
     spacing : (dy, dx) um
     mask : (Y, X) bool, optional
     order : {0, 1, 2}
+    out : (Y, X) float64, optional
+        Where to write the result (may be ``height`` itself).
 
     Returns
     -------
@@ -97,20 +166,24 @@ def detrend(
     spacing = _lateral(spacing)
     h = np.asarray(height, np.float64)
     y, x = _coords(h.shape, spacing)
-    yy, xx = np.meshgrid(y, x, indexing="ij")
-    terms = [np.ones_like(xx)]
-    if order >= 1:
-        terms += [xx, yy]
-    if order >= 2:
-        terms += [xx * xx, xx * yy, yy * yy]
-    basis = np.stack([t.ravel() for t in terms], axis=1)
-    use = np.isfinite(h).ravel()
-    if mask is not None:
-        use &= np.asarray(mask, bool).ravel()
-    if use.sum() < basis.shape[1]:
-        raise InputError("too few valid heights to remove the form")
-    coef, *_ = np.linalg.lstsq(basis[use], h.ravel()[use], rcond=None)
-    return h - (basis @ coef).reshape(h.shape)
+    # coordinates scaled to about [-1, 1]: well-conditioned normal equations
+    y, x = y / max(np.abs(y).max(), 1e-300), x / max(np.abs(x).max(), 1e-300)
+
+    def columns(a: int, b: int) -> np.ndarray:
+        yy, xx = np.meshgrid(y[a:b], x, indexing="ij")
+        terms = [np.ones_like(xx)]
+        if order >= 1:
+            terms += [xx, yy]
+        if order >= 2:
+            terms += [xx * xx, xx * yy, yy * yy]
+        return np.stack([t.ravel() for t in terms], axis=1)
+
+    n_terms = (1, 3, 6)[order]
+    coef = _least_squares(columns, h, mask, n_terms)
+    res = out if out is not None else np.empty(h.shape)
+    for a, b in _bands(h.shape[0]):
+        res[a:b] = h[a:b] - (columns(a, b) @ coef).reshape(b - a, h.shape[1])
+    return res
 
 
 def roughness(
@@ -148,21 +221,44 @@ def roughness(
     """
     dy, dx = _lateral(spacing)
     h = np.asarray(height, np.float64)
-    m = np.isfinite(h) if mask is None else (np.asarray(mask, bool) & np.isfinite(h))
-    z = h[m]
-    if z.size < 4:
+    ny = h.shape[0]
+    count, total = 0, 0.0
+    for a, b in _bands(ny):
+        z = h[a:b][_mask_rows(mask, h, a, b)]
+        count += z.size
+        total += float(z.sum())
+    if count < 4:
         raise InputError("too few valid heights for roughness parameters")
-    z = z - z.mean()
-    sq = float(np.sqrt(np.mean(z * z)))
-    sa = float(np.mean(np.abs(z)))
-    ssk = float(np.mean(z**3) / sq**3) if sq > 0 else 0.0
-    sku = float(np.mean(z**4) / sq**4) if sq > 0 else 0.0
-    sp, sv = float(z.max()), float(-z.min())
-    zx = ((h[:-1, 1:] - h[:-1, :-1]) + (h[1:, 1:] - h[1:, :-1])) / (2 * dx)
-    zy = ((h[1:, :-1] - h[:-1, :-1]) + (h[1:, 1:] - h[:-1, 1:])) / (2 * dy)
-    cells = m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:] & m[1:, 1:]
-    ratio = np.sqrt(1 + zx[cells] ** 2 + zy[cells] ** 2)
-    sdr = float(100 * (ratio.mean() - 1)) if ratio.size else float("nan")
+    mean = total / count
+    s1 = s2 = s3 = s4 = 0.0
+    top, bottom = -np.inf, np.inf
+    area, cells = 0.0, 0
+    for a, b in _bands(ny):
+        z = h[a:b][_mask_rows(mask, h, a, b)] - mean
+        if z.size:
+            z2 = z * z
+            s1 += float(np.abs(z).sum())
+            s2 += float(z2.sum())
+            s3 += float((z2 * z).sum())
+            s4 += float((z2 * z2).sum())
+            top, bottom = max(top, float(z.max())), min(bottom, float(z.min()))
+        # the cells whose top-left corner lies in rows a:b (and the row below them)
+        c1 = min(b, ny - 1)
+        if c1 <= a:
+            continue
+        hh = h[a : c1 + 1]
+        m = _mask_rows(mask, h, a, c1 + 1)
+        zx = ((hh[:-1, 1:] - hh[:-1, :-1]) + (hh[1:, 1:] - hh[1:, :-1])) / (2 * dx)
+        zy = ((hh[1:, :-1] - hh[:-1, :-1]) + (hh[1:, 1:] - hh[:-1, 1:])) / (2 * dy)
+        inside = m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:] & m[1:, 1:]
+        area += float(np.sqrt(1 + zx[inside] ** 2 + zy[inside] ** 2).sum())
+        cells += int(inside.sum())
+    sq = math.sqrt(s2 / count)
+    sa = s1 / count
+    ssk = s3 / count / sq**3 if sq > 0 else 0.0
+    sku = s4 / count / sq**4 if sq > 0 else 0.0
+    sp, sv = top, -bottom
+    sdr = 100 * (area / cells - 1) if cells else float("nan")
     return {
         "Sa_um": sa,
         "Sq_um": sq,
@@ -246,14 +342,13 @@ def fold_spectrum(
     (37.0, 60.0)
     """
     dy, dx = _lateral(spacing)
-    h = np.asarray(height, np.float64)
-    if h.ndim != 2 or min(h.shape) < 8 or not np.isfinite(h).all():
+    h = np.asarray(height)
+    finite = h.ndim == 2 and all(np.isfinite(h[a:b]).all() for a, b in _bands(h.shape[0]))
+    if h.ndim != 2 or min(h.shape) < 8 or not finite:
         raise InputError("the height map must be 2D, finite and at least 8 x 8")
     factor = max(1, math.ceil(max(h.shape) / max_size))
-    if factor > 1:
-        ny, nx = h.shape[0] // factor, h.shape[1] // factor
-        h = h[: ny * factor, : nx * factor].reshape(ny, factor, nx, factor).mean(axis=(1, 3))
-        dy, dx = dy * factor, dx * factor
+    h = _block_mean(h, factor) if factor > 1 else np.asarray(h, np.float64)
+    dy, dx = dy * factor, dx * factor
     ny, nx = h.shape
     z = detrend(h, spacing=(dy, dx))
     window = np.hanning(ny)[:, None] * np.hanning(nx)[None, :]
@@ -355,12 +450,30 @@ def fold_orientation(
 
     dy, dx = _lateral(spacing)
     h = np.asarray(height, np.float64)
+    ny = h.shape[0]
     sigma = 2 * max(dx, dy) if sigma_um is None else float(sigma_um)
-    if sigma > 0:
-        h = ndimage.gaussian_filter(h, (sigma / dy, sigma / dx), mode="nearest")
-    gy, gx = np.gradient(h, dy, dx)
-    m = np.ones(h.shape, bool) if mask is None else np.asarray(mask, bool)
-    jxx, jyy, jxy = (float(np.mean(a[m])) for a in (gx * gx, gy * gy, gx * gy))
+    # a band of rows with the filter's reach and the gradient's row on each side: its
+    # inner rows are the whole map's
+    halo = (int(4.0 * sigma / dy + 0.5) if sigma > 0 else 0) + 1
+    sums = np.zeros(3)
+    count = 0
+    for a, b in _bands(ny):
+        lo, hi = max(0, a - halo), min(ny, b + halo)
+        band = h[lo:hi]
+        if sigma > 0:
+            band = ndimage.gaussian_filter(band, (sigma / dy, sigma / dx), mode="nearest")
+        if hi - lo < 2:
+            gy, gx = np.zeros_like(band), np.gradient(band, dx, axis=1)
+        else:
+            gy, gx = np.gradient(band, dy, dx)
+        gy, gx = gy[a - lo : b - lo], gx[a - lo : b - lo]
+        m = np.ones(gx.shape, bool) if mask is None else np.asarray(mask[a:b], bool)
+        gx, gy = gx[m], gy[m]
+        sums += (float((gx * gx).sum()), float((gy * gy).sum()), float((gx * gy).sum()))
+        count += gx.size
+    if count == 0:
+        return float("nan"), 0.0
+    jxx, jyy, jxy = (float(v) / count for v in sums)
     trace = jxx + jyy
     if trace <= 0:
         return float("nan"), 0.0
@@ -531,8 +644,11 @@ def fold_profiles(
     s = np.arange(-radius, radius + step, step)
     gap = profile_spacing_um if profile_spacing_um is not None else wavelength_um / 16
     offsets = np.arange(-radius, radius + gap, gap)
-    lo, hi = np.percentile(h, [1, 99])
-    min_prom = 0.2 * (hi - lo) if min_fold_height_um is None else float(min_fold_height_um)
+    if min_fold_height_um is None:
+        lo, hi = _quantiles(h, [1, 99])
+        min_prom = 0.2 * (hi - lo)
+    else:
+        min_prom = float(min_fold_height_um)
     distance = max(1, int(0.5 * wavelength_um / step))
     half = max(1, round(fit_fraction * wavelength_um / step))
     rec: dict[str, list] = {k: [] for k in ("profile", "x_um", "y_um", "offset_um", "height_um")}
@@ -628,7 +744,7 @@ def _fold_form(
     mask: np.ndarray | None,
     wavevector: np.ndarray,
     max_size: int = 128,
-) -> tuple[np.ndarray, float]:
+) -> tuple[Callable[[int, int], np.ndarray], float]:
     """The plane of a joint least-squares fit of a plane and the dominant fold wave.
 
     A plane fitted alone to a field of view holding a fraction of a fold
@@ -642,33 +758,40 @@ def _fold_form(
 
     Returns
     -------
-    plane : (Y, X) float, um
-        The fitted plane alone, to subtract.
+    plane : callable
+        ``plane(a, b)``: rows ``a:b`` of the fitted plane alone (um), to subtract.
     wavelength_um : float
         The refined wavelength.
     """
     from scipy.optimize import minimize_scalar
 
     h = np.asarray(height, np.float64)
-    use = np.isfinite(h) if mask is None else np.asarray(mask, bool) & np.isfinite(h)
     k0 = np.asarray(wavevector, np.float64)
 
-    def design(shape: tuple[int, int], sp: tuple[float, float], k: np.ndarray) -> np.ndarray:
-        y, x = _coords(shape, sp)
+    def design(y: np.ndarray, x: np.ndarray, k: np.ndarray) -> np.ndarray:
         yy, xx = np.meshgrid(y, x, indexing="ij")
         phase = 2 * np.pi * (k[0] * xx + k[1] * yy)
         return np.stack([np.ones_like(xx), xx, yy, np.cos(phase), np.sin(phase)], -1).reshape(-1, 5)
 
     f = max(1, math.ceil(max(h.shape) / max_size))
     ny, nx = h.shape[0] // f, h.shape[1] // f
-    small = np.where(use, h, 0.0)[: ny * f, : nx * f].reshape(ny, f, nx, f).mean(axis=(1, 3))
-    keep = use[: ny * f, : nx * f].reshape(ny, f, nx, f).all(axis=(1, 3)).ravel()
+    small = np.empty((ny, nx))
+    kept = np.empty((ny, nx), bool)
+    step = max(1, BAND_ROWS // f)
+    for a, b in _bands(ny, step):
+        rows = slice(a * f, b * f)
+        use = _mask_rows(mask, h, a * f, b * f)[:, : nx * f]
+        values = np.where(use, h[rows, : nx * f], 0.0)
+        small[a:b] = values.reshape(b - a, f, nx, f).mean(axis=(1, 3))
+        kept[a:b] = use.reshape(b - a, f, nx, f).all(axis=(1, 3))
+    keep = kept.ravel()
     if keep.sum() < 5:
         keep = np.ones(ny * nx, bool)
     values = small.ravel()[keep]
+    ys, xs = _coords((ny, nx), (spacing[0] * f, spacing[1] * f))
 
     def residual(scale: float) -> float:
-        basis = design((ny, nx), (spacing[0] * f, spacing[1] * f), k0 * scale)[keep]
+        basis = design(ys, xs, k0 * scale)[keep]
         coef, *_ = np.linalg.lstsq(basis, values, rcond=None)
         r = values - basis @ coef
         return float(r @ r)
@@ -677,10 +800,24 @@ def _fold_form(
     i = int(np.argmin([residual(g) for g in grid]))
     lo, hi = grid[max(0, i - 1)], grid[min(grid.size - 1, i + 1)]
     scale = float(minimize_scalar(residual, bounds=(lo, hi), method="bounded").x)
-    basis = design(h.shape, spacing, k0 * scale)
-    coef, *_ = np.linalg.lstsq(basis[use.ravel()], h.ravel()[use.ravel()], rcond=None)
-    plane = (basis[:, :3] @ coef[:3]).reshape(h.shape)
-    return plane, float(1.0 / np.hypot(*(k0 * scale)))
+    y, x = _coords(h.shape, spacing)
+    # the fit on the whole map, in coordinates scaled to about [-1, 1] (the wave's phase
+    # from the unscaled ones)
+    ry, rx = max(np.abs(y).max(), 1e-300), max(np.abs(x).max(), 1e-300)
+    k = k0 * scale
+
+    def columns(a: int, b: int) -> np.ndarray:
+        basis = design(y[a:b], x, k)
+        basis[:, 1] /= rx
+        basis[:, 2] /= ry
+        return basis
+
+    coef = _least_squares(columns, h, mask, 5)
+
+    def plane(a: int, b: int) -> np.ndarray:
+        return coef[0] + coef[1] * (x / rx)[None, :] + coef[2] * (y[a:b] / ry)[:, None]
+
+    return plane, float(1.0 / np.hypot(*k))
 
 
 def _trough_plane(
@@ -690,7 +827,7 @@ def _trough_plane(
     spacing: tuple[float, float],
     normal: np.ndarray,
     wavelength_um: float,
-) -> np.ndarray:
+) -> Callable[[int, int], np.ndarray | float]:
     """The plane through the fold troughs: the base the folds rise from.
 
     With troughs on lines at least half a wavelength apart across the folds
@@ -698,12 +835,14 @@ def _trough_plane(
     crests is fitted (the tilt across the folds cannot be told from the
     height differences between folds), and with fewer than three troughs
     there is no plane (zeros).
+
+    Returns ``plane(r0, r1)``: rows ``r0:r1`` of the plane (um).
     """
     ny, nx = shape
     dy, dx = spacing
     x, y, hgt = (np.asarray(troughs.get(k, ()), np.float64) for k in ("x_um", "y_um", "height_um"))
     if hgt.size < 3:
-        return np.zeros(shape)
+        return lambda r0, r1: 0.0
     centre = np.array([(nx - 1) * dx / 2, (ny - 1) * dy / 2])
     along = np.array([normal[1], -normal[0]])
 
@@ -717,9 +856,14 @@ def _trough_plane(
     if np.ptp(u) >= wavelength_um / 2:
         terms.append(u)
     coef, *_ = np.linalg.lstsq(np.stack(terms, 1), hgt, rcond=None)
-    yy, xx = np.meshgrid(np.arange(ny) * dy, np.arange(nx) * dx, indexing="ij")
-    ga, gu = coords(xx, yy)
-    return coef[0] + coef[1] * ga + (coef[2] * gu if len(coef) > 2 else 0.0)
+    xs = np.arange(nx) * dx
+
+    def plane(r0: int, r1: int) -> np.ndarray:
+        yy, xx = np.meshgrid(np.arange(r0, r1) * dy, xs, indexing="ij")
+        ga, gu = coords(xx, yy)
+        return coef[0] + coef[1] * ga + (coef[2] * gu if len(coef) > 2 else 0.0)
+
+    return plane
 
 
 def fold_metrics(
@@ -732,6 +876,7 @@ def fold_metrics(
     min_folds_in_view: float = 2.0,
     profile_spacing_um: float | None = None,
     fit_fraction: float = 0.1,
+    overwrite: bool = False,
 ) -> tuple[dict, FoldSpectrum, FoldTable]:
     """Every fold and roughness metric of a height map, in one dictionary.
 
@@ -757,6 +902,9 @@ def fold_metrics(
     of fewer periods is biased long); with fewer it is None and
     ``fold_wavelength_note`` says how many periods were in view.
 
+    ``overwrite=True`` lets the form-removed map take the place of ``height``
+    (float64): the work is then done in the caller's array, with no map-sized copy.
+
     Returns
     -------
     metrics : dict
@@ -773,16 +921,23 @@ def fold_metrics(
     spectrum : FoldSpectrum
     folds : FoldTable
     """
-    z = detrend(height, spacing=spacing, mask=mask)
+    # one work map: the height with its form removed, in place of the height when the caller
+    # gives it up (``overwrite``); the steps' other copies are a band's (see BAND_ROWS)
+    h = np.asarray(height)
+    own = overwrite and h.dtype == np.float64 and h.flags.writeable
+    z = detrend(h, spacing=spacing, mask=mask, out=h if own else None)
     dy, dx = _lateral(spacing)
     metrics: dict[str, float | int | str | None] = {}
+    rough = roughness(z, spacing=spacing, mask=mask)
     spectrum = fold_spectrum(z, spacing=spacing)
     orientation, coherency = fold_orientation(z, spacing=spacing, mask=mask)
     if min_fold_height_um is None:
-        lo, hi = np.percentile(z, [1, 99])
+        lo, hi = _quantiles(z, [1, 99])
         min_fold_height_um = max(0.2 * (hi - lo), 3.0 * float(resolution_um))
     form, wavelength = _fold_form(z, spacing=(dy, dx), mask=mask, wavevector=spectrum.wavevector)
-    zf = z - form
+    zf = z  # the form is removed in place: z is not needed after this
+    for a, b in _bands(z.shape[0]):
+        zf[a:b] -= form(a, b)
     options = {
         "spacing": spacing,
         "orientation_deg": orientation,
@@ -793,13 +948,15 @@ def fold_metrics(
     }
     # the troughs that set the base plane: a coarser set of profiles finds them
     first = fold_profiles(zf, **{**options, "profile_spacing_um": wavelength / 4})
-    zf = zf - _trough_plane(
+    base = _trough_plane(
         first.troughs,
         shape=z.shape,
         spacing=(dy, dx),
         normal=first.normal,
         wavelength_um=wavelength,
     )
+    for a, b in _bands(zf.shape[0]):
+        zf[a:b] -= base(a, b)
     table = fold_profiles(zf, **options)
     heights = table.folds["height_um"]
     theta = math.radians(orientation)
@@ -824,5 +981,5 @@ def fold_metrics(
     metrics["fold_coherency"] = coherency
     metrics["spectral_orientation_deg"] = spectrum.orientation_deg
     metrics["spectral_peak_fraction"] = spectrum.peak_fraction
-    metrics.update(roughness(z, spacing=spacing, mask=mask))
+    metrics.update(rough)
     return metrics, spectrum, table
