@@ -69,7 +69,8 @@ def _coords(shape: tuple[int, int], spacing: tuple[float, float]):
 BAND_ROWS = 256
 
 
-def _bands(n: int, rows: int = BAND_ROWS):
+def _bands(n: int, rows: int | None = None):
+    rows = rows or BAND_ROWS
     for a in range(0, n, rows):
         yield a, min(n, a + rows)
 

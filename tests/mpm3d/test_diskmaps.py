@@ -14,6 +14,7 @@ from mpm3d.diskmaps import (
     DiskMap,
     MapFolder,
     exact_median,
+    exact_percentiles,
     fill_gaps_on_disk,
     from_crossings_on_disk,
     smooth_on_disk,
@@ -122,3 +123,14 @@ def test_map_folder_is_removed_and_asks_for_the_space_it_needs(tmp_path, monkeyp
     with pytest.raises(InputError, match="TMPDIR"):
         MapFolder(1 << 62)
     assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 29, 1000])
+def test_exact_percentiles_are_numpys(n):
+    rng = np.random.default_rng(n)
+    for values in (rng.normal(size=n) * 1e3, np.round(rng.normal(size=n))):
+        q = [0, 1, 50, 99, 100, 100 * rng.random()]
+        parts = np.array_split(values, 3)
+        assert np.array_equal(
+            exact_percentiles(lambda p=parts: iter(p), n, q), np.percentile(values, q)
+        )

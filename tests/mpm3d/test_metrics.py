@@ -168,3 +168,47 @@ def test_fold_heights_of_a_partial_period_ignore_the_specimens_tilt(phase):
     assert flat["fold_height_um"] == pytest.approx(truth[0], rel=MPM_FOLD_RELATIVE)
     assert flat["max_fold_height_um"] == pytest.approx(truth[1], rel=MPM_FOLD_RELATIVE)
     assert flat["fold_wavelength_um"] is None and flat["fold_periods_in_view"] < 2
+
+
+@pytest.mark.parametrize("rows", [1, 7, 1000])
+def test_metrics_taken_in_bands_are_the_whole_maps(rows, monkeypatch):
+    """Detrending, roughness and the structure tensor a band of rows at a time (the bands
+    cut through the filters' reach) against the whole-map formulas."""
+    from scipy import ndimage
+
+    import mpm3d.metrics as metrics
+
+    monkeypatch.setattr(metrics, "BAND_ROWS", rows)
+    spacing = (1.5, 2.0)
+    rng = np.random.default_rng(3)
+    h = _wave((61, 47), spacing, crest_deg=35, wavelength=23.0, amplitude=4.0)
+    h += 0.1 * rng.normal(size=h.shape) + 0.05 * np.arange(61)[:, None]
+    mask = rng.random(h.shape) > 0.1
+    # detrend: the least-squares plane over the mask
+    y, x = np.mgrid[0:61, 0:47] * np.array(spacing)[:, None, None]
+    basis = np.stack([np.ones(h.size), x.ravel(), y.ravel()], 1)
+    coef, *_ = np.linalg.lstsq(basis[mask.ravel()], h.ravel()[mask.ravel()], rcond=None)
+    z = detrend(h, spacing=spacing, mask=mask)
+    assert np.abs(z - (h - (basis @ coef).reshape(h.shape))).max() < 1e-12
+    # roughness
+    r = roughness(z, spacing=spacing, mask=mask)
+    v = z[mask] - z[mask].mean()
+    assert r["Sq_um"] == pytest.approx(np.sqrt(np.mean(v**2)), rel=1e-12)
+    assert r["Sku"] == pytest.approx(np.mean(v**4) / np.mean(v**2) ** 2, rel=1e-12)
+    assert r["Sp_um"] == pytest.approx(v.max(), rel=1e-12)
+    zx = ((z[:-1, 1:] - z[:-1, :-1]) + (z[1:, 1:] - z[1:, :-1])) / (2 * spacing[1])
+    zy = ((z[1:, :-1] - z[:-1, :-1]) + (z[1:, 1:] - z[:-1, 1:])) / (2 * spacing[0])
+    cells = mask[:-1, :-1] & mask[1:, :-1] & mask[:-1, 1:] & mask[1:, 1:]
+    sdr = 100 * (np.sqrt(1 + zx[cells] ** 2 + zy[cells] ** 2).mean() - 1)
+    assert r["Sdr_percent"] == pytest.approx(sdr, rel=1e-12)
+    # the structure tensor of the smoothed map
+    g = ndimage.gaussian_filter(z, (4.0 / 1.5, 4.0 / 2.0), mode="nearest")
+    gy, gx = np.gradient(g, *spacing)
+    jxx, jyy, jxy = (np.mean(a[mask]) for a in (gx * gx, gy * gy, gx * gy))
+    o, c = fold_orientation(z, spacing=spacing, mask=mask)
+    assert o == pytest.approx((0.5 * math.degrees(math.atan2(2 * jxy, jxx - jyy)) + 90) % 180)
+    assert c == pytest.approx(math.hypot(jxx - jyy, 2 * jxy) / (jxx + jyy), rel=1e-12)
+    # the work done in the caller's array gives the same metrics
+    m1, _, _ = fold_metrics(h.copy(), spacing=spacing, mask=mask)
+    m2, _, _ = fold_metrics(h.copy(), spacing=spacing, mask=mask, overwrite=True)
+    assert m1 == m2
