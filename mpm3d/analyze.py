@@ -531,9 +531,15 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
     _write_table(folder / "folds.csv", analysis.folds.folds)
     _write_table(folder / "crests.csv", analysis.folds.crests)
     _, dy, dx = hm.spacing
+    # the two channels as float32, filled a band of rows at a time (no float64 copies)
+    datum = hm.datum_depth_um
+    planes = np.empty((2, *hm.depth_um.shape), np.float32)
+    for a in range(0, planes.shape[1], 256):
+        planes[0, a : a + 256] = datum - hm.depth_um[a : a + 256]
+        planes[1, a : a + 256] = hm.valid[a : a + 256]
     tifffile.imwrite(
         folder / "heightmap.tif",
-        np.stack([hm.height_um, hm.valid]).astype(np.float32),
+        planes,
         imagej=True,
         resolution=(1 / dx, 1 / dy),
         metadata={

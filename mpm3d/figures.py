@@ -34,13 +34,23 @@ def _extent(shape, spacing) -> tuple[float, float, float, float]:
     return (-dx / 2, (nx - 0.5) * dx, (ny - 0.5) * dy, -dy / 2)
 
 
-def _display(image: np.ndarray, size: int = 700) -> np.ndarray:
-    """Block-average a large map to about the figure's resolution (faster, no aliasing)."""
+def _display(image: np.ndarray, size: int = 700, *, where=None) -> np.ndarray:
+    """Block-average a large map to about the figure's resolution (faster, no aliasing),
+    a band of block rows at a time (no copy of a large map).  With ``where`` (a function
+    of a band of rows), the map's band is ``where(band)`` first."""
     f = max(1, int(max(image.shape) // size))
     if f == 1:
-        return image
+        return image if where is None else where(np.asarray(image))
     ny, nx = image.shape[0] // f, image.shape[1] // f
-    return image[: ny * f, : nx * f].reshape(ny, f, nx, f).mean(axis=(1, 3))
+    out = np.empty((ny, nx))
+    step = max(1, 256 // f)
+    for a in range(0, ny, step):
+        b = min(ny, a + step)
+        band = np.asarray(image[a * f : b * f, : nx * f])
+        if where is not None:
+            band = where(band)
+        out[a:b] = band.reshape(b - a, f, nx, f).mean(axis=(1, 3))
+    return out
 
 
 def _height_panel(ax, height, spacing, *, vmin=None, vmax=None, title=""):
@@ -103,7 +113,7 @@ def plot_height_map(
     im = _height_panel(ax, height, spacing, vmin=lo, vmax=hi, title=title)
     fig.colorbar(im, ax=ax, label=label, shrink=0.85)
     if valid is not None and not np.all(valid):
-        shade = _display(np.where(np.asarray(valid, bool), np.nan, 1.0))
+        shade = _display(valid, where=lambda band: np.where(band.astype(bool), np.nan, 1.0))
         ax.imshow(
             shade, extent=_extent(height.shape, spacing), cmap="Greys", alpha=0.5, vmin=0, vmax=1
         )

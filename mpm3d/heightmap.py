@@ -577,23 +577,24 @@ def surface_intensity(
         NaN where the surface's depth is not finite.
     """
     nz, ny, nx = volume.shape
-    depth = np.asarray(depth_um, dtype=float)
-    first = np.clip(np.ceil(np.nan_to_num(depth, nan=0.0) / dz), 0, nz - 1).astype(np.intp)
     count = max(1, round(layer_um / dz))
     out = np.empty((ny, nx), np.float32)
     step = ny if rows is None else max(1, int(rows))
     for y0 in range(0, ny, step):
         y1 = min(ny, y0 + step)
-        z0 = int(first[y0:y1].min())
-        z1 = min(nz, int(first[y0:y1].max()) + count)
+        depth = np.asarray(depth_um[y0:y1], dtype=float)
+        first = np.clip(np.ceil(np.nan_to_num(depth, nan=0.0) / dz), 0, nz - 1).astype(np.intp)
+        z0 = int(first.min())
+        z1 = min(nz, int(first.max()) + count)
         if hasattr(volume, "rows"):
             band = volume.rows(y0, y1, z0, z1)
         else:
             band = volume[z0:z1, y0:y1, :]
         total = np.zeros((y1 - y0, nx), np.float64)
         for k in range(count):
-            index = (np.minimum(first[y0:y1] + k, nz - 1) - z0)[None]
+            index = (np.minimum(first + k, nz - 1) - z0)[None]
             total += np.take_along_axis(band, index, axis=0)[0]
-        out[y0:y1] = total / count
-    out[~np.isfinite(depth)] = np.nan
+        total /= count
+        total[~np.isfinite(depth)] = np.nan
+        out[y0:y1] = total
     return out
