@@ -168,8 +168,9 @@ def plot_profiles(folds, *, max_profiles: int = 3):
         picks = np.argsort(lengths)[::-1][:max_profiles]
         for k in sorted(picks):
             p = profiles[k]
-            ax.plot(p["s_um"], p["height_um"], lw=1.2, label=f"profile {k}")
-            on = folds.crests["profile"] == k
+            index = p.get("profile", k)
+            ax.plot(p["s_um"], p["height_um"], lw=1.2, label=f"profile {index}")
+            on = folds.crests["profile"] == index
             ax.plot(
                 folds.crests["offset_um"][on],
                 np.interp(folds.crests["offset_um"][on], p["s_um"], p["height_um"]),

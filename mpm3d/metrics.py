@@ -483,6 +483,10 @@ def fold_orientation(
     return float((wave_dir + 90.0) % 180.0), float(coherency)
 
 
+#: profiles whose samples a :class:`FoldTable` keeps (the longest)
+KEPT_PROFILES = 32
+
+
 @dataclass(frozen=True, eq=False)
 class FoldTable:
     """Folds found along profiles across the crests.
@@ -502,8 +506,9 @@ class FoldTable:
         ``n_profiles``, ``height_um`` (median over profiles),
         ``height_max_um``, ``width_um`` (median).
     profiles : list of dict
-        Each profile's ``s_um`` (distance along it), ``x_um``, ``y_um`` and
-        ``height_um`` samples, for figures.
+        The :data:`KEPT_PROFILES` longest profiles' samples, for figures: each
+        one's ``profile`` (index, as in ``crests``), ``s_um`` (distance along
+        it), ``x_um``, ``y_um`` and ``height_um``.
     normal : (2,) float
         Unit vector across the folds (x, y).
     troughs : dict of (T,) arrays
@@ -671,7 +676,9 @@ def fold_profiles(
         pts = pts[idx[0] : idx[-1] + 1]
         prof = ndimage.map_coordinates(h, [pts[:, 1] / dy, pts[:, 0] / dx], order=1)
         sp = s[idx[0] : idx[-1] + 1]
-        profiles.append({"s_um": sp, "x_um": pts[:, 0], "y_um": pts[:, 1], "height_um": prof})
+        profiles.append(
+            {"profile": p, "s_um": sp, "x_um": pts[:, 0], "y_um": pts[:, 1], "height_um": prof}
+        )
         peaks = _prominent_peaks(prof, distance=distance, prominence=min_prom, sigma=half / 2)
         troughs = _prominent_peaks(-prof, distance=distance, prominence=min_prom, sigma=half / 2)
         for t in troughs:
@@ -704,6 +711,10 @@ def fold_profiles(
     }
     troughs = {k: np.asarray(v, np.int64 if k == "profile" else np.float64) for k, v in low.items()}
     folds = _group_folds(crests, wavelength_um, min_profiles)
+    # the longest profiles' samples are kept, for figures (a 4096 px map has some 800
+    # profiles of 4000 samples: 75 MiB)
+    longest = sorted(range(len(profiles)), key=lambda i: -len(profiles[i]["s_um"]))
+    profiles = [profiles[i] for i in sorted(longest[:KEPT_PROFILES])]
     return FoldTable(crests=crests, folds=folds, profiles=profiles, normal=normal, troughs=troughs)
 
 

@@ -212,3 +212,34 @@ def test_metrics_taken_in_bands_are_the_whole_maps(rows, monkeypatch):
     m1, _, _ = fold_metrics(h.copy(), spacing=spacing, mask=mask)
     m2, _, _ = fold_metrics(h.copy(), spacing=spacing, mask=mask, overwrite=True)
     assert m1 == m2
+
+
+def test_kept_profiles_are_the_longest_and_carry_their_crests(mpm_pair):
+    """Each kept profile names its index in ``crests``: every crest of it lies on its
+    samples (profiles that leave the map early are skipped, so the list's position is
+    not the index), and the figure marks those crests on it."""
+    import mpm3d.metrics as metrics
+    from mpm3d.figures import plot_profiles
+
+    path, _ = mpm_pair["after"]
+    stack = read_stack(path)
+    volume, _ = select_channel(stack)
+    hm = height_map(volume, spacing=stack.spacing)
+    _, _, table = fold_metrics(hm.height_um, spacing=stack.spacing, mask=hm.valid)
+    kept = table.profiles
+    assert 0 < len(kept) <= metrics.KEPT_PROFILES
+    assert kept[0]["profile"] > 0  # the first offsets run off the map: skipped
+    for p in kept:
+        on = table.crests["profile"] == p["profile"]
+        for x, y in zip(table.crests["x_um"][on], table.crests["y_um"][on], strict=True):
+            assert np.min(np.hypot(p["x_um"] - x, p["y_um"] - y)) < 1e-9
+    # the figure: each drawn profile, then its crests' markers
+    lines = plot_profiles(table).axes[0].get_lines()
+    drawn = 0
+    for line, markers in zip(lines[::2], lines[1::2], strict=True):
+        p = next(p for p in kept if np.array_equal(p["s_um"], line.get_xdata()))
+        assert line.get_label() == f"profile {p['profile']}"
+        on = table.crests["profile"] == p["profile"]
+        assert on.any() and np.array_equal(markers.get_xdata(), table.crests["offset_um"][on])
+        drawn += 1
+    assert drawn == 3
