@@ -56,8 +56,14 @@ __all__ = [
 #: numba, VTK and matplotlib loaded, the figures drawn
 BASE_BYTES = 450 * 2**20
 #: bytes per column (Y x X) of the maps, their filling and smoothing, the
-#: metrics and the figures
+#: metrics and the figures, all in memory
 MAP_BYTES_PER_COLUMN = 200
+#: the same on the banded path, where the height map's work maps are on disk
+#: (:mod:`mpm3d.diskmaps`) and the metrics, the intensity and the figures take the
+#: finished maps (17 bytes a column) a band of rows at a time: a 240 x 4096 x 4096
+#: stack without the surface peaked at 929 MiB with bands of 32 rows, 27 bytes a
+#: column over the base and the band
+TILED_MAP_BYTES_PER_COLUMN = 32
 #: bytes per binned column of the isosurface: the mesh (about two triangles
 #: each) while it is merged, put in order, smoothed, measured and written
 MESH_BYTES_PER_COLUMN = 1200
@@ -191,9 +197,11 @@ def plan_memory(
     """In memory or in bands, and how many rows a band, within ``limit`` bytes.
 
     A model of the peak resident memory of each path, from the stack's
-    shape: a fixed part (:data:`BASE_BYTES`, the ``(Y, X)`` maps and the
-    mesh, which both paths hold whole) and the part that grows with the
-    stack (the whole stack in memory, or one band of every slice).
+    shape: a fixed part (:data:`BASE_BYTES`, the ``(Y, X)`` maps, whose work
+    the banded path does on disk (:data:`TILED_MAP_BYTES_PER_COLUMN` against
+    :data:`MAP_BYTES_PER_COLUMN`), and the mesh, which both paths hold whole)
+    and the part that grows with the stack (the whole stack in memory, or one
+    band of every slice).
 
     Parameters
     ----------
@@ -226,9 +234,9 @@ def plan_memory(
     """
     nz, nc, ny, nx = (int(n) for n in shape)
     by, bx = max(1, ny // bin), max(1, nx // bin)
-    fixed = BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx
-    if surface:
-        fixed += MESH_BYTES_PER_COLUMN * by * bx
+    mesh = MESH_BYTES_PER_COLUMN * by * bx if surface else 0
+    fixed = BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx + mesh
+    banded = BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx + mesh
     voxels = nz * ny * nx
     grid = nz * by * bx if surface else 0
     # the stack as read, the combined channels, the isosurface's float32 grid
@@ -244,7 +252,7 @@ def plan_memory(
         band = height_rows(rows)
         if surface:
             band = max(band, surface_rows(grid_rows))
-        return fixed + band
+        return banded + band
 
     smallest = peak(1, 1)
     if not lazy and tile_rows is None and in_memory <= limit:
@@ -261,7 +269,7 @@ def plan_memory(
                 f"{nz} x {nc} x {ny} x {nx} stack: even one row at a time needs "
                 f"{format_bytes(smallest)}; use --memory-limit {format_bytes(smallest)} or more"
             )
-        room = limit - fixed
+        room = limit - banded
         rows = max(1, min(ny, room // per_row - 2))
         grid_rows = 1
         if surface:
@@ -278,7 +286,7 @@ def plan_memory(
             "without_mesh": BASE_BYTES + KEPT_MAP_BYTES_PER_COLUMN * ny * nx,
             "per_grid_row": per_row * bin + per_grid_row,
             "binned_rows": by,
-            "height_peak": BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx + height_rows(rows),
+            "height_peak": BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx + height_rows(rows),
         },
     )
 
