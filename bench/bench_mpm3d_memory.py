@@ -12,7 +12,15 @@
    that process) against the limit and the stack's size; with ``--baseline``
    also the in-memory path's on the same stack (peak and time ratios).
 
+3. A wide field of view: a one-channel 8-bit stack of 240 x 4096 x 4096 px
+   (3.75 GiB; ``--wide``), a rendered 1024 px surface mirrored tile by tile,
+   then ``mpm3d analyze --memory-limit 1GiB --no-surface`` (``--wide-limit``):
+   its peak resident memory, and with ``--baseline`` the in-memory run's
+   (some 5.5 GiB), whose metrics.json, height map and surface intensity must
+   be equal.  The mesh is left out: it is still assembled whole.
+
     python bench/bench_mpm3d_memory.py [--size 6GiB] [--limit 1.5GiB] [--keep DIR] [--baseline]
+        [--wide 240x4096x4096] [--wide-limit 1GiB] [--only equal|bounded|wide]
 """
 
 from __future__ import annotations
@@ -195,6 +203,91 @@ def bounded_memory(folder: Path, size_text: str, limit_text: str, *, baseline: b
         raise SystemExit("peak memory over the limit")
 
 
+def write_wide_stack(path: Path, shape: tuple[int, int, int], *, size: int = 1024) -> None:
+    """A one-channel 8-bit stack of ``shape`` (Z, Y, X), written page by page: a folded
+    surface rendered at ``size`` px, mirrored tile by tile across the field (the folds run
+    on across each seam), its deepest 16 slices repeated below to make up the slices."""
+    import tifffile
+
+    from sample_data_synth import make_stack_case
+
+    nz, ny, nx = shape
+    spacing = (4.0, 2.5, 2.5)
+    case = make_stack_case("before", size=size, spacing=spacing, rng=5)
+    base = case.stack[:, 0]
+    base = (base.astype(np.float32) * (255.0 / max(1, int(base.max())))).astype(np.uint8)
+    tiles_y, tiles_x = math.ceil(ny / size), math.ceil(nx / size)
+    mm = tifffile.memmap(
+        path,
+        shape=shape,
+        dtype=np.uint8,
+        imagej=True,
+        resolution=(1 / spacing[2], 1 / spacing[1]),
+        metadata={"axes": "ZYX", "spacing": spacing[0], "unit": "um"},
+    )
+    offset = mm.offset
+    del mm
+    tail = base[-16:]
+    with open(path, "r+b") as f:
+        for z in range(nz):
+            page = base[z] if z < base.shape[0] else tail[(z - base.shape[0]) % len(tail)]
+            row = np.concatenate([page if j % 2 == 0 else page[:, ::-1] for j in range(tiles_x)], 1)
+            plane = np.concatenate([row if i % 2 == 0 else row[::-1] for i in range(tiles_y)])
+            plane = plane[:ny, :nx]
+            data = np.ascontiguousarray(plane).tobytes()
+            os.pwrite(f.fileno(), data, offset + z * len(data))
+
+
+def wide_field(folder: Path, shape_text: str, limit_text: str, *, baseline: bool) -> None:
+    """A wide field of view (4096 x 4096 px by default) within the limit, without the
+    surface: the (Y, X) maps' work on disk and in bands (mpm3d.diskmaps)."""
+    from mpm3d.tiled import parse_memory
+
+    shape = tuple(int(n) for n in shape_text.lower().split("x"))
+    if len(shape) != 3:
+        raise SystemExit(f"--wide must be ZxYxX, got {shape_text!r}")
+    limit = parse_memory(limit_text)
+    stack = folder / "wide.tif"
+    t0 = time.perf_counter()
+    write_wide_stack(stack, shape)
+    written = stack.stat().st_size
+    print(
+        f"wide field: {shape} (Z, Y, X) uint8 stack, {written / 2**30:.2f} GiB written in "
+        f"{time.perf_counter() - t0:.0f} s"
+    )
+    out = folder / "wide_out"
+    seconds, peak = run_analyze(stack, out, "--memory-limit", limit_text, "--no-surface")
+    metrics = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
+    record = metrics["parameters"]["memory"]
+    print(
+        f"  mpm3d analyze --memory-limit {limit_text} --no-surface: {seconds:.1f} s, path "
+        f"{record['path']}, {record.get('tile_rows')} rows a band; peak RSS "
+        f"{peak / 2**30:.2f} GiB = {peak / limit:.2f}x the limit (model's estimate "
+        f"{record.get('estimated_peak_bytes', 0) / 2**30:.2f} GiB)"
+    )
+    if baseline:
+        import tifffile
+
+        whole = folder / "wide_in_memory"
+        seconds0, peak0 = run_analyze(stack, whole, "--memory-limit", "1TiB", "--no-surface")
+        metrics0 = json.loads((whole / "metrics.json").read_text(encoding="utf-8"))
+        same = without_path_record(metrics0) == without_path_record(metrics)
+        maps = all(
+            np.array_equal(tifffile.imread(out / f), tifffile.imread(whole / f), equal_nan=True)
+            for f in ("heightmap.tif", "surface_intensity.tif")
+        )
+        print(
+            f"  in memory: {seconds0:.1f} s, peak RSS {peak0 / 2**30:.2f} GiB; banded / in "
+            f"memory: peak {peak / peak0:.2f}, time {seconds / seconds0:.2f}; metrics.json "
+            f"equal (all but {'.'.join(PATH_RECORD)}): {same}; height map and intensity "
+            f"equal: {maps}"
+        )
+        if not (same and maps):
+            raise SystemExit("the banded path's results differ from the in-memory path's")
+    if peak > limit:
+        raise SystemExit("peak memory over the limit")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", default="6GiB", help="size of the large stack (6GiB)")
@@ -205,12 +298,23 @@ def main() -> None:
         action="store_true",
         help="also analyse the large stack in memory (needs some 2.5x its size of free memory)",
     )
+    parser.add_argument(
+        "--wide",
+        default="240x4096x4096",
+        help="Z x Y x X of the wide one-channel 8-bit stack (240x4096x4096; 0 skips it)",
+    )
+    parser.add_argument("--wide-limit", default="1GiB", help="memory limit for it (1GiB)")
+    parser.add_argument("--only", choices=("equal", "bounded", "wide"), help="run one part alone")
     args = parser.parse_args()
     folder = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="bench_mpm3d_mem_"))
     folder.mkdir(parents=True, exist_ok=True)
     try:
-        equal_metrics(folder)
-        bounded_memory(folder, args.size, args.limit, baseline=args.baseline)
+        if args.only in (None, "equal"):
+            equal_metrics(folder)
+        if args.only in (None, "bounded"):
+            bounded_memory(folder, args.size, args.limit, baseline=args.baseline)
+        if args.only in (None, "wide") and args.wide != "0":
+            wide_field(folder, args.wide, args.wide_limit, baseline=args.baseline)
     finally:
         if not args.keep:
             shutil.rmtree(folder, ignore_errors=True)
