@@ -26,7 +26,9 @@ such maps: the same height map, bit for bit (tests compare the two).
 
 from __future__ import annotations
 
+import errno
 import math
+import os
 import shutil
 import tempfile
 import warnings
@@ -107,8 +109,24 @@ class DiskMap:
         self.dtype = np.dtype(dtype)
         size = self.shape[0] * self.shape[1] * self.dtype.itemsize
         if not self.path.exists() or self.path.stat().st_size != size:
+            # the blocks are reserved now: a disk that fills up fails here, with a clear
+            # message, and never while a mapped page is written (which would end the
+            # process with SIGBUS)
             with open(self.path, "wb") as f:
-                f.truncate(size)
+                try:
+                    if size:
+                        os.posix_fallocate(f.fileno(), 0, size)
+                except OSError as err:
+                    if err.errno in (errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
+                        f.truncate(size)  # a file system that reserves nothing: sparse
+                    elif err.errno != errno.ENOSPC:
+                        raise
+                    else:
+                        raise InputError(
+                            f"no disk space left for the height map's work maps in "
+                            f"{self.path.parent.parent} ({size / 2**20:.0f} MiB more needed):"
+                            " set TMPDIR to a folder with more"
+                        ) from None
 
     @property
     def size(self) -> int:

@@ -134,3 +134,24 @@ def test_exact_percentiles_are_numpys(n):
         assert np.array_equal(
             exact_percentiles(lambda p=parts: iter(p), n, q), np.percentile(values, q)
         )
+
+
+def test_a_full_disk_is_a_clear_error_before_any_page_is_written(monkeypatch):
+    """The maps' blocks are reserved when made: a full disk is an InputError there (a page
+    of a memory map written to a sparse file on a full disk ends the process: SIGBUS)."""
+    import errno
+
+    def full(fd, offset, length):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with MapFolder() as folder:
+        monkeypatch.setattr(os, "posix_fallocate", full)
+        with pytest.raises(InputError, match=r"no disk space left .* TMPDIR"):
+            folder.new((64, 64), np.float64)
+
+        def unsupported(fd, offset, length):
+            raise OSError(errno.EOPNOTSUPP, "Operation not supported")
+
+        monkeypatch.setattr(os, "posix_fallocate", unsupported)
+        sparse = folder.new((4, 4), np.float32)  # a file system that reserves nothing
+        assert sparse.to_array().sum() == 0 and sparse.path.stat().st_size == 64
