@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mpm3d.errors import InputError, SurfaceOutsideWarning
+from mpm3d.errors import InputError, SurfaceOutsideWarning, WorkFolderWarning
 
 __all__ = [
     "DiskMap",
@@ -66,11 +66,29 @@ class MapFolder:
 
     def __init__(self, need_bytes: int = 0, *, prefix: str = "mpm3d-maps-") -> None:
         base = tempfile.gettempdir()
+        asked = os.environ.get("TMPDIR")
+        if asked and os.path.realpath(asked) != os.path.realpath(base):
+            warnings.warn(
+                WorkFolderWarning(
+                    f"TMPDIR {asked} is not a folder this process can write to: the height "
+                    f"map's work maps go to {base}"
+                ),
+                stacklevel=3,
+            )
+        if need_bytes and _in_memory(base):
+            warnings.warn(
+                WorkFolderWarning(
+                    f"{base} is held in memory (tmpfs): the height map's work maps "
+                    f"({format_size(need_bytes)}) take memory there, not counted by "
+                    "--memory-limit; set TMPDIR to a folder on disk"
+                ),
+                stacklevel=3,
+            )
         free = shutil.disk_usage(base).free
         if need_bytes > free:
             raise InputError(
-                f"the height map's work maps need {need_bytes / 2**30:.2f} GiB of temporary "
-                f"disk space, but {base} has {free / 2**30:.2f} GiB free: set TMPDIR to a "
+                f"the height map's work maps need {format_size(need_bytes)} of temporary "
+                f"disk space, but {base} has {format_size(free)} free: set TMPDIR to a "
                 "folder with more"
             )
         self.path = Path(tempfile.mkdtemp(prefix=prefix, dir=base))
@@ -89,6 +107,33 @@ class MapFolder:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def format_size(n: float) -> str:
+    """``n`` bytes in GiB (two decimals) or MiB, rounded up."""
+    if n >= 2**30:
+        return f"{math.ceil(n / 2**30 * 100) / 100:.2f} GiB"
+    return f"{max(1, math.ceil(n / 2**20)):d} MiB"
+
+
+def _in_memory(folder: str) -> bool:
+    """Whether ``folder`` lies on a file system held in memory (tmpfs, ramfs), as the
+    longest mount point over it in /proc/mounts says (False where that cannot be read)."""
+    try:
+        mounts = Path("/proc/mounts").read_text(encoding="utf-8", errors="replace").splitlines()
+    except OSError:
+        return False
+    path = os.path.realpath(folder)
+    best, kind = "", ""
+    for line in mounts:
+        fields = line.split()
+        if len(fields) < 3:
+            continue
+        point = fields[1].replace("\\040", " ")
+        inside = path == point or path.startswith(point.rstrip("/") + "/")
+        if inside and len(point) > len(best):
+            best, kind = point, fields[2]
+    return kind in ("tmpfs", "ramfs")
 
 
 class DiskMap:
@@ -122,10 +167,12 @@ class DiskMap:
                     elif err.errno != errno.ENOSPC:
                         raise
                     else:
+                        free = shutil.disk_usage(self.path.parent).free
                         raise InputError(
                             f"no disk space left for the height map's work maps in "
-                            f"{self.path.parent.parent} ({size / 2**20:.0f} MiB more needed):"
-                            " set TMPDIR to a folder with more"
+                            f"{self.path.parent.parent}: a map of {format_size(size)} does "
+                            f"not fit in the {format_size(free)} free; set TMPDIR to a "
+                            "folder with more"
                         ) from None
 
     @property
@@ -304,8 +351,6 @@ def smooth_on_disk(
     along its columns, then along its rows; the extension is cut off."""
     ny, nx = values.shape
     py, px = (max(1, min(n - 1, math.ceil(4 * s))) for n, s in zip((ny, nx), sigma_px, strict=True))
-    if ny < 2 or nx < 2:
-        raise InputError("a map to smooth must be at least 2 x 2")
     width = nx + 2 * px
 
     def padded(c0: int, c1: int) -> np.ndarray:
@@ -313,6 +358,8 @@ def smooth_on_disk(
         src = np.arange(c0, c1) - px
         left, right = src < 0, src > nx - 1
         mirror = np.where(left, -src, np.where(right, 2 * (nx - 1) - src, src))
+        if nx == 1:  # NumPy extends a single column by itself
+            mirror[:] = 0
         need = [mirror.min(), mirror.max(), *([0] if left.any() else []),
                 *([nx - 1] if right.any() else [])]  # fmt: skip
         lo, hi = int(min(need)), int(max(need)) + 1
@@ -391,8 +438,8 @@ def _select(read: Callable[[], Iterator[np.ndarray]], ranks: list[int]) -> list[
 
 
 def exact_median(read: Callable[[], Iterator[np.ndarray]], count: int) -> float:
-    """What :func:`numpy.median` gives for the ``count`` values ``read()`` yields (in
-    bands): the middle one, or the mean of the two middle ones."""
+    """What :func:`numpy.median` gives for the ``count`` float64 values ``read()`` yields
+    (in bands, none of them NaN): the middle one, or the mean of the two middle ones."""
     if count <= 0:
         return float("nan")
     if count % 2:
@@ -402,9 +449,10 @@ def exact_median(read: Callable[[], Iterator[np.ndarray]], count: int) -> float:
 
 
 def exact_percentiles(read: Callable[[], Iterator[np.ndarray]], count: int, q) -> np.ndarray:
-    """What :func:`numpy.percentile` (linear) gives for the ``count`` values ``read()``
-    yields (in bands), ``q`` in percent: the two order statistics around each
-    quantile, found exactly, and NumPy's interpolation between them."""
+    """What :func:`numpy.percentile` (linear) gives for the ``count`` float64 values
+    ``read()`` yields (in bands, none of them NaN), ``q`` in percent: the two order
+    statistics around each quantile, found exactly, and NumPy's interpolation between
+    them."""
     q = np.asarray(q, np.float64)
     if count <= 0:
         return np.full(q.shape, np.nan)

@@ -17,6 +17,7 @@ __all__ = [
     "NoDataWarning",
     "SourceError",
     "SurfaceOutsideWarning",
+    "WorkFolderWarning",
     "warn_no_data",
 ]
 
@@ -31,6 +32,10 @@ class SurfaceOutsideWarning(UserWarning):
 
 class MosaicGapWarning(UserWarning):
     """Part of a mosaic's extent lies in no tile."""
+
+
+class WorkFolderWarning(UserWarning):
+    """The temporary folder of the work maps is not where ``TMPDIR`` says, or is in memory."""
 
 
 class NoDataWarning(UserWarning):

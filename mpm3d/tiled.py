@@ -61,8 +61,8 @@ MAP_BYTES_PER_COLUMN = 200
 #: the same on the banded path, where the height map's work maps are on disk
 #: (:mod:`mpm3d.diskmaps`) and the metrics, the intensity and the figures take the
 #: finished maps (17 bytes a column) a band of rows at a time: a 240 x 4096 x 4096
-#: stack without the surface peaked at 929 MiB with bands of 32 rows, 27 bytes a
-#: column over the base and the band
+#: stack without the surface peaked at 929 MiB with bands of 32 rows (930 with the 64
+#: rows the plan picks at 1 GiB), 27 bytes a column over the base and the band
 TILED_MAP_BYTES_PER_COLUMN = 32
 #: bytes per binned column of the isosurface: the mesh (about two triangles
 #: each) while it is merged, put in order, smoothed, measured and written
@@ -79,8 +79,9 @@ MESH_BYTES_PER_TRIANGLE = 240
 #: synthetic stacks, flat and steeply folded, binned 2 and 3 (within 6 %)
 TRIANGLES_PER_CELL = 2.6
 #: bytes per column of the height map's work maps on disk (:mod:`mpm3d.diskmaps`): the
-#: crossings, the contrast, the masks, the filled and filtered maps alive at once
-DISK_BYTES_PER_COLUMN = 80
+#: crossings, the contrast, the masks and a gap filling's maps alive at once (69 at most),
+#: besides the smoothing's map extended past the edges (:func:`disk_bytes`)
+DISK_BYTES_PER_COLUMN = 72
 #: the default memory limit: this fraction of the memory available now
 DEFAULT_FRACTION = 0.5
 
@@ -404,6 +405,20 @@ def _counter(progress, description: str) -> Iterator[Callable[[int, int], None]]
     yield tick
 
 
+def disk_bytes(shape: tuple[int, int], spacing: Sequence[float], smooth_um: float) -> int:
+    """The temporary disk space :func:`tiled_height_map` takes for a ``(Y, X)`` field: its
+    work maps (:data:`DISK_BYTES_PER_COLUMN`), and the smoothing's float64 map extended
+    past the edges by four sigma (as :func:`mpm3d.heightmap.smooth_map` extends it)."""
+    ny, nx = (int(n) for n in shape)
+    dy, dx = (float(v) for v in tuple(spacing)[-2:])
+    extended = 0
+    if smooth_um > 0:
+        py = max(1, min(ny - 1, math.ceil(4 * smooth_um / dy)))
+        px = max(1, min(nx - 1, math.ceil(4 * smooth_um / dx)))
+        extended = 8 * (ny + 2 * py) * (nx + 2 * px)
+    return DISK_BYTES_PER_COLUMN * ny * nx + extended
+
+
 def tiled_height_map(
     volume: StackBands,
     *,
@@ -448,7 +463,7 @@ def tiled_height_map(
     starts = range(0, ny, rows)
     # the crossings and every step after them in files: the (Y, X) maps' work is
     # a band of rows (or a strip of columns) at a time, as the stack's is
-    with MapFolder(DISK_BYTES_PER_COLUMN * ny * nx) as folder:
+    with MapFolder(disk_bytes((ny, nx), spacing, sigma_um)) as folder:
         depth = folder.new((ny, nx), np.float64, "depth")
         peak = folder.new((ny, nx), np.float64, "peak")
         with _counter(progress, "finding the surface") as tick:

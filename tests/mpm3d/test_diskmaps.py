@@ -77,8 +77,12 @@ def test_height_map_from_maps_on_disk_is_the_in_memory_one(seed):
     assert left == sorted(["map.bin", "map.bin", "valid.bin", "cnr.bin", final])
 
 
-@pytest.mark.parametrize(("shape", "sigma"), [((37, 23), (1.0, 2.5)), ((9, 60), (6.0, 0.0)),
-                                              ((50, 3), (0.7, 9.0))])  # fmt: skip
+@pytest.mark.parametrize(
+    ("shape", "sigma"),
+    [((37, 23), (1.0, 2.5)), ((9, 60), (6.0, 0.0)), ((50, 3), (0.7, 9.0)),
+     ((1, 1), (2.0, 2.0)), ((1, 2), (2.0, 2.0)), ((1, 30), (3.0, 3.0)), ((2, 1), (1.0, 1.0)),
+     ((30, 1), (3.0, 3.0)), ((5, 2), (1.5, 1.5))],
+)  # fmt: skip
 def test_smoothing_and_filling_on_disk_are_the_in_memory_ones(shape, sigma):
     rng = np.random.default_rng(1)
     values = rng.normal(size=shape).cumsum(axis=1)
@@ -155,3 +159,78 @@ def test_a_full_disk_is_a_clear_error_before_any_page_is_written(monkeypatch):
         monkeypatch.setattr(os, "posix_fallocate", unsupported)
         sparse = folder.new((4, 4), np.float32)  # a file system that reserves nothing
         assert sparse.to_array().sum() == 0 and sparse.path.stat().st_size == 64
+
+
+def test_the_disk_space_asked_for_covers_the_work_maps_at_their_peak(monkeypatch):
+    """The space :func:`mpm3d.tiled.disk_bytes` asks for is never exceeded, with a
+    smoothing whose extension past the edges is larger than the map."""
+    import mpm3d.diskmaps as diskmaps
+    from mpm3d.tiled import disk_bytes
+
+    rng = np.random.default_rng(4)
+    depth, peak = _crossings(rng, 40, 50, big_gap=True)
+    spacing = (2.0, 1.5, 1.2)
+    made = diskmaps.DiskMap.__init__
+    peak_bytes = [0]
+
+    def counting(self, path, shape, dtype):
+        made(self, path, shape, dtype)
+        used = sum(p.stat().st_size for p in self.path.parent.iterdir())
+        peak_bytes[0] = max(peak_bytes[0], used)
+
+    monkeypatch.setattr(diskmaps.DiskMap, "__init__", counting)
+    for smooth in (0.0, 1.2, 40.0):
+        peak_bytes[0] = 0
+        with warnings.catch_warnings(), MapFolder() as folder:
+            warnings.simplefilter("ignore")
+            from_crossings_on_disk(
+                DiskMap.of(folder, depth), DiskMap.of(folder, peak), folder, spacing=spacing,
+                n_slices=40, levels=(60.0, 50.0, 2.0), threshold_given=False, separability=0.5,
+                peak_window_um=20.0, smooth_um=smooth, min_cnr=5.0, outlier_um=None,
+                min_coverage=0.05,
+            )  # fmt: skip
+        asked = disk_bytes(depth.shape, spacing, smooth)
+        assert 0 < peak_bytes[0] <= asked, (smooth, peak_bytes[0], asked)
+    assert peak_bytes[0] > 69 * depth.size  # the wide smoothing's extension counted
+
+
+def test_work_folder_warnings(tmp_path, monkeypatch):
+    import tempfile
+
+    import mpm3d.diskmaps as diskmaps
+    from mpm3d.errors import WorkFolderWarning
+
+    # a TMPDIR that cannot be used: Python picks another folder, and says so here
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "missing"))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    with pytest.warns(WorkFolderWarning, match="is not a folder this process can write to"):
+        MapFolder(10).close()
+    # a folder held in memory: its maps take memory the limit does not count
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    monkeypatch.setattr(diskmaps, "_in_memory", lambda folder: True)
+    with pytest.warns(WorkFolderWarning, match="held in memory"):
+        MapFolder(10).close()
+
+
+def test_in_memory_file_systems_are_told_from_the_mount_table(monkeypatch):
+    from pathlib import Path
+
+    import mpm3d.diskmaps as diskmaps
+
+    table = "\n".join([
+        "/dev/vda / ext4 rw 0 0",
+        "tmpfs /tmp tmpfs rw 0 0",
+        "/dev/vdb /tmp/big ext4 rw 0 0",
+        "tmpfs /run/my\\040dir tmpfs rw 0 0",
+    ])  # fmt: skip
+    read = Path.read_text
+    monkeypatch.setattr(
+        Path,
+        "read_text",
+        lambda self, *a, **k: table if str(self) == "/proc/mounts" else read(self, *a, **k),
+    )
+    monkeypatch.setattr(diskmaps.os.path, "realpath", lambda p: str(p))
+    assert diskmaps._in_memory("/tmp") and diskmaps._in_memory("/tmp/work")
+    assert not diskmaps._in_memory("/tmp/big/work") and not diskmaps._in_memory("/tmpx")
+    assert not diskmaps._in_memory("/home") and diskmaps._in_memory("/run/my dir/x")
