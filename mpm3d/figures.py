@@ -68,6 +68,9 @@ def _height_panel(ax, height, spacing, *, vmin=None, vmax=None, title=""):
     return im
 
 
+#: profiles whose crests the height map figure marks, at most (every k-th profile's)
+MAX_CREST_PROFILES = 60
+
 #: colour-bar label of the heights (see :data:`mpm3d.heightmap.HEIGHT_DATUM`)
 HEIGHT_LABEL = "height above the deepest slice (µm)"
 
@@ -118,14 +121,22 @@ def plot_height_map(
             shade, extent=_extent(height.shape, spacing), cmap="Greys", alpha=0.5, vmin=0, vmax=1
         )
     if folds is not None and folds.crests["x_um"].size:
+        # on a wide field the profiles (a sixteenth of a wavelength apart) would cover the
+        # map with dots: those of every k-th profile are drawn, at most MAX_CREST_PROFILES
+        ids = np.unique(folds.crests["profile"])
+        every = max(1, math.ceil(len(ids) / MAX_CREST_PROFILES))
+        shown = np.isin(folds.crests["profile"], ids[::every])
+        n_shown = int(shown.sum())
         ax.scatter(
-            folds.crests["x_um"],
-            folds.crests["y_um"],
-            s=14,
+            folds.crests["x_um"][shown],
+            folds.crests["y_um"][shown],
+            s=max(3.0, 14.0 * min(1.0, math.sqrt(400 / max(n_shown, 1)))),  # smaller if many
             facecolor="white",
             edgecolor="black",
             linewidths=0.6,
-            label="crest (one per profile)",
+            label="crest (one per profile)"
+            if every == 1
+            else f"crest (one per profile, on one profile in {every})",
             zorder=3,
         )
         ax.legend(loc="lower right", fontsize=8, framealpha=0.85)

@@ -63,6 +63,28 @@ def test_height_figure_uses_the_colour_range_it_is_given():
     assert plot_height_map(height, spacing=(2.0, 1.0)).axes[0].images[0].get_clim() == (0, 48)
 
 
+def test_height_figure_marks_the_crests_of_at_most_so_many_profiles():
+    """A wide field's hundreds of profiles would cover the map with dots: every k-th
+    profile's crests are marked, and the legend says so; a few profiles are all marked."""
+    from mpm3d.figures import MAX_CREST_PROFILES, plot_height_map
+    from mpm3d.metrics import FoldTable
+
+    height = np.zeros((40, 50))
+    for n_profiles in (5, 7 * MAX_CREST_PROFILES):
+        profile = np.repeat(np.arange(n_profiles), 3)
+        crests = {"profile": profile, "x_um": np.arange(profile.size) % 50.0,
+                  "y_um": profile % 40.0}  # fmt: skip
+        folds = FoldTable(crests=crests, folds={"x_um": [], "y_um": []}, profiles=[],
+                          normal=np.array([1.0, 0.0]))  # fmt: skip
+        ax = plot_height_map(height, spacing=(1.0, 1.0), folds=folds).axes[0]
+        dots = ax.collections[0].get_offsets()
+        label = ax.get_legend().get_texts()[0].get_text()
+        if n_profiles == 5:
+            assert len(dots) == 15 and label == "crest (one per profile)"
+        else:
+            assert len(dots) == 3 * MAX_CREST_PROFILES and "one profile in 7" in label
+
+
 def test_rendering_colours_by_height_above_the_datum(tmp_path):
     """A plane sloping from 20 to 40 um deep, datum 100 um deep: heights 60 to 80 um."""
     depth = np.tile(np.linspace(20.0, 40.0, 12), (10, 1))
