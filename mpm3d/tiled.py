@@ -265,10 +265,18 @@ def plan_memory(
         grid_rows = max(1, min(by - 1, rows // bin))
     else:
         if smallest > limit:
+            ways = f"use --memory-limit {format_bytes(smallest)} or more"
+            without = smallest - mesh - max(0, surface_rows(1) - height_rows(1))
+            if surface and without <= limit:
+                # the mesh, still assembled whole, is what does not fit
+                ways += (
+                    f", a coarser --iso-bin (now {bin}), or --no-surface (which needs "
+                    f"{format_bytes(without)}: the mesh is assembled whole)"
+                )
             raise InputError(
                 f"a memory limit of {format_bytes(limit)} is too small for this "
                 f"{nz} x {nc} x {ny} x {nx} stack: even one row at a time needs "
-                f"{format_bytes(smallest)}; use --memory-limit {format_bytes(smallest)} or more"
+                f"{format_bytes(smallest)}; {ways}"
             )
         room = limit - banded
         rows = max(1, min(ny, room // per_row - 2))

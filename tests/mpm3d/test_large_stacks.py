@@ -156,6 +156,23 @@ def test_plan_memory():
     assert parse_memory(format_bytes(big.smallest_limit_bytes)) >= big.smallest_limit_bytes
 
 
+def test_a_wide_field_fits_a_gib_without_the_mesh_and_the_refusal_says_so():
+    """240 x 4096 x 4096 px of 8 bits (3.75 GiB): within 1 GiB in bands without the mesh
+    (the maps' work on disk); with it, the refusal names --no-surface and what it needs."""
+    shape = (240, 1, 4096, 4096)
+    kw = {"combined": False, "channels_read": 1, "bin": 2}
+    plan = plan_memory(shape, 1, limit=2**30, surface=False, **kw)
+    assert plan.path == "tiled" and plan.tiled_bytes <= 2**30 and plan.tile_rows >= 16
+    with pytest.raises(
+        InputError, match=r"--iso-bin \(now 2\), or --no-surface \(which needs (\S+):"
+    ):
+        plan_memory(shape, 1, limit=2**30, surface=True, **kw)
+    # a limit the mesh alone breaks, the stack's bands too: no --no-surface offered
+    with pytest.raises(InputError) as refused:
+        plan_memory(shape, 1, limit=200 * 2**20, surface=True, **kw)
+    assert "--no-surface" not in str(refused.value)
+
+
 def _formats(folder, mpm_small):
     """Stacks as files of every layout the reader handles, beside read_stack's arrays."""
     case = make_stack_case("before", size=24, spacing=(4.0, 5.0, 5.0), rng=2)
