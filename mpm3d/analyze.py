@@ -303,8 +303,10 @@ def _analyze(
         # a mosaic's tiles and where each lies (None for one stack)
         "mosaic": mosaic,
     }
-    height = hm.height_um
-    height_range = [float(height.min()), float(height.max())]
+    # the height's range from the depth's (no map-sized copy): the same numbers, as the
+    # height is the datum less the depth
+    depth_range = (float(hm.depth_um.min()), float(hm.depth_um.max()))
+    height_range = [hm.datum_depth_um - depth_range[1], hm.datum_depth_um - depth_range[0]]
     colour = list(height_range)
     if mesh is not None and mesh.n_points:
         mesh_height = np.asarray(mesh.point_data["height_um"])
@@ -327,7 +329,7 @@ def _analyze(
         "surface_level": hm.level,
         "surface_cut_fraction": hm.cut_fraction,
         "surface_coverage": hm.coverage,
-        "surface_depth_range_um": [float(hm.depth_um.min()), float(hm.depth_um.max())],
+        "surface_depth_range_um": list(depth_range),
         "n_surface_triangles": int(mesh.n_cells) if mesh is not None else None,
         "height_datum": {
             "datum": HEIGHT_DATUM,
@@ -551,6 +553,7 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
             "channel 1: 1 where measured, 0 where filled",
         },
     )
+    del planes  # not alive while the figures are drawn
     if analysis.surface_intensity is not None:
         tifffile.imwrite(
             folder / "surface_intensity.tif",
