@@ -27,6 +27,7 @@ References
 from __future__ import annotations
 
 import functools
+import heapq
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -676,9 +677,12 @@ def fold_profiles(
         pts = pts[idx[0] : idx[-1] + 1]
         prof = ndimage.map_coordinates(h, [pts[:, 1] / dy, pts[:, 0] / dx], order=1)
         sp = s[idx[0] : idx[-1] + 1]
-        profiles.append(
-            {"profile": p, "s_um": sp, "x_um": pts[:, 0], "y_um": pts[:, 1], "height_um": prof}
-        )
+        # the KEPT_PROFILES longest profiles' samples are kept as they come (the first of
+        # equal length), for figures: a 4096 px map has some 800 profiles of 4000 samples
+        entry = {"profile": p, "s_um": sp, "x_um": pts[:, 0], "y_um": pts[:, 1], "height_um": prof}
+        heapq.heappush(profiles, (len(sp), -p, entry))
+        if len(profiles) > KEPT_PROFILES:
+            heapq.heappop(profiles)
         peaks = _prominent_peaks(prof, distance=distance, prominence=min_prom, sigma=half / 2)
         troughs = _prominent_peaks(-prof, distance=distance, prominence=min_prom, sigma=half / 2)
         for t in troughs:
@@ -711,10 +715,7 @@ def fold_profiles(
     }
     troughs = {k: np.asarray(v, np.int64 if k == "profile" else np.float64) for k, v in low.items()}
     folds = _group_folds(crests, wavelength_um, min_profiles)
-    # the longest profiles' samples are kept, for figures (a 4096 px map has some 800
-    # profiles of 4000 samples: 75 MiB)
-    longest = sorted(range(len(profiles)), key=lambda i: -len(profiles[i]["s_um"]))
-    profiles = [profiles[i] for i in sorted(longest[:KEPT_PROFILES])]
+    profiles = [entry for _, _, entry in sorted(profiles, key=lambda e: -e[1])]
     return FoldTable(crests=crests, folds=folds, profiles=profiles, normal=normal, troughs=troughs)
 
 

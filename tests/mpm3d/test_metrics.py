@@ -214,7 +214,7 @@ def test_metrics_taken_in_bands_are_the_whole_maps(rows, monkeypatch):
     assert m1 == m2
 
 
-def test_kept_profiles_are_the_longest_and_carry_their_crests(mpm_pair):
+def test_kept_profiles_are_the_longest_and_carry_their_crests(mpm_pair, monkeypatch):
     """Each kept profile names its index in ``crests``: every crest of it lies on its
     samples (profiles that leave the map early are skipped, so the list's position is
     not the index), and the figure marks those crests on it."""
@@ -228,6 +228,13 @@ def test_kept_profiles_are_the_longest_and_carry_their_crests(mpm_pair):
     _, _, table = fold_metrics(hm.height_um, spacing=stack.spacing, mask=hm.valid)
     kept = table.profiles
     assert 0 < len(kept) <= metrics.KEPT_PROFILES
+    # the longest ones (the first of equal length), in their order
+    monkeypatch.setattr(metrics, "KEPT_PROFILES", 10**6)
+    _, _, every = fold_metrics(hm.height_um, spacing=stack.spacing, mask=hm.valid)
+    assert len(every.profiles) > len(kept)
+    ranked = sorted(every.profiles, key=lambda p: (-len(p["s_um"]), p["profile"]))
+    longest = sorted(p["profile"] for p in ranked[: len(kept)])
+    assert [p["profile"] for p in kept] == longest
     assert kept[0]["profile"] > 0  # the first offsets run off the map: skipped
     for p in kept:
         on = table.crests["profile"] == p["profile"]
