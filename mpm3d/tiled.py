@@ -61,8 +61,9 @@ MAP_BYTES_PER_COLUMN = 200
 #: the same on the banded path, where the height map's work maps are on disk
 #: (:mod:`mpm3d.diskmaps`) and the metrics, the intensity and the figures take the
 #: finished maps (17 bytes a column) a band of rows at a time: a 240 x 4096 x 4096
-#: stack without the surface peaked at 929 MiB with bands of 32 rows (930 with the 64
-#: rows the plan picks at 1 GiB), 27 bytes a column over the base and the band
+#: stack without the surface peaked at 817 MiB with the 64 rows a band the plan picks
+#: at 1 GiB (18 bytes a column over the base and the band), a 6144 x 6144 one at
+#: 1.69 GiB within 2 GiB (about 22); the margin is for the allocator's slack
 TILED_MAP_BYTES_PER_COLUMN = 32
 #: bytes per binned column of the isosurface: the mesh (about two triangles
 #: each) while it is merged, put in order, smoothed, measured and written
