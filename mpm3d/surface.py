@@ -458,13 +458,7 @@ def finish_isosurface(
     del points, tris
     mesh = largest_component(mesh)
     if smooth_iterations > 0:
-        mesh = mesh.smooth_taubin(
-            n_iter=int(smooth_iterations),
-            pass_band=float(pass_band),
-            boundary_smoothing=False,
-            non_manifold_smoothing=True,
-            normalize_coordinates=True,
-        )
+        mesh = smooth_mesh(mesh, plan, iterations=smooth_iterations, pass_band=pass_band)
     if plan.decimate > 0:
         mesh = mesh.decimate(plan.decimate)
     mesh = orient_outward(mesh)
@@ -473,6 +467,35 @@ def finish_isosurface(
     mesh.field_data["level"] = np.array([plan.level])
     mesh.field_data["spacing_um"] = np.array([dz, dy, dx])
     mesh.field_data["lateral_bin"] = np.array([plan.bin])
+    return mesh
+
+
+def smooth_mesh(mesh, plan: IsoPlan, *, iterations: int = 40, pass_band: float = 0.02):
+    """Windowed-sinc smoothing (VTK's) of an isosurface in coordinates normalized by the
+    stack's extent (its centre and half its largest side), not by the mesh's own bounds.
+
+    The normalization depends on the stack alone, and each smoothing step on a
+    vertex's neighbours alone: a piece of the mesh with ``iterations + 1`` binned
+    rows of mesh around it is smoothed, in that piece, exactly as the whole mesh
+    is (a test holds this, for a mesh too large to be smoothed whole).
+    """
+    nz, ny, nx = plan.shape
+    dz, dy, dx = plan.spacing
+    extent = np.array([nx * dx, ny * dy, nz * dz])
+    centre, scale = extent / 2, float(extent.max() / 2)
+    pv = _pyvista()
+    points = np.asarray(mesh.points, np.float64)
+    # new points for a shallow copy (the points setter would write into the shared ones)
+    mesh = mesh.copy(deep=False)
+    mesh.SetPoints(pv.vtk_points((points - centre) / scale, deep=True))
+    mesh = mesh.smooth_taubin(
+        n_iter=int(iterations),
+        pass_band=float(pass_band),
+        boundary_smoothing=False,
+        non_manifold_smoothing=True,
+        normalize_coordinates=False,
+    )
+    mesh.points = (np.asarray(mesh.points, np.float64) * scale + centre).astype(np.float32)
     return mesh
 
 

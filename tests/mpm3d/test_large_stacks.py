@@ -278,3 +278,53 @@ def test_a_mesh_too_large_for_the_limit_is_refused_with_the_limit_that_works(tmp
     assert record["memory"]["path"] == "tiled"
     assert record["memory"]["estimated_peak_bytes"] <= parse_memory(smallest)
     assert record["memory"]["estimated_mesh_triangles"] > 0
+
+
+@pytest.mark.parametrize(("rows", "iterations"), [((20, 40), 10), ((0, 30), 10), ((50, 96), 12)])
+def test_a_piece_of_the_mesh_is_smoothed_as_the_whole_mesh_is(rows, iterations, mpm_small):
+    """The premise of smoothing a mesh too large to hold whole a piece at a time: the
+    smoothing's frame is the stack's, and ``iterations + 1`` binned rows of mesh around a
+    band of rows are enough for its vertices to move exactly as in the whole mesh."""
+    import pyvista as pv
+
+    from mpm3d.heightmap import height_map
+    from mpm3d.io import select_channel
+    from mpm3d.surface import (
+        _canonical,
+        column_work,
+        contour_rows,
+        iso_plan,
+        largest_component,
+        smooth_mesh,
+    )
+
+    path, _ = mpm_small
+    stack = read_stack(path)
+    volume, _ = select_channel(stack)
+    hm = height_map(volume, spacing=stack.spacing)
+    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=1,
+                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
+    points, tris = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
+    faces = np.column_stack([np.full(len(tris), 3), tris]).ravel()
+    mesh = largest_component(pv.PolyData(points, faces))
+    before = np.array(mesh.points)
+    whole = np.asarray(smooth_mesh(mesh, plan, iterations=iterations).points)
+    p, f = np.asarray(mesh.points), mesh.regular_faces
+    assert np.array_equal(p, before)  # the input mesh is left as it was
+    row = p[:, 1] / stack.spacing[1]
+    a, b = rows
+
+    def piece(halo: int) -> tuple[np.ndarray, np.ndarray]:
+        kept = (row >= a - halo) & (row < b + halo)
+        used = np.flatnonzero(kept)
+        index = np.full(len(p), -1)
+        index[used] = np.arange(len(used))
+        inside = f[kept[f].all(axis=1)]
+        part = pv.PolyData(p[used], np.column_stack([np.full(len(inside), 3), index[inside]]))
+        core = (row[used] >= a) & (row[used] < b)
+        return np.asarray(smooth_mesh(part, plan, iterations=iterations).points)[core], used[core]
+
+    got, where = piece(iterations + 1)
+    assert len(got) > 100 and np.array_equal(got, whole[where])
+    got, where = piece(2)  # too little mesh around it: the band's vertices move otherwise
+    assert not np.array_equal(got, whole[where])
