@@ -500,8 +500,13 @@ def smooth_mesh(mesh, plan: IsoPlan, *, iterations: int = 40, pass_band: float =
 
 
 def _canonical(points: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Equal points merged, points sorted, each triangle from its least point, sorted."""
-    points, inverse = np.unique(points, axis=0, return_inverse=True)
+    """Equal points merged, points sorted by (y, x, z), each triangle from its least point,
+    sorted.
+
+    Sorted by row first, the points of bands of rows follow each other in the
+    whole mesh's order (a band's points, then the next band's)."""
+    yxz, inverse = np.unique(points[:, [1, 0, 2]], axis=0, return_inverse=True)
+    points = yxz[:, [1, 0, 2]]
     tris = inverse.reshape(-1)[tris]
     first = np.argmin(tris, axis=1)
     tris = np.take_along_axis(tris, (first[:, None] + np.arange(3)) % 3, axis=1)  # same winding

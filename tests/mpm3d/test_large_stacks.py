@@ -328,3 +328,27 @@ def test_a_piece_of_the_mesh_is_smoothed_as_the_whole_mesh_is(rows, iterations, 
     assert len(got) > 100 and np.array_equal(got, whole[where])
     got, where = piece(2)  # too little mesh around it: the band's vertices move otherwise
     assert not np.array_equal(got, whole[where])
+
+
+def test_the_mesh_points_of_bands_of_rows_follow_each_other_in_the_whole_meshs_order(mpm_small):
+    """Points sorted by row first: the points of two bands contoured apart (sharing their
+    boundary row, whose points the first band keeps) are the whole mesh's, in its order."""
+    from mpm3d.heightmap import height_map
+    from mpm3d.io import select_channel
+    from mpm3d.surface import _canonical, column_work, contour_rows, iso_plan
+
+    path, _ = mpm_small
+    stack = read_stack(path)
+    volume, _ = select_channel(stack)
+    hm = height_map(volume, spacing=stack.spacing)
+    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=2,
+                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
+    whole, _ = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
+    cut = 20  # binned rows 0..20 and 20..: row 20 in both
+    b = plan.bin
+    first, _ = _canonical(*contour_rows(column_work(volume[:, : (cut + 1) * b], plan, 0), plan, 0))
+    second, _ = _canonical(*contour_rows(column_work(volume[:, cut * b :], plan, cut), plan, cut))
+    seam = first[:, 1].max()
+    assert np.count_nonzero(second[:, 1] == seam) > 10  # the shared row's points, twice
+    joined = np.concatenate([first, second[second[:, 1] > seam]])
+    assert np.array_equal(joined, whole)
