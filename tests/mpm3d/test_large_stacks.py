@@ -330,6 +330,51 @@ def test_a_piece_of_the_mesh_is_smoothed_as_the_whole_mesh_is(rows, iterations, 
     assert not np.array_equal(got, whole[where])
 
 
+def test_a_piece_of_the_smoothed_mesh_has_the_whole_meshs_normals(mpm_small):
+    """VTK's point normals of a piece of the mesh with two rows of mesh around it are the
+    whole mesh's (each vertex's from its own triangles, in the mesh's order)."""
+    import pyvista as pv
+
+    from mpm3d.heightmap import height_map
+    from mpm3d.io import select_channel
+    from mpm3d.surface import (
+        _canonical,
+        column_work,
+        contour_rows,
+        iso_plan,
+        largest_component,
+        smooth_mesh,
+    )
+
+    path, _ = mpm_small
+    stack = read_stack(path)
+    volume, _ = select_channel(stack)
+    hm = height_map(volume, spacing=stack.spacing)
+    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=1,
+                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
+    points, tris = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
+    faces = np.column_stack([np.full(len(tris), 3), tris]).ravel()
+    mesh = smooth_mesh(largest_component(pv.PolyData(points, faces)), plan).flip_faces()
+
+    def normals(m) -> np.ndarray:
+        m = m.compute_normals(cell_normals=False, split_vertices=False,
+                              consistent_normals=False, auto_orient_normals=False)  # fmt: skip
+        return np.asarray(m.point_data["Normals"])
+
+    whole = normals(mesh)
+    p, f = np.asarray(mesh.points), mesh.regular_faces
+    row = p[:, 1] / stack.spacing[1]
+    for (a, b), halo, same in (((20, 40), 2, True), ((0, 30), 2, True), ((20, 40), 1, False)):
+        kept = (row >= a - halo) & (row < b + halo)
+        used = np.flatnonzero(kept)
+        index = np.full(len(p), -1)
+        index[used] = np.arange(len(used))
+        inside = f[kept[f].all(axis=1)]
+        part = pv.PolyData(p[used], np.column_stack([np.full(len(inside), 3), index[inside]]))
+        core = (row[used] >= a) & (row[used] < b)
+        assert np.array_equal(normals(part)[core], whole[used][core]) == same, (a, b, halo)
+
+
 def test_the_mesh_points_of_bands_of_rows_follow_each_other_in_the_whole_meshs_order(mpm_small):
     """Points sorted by row first: the points of two bands contoured apart (sharing their
     boundary row, whose points the first band keeps) are the whole mesh's, in its order."""
