@@ -157,10 +157,13 @@ class DiskMap:
             # the blocks are reserved now: a disk that fills up fails here, with a clear
             # message, and never while a mapped page is written (which would end the
             # process with SIGBUS)
+            reserve = getattr(os, "posix_fallocate", None)  # not on macOS nor Windows
             with open(self.path, "wb") as f:
                 try:
-                    if size:
-                        os.posix_fallocate(f.fileno(), 0, size)
+                    if size and reserve is not None:
+                        reserve(f.fileno(), 0, size)
+                    elif size:
+                        f.truncate(size)
                 except OSError as err:
                     if err.errno in (errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL):
                         f.truncate(size)  # a file system that reserves nothing: sparse
