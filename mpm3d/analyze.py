@@ -277,17 +277,28 @@ def _analyze(
             }
             if tiled:
                 from mpm3d.surface import default_bin
-                from mpm3d.tiled import mesh_triangles, plan_surface, tiled_isosurface
+                from mpm3d.tiled import (
+                    mesh_budget,
+                    mesh_triangles,
+                    plan_surface,
+                    tiled_isosurface,
+                )
 
                 # the bands sized for the mesh these folds make (known from the height map)
                 binning = iso_bin if iso_bin is not None else default_bin(stack.spacing)
                 triangles = mesh_triangles(hm.depth_um, stack.spacing, binning)
                 plan = plan_surface(plan, triangles, iso_bin=binning)
                 mesh = tiled_isosurface(
-                    volume, tile_rows=plan.surface_tile_rows, progress=progress, **options
+                    volume,
+                    tile_rows=plan.surface_tile_rows,
+                    max_triangles=mesh_budget(plan),
+                    progress=progress,
+                    **options,
                 )
             else:
-                mesh = isosurface(volume, **options)
+                from mpm3d.tiled import mesh_budget
+
+                mesh = isosurface(volume, max_triangles=mesh_budget(plan), **options)
             add_height(mesh, hm.datum_depth_um, datum=_datum_text(hm))
     del volume
     params = {

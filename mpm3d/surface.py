@@ -168,6 +168,7 @@ def isosurface(
     smooth_iterations: int = 40,
     pass_band: float = 0.02,
     decimate: float = 0.0,
+    max_triangles: int | None = None,
 ):
     """The lumen surface as a VTK flying-edges isosurface of the stack.
 
@@ -205,6 +206,10 @@ def isosurface(
     decimate : float in [0, 1)
         Fraction of triangles to remove by quadric decimation (slow on
         large meshes; 0 = off).
+    max_triangles : int, optional
+        Refuse (:class:`InputError`) a contour of more triangles, before the
+        mesh is merged and smoothed (:func:`mpm3d.tiled.mesh_budget`: what a
+        memory limit holds).
 
     Returns
     -------
@@ -233,6 +238,10 @@ def isosurface(
     work = column_work(volume, plan, 0)
     piece = contour_rows(work, plan, 0)
     del work
+    if max_triangles is not None:
+        from mpm3d.tiled import check_triangles
+
+        check_triangles(len(piece[1]), max_triangles, "contoured")
     return finish_isosurface(
         [piece], plan, smooth_iterations=smooth_iterations, pass_band=pass_band
     )

@@ -44,8 +44,10 @@ from tissue_core.resources import available_memory
 __all__ = [
     "MemoryPlan",
     "StackBands",
+    "check_triangles",
     "default_memory_limit",
     "format_bytes",
+    "mesh_budget",
     "parse_memory",
     "plan_memory",
     "tiled_height_map",
@@ -258,7 +260,10 @@ def plan_memory(
 
     smallest = peak(1, 1)
     if not lazy and tile_rows is None and in_memory <= limit:
-        return MemoryPlan("in-memory", limit, in_memory, smallest_limit_bytes=smallest)
+        return MemoryPlan(
+            "in-memory", limit, in_memory, smallest_limit_bytes=smallest,
+            model={"mesh_bytes": mesh},
+        )  # fmt: skip
     if tile_rows is not None:
         if tile_rows < 1:
             raise InputError(f"--tile-rows must be >= 1, got {tile_rows}")
@@ -347,6 +352,59 @@ def plan_surface(plan: MemoryPlan, triangles: int, *, iso_bin: int) -> MemoryPla
         surface_tile_rows=int(rows),
         tiled_bytes=int(peak),
         model={**model, "mesh_triangles": int(triangles)},
+    )
+
+
+def mesh_budget(plan: MemoryPlan | None) -> int | None:
+    """The most isosurface triangles a ``plan`` holds within its limit (at
+    :data:`MESH_BYTES_PER_TRIANGLE`): beside the stack and the maps in memory, or, banded
+    (after :func:`plan_surface`), beside the maps and one band of the isosurface's grid.
+    None without a plan."""
+    model = plan.model if plan is not None else None
+    if not model:
+        return None
+    if plan.path == "in-memory":
+        room = plan.limit_bytes - (plan.in_memory_bytes - model["mesh_bytes"])
+    elif plan.surface_tile_rows is not None:
+        room = (
+            plan.limit_bytes
+            - model["without_mesh"]
+            - model["per_grid_row"] * (plan.surface_tile_rows + 1)
+        )
+    else:
+        return None
+    return max(0, int(room // MESH_BYTES_PER_TRIANGLE))
+
+
+#: how far past its budget a mesh may go before it is refused: the height map's estimate
+#: is within 6 % on the synthetic stacks, and the smallest limit a refusal names is sized
+#: on it; the refusal is for surfaces several times larger than estimated (a ragged,
+#: noisy channel's: 2.8 times on one), and a quarter more mesh is held by the model's
+#: other margins (the banded maps counted at 32 bytes a column, measured 18-22)
+TRIANGLE_MARGIN = 1.25
+
+
+def check_triangles(made: int, max_triangles: int | None, when: str = "") -> None:
+    """Refuse a mesh of ``made`` triangles (so far) beyond ``max_triangles``
+    (:func:`mesh_budget`) and its :data:`TRIANGLE_MARGIN`.
+
+    Raises
+    ------
+    InputError
+        Saying how far it went and the ways out.
+    """
+    if max_triangles is None or made <= TRIANGLE_MARGIN * max_triangles:
+        return
+
+    def count(n: int) -> str:
+        return f"{n / 1e6:.1f} million" if n >= 100_000 else f"{n:,}"
+
+    raise InputError(
+        f"the surface's mesh is larger than the memory limit holds: {count(made)} "
+        f"triangles{' ' + when if when else ''}, against {count(max_triangles)} "
+        "(a ragged surface, from noise or debris, makes more than its height map let "
+        "estimate); use a larger --memory-limit, a coarser --iso-bin, --no-surface, or "
+        "another --channel"
     )
 
 
@@ -516,6 +574,7 @@ def tiled_isosurface(
     column_scale: tuple[float, np.ndarray] | None = None,
     bin: int | None = None,
     decimate: float = 0.0,
+    max_triangles: int | None = None,
     progress=None,
 ):
     """:func:`mpm3d.surface.isosurface` of a stack read ``tile_rows`` binned rows at a time.
@@ -523,6 +582,11 @@ def tiled_isosurface(
     Each band of binned rows ``r0 .. r0 + tile_rows`` shares its last row
     with the next band; the mesh is the same as the whole stack's (see the
     module's notes).
+
+    ``max_triangles`` (from :func:`mesh_budget`): the most triangles the memory
+    limit holds; a surface that contours into more (noise, debris, a surface less
+    smooth than its height map said) is refused as soon as its bands pass it,
+    before the mesh is assembled.
     """
     from mpm3d.surface import column_work, contour_rows, finish_isosurface, iso_plan
 
@@ -550,6 +614,8 @@ def tiled_isosurface(
             work = column_work(raw, plan, r0)
             del raw
             pieces.append(contour_rows(work, plan, r0))
+            check_triangles(sum(len(t) for _, t in pieces), max_triangles,
+                            f"after {k + 1} of {len(starts)} bands of the isosurface")  # fmt: skip
             del work
             tick(k + 1, len(starts))
     return finish_isosurface(pieces, plan)

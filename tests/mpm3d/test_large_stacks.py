@@ -397,3 +397,44 @@ def test_the_mesh_points_of_bands_of_rows_follow_each_other_in_the_whole_meshs_o
     assert np.count_nonzero(second[:, 1] == seam) > 10  # the shared row's points, twice
     joined = np.concatenate([first, second[second[:, 1] > seam]])
     assert np.array_equal(joined, whole)
+
+
+def test_a_mesh_larger_than_the_limit_holds_is_refused(mpm_small, tmp_path, capsys, monkeypatch):
+    """The plan's mesh estimate comes from the height map; a ragged surface contours into
+    more triangles. Both paths count them as they are contoured and stop with one line,
+    before the mesh is merged and smoothed, where the limit does not hold them."""
+    import mpm3d.tiled as tiled
+    from mpm3d.surface import isosurface
+    from mpm3d.tiled import check_triangles, mesh_budget
+
+    shape = (100, 2, 1000, 1000)
+    kw = {"combined": True, "channels_read": 2, "surface": True, "bin": 2}
+    whole = plan_memory(shape, 2, limit=8 * 2**30, **kw)
+    banded = tiled.plan_surface(plan_memory(shape, 2, limit=2**30, **kw), 10**6, iso_bin=2)
+    for plan in (whole, banded):
+        budget = mesh_budget(plan)
+        assert budget > 10**6 and budget * tiled.MESH_BYTES_PER_TRIANGLE <= plan.limit_bytes
+    assert mesh_budget(None) is None
+    check_triangles(125, 100)  # within the margin
+    with pytest.raises(InputError, match=r": 126 triangles so far, against 100 \("):
+        check_triangles(126, 100, "so far")
+    path, _ = mpm_small
+    stack = read_stack(path)
+    from mpm3d.io import select_channel
+
+    volume, _ = select_channel(stack)
+    with pytest.raises(InputError, match="larger than the memory limit holds"):
+        isosurface(volume, spacing=stack.spacing, level=1000.0, max_triangles=100)
+    # the command: a limit whose budget the mesh passes is refused with status 2, the banded
+    # path's estimate made to pass (as a ragged surface's does)
+    monkeypatch.setattr(tiled, "MESH_BYTES_PER_TRIANGLE", 10**6)
+    monkeypatch.setattr(tiled, "mesh_triangles", lambda *args: 1)
+    for extra in ([], ["--lazy"]):
+        out = tmp_path / f"run{len(extra)}"
+        assert main(["analyze", str(path), "--out", str(out), "--memory-limit", "4GiB",
+                     "--no-figures", *extra]) == 2  # fmt: skip
+        err = capsys.readouterr().err
+        last = err.strip().splitlines()[-1]
+        assert last.startswith("mpm3d analyze: error:") and "larger than the memory limit" in last
+        assert "Traceback" not in err
+        assert not out.exists()
