@@ -37,7 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mpm3d.errors import InputError, SurfaceOutsideWarning, WorkFolderWarning
+from mpm3d.errors import InputError, WorkFolderWarning
+from mpm3d.tiled import format_bytes
 
 __all__ = [
     "DiskMap",
@@ -79,7 +80,7 @@ class MapFolder:
             warnings.warn(
                 WorkFolderWarning(
                     f"{base} is held in memory (tmpfs): the height map's work maps "
-                    f"({format_size(need_bytes)}) take memory there, not counted by "
+                    f"({format_bytes(need_bytes)}) take memory there, not counted by "
                     "--memory-limit; set TMPDIR to a folder on disk"
                 ),
                 stacklevel=3,
@@ -87,8 +88,8 @@ class MapFolder:
         free = shutil.disk_usage(base).free
         if need_bytes > free:
             raise InputError(
-                f"the height map's work maps need {format_size(need_bytes)} of temporary "
-                f"disk space, but {base} has {format_size(free)} free: set TMPDIR to a "
+                f"the height map's work maps need {format_bytes(need_bytes)} of temporary "
+                f"disk space, but {base} has {format_bytes(free)} free: set TMPDIR to a "
                 "folder with more"
             )
         self.path = Path(tempfile.mkdtemp(prefix=prefix, dir=base))
@@ -107,13 +108,6 @@ class MapFolder:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def format_size(n: float) -> str:
-    """``n`` bytes in GiB (two decimals) or MiB, rounded up."""
-    if n >= 2**30:
-        return f"{math.ceil(n / 2**30 * 100) / 100:.2f} GiB"
-    return f"{max(1, math.ceil(n / 2**20)):d} MiB"
 
 
 def _in_memory(folder: str) -> bool:
@@ -173,18 +167,10 @@ class DiskMap:
                         free = shutil.disk_usage(self.path.parent).free
                         raise InputError(
                             f"no disk space left for the height map's work maps in "
-                            f"{self.path.parent.parent}: a map of {format_size(size)} does "
-                            f"not fit in the {format_size(free)} free; set TMPDIR to a "
+                            f"{self.path.parent.parent}: a map of {format_bytes(size)} does "
+                            f"not fit in the {format_bytes(free)} free; set TMPDIR to a "
                             "folder with more"
                         ) from None
-
-    @property
-    def size(self) -> int:
-        return self.shape[0] * self.shape[1]
-
-    @property
-    def nbytes(self) -> int:
-        return self.size * self.dtype.itemsize
 
     def _map(self, mode: str) -> np.memmap:
         return np.memmap(self.path, dtype=self.dtype, mode=mode, shape=self.shape)
@@ -229,15 +215,6 @@ class DiskMap:
         out = folder.new(values.shape, values.dtype, name)
         out.write_rows(0, values)
         return out
-
-    def bands(self, rows: int | None = None) -> Iterator[tuple[int, int]]:
-        """``(y0, y1)`` of bands of ``rows`` rows (by default :data:`BAND_BYTES` a band)."""
-        yield from _spans(self.shape[0], rows or band_rows(self.shape[1], 8))
-
-    def strips(self, cols: int | None = None) -> Iterator[tuple[int, int]]:
-        """``(x0, x1)`` of strips of ``cols`` columns (by default :data:`BAND_BYTES` a
-        strip)."""
-        yield from _spans(self.shape[1], cols or band_rows(self.shape[0], 8))
 
 
 def band_rows(length: int, itemsize: int, budget: int = BAND_BYTES) -> int:
@@ -386,7 +363,7 @@ def smooth_on_disk(
 
 
 def median3_on_disk(
-    values: DiskMap, folder: MapFolder, *, band: int | None = None
+    values: DiskMap, *, band: int | None = None
 ) -> Iterator[tuple[int, int, np.ndarray]]:
     """``(y0, y1, rows)`` of :func:`scipy.ndimage.median_filter` (3 x 3, ``nearest``) of a
     map, a band of rows at a time (each read with a halo row each side)."""
@@ -497,7 +474,7 @@ def from_crossings_on_disk(
     :class:`~mpm3d.heightmap.HeightMap`, bit for bit, its maps read into memory at the end
     (``depth_um`` float64, ``valid`` bool, ``cnr`` and ``peak`` float32: 17 bytes a column,
     where the in-memory steps hold some 80)."""
-    from mpm3d.heightmap import HeightMap
+    from mpm3d.heightmap import HeightMap, check_coverage
 
     threshold, background, noise = levels
     dz, dy, dx = (float(s) for s in spacing)
@@ -532,7 +509,7 @@ def from_crossings_on_disk(
     if n_valid:
         filled = fill_gaps_on_disk(depth_um, valid, folder, **opts)
         before, n_valid = n_valid, 0
-        for y0, y1, med in median3_on_disk(filled, folder, band=band):
+        for y0, y1, med in median3_on_disk(filled, band=band):
             ok = valid.rows(y0, y1) & (np.abs(filled.rows(y0, y1) - med) <= outlier_um)
             valid.write_rows(y0, ok)
             n_valid += int(np.count_nonzero(ok))
@@ -546,20 +523,7 @@ def from_crossings_on_disk(
         "faint": faint,
         "outlier": float(outliers),
     }
-    coverage = n_valid / size
-    if coverage < min_coverage:
-        raise InputError(
-            f"no surface found: only {100 * coverage:.1f} % of the columns rise above the "
-            f"threshold {threshold:g} with contrast; change --threshold or --channel"
-        )
-    if cut_fraction > 0.01:
-        warnings.warn(
-            SurfaceOutsideWarning(
-                f"the surface lies above the first slice in {100 * cut_fraction:.1f} % of the "
-                "columns (cut off by the stack); they are left out and filled in"
-            ),
-            stacklevel=3,
-        )
+    check_coverage(n_valid / size, cut_fraction, threshold, min_coverage)
     final = fill_gaps_on_disk(depth_um, valid, folder, **opts)
     depth_um.path.unlink()
     if sigma_um > 0:

@@ -435,20 +435,7 @@ def from_crossings(
         "faint": faint,
         "outlier": float(outliers),
     }
-    coverage = float(valid.mean())
-    if coverage < min_coverage:
-        raise InputError(
-            f"no surface found: only {100 * coverage:.1f} % of the columns rise above the "
-            f"threshold {threshold:g} with contrast; change --threshold or --channel"
-        )
-    if cut_fraction > 0.01:
-        warnings.warn(
-            SurfaceOutsideWarning(
-                f"the surface lies above the first slice in {100 * cut_fraction:.1f} % of the "
-                "columns (cut off by the stack); they are left out and filled in"
-            ),
-            stacklevel=3,
-        )
+    check_coverage(float(valid.mean()), cut_fraction, threshold, min_coverage)
     depth_um = fill_gaps(depth_um, valid)
     if sigma_um > 0:
         depth_um = smooth_map(depth_um, (sigma_um / dy, sigma_um / dx))
@@ -479,6 +466,27 @@ def from_crossings(
         dropouts=dropouts,
         params=params,
     )
+
+
+def check_coverage(
+    coverage: float, cut_fraction: float, threshold: float, min_coverage: float
+) -> None:
+    """Refuse a height map measured in too few columns; warn where the surface is cut off
+    above the stack (:func:`from_crossings` and its banded twin,
+    :func:`mpm3d.diskmaps.from_crossings_on_disk`)."""
+    if coverage < min_coverage:
+        raise InputError(
+            f"no surface found: only {100 * coverage:.1f} % of the columns rise above the "
+            f"threshold {threshold:g} with contrast; change --threshold or --channel"
+        )
+    if cut_fraction > 0.01:
+        warnings.warn(
+            SurfaceOutsideWarning(
+                f"the surface lies above the first slice in {100 * cut_fraction:.1f} % of the "
+                "columns (cut off by the stack); they are left out and filled in"
+            ),
+            stacklevel=4,
+        )
 
 
 def smooth_map(values: np.ndarray, sigma_px: tuple[float, float]) -> np.ndarray:
