@@ -280,81 +280,76 @@ def test_a_mesh_too_large_for_the_limit_is_refused_with_the_limit_that_works(tmp
     assert record["memory"]["estimated_mesh_triangles"] > 0
 
 
+def _contoured(mpm_small, bin: int):
+    """The small stack, its isosurface's plan and volume (the analysis' options)."""
+    from mpm3d.heightmap import height_map
+    from mpm3d.io import select_channel
+    from mpm3d.surface import iso_plan
+
+    stack = read_stack(mpm_small[0])
+    volume, _ = select_channel(stack)
+    hm = height_map(volume, spacing=stack.spacing)
+    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=bin,
+                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
+    return stack, volume, plan
+
+
+def _merged_mesh(mpm_small):
+    """The small stack's isosurface before smoothing (merged, its largest piece), its plan,
+    and each point's row of pixels."""
+    import pyvista as pv
+
+    from mpm3d.surface import _canonical, column_work, contour_rows, largest_component
+
+    stack, volume, plan = _contoured(mpm_small, 1)
+    points, tris = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
+    faces = np.column_stack([np.full(len(tris), 3), tris]).ravel()
+    mesh = largest_component(pv.PolyData(points, faces))
+    return mesh, plan, np.asarray(mesh.points)[:, 1] / stack.spacing[1]
+
+
+def _piece(mesh, row: np.ndarray, a: int, b: int, halo: int):
+    """The piece of ``mesh`` in rows ``a - halo .. b + halo`` (its points and triangles in
+    the mesh's order), and of its points, those of rows ``a .. b`` and their indices in
+    ``mesh``."""
+    import pyvista as pv
+
+    p, f = np.asarray(mesh.points), mesh.regular_faces
+    kept = (row >= a - halo) & (row < b + halo)
+    used = np.flatnonzero(kept)
+    index = np.full(len(p), -1)
+    index[used] = np.arange(len(used))
+    inside = f[kept[f].all(axis=1)]
+    part = pv.PolyData(p[used], np.column_stack([np.full(len(inside), 3), index[inside]]))
+    core = (row[used] >= a) & (row[used] < b)
+    return part, core, used[core]
+
+
 @pytest.mark.parametrize(("rows", "iterations"), [((20, 40), 10), ((0, 30), 10), ((50, 96), 12)])
 def test_a_piece_of_the_mesh_is_smoothed_as_the_whole_mesh_is(rows, iterations, mpm_small):
     """The premise of smoothing a mesh too large to hold whole a piece at a time: the
     smoothing's frame is the stack's, and ``iterations + 1`` binned rows of mesh around a
     band of rows are enough for its vertices to move exactly as in the whole mesh."""
-    import pyvista as pv
+    from mpm3d.surface import smooth_mesh
 
-    from mpm3d.heightmap import height_map
-    from mpm3d.io import select_channel
-    from mpm3d.surface import (
-        _canonical,
-        column_work,
-        contour_rows,
-        iso_plan,
-        largest_component,
-        smooth_mesh,
-    )
-
-    path, _ = mpm_small
-    stack = read_stack(path)
-    volume, _ = select_channel(stack)
-    hm = height_map(volume, spacing=stack.spacing)
-    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=1,
-                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
-    points, tris = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
-    faces = np.column_stack([np.full(len(tris), 3), tris]).ravel()
-    mesh = largest_component(pv.PolyData(points, faces))
+    mesh, plan, row = _merged_mesh(mpm_small)
     before = np.array(mesh.points)
     whole = np.asarray(smooth_mesh(mesh, plan, iterations=iterations).points)
-    p, f = np.asarray(mesh.points), mesh.regular_faces
-    assert np.array_equal(p, before)  # the input mesh is left as it was
-    row = p[:, 1] / stack.spacing[1]
-    a, b = rows
-
-    def piece(halo: int) -> tuple[np.ndarray, np.ndarray]:
-        kept = (row >= a - halo) & (row < b + halo)
-        used = np.flatnonzero(kept)
-        index = np.full(len(p), -1)
-        index[used] = np.arange(len(used))
-        inside = f[kept[f].all(axis=1)]
-        part = pv.PolyData(p[used], np.column_stack([np.full(len(inside), 3), index[inside]]))
-        core = (row[used] >= a) & (row[used] < b)
-        return np.asarray(smooth_mesh(part, plan, iterations=iterations).points)[core], used[core]
-
-    got, where = piece(iterations + 1)
-    assert len(got) > 100 and np.array_equal(got, whole[where])
-    got, where = piece(2)  # too little mesh around it: the band's vertices move otherwise
-    assert not np.array_equal(got, whole[where])
+    assert np.array_equal(np.asarray(mesh.points), before)  # the input mesh is left as it was
+    for halo, same in ((iterations + 1, True), (2, False)):  # 2: the band's vertices move
+        part, core, where = _piece(mesh, row, *rows, halo)
+        got = np.asarray(smooth_mesh(part, plan, iterations=iterations).points)[core]
+        assert len(got) > 100 and np.array_equal(got, whole[where]) == same, halo
 
 
 def test_a_piece_of_the_smoothed_mesh_has_the_whole_meshs_normals(mpm_small):
     """VTK's point normals of a piece of the mesh with two rows of mesh around it are the
     whole mesh's (each vertex's from its own triangles, in the mesh's order)."""
-    import pyvista as pv
+    from mpm3d.surface import smooth_mesh
 
-    from mpm3d.heightmap import height_map
-    from mpm3d.io import select_channel
-    from mpm3d.surface import (
-        _canonical,
-        column_work,
-        contour_rows,
-        iso_plan,
-        largest_component,
-        smooth_mesh,
-    )
-
-    path, _ = mpm_small
-    stack = read_stack(path)
-    volume, _ = select_channel(stack)
-    hm = height_map(volume, spacing=stack.spacing)
-    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=1,
-                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
-    points, tris = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
-    faces = np.column_stack([np.full(len(tris), 3), tris]).ravel()
-    mesh = smooth_mesh(largest_component(pv.PolyData(points, faces)), plan).flip_faces()
+    merged, plan, _ = _merged_mesh(mpm_small)
+    mesh = smooth_mesh(merged, plan).flip_faces()
+    row = np.asarray(mesh.points)[:, 1] / plan.spacing[1]
 
     def normals(m) -> np.ndarray:
         m = m.compute_normals(cell_normals=False, split_vertices=False,
@@ -362,32 +357,17 @@ def test_a_piece_of_the_smoothed_mesh_has_the_whole_meshs_normals(mpm_small):
         return np.asarray(m.point_data["Normals"])
 
     whole = normals(mesh)
-    p, f = np.asarray(mesh.points), mesh.regular_faces
-    row = p[:, 1] / stack.spacing[1]
     for (a, b), halo, same in (((20, 40), 2, True), ((0, 30), 2, True), ((20, 40), 1, False)):
-        kept = (row >= a - halo) & (row < b + halo)
-        used = np.flatnonzero(kept)
-        index = np.full(len(p), -1)
-        index[used] = np.arange(len(used))
-        inside = f[kept[f].all(axis=1)]
-        part = pv.PolyData(p[used], np.column_stack([np.full(len(inside), 3), index[inside]]))
-        core = (row[used] >= a) & (row[used] < b)
-        assert np.array_equal(normals(part)[core], whole[used][core]) == same, (a, b, halo)
+        part, core, where = _piece(mesh, row, a, b, halo)
+        assert np.array_equal(normals(part)[core], whole[where]) == same, (a, b, halo)
 
 
 def test_the_mesh_points_of_bands_of_rows_follow_each_other_in_the_whole_meshs_order(mpm_small):
     """Points sorted by row first: the points of two bands contoured apart (sharing their
     boundary row, whose points the first band keeps) are the whole mesh's, in its order."""
-    from mpm3d.heightmap import height_map
-    from mpm3d.io import select_channel
-    from mpm3d.surface import _canonical, column_work, contour_rows, iso_plan
+    from mpm3d.surface import _canonical, column_work, contour_rows
 
-    path, _ = mpm_small
-    stack = read_stack(path)
-    volume, _ = select_channel(stack)
-    hm = height_map(volume, spacing=stack.spacing)
-    plan = iso_plan(volume.shape, volume.dtype, spacing=stack.spacing, level=0.5, bin=2,
-                    depth_um=hm.depth_um, column_scale=(hm.background, hm.peak))  # fmt: skip
+    _, volume, plan = _contoured(mpm_small, 2)
     whole, _ = _canonical(*contour_rows(column_work(volume, plan, 0), plan, 0))
     cut = 20  # binned rows 0..20 and 20..: row 20 in both
     b = plan.bin
