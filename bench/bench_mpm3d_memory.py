@@ -117,17 +117,43 @@ def equal_metrics(folder: Path) -> None:
         raise SystemExit("the tiled path's results differ from the in-memory path's")
 
 
+def _empty_stack(path: Path, shape, dtype, axes: str, spacing) -> int:
+    """Write the header of an empty contiguous ImageJ stack; the data's offset. tifffile
+    writes the header only; the slices are then written at their offsets (no memory map:
+    the stack is never in this process's memory)."""
+    import tifffile
+
+    with warnings.catch_warnings():  # over 4 GiB ImageJ files have one IFD: as ImageJ writes them
+        warnings.filterwarnings("ignore", ".*truncating ImageJ file", UserWarning)
+        mm = tifffile.memmap(
+            path,
+            shape=shape,
+            dtype=dtype,
+            imagej=True,
+            resolution=(1 / spacing[2], 1 / spacing[1]),
+            metadata={"axes": axes, "spacing": spacing[0], "unit": "um"},
+        )
+        offset = mm.offset
+        del mm  # the header is written here
+    return offset
+
+
+def _slice(base: np.ndarray, z: int) -> np.ndarray:
+    """Slice ``z`` of a rendered stack made deeper: its deepest 16 slices repeated below."""
+    if z < base.shape[0]:
+        return base[z]
+    tail = base[-16:]
+    return tail[(z - base.shape[0]) % len(tail)]
+
+
 def write_big_stack(path: Path, target_bytes: int, *, size: int = 1024) -> tuple[int, ...]:
-    """A two-channel ImageJ stack of about ``target_bytes``, written page by page.
+    """A two-channel ImageJ stack of about ``target_bytes``, written page by page
+    (:func:`_empty_stack`).
 
     A folded surface rendered with its natural depth (sample_data_synth),
     then its deepest 16 slices repeated below: tissue, as deep as the size
-    asks.  tifffile writes the header of an empty contiguous file; the
-    slices are then written one at a time at their offsets (no memory map:
-    the stack is never in this process's memory).
+    asks.
     """
-    import tifffile
-
     from sample_data_synth import make_stack_case
 
     spacing = (4.0, 2.5, 2.5)
@@ -135,22 +161,10 @@ def write_big_stack(path: Path, target_bytes: int, *, size: int = 1024) -> tuple
     base = case.stack
     nz = max(base.shape[0], math.ceil(target_bytes / (2 * size * size * 2)))
     shape = (nz, 2, size, size)
-    with warnings.catch_warnings():  # over 4 GiB ImageJ files have one IFD: as ImageJ writes them
-        warnings.filterwarnings("ignore", ".*truncating ImageJ file", UserWarning)
-        mm = tifffile.memmap(
-            path,
-            shape=shape,
-            dtype=np.uint16,
-            imagej=True,
-            resolution=(1 / spacing[2], 1 / spacing[1]),
-            metadata={"axes": "ZCYX", "spacing": spacing[0], "unit": "um"},
-        )
-        offset = mm.offset
-        del mm  # the header is written here
-    tail = base[-16:]
+    offset = _empty_stack(path, shape, np.uint16, "ZCYX", spacing)
     with open(path, "r+b") as f:
         for z in range(nz):
-            page = base[z] if z < base.shape[0] else tail[(z - base.shape[0]) % len(tail)]
+            page = _slice(base, z)
             data = np.ascontiguousarray(page, "<u2").tobytes()
             os.pwrite(f.fileno(), data, offset + z * len(data))
     return shape
@@ -204,33 +218,23 @@ def bounded_memory(folder: Path, size_text: str, limit_text: str, *, baseline: b
 
 
 def write_wide_stack(path: Path, shape: tuple[int, int, int], *, size: int = 1024) -> None:
-    """A one-channel 8-bit stack of ``shape`` (Z, Y, X), written page by page: a folded
-    surface rendered at ``size`` px, mirrored tile by tile across the field (the folds run
-    on across each seam), its deepest 16 slices repeated below to make up the slices."""
-    import tifffile
+    """A one-channel 8-bit stack of ``shape`` (Z, Y, X), written page by page: the
+    urothelium channel of a folded surface rendered at ``size`` px, mirrored tile by tile
+    across the field (the folds run on across each seam), its deepest 16 slices repeated
+    below to make up the slices."""
 
     from sample_data_synth import make_stack_case
 
     nz, ny, nx = shape
     spacing = (4.0, 2.5, 2.5)
     case = make_stack_case("before", size=size, spacing=spacing, rng=5)
-    base = case.stack[:, 0]
+    base = case.stack[:, 1]  # the urothelium, whose top is the lumen's surface
     base = (base.astype(np.float32) * (255.0 / max(1, int(base.max())))).astype(np.uint8)
     tiles_y, tiles_x = math.ceil(ny / size), math.ceil(nx / size)
-    mm = tifffile.memmap(
-        path,
-        shape=shape,
-        dtype=np.uint8,
-        imagej=True,
-        resolution=(1 / spacing[2], 1 / spacing[1]),
-        metadata={"axes": "ZYX", "spacing": spacing[0], "unit": "um"},
-    )
-    offset = mm.offset
-    del mm
-    tail = base[-16:]
+    offset = _empty_stack(path, shape, np.uint8, "ZYX", spacing)
     with open(path, "r+b") as f:
         for z in range(nz):
-            page = base[z] if z < base.shape[0] else tail[(z - base.shape[0]) % len(tail)]
+            page = _slice(base, z)
             row = np.concatenate([page if j % 2 == 0 else page[:, ::-1] for j in range(tiles_x)], 1)
             plane = np.concatenate([row if i % 2 == 0 else row[::-1] for i in range(tiles_y)])
             plane = plane[:ny, :nx]
