@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import base64
 import zlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from tissue_core.filenames import utf8_output
 
-__all__ = ["write_polydata", "write_triangles"]
+__all__ = ["write_polydata", "write_triangles", "write_triangles_streamed"]
 
 #: VTK's names of the NumPy types an array may have
 _VTK_TYPES = {
@@ -176,3 +176,159 @@ def write_triangles(
         + "</Polys>\n</Piece>\n</PolyData>\n</VTKFile>\n"
     )
     Path(path).write_text("".join(parts), encoding="ascii", errors="xmlcharrefreplace")
+
+
+class _Blocks:
+    """One array's zlib blocks, written to ``body`` as its chunks come: the sizes of the
+    blocks for the header VTK reads before them (:func:`write_triangles_streamed`)."""
+
+    def __init__(self, body, level: int) -> None:
+        self.body, self.level = body, level
+        self.start = body.tell()
+        self.sizes: list[int] = []
+        self.pending = b""
+        self.last = 0
+
+    def add(self, values: np.ndarray, dtype: np.dtype) -> None:
+        data = self.pending + np.ascontiguousarray(values, dtype=dtype).tobytes()
+        whole = len(data) - len(data) % _BLOCK
+        for i in range(0, whole, _BLOCK):
+            self._block(data[i : i + _BLOCK])
+        self.pending = data[whole:]
+
+    def _block(self, data: bytes) -> None:
+        packed = zlib.compress(data, self.level)
+        self.body.write(packed)
+        self.sizes.append(len(packed))
+        self.last = len(data)
+
+    def close(self) -> bytes:
+        """The header (UInt32: blocks, block size, size of the last block, compressed
+        sizes); the blocks lie in the body from :attr:`start`."""
+        if self.pending:
+            self._block(self.pending)
+            self.pending = b""
+        header = [len(self.sizes), _BLOCK, self.last if self.sizes else 0, *self.sizes]
+        return np.array(header, dtype="<u4").tobytes()
+
+
+def write_triangles_streamed(
+    path: str | Path,
+    n_points: int,
+    n_triangles: int,
+    points: Callable[[], Iterator[np.ndarray]],
+    triangles: Callable[[], Iterator[np.ndarray]],
+    point_data: Mapping[str, tuple[str, int, Callable[[], Iterator[np.ndarray]]]] | None = None,
+    field_data: Mapping[str, Sequence[str] | np.ndarray] | None = None,
+    *,
+    normals: str | None = None,
+    level: int = 1,
+) -> None:
+    """Write a triangle mesh too large to hold as VTK XML PolyData (``.vtp``), its arrays
+    given a chunk at a time: zlib-compressed, appended after the XML (raw).
+
+    Parameters
+    ----------
+    path : path
+        The file (any name); its folder must exist.  The compressed arrays go to a
+        file beside it first (named ``path`` + ``.body``), then after the XML.
+    n_points, n_triangles : int
+    points : callable
+        Yields the points as ``(k, 3)`` float32 chunks, in order (called once).
+    triangles : callable
+        Yields the triangles as ``(k, 3)`` chunks of point indices (called twice:
+        the connectivity, then nothing but their count for the offsets).
+    point_data : dict of name -> (NumPy type name, components, callable)
+        Each array's chunks, ``n_points`` values in all.
+    field_data : dict of name -> list of str or numbers
+        Small arrays of the whole mesh (inline).
+    normals : str, optional
+        The point array that holds the normals (VTK's ``Normals`` attribute).
+    level : int
+        zlib's compression level.
+    """
+    point_data, field_data = point_data or {}, field_data or {}
+    path = Path(path)
+    body_path = path.with_name(path.name + ".body")
+    arrays = []  # (tag, name, vtk type, components, header, start, end)
+    try:
+        with open(body_path, "w+b") as body:
+
+            def encode(name, dtype, components, chunks, tag, expected):
+                blocks = _Blocks(body, level)
+                dt = np.dtype(dtype).newbyteorder("<")
+                count = 0
+                for chunk in chunks:
+                    chunk = np.asarray(chunk)
+                    count += len(chunk)
+                    blocks.add(chunk, dt)
+                if count != expected:
+                    raise ValueError(f"{name!r}: {count} values for {expected}")
+                header = blocks.close()
+                kind = _VTK_TYPES[np.dtype(dtype).name]
+                arrays.append((tag, name, kind, components, header, blocks.start, body.tell()))
+
+            for name, (dtype, components, chunks) in point_data.items():
+                encode(name, dtype, components, chunks(), "PointData", n_points)
+            encode("Points", "float32", 3, points(), "Points", n_points)
+            flat = (np.asarray(t).ravel() for t in triangles())
+            encode("connectivity", "int64", 1, flat, "Polys", 3 * n_triangles)
+
+            def offsets():
+                done = 0
+                for t in triangles():
+                    k = len(t)
+                    yield np.arange(3 * done + 3, 3 * (done + k) + 1, 3, dtype=np.int64)
+                    done += k
+
+            encode("offsets", "int64", 1, offsets(), "Polys", n_triangles)
+            offset, xml = 0, {}
+            for tag, name, kind, components, header, start, end in arrays:
+                comps = f' NumberOfComponents="{components}"' if components > 1 else ""
+                xml.setdefault(tag, []).append(
+                    f'<DataArray type="{kind}" Name="{_attribute(name)}"{comps} '
+                    f'format="appended" offset="{offset}"/>\n'
+                )
+                offset += len(header) + end - start
+            empty = "".join(
+                f"<{kind}>\n" + _data_array("connectivity", np.zeros(0, np.int64), level)
+                + _data_array("offsets", np.zeros(0, np.int64), level) + f"</{kind}>\n"
+                for kind in ("Verts", "Lines", "Strips")
+            )  # fmt: skip
+            head = [
+                '<?xml version="1.0"?>\n<VTKFile type="PolyData" version="0.1" '
+                'byte_order="LittleEndian" header_type="UInt32" '
+                'compressor="vtkZLibDataCompressor">\n<PolyData>\n'
+            ]
+            if field_data:
+                head.append("<FieldData>\n")
+                for k, v in field_data.items():
+                    if len(v) and isinstance(v[0], str):
+                        head.append(_strings(k, list(v), level))
+                    else:
+                        head.append(_data_array(k, np.asarray(v), level).replace(
+                            "<DataArray", f'<DataArray NumberOfTuples="{len(v)}"', 1))  # fmt: skip
+                head.append("</FieldData>\n")
+            head.append(
+                f'<Piece NumberOfPoints="{n_points}" NumberOfVerts="0" NumberOfLines="0" '
+                f'NumberOfStrips="0" NumberOfPolys="{n_triangles}">\n'
+            )
+            attribute = f' Normals="{_attribute(normals)}"' if normals else ""
+            head.append(f"<PointData{attribute}>\n" + "".join(xml.get("PointData", []))
+                        + "</PointData>\n<CellData>\n</CellData>\n")  # fmt: skip
+            head.append("<Points>\n" + "".join(xml["Points"]) + "</Points>\n" + empty)
+            head.append("<Polys>\n" + "".join(xml["Polys"]) + "</Polys>\n")
+            head.append('</Piece>\n</PolyData>\n<AppendedData encoding="raw">\n_')
+            with open(path, "wb") as out:
+                out.write("".join(head).encode("ascii", errors="xmlcharrefreplace"))
+                for *_, header, start, end in arrays:
+                    out.write(header)
+                    body.seek(start)
+                    left = end - start
+                    while left:
+                        piece = body.read(min(left, 1 << 24))
+                        out.write(piece)
+                        left -= len(piece)
+                out.write(b"\n</AppendedData>\n</VTKFile>\n")
+    finally:
+        body_path.unlink(missing_ok=True)
