@@ -287,12 +287,13 @@ def _analyze(
                 # the bands sized for the mesh these folds make (known from the height map)
                 binning = iso_bin if iso_bin is not None else default_bin(stack.spacing)
                 triangles = mesh_triangles(hm.depth_um, stack.spacing, binning)
-                plan = plan_surface(plan, triangles, iso_bin=binning)
+                plan = plan_surface(plan, triangles, iso_bin=binning, streamed=not decimate)
                 mesh = tiled_isosurface(
                     volume,
                     tile_rows=plan.surface_tile_rows,
                     max_triangles=mesh_budget(plan),
                     progress=progress,
+                    expected_triangles=triangles,
                     **options,
                 )
             else:
@@ -320,8 +321,13 @@ def _analyze(
     height_range = [hm.datum_depth_um - depth_range[1], hm.datum_depth_um - depth_range[0]]
     colour = list(height_range)
     if mesh is not None and mesh.n_points:
-        mesh_height = np.asarray(mesh.point_data["height_um"])
-        mesh_range = [float(mesh_height.min()), float(mesh_height.max())]
+        from mpm3d.meshstream import point_chunks_of
+
+        deepest = max(float(p[:, 2].max()) for p in point_chunks_of(mesh))
+        shallowest = min(float(p[:, 2].min()) for p in point_chunks_of(mesh))
+        # as add_height makes height_um: the datum less the depth, in float64
+        mesh_range = [float(np.float64(hm.datum_depth_um) - np.float64(deepest)),
+                      float(np.float64(hm.datum_depth_um) - np.float64(shallowest))]  # fmt: skip
         colour = [min(colour[0], mesh_range[0]), max(colour[1], mesh_range[1])]
     record = {
         # names as text (figure titles, tables): bytes that are not UTF-8 as \xNN
@@ -490,7 +496,7 @@ def _quality(hm: HeightMap, mesh) -> dict:
         "mesh_vs_heightmap_um": None,
     }
     if mesh is not None and mesh.n_cells:
-        from mpm3d.surface import mesh_quality, vertical_error
+        from mpm3d.surface import mesh_quality, vertical_error_summary
 
         _, dy, dx = hm.spacing
         field = mesh.field_data
@@ -501,12 +507,10 @@ def _quality(hm: HeightMap, mesh) -> dict:
         )
         q["lateral_bin"] = lateral_bin
         out["mesh"] = q
-        err = np.abs(vertical_error(mesh, hm.depth_um, spacing=hm.spacing))
-        if err.size:
+        summary = vertical_error_summary(mesh, hm.depth_um, spacing=hm.spacing)
+        if summary is not None:
             out["mesh_vs_heightmap_um"] = {
-                "median_abs": float(np.median(err)),
-                "p95_abs": float(np.percentile(err, 95)),
-                "max_abs": float(err.max()),
+                **summary,
                 "note": "depth of each mesh vertex minus the height map's at its (x, y); "
                 "large on steep or overhanging flanks, where a column meets the surface "
                 "more than once",
@@ -586,9 +590,15 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
     rendering: dict = {}
 
     def vtk_outputs() -> None:  # VTK work, in a thread beside the matplotlib figures
-        _save_vtp(mesh, folder / "surface.vtp")
-        with utf8_output(folder / "surface.ply") as target:
-            mesh.save(target, binary=True)
+        from mpm3d.meshstream import DiskMesh
+
+        if isinstance(mesh, DiskMesh):  # too large to hold: written a chunk at a time
+            mesh.save_vtp(folder / "surface.vtp")
+            mesh.save_ply(folder / "surface.ply")
+        else:
+            _save_vtp(mesh, folder / "surface.vtp")
+            with utf8_output(folder / "surface.ply") as target:
+                mesh.save(target, binary=True)
         if figures:
             from mpm3d.figures import render_surface
 

@@ -328,8 +328,8 @@ def compare_stacks(
             alignment["icp"] = "skipped: open3d is not installed (the '3d' extra)"
     if icp and first.surface is not None and second.surface is not None:
         alignment["icp"] = icp_refine(
-            first.surface,
-            second.surface,
+            _held(first.surface),
+            _held(second.surface),
             shift_xy_um=(alignment["shift_x_um"], alignment["shift_y_um"]),
         )
     elif icp:
@@ -399,3 +399,26 @@ def write_comparison(
         ]
     write_json(folder / "compare.json", report)
     write_comparison_report(folder, report)
+
+
+def _held(mesh, max_points: int = 60_000):
+    """A mesh ICP can take: an in-memory one as it is; of a
+    :class:`mpm3d.meshstream.DiskMesh`, every k-th point with its normal (as
+    :func:`icp_refine` thins a mesh's points itself; its extent and centre then come
+    from these points)."""
+    import pyvista as pv
+
+    from mpm3d.meshstream import CHUNK, DiskMesh
+
+    if not isinstance(mesh, DiskMesh):
+        return mesh
+    step = max(1, mesh.n_points // max_points)
+    points, normals = [], []
+    for start in range(0, mesh.n_points, CHUNK):
+        first = (-start) % step
+        points.append(mesh.points(start, start + CHUNK)[first::step])
+        normals.append(mesh.normals(start, start + CHUNK)[first::step])
+    cloud = pv.PolyData(np.concatenate(points))
+    cloud.point_data["Normals"] = np.concatenate(normals)
+    cloud.point_data.active_normals_name = "Normals"
+    return cloud

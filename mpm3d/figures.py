@@ -299,17 +299,24 @@ def render_surface(
 
     # without a display VTK falls back to off-screen rendering after a warning
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    from mpm3d.meshstream import DiskMesh
+
     simplified = mesh.n_cells > max_triangles
+    if isinstance(mesh, DiskMesh) and not simplified:
+        mesh = mesh.polydata()
     if simplified:
         from vtkmodules.vtkFiltersCore import vtkQuadricClustering
 
         cells = int(np.sqrt(max_triangles / 2))
-        clustering = vtkQuadricClustering()
-        clustering.SetInputData(mesh)
-        clustering.SetNumberOfDivisions(cells, cells, cells)
-        clustering.AutoAdjustNumberOfDivisionsOn()
-        clustering.Update()
-        mesh = pv.wrap(clustering.GetOutput())
+        if isinstance(mesh, DiskMesh):  # a mesh on disk: clustered a chunk at a time
+            mesh = _cluster_chunks(mesh, cells)
+        else:
+            clustering = vtkQuadricClustering()
+            clustering.SetNumberOfDivisions(cells, cells, cells)
+            clustering.SetInputData(mesh)
+            clustering.AutoAdjustNumberOfDivisionsOn()
+            clustering.Update()
+            mesh = pv.wrap(clustering.GetOutput())
     shown = pv.PolyData(mesh.points, mesh.faces) if mesh.n_cells else mesh.copy()
     datum = float(datum_depth_um)
     height = datum - np.asarray(shown.points[:, 2], np.float64)
@@ -438,3 +445,42 @@ def render_surface(
         "simplified": bool(simplified),
         "triangles_drawn": int(shown.n_cells),
     }
+
+
+def _cluster_chunks(mesh, cells: int):
+    """A :class:`mpm3d.meshstream.DiskMesh` simplified a chunk at a time by uniform vertex
+    clustering (Rossignac & Borrel 1993): ``cells`` bins along the longest side of its
+    bounds, each bin's vertex the mean of the points in it (over the whole mesh, so
+    chunks meet without cracks), the triangles whose corners fall in three bins."""
+    import pyvista as pv
+
+    from mpm3d.meshstream import chunks_of, point_chunks_of
+
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for p in point_chunks_of(mesh):
+        lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    size = max(float((hi - lo).max()) / cells, 1e-6)
+    n = np.floor((hi - lo) / size).astype(np.int64) + 1
+
+    def bins(p: np.ndarray) -> np.ndarray:
+        i = np.clip(np.floor((np.asarray(p, np.float64) - lo) / size).astype(np.int64), 0, n - 1)
+        return i[:, 0] + n[0] * (i[:, 1] + n[1] * i[:, 2])
+
+    keys = np.zeros(0, np.int64)
+    sums = np.zeros((0, 4))
+    for p in point_chunks_of(mesh):
+        b = bins(p)
+        keys, at = np.unique(np.concatenate([keys, b]), return_inverse=True)
+        new = np.column_stack([np.asarray(p, np.float64), np.ones(len(p))])
+        both = np.concatenate([sums, new])
+        sums = np.stack([np.bincount(at, weights=both[:, k], minlength=len(keys))
+                         for k in range(4)], axis=1)  # fmt: skip
+    tris = []
+    for p, t, _ in chunks_of(mesh)():  # the triangles as the mesh has them (outward)
+        c = np.searchsorted(keys, bins(p))[t]
+        c = c[(c[:, 0] != c[:, 1]) & (c[:, 1] != c[:, 2]) & (c[:, 0] != c[:, 2])]
+        first = np.argmin(c, axis=1)  # each from its least corner, winding kept
+        tris.append(np.take_along_axis(c, (first[:, None] + np.arange(3)) % 3, axis=1))
+    tris = np.unique(np.concatenate(tris), axis=0)
+    points = sums[:, :3] / sums[:, 3:]
+    return pv.PolyData(points, np.column_stack([np.full(len(tris), 3), tris]).ravel())

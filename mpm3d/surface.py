@@ -13,6 +13,7 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -139,14 +140,25 @@ def largest_component(mesh):
     return out
 
 
+def outward_sign(chunks) -> float:
+    """The z-component of a mesh's area-weighted normal (twice the signed projected
+    area), summed over ``chunks`` of ``(points, triangles, first point)``
+    (:func:`mpm3d.meshstream.chunks_of`) in float64: positive where the triangles face
+    into the tissue (+z)."""
+    total = 0.0
+    for p, t, _ in chunks:
+        u, v = p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]
+        total += float((u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum())
+    return total
+
+
 def orient_outward(mesh):
     """Flip the triangles if the area-weighted normal points into the tissue (+z)."""
+    from mpm3d.meshstream import chunks_of
+
     if mesh.n_cells == 0:
         return mesh
-    pts = mesh.points
-    f = mesh.regular_faces
-    n = np.cross(pts[f[:, 1]] - pts[f[:, 0]], pts[f[:, 2]] - pts[f[:, 0]])
-    if n[:, 2].sum() > 0:
+    if outward_sign(chunks_of(mesh)()) > 0:
         mesh = mesh.flip_faces()
     return mesh.compute_normals(
         cell_normals=False,
@@ -441,6 +453,16 @@ def contour_rows(work: np.ndarray, plan: IsoPlan, row0: int) -> tuple[np.ndarray
     return np.asarray(mesh.points), np.asarray(mesh.regular_faces, np.int64)
 
 
+def _contour_band(volume, plan: IsoPlan, r0: int, r1: int) -> tuple[np.ndarray, np.ndarray]:
+    """Binned rows ``r0 .. r1`` of a :class:`mpm3d.tiled.StackBands` contoured
+    (:func:`contour_rows`)."""
+    b = plan.bin
+    raw = volume.rows(r0 * b, (r1 + 1) * b)
+    work = column_work(raw, plan, r0)
+    del raw
+    return contour_rows(work, plan, r0)
+
+
 def finish_isosurface(
     pieces: Sequence[tuple[np.ndarray, np.ndarray]],
     plan: IsoPlan,
@@ -555,10 +577,17 @@ def vertical_error(mesh, depth_um: np.ndarray, *, spacing: Sequence[float]) -> n
     The reference is interpolated bilinearly; vertices outside the map are
     dropped.  Useful to compare a surface with a known one.
     """
+    from mpm3d.meshstream import point_chunks_of
+
+    parts = [_vertical(p, depth_um, spacing) for p in point_chunks_of(mesh)]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _vertical(points: np.ndarray, depth_um: np.ndarray, spacing: Sequence[float]) -> np.ndarray:
     from scipy import ndimage
 
     dy, dx = (float(s) for s in tuple(spacing)[-2:])
-    p = np.asarray(mesh.points, np.float64)
+    p = np.asarray(points, np.float64)
     ny, nx = depth_um.shape
     inside = (p[:, 0] >= 0) & (p[:, 0] <= (nx - 1) * dx) & (p[:, 1] >= 0)
     inside &= p[:, 1] <= (ny - 1) * dy
@@ -569,6 +598,43 @@ def vertical_error(mesh, depth_um: np.ndarray, *, spacing: Sequence[float]) -> n
     if not math.isfinite(float(ref.sum())):
         raise InputError("the reference depth map has NaN")
     return p[:, 2] - ref
+
+
+def vertical_error_summary(mesh, depth_um: np.ndarray, *, spacing: Sequence[float]) -> dict:
+    """The median, 95th percentile and largest of :func:`vertical_error`'s absolute
+    values (None where no vertex lies over the map): for a
+    :class:`mpm3d.meshstream.DiskMesh`, a chunk of points at a time and the order
+    statistics found exactly (:func:`mpm3d.diskmaps.exact_median`), the same numbers."""
+    from mpm3d.meshstream import DiskMesh, point_chunks_of
+
+    if not isinstance(mesh, DiskMesh):
+        err = np.abs(vertical_error(mesh, depth_um, spacing=spacing))
+        if not err.size:
+            return None
+        return {"median_abs": float(np.median(err)), "p95_abs": float(np.percentile(err, 95)),
+                "max_abs": float(err.max())}  # fmt: skip
+    from mpm3d.diskmaps import exact_median, exact_percentiles
+    from mpm3d.meshstream import _Rows
+
+    errors = _Rows(Path(mesh.folder.path) / "vertical-errors.bin", np.float64, 1)
+    largest = -np.inf
+    for p in point_chunks_of(mesh):
+        e = np.abs(_vertical(p, depth_um, spacing))
+        errors.append(e)
+        largest = max(largest, float(e.max())) if e.size else largest
+    try:
+        if not len(errors):
+            return None
+
+        def read():
+            for chunk in errors.chunks():
+                yield chunk[:, 0]
+
+        return {"median_abs": exact_median(read, len(errors)),
+                "p95_abs": float(exact_percentiles(read, len(errors), [95])[0]),
+                "max_abs": largest}  # fmt: skip
+    finally:
+        errors.path.unlink(missing_ok=True)
 
 
 def add_height(mesh, datum_depth_um: float, *, datum: str = ""):
@@ -597,8 +663,13 @@ def add_height(mesh, datum_depth_um: float, *, datum: str = ""):
     >>> m.point_data["height_um"].tolist(), str(m.field_data["length_unit"][0])
     ([70.0, 70.0, 70.0, 70.0], 'um')
     """
-    depth = np.asarray(mesh.points[:, 2], np.float64)
-    mesh.point_data["height_um"] = float(datum_depth_um) - depth
+    from mpm3d.meshstream import DiskMesh
+
+    if isinstance(mesh, DiskMesh):  # its height_um is made as it is written
+        mesh.datum_depth_um = float(datum_depth_um)
+    else:
+        depth = np.asarray(mesh.points[:, 2], np.float64)
+        mesh.point_data["height_um"] = float(datum_depth_um) - depth
     mesh.field_data["height_datum"] = np.array(
         [datum or f"the plane {float(datum_depth_um):g} um below slice 0"]
     )
@@ -641,6 +712,8 @@ def mesh_quality(mesh, *, edge_um: float = 0.0) -> dict:
     import scipy.sparse as sp
     from scipy.sparse.csgraph import connected_components
 
+    from mpm3d.meshstream import chunks_of, point_chunks_of
+
     out = {
         "triangles": int(mesh.n_cells),
         "points": int(mesh.n_points),
@@ -654,14 +727,67 @@ def mesh_quality(mesh, *, edge_um: float = 0.0) -> dict:
     }
     if mesh.n_cells == 0:
         return out
-    f = np.asarray(mesh.regular_faces, np.int64)
-    p = np.asarray(mesh.points, np.float64)
-    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()  # every triangle's three edges
-    n_points = np.int64(len(p))
-    keys, counts = np.unique(np.minimum(a, b) * n_points + np.maximum(a, b), return_counts=True)
-    once = keys[counts == 1]
-    border = np.column_stack([once // n_points, once % n_points])
-    u, v = p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]]
+    read = chunks_of(mesh)  # fixed chunks of triangles: the same sums for any mesh's form
+    n_points = np.int64(mesh.n_points)
+    largest, lowest = 0.0, []
+    for p, t, lo in read():
+        largest = max(largest, float(_crossed(p, t)[1].max()))
+        lowest.append(int(t.min(axis=1).min()) + lo)
+    # an edge whose lower point lies below every later chunk's triangles is complete
+    suffix = np.minimum.accumulate(np.array(lowest[::-1], np.int64))[::-1]
+    later = np.append(suffix[1:], np.iinfo(np.int64).max)
+    keys = np.zeros(0, np.int64)
+    counts = np.zeros(0, np.int64)
+    border, area, projected, degenerate, non_manifold = [], 0.0, 0.0, 0, 0
+    for (p, t, lo), bound in zip(read(), later, strict=True):
+        cross, a = _crossed(p, t)
+        degenerate += int((a <= 1e-12 * max(largest, 1e-300)).sum())
+        area += float(a.sum())
+        # normals point into the lumen (-z): the signed projection counts overhangs once
+        projected += float(0.5 * cross[:, 2].sum())
+        g = t + lo
+        u, v = g.ravel(), g[:, [1, 2, 0]].ravel()  # every triangle's three edges
+        new = np.minimum(u, v) * n_points + np.maximum(u, v)
+        keys, at = np.unique(np.concatenate([keys, new]), return_inverse=True)
+        counts = np.bincount(at, weights=np.concatenate([counts, np.ones(len(new), np.int64)]),
+                             minlength=len(keys)).astype(np.int64)  # fmt: skip
+        done = keys // n_points < bound
+        non_manifold += int((counts[done] > 2).sum())
+        border.append(keys[done][counts[done] == 1])
+        keys, counts = keys[~done], counts[~done]
+    once = np.concatenate(border)
+    out["non_manifold_edges"] = non_manifold
+    out["degenerate_triangles"] = degenerate
+    out["area_um2"] = area
+    out["projected_area_um2"] = abs(projected)
+    out["boundary_edges"] = len(once)
+    if len(once):
+        border = np.column_stack([once // n_points, once % n_points])
+        used, inverse = np.unique(border, return_inverse=True)
+        inverse = inverse.reshape(-1, 2)
+        n = len(used)
+        graph = sp.csr_matrix((np.ones(len(border)), (inverse[:, 0], inverse[:, 1])), shape=(n, n))
+        n_loops, label = connected_components(graph, directed=False)
+        xy = np.empty((n, 2))
+        lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+        start = 0
+        for p in point_chunks_of(mesh):
+            q = np.asarray(p[:, :2], np.float64)
+            lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
+            a, b = np.searchsorted(used, [start, start + len(p)])
+            xy[a:b] = q[used[a:b] - start]
+            start += len(p)
+        near = ((xy - lo) <= edge_um).any(axis=1) | ((hi - xy) <= edge_um).any(axis=1)
+        touches = np.zeros(n_loops, bool)
+        np.logical_or.at(touches, label, near)
+        out["boundary_loops"] = int(n_loops)
+        out["holes"] = int((~touches).sum())
+    return out
+
+
+def _crossed(p: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle's edge cross product and area."""
+    u, v = p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]]
     cross = np.column_stack(
         [
             u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1],
@@ -669,24 +795,4 @@ def mesh_quality(mesh, *, edge_um: float = 0.0) -> dict:
             u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0],
         ]
     )
-    area = 0.5 * np.linalg.norm(cross, axis=1)
-    out["non_manifold_edges"] = int((counts > 2).sum())
-    out["degenerate_triangles"] = int((area <= 1e-12 * max(area.max(), 1e-300)).sum())
-    out["area_um2"] = float(area.sum())
-    # normals point into the lumen (-z): the signed projection counts overhangs once
-    out["projected_area_um2"] = float(abs(0.5 * cross[:, 2].sum()))
-    out["boundary_edges"] = len(border)
-    if len(border):
-        used, inverse = np.unique(border, return_inverse=True)
-        inverse = inverse.reshape(-1, 2)
-        n = len(used)
-        graph = sp.csr_matrix((np.ones(len(border)), (inverse[:, 0], inverse[:, 1])), shape=(n, n))
-        n_loops, label = connected_components(graph, directed=False)
-        lo, hi = p[:, :2].min(axis=0), p[:, :2].max(axis=0)
-        xy = p[used, :2]
-        near = ((xy - lo) <= edge_um).any(axis=1) | ((hi - xy) <= edge_um).any(axis=1)
-        touches = np.zeros(n_loops, bool)
-        np.logical_or.at(touches, label, near)
-        out["boundary_loops"] = int(n_loops)
-        out["holes"] = int((~touches).sum())
-    return out
+    return cross, 0.5 * np.linalg.norm(cross, axis=1)

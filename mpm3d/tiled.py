@@ -4,7 +4,7 @@
 in-memory working set (:func:`plan_memory`) would exceed its memory limit,
 or when asked to (``lazy=True``, ``--lazy``).  The stack is read a band of
 rows at a time (:mod:`mpm3d.lazyio`), every slice of the band at once, and
-only ``(Y, X)`` maps and the mesh are ever whole:
+only ``(Y, X)`` maps are ever whole (the mesh, only with ``--decimate``):
 
 * the detection threshold, background and noise come from the same strided
   subsample of the stack as in memory (:func:`mpm3d.heightmap.surface_levels`),
@@ -21,7 +21,10 @@ only ``(Y, X)`` maps and the mesh are ever whole:
 * the isosurface's grid (lateral binning, per-column scaling and tissue
   filling) is per column too; each band of binned rows is contoured on the
   whole grid's coordinates (:func:`mpm3d.surface.contour_rows`), bands
-  sharing their boundary row, and the pieces are merged and smoothed whole
+  sharing their boundary row; the mesh is merged, cut to its largest piece,
+  smoothed and oriented through files a band at a time
+  (:mod:`mpm3d.meshstream`: a :class:`mpm3d.meshstream.DiskMesh`, written a
+  chunk at a time), or, with ``--decimate``, assembled whole
   (:func:`mpm3d.surface.finish_isosurface`).
 
 So the height map, every metric and the mesh are the same, bit for bit, as
@@ -239,8 +242,11 @@ def plan_memory(
     nz, nc, ny, nx = (int(n) for n in shape)
     by, bx = max(1, ny // bin), max(1, nx // bin)
     mesh = MESH_BYTES_PER_COLUMN * by * bx if surface else 0
+    # banded, the mesh goes through files: a piece of it, with the rows around it that
+    # its smoothing needs, is in memory at a time
+    piece = MESH_BYTES_PER_COLUMN * min(by, 2 * SMOOTHING_HALO_ROWS + 1) * bx if surface else 0
     fixed = BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx + mesh
-    banded = BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx + mesh
+    banded = BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx + piece
     voxels = nz * ny * nx
     grid = nz * by * bx if surface else 0
     # the stack as read, the combined channels, the isosurface's float32 grid
@@ -272,12 +278,12 @@ def plan_memory(
     else:
         if smallest > limit:
             ways = f"use --memory-limit {format_bytes(smallest)} or more"
-            without = smallest - mesh - max(0, surface_rows(1) - height_rows(1))
+            without = smallest - piece - max(0, surface_rows(1) - height_rows(1))
             if surface and without <= limit:
-                # the mesh, still assembled whole, is what does not fit
+                # the mesh's pieces are what does not fit
                 ways += (
                     f", a coarser --iso-bin (now {bin}), or --no-surface (which needs "
-                    f"{format_bytes(without)}: the mesh is assembled whole)"
+                    f"{format_bytes(without)})"
                 )
             raise InputError(
                 f"a memory limit of {format_bytes(limit)} is too small for this "
@@ -321,10 +327,22 @@ def mesh_triangles(depth_um: np.ndarray, spacing: Sequence[float], bin: int) -> 
     return int(TRIANGLES_PER_CELL * area / (side * min(side, dz)))
 
 
-def plan_surface(plan: MemoryPlan, triangles: int, *, iso_bin: int) -> MemoryPlan:
+#: binned rows of mesh around each piece the streamed mesh is smoothed in
+#: (:func:`mpm3d.meshstream.stream_isosurface`: the smoothing's 40 iterations and 2)
+SMOOTHING_HALO_ROWS = 42
+
+
+def plan_surface(
+    plan: MemoryPlan, triangles: int, *, iso_bin: int, streamed: bool = True
+) -> MemoryPlan:
     """The tiled ``plan`` with the isosurface's bands sized for a mesh of ``triangles``
     (:func:`mesh_triangles`, known once the height map is) in place of the first plan's
     guess per column.
+
+    ``streamed`` (no decimation): the mesh goes through files
+    (:mod:`mpm3d.meshstream`) and only a band of the grid and a piece of the mesh (the
+    band's rows and :data:`SMOOTHING_HALO_ROWS` either side) are in memory; otherwise the
+    mesh is held whole.
 
     Raises
     ------
@@ -333,44 +351,53 @@ def plan_surface(plan: MemoryPlan, triangles: int, *, iso_bin: int) -> MemoryPla
         message gives the limit that works, and the other ways out).
     """
     model = plan.model
-    mesh = MESH_BYTES_PER_TRIANGLE * int(triangles)
-    room = plan.limit_bytes - model["without_mesh"] - mesh
-    smallest = model["without_mesh"] + mesh + 2 * model["per_grid_row"]
-    if room < 2 * model["per_grid_row"]:
+    by = max(1, model["binned_rows"])
+    if streamed:
+        per_row = MESH_BYTES_PER_TRIANGLE * int(triangles) / by  # a binned row of mesh
+        fixed = model["without_mesh"] + model["per_grid_row"] + 2 * SMOOTHING_HALO_ROWS * per_row
+        per_band_row = model["per_grid_row"] + per_row
+    else:
+        fixed = model["without_mesh"] + MESH_BYTES_PER_TRIANGLE * int(triangles)
+        fixed += model["per_grid_row"]
+        per_band_row = model["per_grid_row"]
+    smallest = int(fixed + per_band_row)
+    if plan.limit_bytes < smallest:
+        held = "" if streamed else " (held whole: --decimate)"
         raise InputError(
             f"a memory limit of {format_bytes(plan.limit_bytes)} is too small for this "
             f"surface's mesh: its folds make about {triangles / 1e6:.1f} million triangles "
-            f"at --iso-bin {iso_bin} ({format_bytes(mesh)}); use --memory-limit "
-            f"{format_bytes(smallest)} or more, a coarser --iso-bin, or --no-surface"
+            f"at --iso-bin {iso_bin}{held}; use --memory-limit {format_bytes(smallest)} or "
+            "more, a coarser --iso-bin, or --no-surface"
         )
-    rows = max(1, min(model["binned_rows"] - 1, room // model["per_grid_row"] - 1))
-    peak = max(
-        model["height_peak"], model["without_mesh"] + mesh + model["per_grid_row"] * (rows + 1)
-    )
+    rows = max(1, min(by - 1, int((plan.limit_bytes - fixed) // per_band_row)))
+    peak = max(model["height_peak"], int(fixed + per_band_row * rows))
     return replace(
         plan,
         surface_tile_rows=int(rows),
         tiled_bytes=int(peak),
-        model={**model, "mesh_triangles": int(triangles)},
+        model={**model, "mesh_triangles": int(triangles), "streamed": bool(streamed)},
     )
 
 
 def mesh_budget(plan: MemoryPlan | None) -> int | None:
     """The most isosurface triangles a ``plan`` holds within its limit (at
     :data:`MESH_BYTES_PER_TRIANGLE`): beside the stack and the maps in memory, or, banded
-    (after :func:`plan_surface`), beside the maps and one band of the isosurface's grid.
-    None without a plan."""
+    (after :func:`plan_surface`), beside the maps and one band of the isosurface's grid
+    (the whole mesh), or such that a piece of a streamed mesh fits (as many triangles a
+    binned row as that allows, over all rows). None without a plan."""
     model = plan.model if plan is not None else None
     if not model:
         return None
     if plan.path == "in-memory":
         room = plan.limit_bytes - (plan.in_memory_bytes - model["mesh_bytes"])
     elif plan.surface_tile_rows is not None:
-        room = (
-            plan.limit_bytes
-            - model["without_mesh"]
-            - model["per_grid_row"] * (plan.surface_tile_rows + 1)
-        )
+        rows = plan.surface_tile_rows
+        room = plan.limit_bytes - model["without_mesh"] - model["per_grid_row"] * (rows + 1)
+        if model.get("streamed"):
+            by = max(1, model["binned_rows"])
+            return max(
+                0, int(room * by // (MESH_BYTES_PER_TRIANGLE * (rows + 2 * SMOOTHING_HALO_ROWS)))
+            )
     else:
         return None
     return max(0, int(room // MESH_BYTES_PER_TRIANGLE))
@@ -575,20 +602,25 @@ def tiled_isosurface(
     bin: int | None = None,
     decimate: float = 0.0,
     max_triangles: int | None = None,
+    expected_triangles: int = 0,
     progress=None,
 ):
     """:func:`mpm3d.surface.isosurface` of a stack read ``tile_rows`` binned rows at a time.
 
     Each band of binned rows ``r0 .. r0 + tile_rows`` shares its last row
     with the next band; the mesh is the same as the whole stack's (see the
-    module's notes).
+    module's notes).  Without decimation the mesh is never whole in memory: it is
+    merged, smoothed and oriented through files a band at a time
+    (:func:`mpm3d.meshstream.stream_isosurface`), and returned as a
+    :class:`mpm3d.meshstream.DiskMesh` (``expected_triangles``: the disk space to
+    ask for); with decimation, assembled whole (a ``pyvista.PolyData``).
 
     ``max_triangles`` (from :func:`mesh_budget`): the most triangles the memory
     limit holds; a surface that contours into more (noise, debris, a surface less
     smooth than its height map said) is refused as soon as its bands pass it,
     before the mesh is assembled.
     """
-    from mpm3d.surface import column_work, contour_rows, finish_isosurface, iso_plan
+    from mpm3d.surface import finish_isosurface, iso_plan
 
     plan = iso_plan(
         volume.shape,
@@ -602,20 +634,30 @@ def tiled_isosurface(
         decimate=decimate,
     )
     by = plan.binned[0]
-    b = plan.bin
     rows = max(1, int(tile_rows))
+    if plan.decimate == 0:
+        from mpm3d.diskmaps import MapFolder
+        from mpm3d.meshstream import DISK_BYTES_PER_TRIANGLE, stream_isosurface
+
+        folder = MapFolder(int(DISK_BYTES_PER_TRIANGLE * TRIANGLE_MARGIN * expected_triangles),
+                           prefix="mpm3d-mesh-")  # fmt: skip
+        try:
+            with _counter(progress, "building the isosurface") as tick:
+                return stream_isosurface(volume, plan, tile_rows=rows, folder=folder,
+                                         max_triangles=max_triangles, tick=tick)  # fmt: skip
+        except BaseException:
+            folder.close()
+            raise
+    from mpm3d.surface import _contour_band
+
     starts = range(0, by - 1, rows)
     pieces = []
     with _counter(progress, "building the isosurface") as tick:
         tick(0, len(starts))
         for k, r0 in enumerate(starts):
             r1 = min(by - 1, r0 + rows)  # the last row, shared with the next band
-            raw = volume.rows(r0 * b, (r1 + 1) * b)
-            work = column_work(raw, plan, r0)
-            del raw
-            pieces.append(contour_rows(work, plan, r0))
+            pieces.append(_contour_band(volume, plan, r0, r1))
             check_triangles(sum(len(t) for _, t in pieces), max_triangles,
                             f"after {k + 1} of {len(starts)} bands of the isosurface")  # fmt: skip
-            del work
             tick(k + 1, len(starts))
     return finish_isosurface(pieces, plan)
