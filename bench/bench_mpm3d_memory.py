@@ -14,10 +14,11 @@
 
 3. A wide field of view: a one-channel 8-bit stack of 240 x 4096 x 4096 px
    (3.75 GiB; ``--wide``), a rendered 1024 px surface mirrored tile by tile,
-   then ``mpm3d analyze --memory-limit 1GiB --no-surface`` (``--wide-limit``):
-   its peak resident memory, and with ``--baseline`` the in-memory run's
-   (some 5.5 GiB), whose metrics.json, height map and surface intensity must
-   be equal.  The mesh is left out: it is still assembled whole.
+   then ``mpm3d analyze --memory-limit 1GiB`` (``--wide-limit``), figures and
+   the isosurface included (some 20 million triangles, streamed through files):
+   its peak resident memory, and with ``--baseline`` the in-memory run's,
+   whose metrics.json, height map, surface intensity and mesh (surface.ply,
+   byte for byte) must be equal.
 
     python bench/bench_mpm3d_memory.py [--size 6GiB] [--limit 1.5GiB] [--keep DIR] [--baseline]
         [--wide 240x4096x4096] [--wide-limit 1GiB] [--only equal|bounded|wide]
@@ -26,6 +27,7 @@
 from __future__ import annotations
 
 import argparse
+import filecmp
 import json
 import math
 import os
@@ -243,8 +245,9 @@ def write_wide_stack(path: Path, shape: tuple[int, int, int], *, size: int = 102
 
 
 def wide_field(folder: Path, shape_text: str, limit_text: str, *, baseline: bool) -> None:
-    """A wide field of view (4096 x 4096 px by default) within the limit, without the
-    surface: the (Y, X) maps' work on disk and in bands (mpm3d.diskmaps)."""
+    """A wide field of view (4096 x 4096 px by default) within the limit: the (Y, X) maps'
+    work on disk and in bands (mpm3d.diskmaps), the mesh through files
+    (mpm3d.meshstream)."""
     from mpm3d.tiled import parse_memory
 
     shape = tuple(int(n) for n in shape_text.lower().split("x"))
@@ -260,12 +263,15 @@ def wide_field(folder: Path, shape_text: str, limit_text: str, *, baseline: bool
         f"{time.perf_counter() - t0:.0f} s"
     )
     out = folder / "wide_out"
-    seconds, peak = run_analyze(stack, out, "--memory-limit", limit_text, "--no-surface")
+    seconds, peak = run_analyze(stack, out, "--memory-limit", limit_text)
     metrics = json.loads((out / "metrics.json").read_text(encoding="utf-8"))
     record = metrics["parameters"]["memory"]
     print(
-        f"  mpm3d analyze --memory-limit {limit_text} --no-surface: {seconds:.1f} s, path "
-        f"{record['path']}, {record.get('tile_rows')} rows a band; peak RSS "
+        f"  mpm3d analyze --memory-limit {limit_text}: {seconds:.1f} s, path "
+        f"{record['path']}, {record.get('tile_rows')} rows a band (height map), "
+        f"{record.get('surface_tile_rows')} binned rows a band and "
+        f"{record.get('mesh_piece_rows')} a piece (mesh), "
+        f"{metrics['n_surface_triangles']:,} triangles; peak RSS "
         f"{peak / 2**30:.2f} GiB = {peak / limit:.2f}x the limit (model's estimate "
         f"{record.get('estimated_peak_bytes', 0) / 2**30:.2f} GiB)"
     )
@@ -273,20 +279,21 @@ def wide_field(folder: Path, shape_text: str, limit_text: str, *, baseline: bool
         import tifffile
 
         whole = folder / "wide_in_memory"
-        seconds0, peak0 = run_analyze(stack, whole, "--memory-limit", "1TiB", "--no-surface")
+        seconds0, peak0 = run_analyze(stack, whole, "--memory-limit", "1TiB")
         metrics0 = json.loads((whole / "metrics.json").read_text(encoding="utf-8"))
         same = without_path_record(metrics0) == without_path_record(metrics)
         maps = all(
             np.array_equal(tifffile.imread(out / f), tifffile.imread(whole / f), equal_nan=True)
             for f in ("heightmap.tif", "surface_intensity.tif")
         )
+        mesh = filecmp.cmp(out / "surface.ply", whole / "surface.ply", shallow=False)
         print(
             f"  in memory: {seconds0:.1f} s, peak RSS {peak0 / 2**30:.2f} GiB; banded / in "
             f"memory: peak {peak / peak0:.2f}, time {seconds / seconds0:.2f}; metrics.json "
             f"equal (all but {'.'.join(PATH_RECORD)}): {same}; height map and intensity "
-            f"equal: {maps}"
+            f"equal: {maps}; mesh equal (surface.ply): {mesh}"
         )
-        if not (same and maps):
+        if not (same and maps and mesh):
             raise SystemExit("the banded path's results differ from the in-memory path's")
     if peak > limit:
         raise SystemExit("peak memory over the limit")

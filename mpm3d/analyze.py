@@ -291,6 +291,7 @@ def _analyze(
                 mesh = tiled_isosurface(
                     volume,
                     tile_rows=plan.surface_tile_rows,
+                    piece_rows=plan.mesh_piece_rows,
                     max_triangles=mesh_budget(plan),
                     progress=progress,
                     expected_triangles=triangles,
@@ -612,8 +613,13 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
                 )
             )
 
+    from mpm3d.meshstream import DiskMesh
+
+    # a mesh too large to hold is written and drawn after the other figures, not beside
+    # them: its chunks and the rendering would add to the figures' memory
+    beside = mesh is not None and not isinstance(mesh, DiskMesh)
     with ThreadPoolExecutor(max_workers=1) as pool:
-        pending = pool.submit(vtk_outputs) if mesh is not None else None
+        pending = pool.submit(vtk_outputs) if beside else None
         if figures:
             from mpm3d import figures as fg
 
@@ -629,6 +635,8 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
             fg.plot_spectrum(analysis.spectrum).savefig(fig_dir / "spectrum.png")
         if pending is not None:
             pending.result()
+    if mesh is not None and not beside:
+        vtk_outputs()
     if figures:
         listed = [
             (

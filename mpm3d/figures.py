@@ -284,9 +284,10 @@ def render_surface(
     front edges (x, y) and up its back-left corner (height above the
     datum); a scale bar lies on the datum plane in front; the colour bar is
     below.  Meshes over ``max_triangles`` are drawn from a copy simplified
-    by quadric vertex clustering (Lindstrom 2000, doi:10.1145/344779.344912),
-    which looks the same at figure size and renders several times faster
-    without a GPU.
+    by uniform vertex clustering (Rossignac & Borrel 1993,
+    doi:10.1007/978-3-642-78114-8_29), a chunk of triangles at a time (a mesh on
+    disk too, :class:`mpm3d.meshstream.DiskMesh`), which looks the same at figure
+    size and renders several times faster without a GPU.
 
     Returns
     -------
@@ -305,18 +306,14 @@ def render_surface(
     if isinstance(mesh, DiskMesh) and not simplified:
         mesh = mesh.polydata()
     if simplified:
-        from vtkmodules.vtkFiltersCore import vtkQuadricClustering
-
-        cells = int(np.sqrt(max_triangles / 2))
-        if isinstance(mesh, DiskMesh):  # a mesh on disk: clustered a chunk at a time
-            mesh = _cluster_chunks(mesh, cells)
-        else:
-            clustering = vtkQuadricClustering()
-            clustering.SetNumberOfDivisions(cells, cells, cells)
-            clustering.SetInputData(mesh)
-            clustering.AutoAdjustNumberOfDivisionsOn()
-            clustering.Update()
-            mesh = pv.wrap(clustering.GetOutput())
+        # a chunk of triangles at a time, for a mesh on disk and in memory alike (the
+        # same figure from either path)
+        cells = np.sqrt(max_triangles / 2)  # bins along the longest side, for a flat sheet
+        simple = _cluster_chunks(mesh, int(cells))
+        if simple.n_cells > max_triangles:  # folds' flanks fill more bins: fewer, larger
+            cells *= 0.95 * np.sqrt(max_triangles / simple.n_cells)
+            simple = _cluster_chunks(mesh, int(cells))
+        mesh = simple
     shown = pv.PolyData(mesh.points, mesh.faces) if mesh.n_cells else mesh.copy()
     datum = float(datum_depth_um)
     height = datum - np.asarray(shown.points[:, 2], np.float64)

@@ -42,7 +42,7 @@ __all__ = ["DiskMesh", "stream_isosurface"]
 #: a vertex's normal comes from its own triangles)
 NORMAL_HALO = 3
 #: triangles per chunk when the mesh's files are read through
-CHUNK = 1 << 20
+CHUNK = 1 << 18
 #: bytes of temporary disk per triangle: the contour's triangles and their pieces, the
 #: largest piece's, its points before and after smoothing, the normals (about half a
 #: point per triangle) and the vertical errors
@@ -320,6 +320,7 @@ def stream_isosurface(
     *,
     tile_rows: int,
     folder,
+    piece_rows: int | None = None,
     smooth_iterations: int = 40,
     pass_band: float = 0.02,
     max_triangles: int | None = None,
@@ -335,8 +336,10 @@ def stream_isosurface(
     volume : :class:`mpm3d.tiled.StackBands`
     plan : :class:`mpm3d.surface.IsoPlan`
     tile_rows : int
-        Binned rows per band of the contour; the smoothing's pieces take as many
-        (besides the rows around them).
+        Binned rows per band of the contour.
+    piece_rows : int, optional
+        Binned rows per piece the mesh is smoothed and its normals computed in
+        (besides the rows around them); ``tile_rows`` by default.
     max_triangles : int, optional
         Refuse a contour of more triangles (:func:`mpm3d.tiled.check_triangles`).
     tick : callable, optional
@@ -355,7 +358,8 @@ def stream_isosurface(
     dy = plan.spacing[1]
     y0, step = (b - 1) * dy / 2, dy * b  # the binned rows' y (um)
     starts = range(0, by - 1, rows)
-    passes = len(starts) + 2 * len(range(0, by, rows))
+    piece = max(1, int(piece_rows or rows))
+    passes = len(starts) + 2 * len(range(0, by, piece))
     raw_points = _Rows(path / "contour-points.bin", np.float32, 3)
     raw_tris = _Rows(path / "contour-triangles.bin", np.int64, 3)
     nodes = _Rows(path / "contour-pieces.bin", np.int64, 1)
@@ -395,8 +399,8 @@ def stream_isosurface(
     if smooth_iterations > 0:
         smooth = _Rows(path / "smoothed-points.bin", np.float32, 3)
         halo = int(smooth_iterations) + 2
-        for a in range(0, by, rows):
-            part, core = _piece(points, tris, row_starts, a, min(a + rows, by), halo, by)
+        for a in range(0, by, piece):
+            part, core = _piece(points, tris, row_starts, a, min(a + piece, by), halo, by)
             if part is not None:
                 from mpm3d.surface import smooth_mesh
 
@@ -409,8 +413,8 @@ def stream_isosurface(
 
     flipped = outward_sign(_chunked_triangles(smooth, tris)) > 0
     normals = _Rows(path / "normals.bin", np.float32, 3)
-    for a in range(0, by, rows):
-        part, core = _piece(smooth, tris, row_starts, a, min(a + rows, by), NORMAL_HALO, by,
+    for a in range(0, by, piece):
+        part, core = _piece(smooth, tris, row_starts, a, min(a + piece, by), NORMAL_HALO, by,
                             flip=flipped)  # fmt: skip
         if part is not None:
             part = part.compute_normals(

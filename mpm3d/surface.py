@@ -339,10 +339,15 @@ def iso_plan(
     by, bx = ny // bin, nx // bin
 
     def blocks(a: np.ndarray, name: str) -> np.ndarray:
-        a = np.asarray(a, np.float64)
-        if a.shape != (ny, nx):
-            raise InputError(f"{name} must be {(ny, nx)}, got {a.shape}")
-        return a[: by * bin, : bx * bin].reshape(by, bin, bx, bin).mean(axis=(1, 3))
+        """The mean of each bin x bin block, 256 binned rows at a time (no map-sized
+        float64 copy)."""
+        if np.shape(a) != (ny, nx):
+            raise InputError(f"{name} must be {(ny, nx)}, got {np.shape(a)}")
+        out = np.empty((by, bx))
+        for r in range(0, by, 256):
+            part = np.asarray(a[r * bin : min(by, r + 256) * bin, : bx * bin], np.float64)
+            out[r : r + 256] = part.reshape(-1, bin, bx, bin).mean(axis=(1, 3))
+        return out
 
     background = scale = None
     if column_scale is not None:

@@ -74,8 +74,14 @@ TILED_MAP_BYTES_PER_COLUMN = 32
 #: each) while it is merged, put in order, smoothed, measured and written
 MESH_BYTES_PER_COLUMN = 1200
 #: bytes per column of the maps still held while the mesh is built and drawn (the height
-#: map and its masks, the surface's intensity; the metrics' work maps are gone)
-KEPT_MAP_BYTES_PER_COLUMN = 40
+#: map and its masks, the surface's intensity; the metrics' work maps are gone): a
+#: 4096 x 4096 px field held 756 MiB as its streamed mesh was contoured (19 bytes a
+#: column over the base)
+KEPT_MAP_BYTES_PER_COLUMN = 24
+#: bytes per triangle of a piece of the streamed mesh while it is smoothed: its points
+#: and triangles read from the files (30), as VTK's PolyData and the smoothing's own
+#: (measured 134-153 over them on pieces of 0.5-2 million triangles)
+PIECE_BYTES_PER_TRIANGLE = 190
 #: bytes per triangle of the isosurface at the run's peak: merged and put in order,
 #: smoothed, measured and drawn (measured on a steeply folded 1024 x 1024 px stack:
 #: 3.2 million triangles took the run from 457 MiB to 1176 MiB)
@@ -151,6 +157,9 @@ class MemoryPlan:
         Rows of pixels per band of the height map (tiled path).
     surface_tile_rows : int or None
         Binned rows per band of the isosurface (tiled path).
+    mesh_piece_rows : int or None
+        Binned rows per piece the streamed mesh is smoothed in (besides the
+        :data:`SMOOTHING_HALO_ROWS` either side).
     tiled_bytes : int or None
         The estimated peak of the tiled path with these bands.
     smallest_limit_bytes : int
@@ -162,6 +171,7 @@ class MemoryPlan:
     in_memory_bytes: int
     tile_rows: int | None = None
     surface_tile_rows: int | None = None
+    mesh_piece_rows: int | None = None
     tiled_bytes: int | None = None
     smallest_limit_bytes: int = 0
     #: the model's parts, for :func:`plan_surface`: bytes without the mesh, and per row of
@@ -180,6 +190,7 @@ class MemoryPlan:
             out.update(
                 tile_rows=self.tile_rows,
                 surface_tile_rows=self.surface_tile_rows,
+                mesh_piece_rows=self.mesh_piece_rows,
                 estimated_peak_bytes=self.tiled_bytes,
             )
             if self.model and "mesh_triangles" in self.model:
@@ -243,10 +254,15 @@ def plan_memory(
     by, bx = max(1, ny // bin), max(1, nx // bin)
     mesh = MESH_BYTES_PER_COLUMN * by * bx if surface else 0
     # banded, the mesh goes through files: a piece of it, with the rows around it that
-    # its smoothing needs, is in memory at a time
-    piece = MESH_BYTES_PER_COLUMN * min(by, 2 * SMOOTHING_HALO_ROWS + 1) * bx if surface else 0
+    # its smoothing needs, is in memory at a time, and a band's contour while it is merged
+    # (as a surface of twice the developed area of a flat one, until the height map tells
+    # how folded it is: plan_surface)
+    mesh_row = int(PIECE_BYTES_PER_TRIANGLE * 2 * TRIANGLES_PER_CELL * bx) if surface else 0
+    piece = mesh_row * min(by, 2 * SMOOTHING_HALO_ROWS + 1)
     fixed = BASE_BYTES + MAP_BYTES_PER_COLUMN * ny * nx + mesh
-    banded = BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx + piece
+    # banded: the height map's phase (its work maps), then the mesh's (the maps kept)
+    banded = BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx
+    meshing = BASE_BYTES + KEPT_MAP_BYTES_PER_COLUMN * ny * nx + piece
     voxels = nz * ny * nx
     grid = nz * by * bx if surface else 0
     # the stack as read, the combined channels, the isosurface's float32 grid
@@ -254,15 +270,16 @@ def plan_memory(
     in_memory = fixed + copies * voxels * nc * itemsize + (2 * voxels if combined else 0) + 5 * grid
     # one band of rows, every slice: as read, combined, and its grid
     per_row = nz * nx * (copies * channels_read * itemsize + (2 if combined else 0))
-    per_grid_row = 5 * nz * bx
+    grid_row = 5 * nz * bx
+    per_grid_row = grid_row + 2 * mesh_row  # and the contour's mesh, merged
     height_rows = lambda rows: per_row * (rows + 2)  # noqa: E731 - one halo row each side
     surface_rows = lambda rows: per_row * bin * (rows + 1) + per_grid_row * (rows + 1)  # noqa: E731
 
     def peak(rows: int, grid_rows: int) -> int:
-        band = height_rows(rows)
+        top = banded + height_rows(rows)
         if surface:
-            band = max(band, surface_rows(grid_rows))
-        return banded + band
+            top = max(top, meshing + surface_rows(grid_rows))
+        return top
 
     smallest = peak(1, 1)
     if not lazy and tile_rows is None and in_memory <= limit:
@@ -278,7 +295,7 @@ def plan_memory(
     else:
         if smallest > limit:
             ways = f"use --memory-limit {format_bytes(smallest)} or more"
-            without = smallest - piece - max(0, surface_rows(1) - height_rows(1))
+            without = banded + height_rows(1)
             if surface and without <= limit:
                 # the mesh's pieces are what does not fit
                 ways += (
@@ -290,10 +307,10 @@ def plan_memory(
                 f"{nz} x {nc} x {ny} x {nx} stack: even one row at a time needs "
                 f"{format_bytes(smallest)}; {ways}"
             )
-        room = limit - banded
-        rows = max(1, min(ny, room // per_row - 2))
+        rows = max(1, min(ny, (limit - banded) // per_row - 2))
         grid_rows = 1
         if surface:
+            room = limit - meshing
             grid_rows = max(1, min(by - 1, (room // (per_row * bin + per_grid_row)) - 1))
     return MemoryPlan(
         "tiled",
@@ -305,7 +322,7 @@ def plan_memory(
         smallest_limit_bytes=smallest,
         model={
             "without_mesh": BASE_BYTES + KEPT_MAP_BYTES_PER_COLUMN * ny * nx,
-            "per_grid_row": per_row * bin + per_grid_row,
+            "per_grid_row": per_row * bin + grid_row,
             "binned_rows": by,
             "height_peak": BASE_BYTES + TILED_MAP_BYTES_PER_COLUMN * ny * nx + height_rows(rows),
         },
@@ -352,15 +369,23 @@ def plan_surface(
     """
     model = plan.model
     by = max(1, model["binned_rows"])
-    if streamed:
-        per_row = MESH_BYTES_PER_TRIANGLE * int(triangles) / by  # a binned row of mesh
-        fixed = model["without_mesh"] + model["per_grid_row"] + 2 * SMOOTHING_HALO_ROWS * per_row
-        per_band_row = model["per_grid_row"] + per_row
+    without = model["without_mesh"]
+    if not streamed:
+        fixed = without + MESH_BYTES_PER_TRIANGLE * int(triangles) + model["per_grid_row"]
+        smallest = int(fixed + model["per_grid_row"])
+        rows = int((plan.limit_bytes - fixed) // model["per_grid_row"])
+        pieces, peak = None, fixed + model["per_grid_row"] * rows
     else:
-        fixed = model["without_mesh"] + MESH_BYTES_PER_TRIANGLE * int(triangles)
-        fixed += model["per_grid_row"]
-        per_band_row = model["per_grid_row"]
-    smallest = int(fixed + per_band_row)
+        # a binned row of mesh: contoured (a band and the rows still open) and merged,
+        # or in a piece being smoothed
+        mesh_row = PIECE_BYTES_PER_TRIANGLE * int(triangles) / by
+        contour_row = model["per_grid_row"] + 2 * mesh_row
+        halo = 2 * SMOOTHING_HALO_ROWS * mesh_row
+        smallest = int(max(without + 2 * contour_row, without + halo + mesh_row))
+        rows = int((plan.limit_bytes - without) // contour_row) - 1
+        pieces = int((plan.limit_bytes - without - halo) // mesh_row)
+        pieces = max(1, min(by, pieces))
+        peak = max(without + contour_row * (rows + 1), without + halo + mesh_row * pieces)
     if plan.limit_bytes < smallest:
         held = "" if streamed else " (held whole: --decimate)"
         raise InputError(
@@ -369,12 +394,12 @@ def plan_surface(
             f"at --iso-bin {iso_bin}{held}; use --memory-limit {format_bytes(smallest)} or "
             "more, a coarser --iso-bin, or --no-surface"
         )
-    rows = max(1, min(by - 1, int((plan.limit_bytes - fixed) // per_band_row)))
-    peak = max(model["height_peak"], int(fixed + per_band_row * rows))
+    rows = max(1, min(by - 1, rows))
     return replace(
         plan,
         surface_tile_rows=int(rows),
-        tiled_bytes=int(peak),
+        mesh_piece_rows=pieces,
+        tiled_bytes=int(max(model["height_peak"], peak)),
         model={**model, "mesh_triangles": int(triangles), "streamed": bool(streamed)},
     )
 
@@ -390,14 +415,15 @@ def mesh_budget(plan: MemoryPlan | None) -> int | None:
         return None
     if plan.path == "in-memory":
         room = plan.limit_bytes - (plan.in_memory_bytes - model["mesh_bytes"])
+    elif model.get("streamed"):
+        # as dense a mesh as lets a piece, with the rows around it, fit
+        by = max(1, model["binned_rows"])
+        room = plan.limit_bytes - model["without_mesh"]
+        piece_rows = plan.mesh_piece_rows + 2 * SMOOTHING_HALO_ROWS
+        return max(0, int(room * by // (PIECE_BYTES_PER_TRIANGLE * piece_rows)))
     elif plan.surface_tile_rows is not None:
         rows = plan.surface_tile_rows
         room = plan.limit_bytes - model["without_mesh"] - model["per_grid_row"] * (rows + 1)
-        if model.get("streamed"):
-            by = max(1, model["binned_rows"])
-            return max(
-                0, int(room * by // (MESH_BYTES_PER_TRIANGLE * (rows + 2 * SMOOTHING_HALO_ROWS)))
-            )
     else:
         return None
     return max(0, int(room // MESH_BYTES_PER_TRIANGLE))
@@ -603,6 +629,7 @@ def tiled_isosurface(
     decimate: float = 0.0,
     max_triangles: int | None = None,
     expected_triangles: int = 0,
+    piece_rows: int | None = None,
     progress=None,
 ):
     """:func:`mpm3d.surface.isosurface` of a stack read ``tile_rows`` binned rows at a time.
@@ -613,7 +640,8 @@ def tiled_isosurface(
     merged, smoothed and oriented through files a band at a time
     (:func:`mpm3d.meshstream.stream_isosurface`), and returned as a
     :class:`mpm3d.meshstream.DiskMesh` (``expected_triangles``: the disk space to
-    ask for); with decimation, assembled whole (a ``pyvista.PolyData``).
+    ask for; ``piece_rows``: binned rows per piece it is smoothed in); with
+    decimation, assembled whole (a ``pyvista.PolyData``).
 
     ``max_triangles`` (from :func:`mesh_budget`): the most triangles the memory
     limit holds; a surface that contours into more (noise, debris, a surface less
@@ -644,7 +672,8 @@ def tiled_isosurface(
         try:
             with _counter(progress, "building the isosurface") as tick:
                 return stream_isosurface(volume, plan, tile_rows=rows, folder=folder,
-                                         max_triangles=max_triangles, tick=tick)  # fmt: skip
+                                         piece_rows=piece_rows, max_triangles=max_triangles,
+                                         tick=tick)  # fmt: skip
         except BaseException:
             folder.close()
             raise
