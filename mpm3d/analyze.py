@@ -599,7 +599,7 @@ def write_analysis(analysis: Analysis, folder: str | os.PathLike, *, figures: bo
         else:
             _save_vtp(mesh, folder / "surface.vtp")
             with utf8_output(folder / "surface.ply") as target:
-                mesh.save(target, binary=True)
+                mesh.save(target, binary=True, recompute_normals=False)  # as it is
         if figures:
             from mpm3d.figures import render_surface
 

@@ -514,3 +514,23 @@ def test_a_streamed_mesh_keeps_the_largest_piece_as_the_whole_mesh_does(sizes, p
     centre = np.asarray(whole.points)[:, :2].mean(axis=0)
     kept = 0 if sizes[0] >= sizes[1] else 1
     assert np.hypot(*(centre - ((9, 10), (20, 28))[kept])) < 1.0
+
+
+def test_writing_the_ply_leaves_the_mesh_as_it_was(mpm_small, tmp_path):
+    """surface.ply holds the mesh's own triangles and normals: pyvista's PLY writer
+    recomputes normals in place by default (cell normals added, windings made
+    consistent by a traversal, which turned most triangles of a 20-million-triangle mesh
+    with non-manifold edges around against surface.vtp's)."""
+    import pyvista as pv
+
+    from mpm3d.analyze import write_analysis
+
+    path, _ = mpm_small
+    analysis = analyze_stack(path)
+    faces = np.array(analysis.surface.regular_faces)
+    out = tmp_path / "run"
+    out.mkdir()
+    write_analysis(analysis, out, figures=False)
+    assert "Normals" not in analysis.surface.cell_data
+    assert np.array_equal(analysis.surface.regular_faces, faces)
+    assert np.array_equal(pv.read(out / "surface.ply").regular_faces, faces)
