@@ -231,20 +231,66 @@ def test_lazy_reader_equals_read_stack(mpm_small, tmp_path):
                 assert got.dtype == want.dtype and np.array_equal(got, want), (name, key)
 
 
-@pytest.mark.parametrize(("signum", "expected"), [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_interrupt_while_banded_leaves_no_output(signum, expected, mpm_small, tmp_path,
+@pytest.mark.parametrize(
+    ("signum", "expected", "when"),
+    [
+        (signal.SIGINT, 130, "finding the surface: 0/"),
+        (signal.SIGTERM, 143, "finding the surface: 0/"),
+        (signal.SIGINT, 130, "building the isosurface: 0/"),
+        (signal.SIGTERM, 143, "building the isosurface: 0/"),
+    ],
+)
+def test_interrupt_while_banded_leaves_no_output(signum, expected, when, mpm_small, tmp_path,
                                                  monkeypatch):  # fmt: skip
     path, _ = mpm_small
     out = tmp_path / "out"
-    work = tmp_path / "tmp"  # where the height map's work maps go: left empty
+    work = tmp_path / "tmp"  # where the height map's and the mesh's work files go: left empty
     work.mkdir()
     monkeypatch.setenv("TMPDIR", str(work))
     argv = ["-m", "mpm3d", "analyze", path, "--out", out, "--tile-rows", "1", "--no-figures"]
-    # while the bands are read: the work maps' folder exists
-    status, err = interrupt(argv, after=0.0, when="finding the surface: 0/", out=out,
-                            inputs=[path], signum=signum)  # fmt: skip
+    # while the bands are read, or the mesh is streamed: the work folder exists
+    status, err = interrupt(argv, after=0.0, when=when, out=out, inputs=[path], signum=signum)
     assert status == expected and not out.exists(), err
     assert list(work.iterdir()) == []
+
+
+def test_a_banded_run_leaves_no_work_files(mpm_small, tmp_path, monkeypatch):
+    """The mesh's files (and the maps') go when the run is written."""
+    path, _ = mpm_small
+    work = tmp_path / "tmp"
+    work.mkdir()
+    monkeypatch.setenv("TMPDIR", str(work))
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", None)
+    out = tmp_path / "out"
+    assert cli("analyze", path, "--out", out, "--lazy", "-q") == 0
+    assert (out / "surface.ply").is_file() and (out / "figures" / "surface3d.png").is_file()
+    assert list(work.iterdir()) == []
+
+
+def test_a_full_disk_while_the_mesh_is_written_is_one_clear_error(tmp_path, monkeypatch):
+    import builtins
+    import errno
+
+    from mpm3d.meshstream import _Rows
+
+    rows = _Rows(tmp_path / "rows.bin", np.int64, 3)
+    rows.append(np.zeros((2, 3)))
+    real_open = builtins.open
+
+    def full(file, mode="r", *args, **kwargs):
+        if "a" in mode or "+" in mode:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", full)
+    with pytest.raises(InputError, match=r"disk filled up .* TMPDIR"):
+        rows.append(np.zeros((1, 3)))
+    with pytest.raises(InputError, match="disk filled up"):
+        rows.put(0, np.zeros((1, 3)))
+    monkeypatch.setattr(builtins, "open", real_open)
+    assert len(rows) == 2 and np.array_equal(rows.read(0, 5), np.zeros((2, 3)))
 
 
 @pytest.mark.parametrize(("name", "iso_bin"), [("before", 2), ("after", 2), ("after", 3)])
