@@ -81,8 +81,12 @@ class Analysis:
     heightmap : HeightMap
     spectrum : FoldSpectrum
     folds : FoldTable
-    surface : pyvista.PolyData or None
-        The isosurface (None when not asked for).
+    surface : pyvista.PolyData, mpm3d.meshstream.DiskMesh or None
+        The isosurface (None when not asked for). On the banded path (a stack
+        larger than its memory limit, ``lazy``, ``tile_rows``) a
+        :class:`mpm3d.meshstream.DiskMesh`: the same mesh in files, read a chunk
+        at a time; ``.polydata()`` loads it whole where it fits, ``.save(path)``
+        writes it.
     """
 
     metrics: dict

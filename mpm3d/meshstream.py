@@ -85,7 +85,8 @@ class _Rows:
             data = np.fromfile(f, self.dtype, (stop - start) * self.width)
         return data.reshape(-1, self.width)
 
-    def chunks(self, size: int = CHUNK) -> Iterator[np.ndarray]:
+    def chunks(self, size: int | None = None) -> Iterator[np.ndarray]:
+        size = size or CHUNK
         for start in range(0, self.n, size):
             yield self.read(start, start + size)
 
@@ -233,11 +234,13 @@ class DiskMesh:
         t = self._triangles.read(start, stop)
         return t[:, ::-1].copy() if self.flipped else t
 
-    def point_chunks(self, size: int = CHUNK) -> Iterator[np.ndarray]:
+    def point_chunks(self, size: int | None = None) -> Iterator[np.ndarray]:
+        size = size or CHUNK
         for start in range(0, self.n_points, size):
             yield self.points(start, start + size)
 
-    def triangle_chunks(self, size: int = CHUNK) -> Iterator[np.ndarray]:
+    def triangle_chunks(self, size: int | None = None) -> Iterator[np.ndarray]:
+        size = size or CHUNK
         for start in range(0, self.n_cells, size):
             yield self.triangles(start, start + size)
 
@@ -278,6 +281,17 @@ class DiskMesh:
 
     # ------------------------------------------------------------------ writing
 
+    def save(self, path) -> None:
+        """Write the mesh as ``.vtp`` (:meth:`save_vtp`) or ``.ply`` (:meth:`save_ply`),
+        as ``pyvista.PolyData.save`` would for those two."""
+        suffix = Path(path).suffix.lower()
+        if suffix == ".vtp":
+            self.save_vtp(path)
+        elif suffix == ".ply":
+            self.save_ply(path)
+        else:
+            raise ValueError(f"a mesh on disk is written as .vtp or .ply, not {suffix or path!r}")
+
     def save_vtp(self, path) -> None:
         """VTK XML PolyData, zlib-compressed, written a chunk at a time."""
         from tissue_core.vtkio import write_triangles_streamed
@@ -301,7 +315,7 @@ class DiskMesh:
         )
         vertex = np.dtype([("p", "<f4", 3), ("n", "<f4", 3)])
         face = np.dtype([("k", "u1"), ("v", "<i4", 3)])
-        with _disk_full(), open(path, "wb") as f:
+        with open(path, "wb") as f:  # an output: a full disk is the writer's OSError
             f.write(header.encode("ascii"))
             for start in range(0, self.n_points, CHUNK):
                 rows = np.empty(min(CHUNK, self.n_points - start), vertex)
@@ -579,8 +593,9 @@ def chunks_of(mesh) -> Callable[[], Iterator[tuple[np.ndarray, np.ndarray]]]:
     return read_memory
 
 
-def point_chunks_of(mesh, size: int = CHUNK) -> Iterator[np.ndarray]:
+def point_chunks_of(mesh, size: int | None = None) -> Iterator[np.ndarray]:
     """The points of a :class:`DiskMesh` or an in-memory mesh, a chunk at a time."""
+    size = size or CHUNK
     if isinstance(mesh, DiskMesh):
         yield from mesh.point_chunks(size)
         return

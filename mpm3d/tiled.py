@@ -373,19 +373,24 @@ def plan_surface(
     if not streamed:
         fixed = without + MESH_BYTES_PER_TRIANGLE * int(triangles) + model["per_grid_row"]
         smallest = int(fixed + model["per_grid_row"])
-        rows = int((plan.limit_bytes - fixed) // model["per_grid_row"])
+        rows = max(1, min(by - 1, int((plan.limit_bytes - fixed) // model["per_grid_row"])))
         pieces, peak = None, fixed + model["per_grid_row"] * rows
     else:
         # a binned row of mesh: contoured (a band and the rows still open) and merged,
         # or in a piece being smoothed
         mesh_row = PIECE_BYTES_PER_TRIANGLE * int(triangles) / by
         contour_row = model["per_grid_row"] + 2 * mesh_row
-        halo = 2 * SMOOTHING_HALO_ROWS * mesh_row
-        smallest = int(max(without + 2 * contour_row, without + halo + mesh_row))
+        halo = 2 * SMOOTHING_HALO_ROWS
+
+        def piece_bytes(rows: int) -> float:  # a piece and the rows around it
+            return mesh_row * min(by, rows + halo)
+
+        smallest = int(without + max(2 * contour_row, piece_bytes(1)))
         rows = int((plan.limit_bytes - without) // contour_row) - 1
-        pieces = int((plan.limit_bytes - without - halo) // mesh_row)
+        rows = max(1, min(by - 1, rows))
+        pieces = int((plan.limit_bytes - without) // max(mesh_row, 1.0)) - halo
         pieces = max(1, min(by, pieces))
-        peak = max(without + contour_row * (rows + 1), without + halo + mesh_row * pieces)
+        peak = without + max(contour_row * (rows + 1), piece_bytes(pieces))
     if plan.limit_bytes < smallest:
         held = "" if streamed else " (held whole: --decimate)"
         raise InputError(
@@ -394,7 +399,6 @@ def plan_surface(
             f"at --iso-bin {iso_bin}{held}; use --memory-limit {format_bytes(smallest)} or "
             "more, a coarser --iso-bin, or --no-surface"
         )
-    rows = max(1, min(by - 1, rows))
     return replace(
         plan,
         surface_tile_rows=int(rows),

@@ -580,3 +580,20 @@ def test_writing_the_ply_leaves_the_mesh_as_it_was(mpm_small, tmp_path):
     assert "Normals" not in analysis.surface.cell_data
     assert np.array_equal(analysis.surface.regular_faces, faces)
     assert np.array_equal(pv.read(out / "surface.ply").regular_faces, faces)
+
+
+def test_the_plan_records_the_peak_of_its_bands_not_its_limit():
+    """A small stack's bands are the whole stack at any large limit: the peak the plan
+    records is the same (it once followed the limit: rows counted before being cut to
+    the stack's)."""
+    from mpm3d import tiled
+
+    kw = {"combined": False, "channels_read": 1, "surface": True, "bin": 1, "lazy": True}
+    peaks = set()
+    for limit in (2**30, 4 * 2**30):
+        plan = plan_memory((59, 1, 96, 96), 2, limit=limit, **kw)
+        for streamed in (True, False):
+            meshed = tiled.plan_surface(plan, 44_140, iso_bin=1, streamed=streamed)
+            assert meshed.surface_tile_rows == 95 and meshed.tiled_bytes < 2**30
+            peaks.add((streamed, meshed.tiled_bytes))
+    assert len(peaks) == 2  # one per kind of mesh, whatever the limit
