@@ -14,6 +14,7 @@ load VTK nor build a ``vtkPolyData`` per frame.
 from __future__ import annotations
 
 import base64
+import tempfile
 import zlib
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -78,7 +79,35 @@ def _encoded(data: bytes, level: int) -> str:
     return (base64.b64encode(header.tobytes()) + base64.b64encode(b"".join(blocks))).decode()
 
 
-def _data_array(name: str, values: np.ndarray, level: int) -> str:
+_HEAD = (
+    '<?xml version="1.0"?>\n<VTKFile type="PolyData" version="0.1" '
+    'byte_order="LittleEndian" header_type="UInt32" compressor="vtkZLibDataCompressor">\n'
+    "<PolyData>\n"
+)
+
+
+def _empty_cells(level: int) -> str:
+    """The empty vertex, line and strip cell arrays of a triangle mesh's piece."""
+    return "".join(
+        f"<{kind}>\n" + _data_array("connectivity", np.zeros(0, np.int64), level)
+        + _data_array("offsets", np.zeros(0, np.int64), level) + f"</{kind}>\n"
+        for kind in ("Verts", "Lines", "Strips")
+    )  # fmt: skip
+
+
+def _field_data(field_data: Mapping[str, Sequence], level: int) -> str:
+    """The mesh's ``FieldData``: lists of text as string arrays, numbers as data arrays."""
+    if not field_data:
+        return ""
+    arrays = [
+        _strings(k, list(v), level) if len(v) and isinstance(v[0], str)
+        else _data_array(k, np.asarray(v), level, tuples=len(v))
+        for k, v in field_data.items()
+    ]  # fmt: skip
+    return "<FieldData>\n" + "".join(arrays) + "</FieldData>\n"
+
+
+def _data_array(name: str, values: np.ndarray, level: int, tuples: int | None = None) -> str:
     values = np.asarray(values)
     if values.dtype == bool:
         values = values.astype(np.uint8)
@@ -86,6 +115,8 @@ def _data_array(name: str, values: np.ndarray, level: int) -> str:
     if kind is None or values.ndim not in (1, 2):
         raise ValueError(f"array {name!r}: {values.dtype} of {values.ndim} dimensions")
     components = f' NumberOfComponents="{values.shape[1]}"' if values.ndim == 2 else ""
+    if tuples is not None:  # a field data array: no points or cells say how many
+        components += f' NumberOfTuples="{tuples}"'
     data = np.ascontiguousarray(values, dtype=values.dtype.newbyteorder("<")).tobytes()
     return (
         f'<DataArray type="{kind}" Name="{_attribute(name)}"{components} format="binary">\n'
@@ -141,20 +172,7 @@ def write_triangles(
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
     n, m = len(points), len(triangles)
-    empty = "".join(
-        f"<{kind}>\n" + _data_array("connectivity", np.zeros(0, np.int64), level)
-        + _data_array("offsets", np.zeros(0, np.int64), level) + f"</{kind}>\n"
-        for kind in ("Verts", "Lines", "Strips")
-    )  # fmt: skip
-    parts = [
-        '<?xml version="1.0"?>\n<VTKFile type="PolyData" version="0.1" '
-        'byte_order="LittleEndian" header_type="UInt32" compressor="vtkZLibDataCompressor">\n'
-        "<PolyData>\n"
-    ]
-    if field_data:
-        parts.append("<FieldData>\n")
-        parts += [_strings(k, list(v), level) for k, v in field_data.items()]
-        parts.append("</FieldData>\n")
+    parts = [_HEAD, _field_data(field_data, level)]
     parts.append(
         f'<Piece NumberOfPoints="{n}" NumberOfVerts="0" NumberOfLines="0" '
         f'NumberOfStrips="0" NumberOfPolys="{m}">\n'
@@ -168,7 +186,7 @@ def write_triangles(
             parts.append(_data_array(name, values, level))
         parts.append(f"</{tag}>\n")
     parts.append("<Points>\n" + _data_array("Points", points, level) + "</Points>\n")
-    parts.append(empty)
+    parts.append(_empty_cells(level))
     parts.append(
         "<Polys>\n"
         + _data_array("connectivity", triangles.ravel(), level)
@@ -230,8 +248,8 @@ def write_triangles_streamed(
     Parameters
     ----------
     path : path
-        The file (any name); its folder must exist.  The compressed arrays go to a
-        file beside it first (named ``path`` + ``.body``), then after the XML.
+        The file (any name); its folder must exist.  The compressed arrays go to an
+        unnamed temporary file in that folder first, then after the XML.
     n_points, n_triangles : int
     points : callable
         Yields the points as ``(k, 3)`` float32 chunks, in order (called once).
@@ -249,86 +267,65 @@ def write_triangles_streamed(
     """
     point_data, field_data = point_data or {}, field_data or {}
     path = Path(path)
-    body_path = path.with_name(path.name + ".body")
     arrays = []  # (tag, name, vtk type, components, header, start, end)
-    try:
-        with open(body_path, "w+b") as body:
+    # the compressed arrays wait in a file of no name beside the output (removed on close)
+    with tempfile.TemporaryFile(dir=path.parent) as body:
 
-            def encode(name, dtype, components, chunks, tag, expected):
-                blocks = _Blocks(body, level)
-                dt = np.dtype(dtype).newbyteorder("<")
-                count = 0
-                for chunk in chunks:
-                    chunk = np.asarray(chunk)
-                    count += len(chunk)
-                    blocks.add(chunk, dt)
-                if count != expected:
-                    raise ValueError(f"{name!r}: {count} values for {expected}")
-                header = blocks.close()
-                kind = _VTK_TYPES[np.dtype(dtype).name]
-                arrays.append((tag, name, kind, components, header, blocks.start, body.tell()))
+        def encode(name, dtype, components, chunks, tag, expected):
+            blocks = _Blocks(body, level)
+            dt = np.dtype(dtype).newbyteorder("<")
+            count = 0
+            for chunk in chunks:
+                chunk = np.asarray(chunk)
+                count += len(chunk)
+                blocks.add(chunk, dt)
+            if count != expected:
+                raise ValueError(f"{name!r}: {count} values for {expected}")
+            header = blocks.close()
+            kind = _VTK_TYPES[np.dtype(dtype).name]
+            arrays.append((tag, name, kind, components, header, blocks.start, body.tell()))
 
-            for name, (dtype, components, chunks) in point_data.items():
-                encode(name, dtype, components, chunks(), "PointData", n_points)
-            encode("Points", "float32", 3, points(), "Points", n_points)
-            flat = (np.asarray(t).ravel() for t in triangles())
-            encode("connectivity", "int64", 1, flat, "Polys", 3 * n_triangles)
+        for name, (dtype, components, chunks) in point_data.items():
+            encode(name, dtype, components, chunks(), "PointData", n_points)
+        encode("Points", "float32", 3, points(), "Points", n_points)
+        flat = (np.asarray(t).ravel() for t in triangles())
+        encode("connectivity", "int64", 1, flat, "Polys", 3 * n_triangles)
 
-            def offsets():
-                done = 0
-                for t in triangles():
-                    k = len(t)
-                    yield np.arange(3 * done + 3, 3 * (done + k) + 1, 3, dtype=np.int64)
-                    done += k
+        def offsets():
+            done = 0
+            for t in triangles():
+                k = len(t)
+                yield np.arange(3 * done + 3, 3 * (done + k) + 1, 3, dtype=np.int64)
+                done += k
 
-            encode("offsets", "int64", 1, offsets(), "Polys", n_triangles)
-            offset, xml = 0, {}
-            for tag, name, kind, components, header, start, end in arrays:
-                comps = f' NumberOfComponents="{components}"' if components > 1 else ""
-                xml.setdefault(tag, []).append(
-                    f'<DataArray type="{kind}" Name="{_attribute(name)}"{comps} '
-                    f'format="appended" offset="{offset}"/>\n'
-                )
-                offset += len(header) + end - start
-            empty = "".join(
-                f"<{kind}>\n" + _data_array("connectivity", np.zeros(0, np.int64), level)
-                + _data_array("offsets", np.zeros(0, np.int64), level) + f"</{kind}>\n"
-                for kind in ("Verts", "Lines", "Strips")
-            )  # fmt: skip
-            head = [
-                '<?xml version="1.0"?>\n<VTKFile type="PolyData" version="0.1" '
-                'byte_order="LittleEndian" header_type="UInt32" '
-                'compressor="vtkZLibDataCompressor">\n<PolyData>\n'
-            ]
-            if field_data:
-                head.append("<FieldData>\n")
-                for k, v in field_data.items():
-                    if len(v) and isinstance(v[0], str):
-                        head.append(_strings(k, list(v), level))
-                    else:
-                        head.append(_data_array(k, np.asarray(v), level).replace(
-                            "<DataArray", f'<DataArray NumberOfTuples="{len(v)}"', 1))  # fmt: skip
-                head.append("</FieldData>\n")
-            head.append(
-                f'<Piece NumberOfPoints="{n_points}" NumberOfVerts="0" NumberOfLines="0" '
-                f'NumberOfStrips="0" NumberOfPolys="{n_triangles}">\n'
+        encode("offsets", "int64", 1, offsets(), "Polys", n_triangles)
+        offset, xml = 0, {}
+        for tag, name, kind, components, header, start, end in arrays:
+            comps = f' NumberOfComponents="{components}"' if components > 1 else ""
+            xml.setdefault(tag, []).append(
+                f'<DataArray type="{kind}" Name="{_attribute(name)}"{comps} '
+                f'format="appended" offset="{offset}"/>\n'
             )
-            attribute = f' Normals="{_attribute(normals)}"' if normals else ""
-            head.append(f"<PointData{attribute}>\n" + "".join(xml.get("PointData", []))
-                        + "</PointData>\n<CellData>\n</CellData>\n")  # fmt: skip
-            head.append("<Points>\n" + "".join(xml["Points"]) + "</Points>\n" + empty)
-            head.append("<Polys>\n" + "".join(xml["Polys"]) + "</Polys>\n")
-            head.append('</Piece>\n</PolyData>\n<AppendedData encoding="raw">\n_')
-            with open(path, "wb") as out:
-                out.write("".join(head).encode("ascii", errors="xmlcharrefreplace"))
-                for *_, header, start, end in arrays:
-                    out.write(header)
-                    body.seek(start)
-                    left = end - start
-                    while left:
-                        piece = body.read(min(left, 1 << 24))
-                        out.write(piece)
-                        left -= len(piece)
-                out.write(b"\n</AppendedData>\n</VTKFile>\n")
-    finally:
-        body_path.unlink(missing_ok=True)
+            offset += len(header) + end - start
+        head = [_HEAD, _field_data(field_data, level)]
+        head.append(
+            f'<Piece NumberOfPoints="{n_points}" NumberOfVerts="0" NumberOfLines="0" '
+            f'NumberOfStrips="0" NumberOfPolys="{n_triangles}">\n'
+        )
+        attribute = f' Normals="{_attribute(normals)}"' if normals else ""
+        head.append(f"<PointData{attribute}>\n" + "".join(xml.get("PointData", []))
+                    + "</PointData>\n<CellData>\n</CellData>\n")  # fmt: skip
+        head.append("<Points>\n" + "".join(xml["Points"]) + "</Points>\n" + _empty_cells(level))
+        head.append("<Polys>\n" + "".join(xml["Polys"]) + "</Polys>\n")
+        head.append('</Piece>\n</PolyData>\n<AppendedData encoding="raw">\n_')
+        with open(path, "wb") as out:
+            out.write("".join(head).encode("ascii", errors="xmlcharrefreplace"))
+            for *_, header, start, end in arrays:
+                out.write(header)
+                body.seek(start)
+                left = end - start
+                while left:
+                    piece = body.read(min(left, 1 << 24))
+                    out.write(piece)
+                    left -= len(piece)
+            out.write(b"\n</AppendedData>\n</VTKFile>\n")
