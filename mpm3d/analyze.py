@@ -326,13 +326,12 @@ def _analyze(
     height_range = [hm.datum_depth_um - depth_range[1], hm.datum_depth_um - depth_range[0]]
     colour = list(height_range)
     if mesh is not None and mesh.n_points:
-        from mpm3d.meshstream import point_chunks_of
+        from mpm3d.meshstream import bounds_of
 
-        deepest = max(float(p[:, 2].max()) for p in point_chunks_of(mesh))
-        shallowest = min(float(p[:, 2].min()) for p in point_chunks_of(mesh))
+        lo, hi = bounds_of(mesh)
         # as add_height makes height_um: the datum less the depth, in float64
-        mesh_range = [float(np.float64(hm.datum_depth_um) - np.float64(deepest)),
-                      float(np.float64(hm.datum_depth_um) - np.float64(shallowest))]  # fmt: skip
+        datum = np.float64(hm.datum_depth_um)
+        mesh_range = [float(datum - np.float64(hi[2])), float(datum - np.float64(lo[2]))]
         colour = [min(colour[0], mesh_range[0]), max(colour[1], mesh_range[1])]
     record = {
         # names as text (figure titles, tables): bytes that are not UTF-8 as \xNN

@@ -300,7 +300,7 @@ def render_surface(
 
     # without a display VTK falls back to off-screen rendering after a warning
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    from mpm3d.meshstream import DiskMesh
+    from mpm3d.meshstream import DiskMesh, bounds_of
 
     simplified = mesh.n_cells > max_triangles
     if isinstance(mesh, DiskMesh) and not simplified:
@@ -309,10 +309,11 @@ def render_surface(
         # a chunk of triangles at a time, for a mesh on disk and in memory alike (the
         # same figure from either path)
         cells = np.sqrt(max_triangles / 2)  # bins along the longest side, for a flat sheet
-        simple = _cluster_chunks(mesh, int(cells))
+        bounds = bounds_of(mesh)
+        simple = _cluster_chunks(mesh, int(cells), bounds)
         if simple.n_cells > max_triangles:  # folds' flanks fill more bins: fewer, larger
             cells *= 0.95 * np.sqrt(max_triangles / simple.n_cells)
-            simple = _cluster_chunks(mesh, int(cells))
+            simple = _cluster_chunks(mesh, int(cells), bounds)
         mesh = simple
     shown = pv.PolyData(mesh.points, mesh.faces) if mesh.n_cells else mesh.copy()
     datum = float(datum_depth_um)
@@ -444,18 +445,17 @@ def render_surface(
     }
 
 
-def _cluster_chunks(mesh, cells: int):
-    """A :class:`mpm3d.meshstream.DiskMesh` simplified a chunk at a time by uniform vertex
-    clustering (Rossignac & Borrel 1993): ``cells`` bins along the longest side of its
-    bounds, each bin's vertex the mean of the points in it (over the whole mesh, so
-    chunks meet without cracks), the triangles whose corners fall in three bins."""
+def _cluster_chunks(mesh, cells: int, bounds: tuple[np.ndarray, np.ndarray]):
+    """A mesh (in memory or a :class:`mpm3d.meshstream.DiskMesh`) simplified a chunk at a
+    time by uniform vertex clustering (Rossignac & Borrel 1993): ``cells`` bins along the
+    longest side of its ``bounds`` (lowest, highest point), each bin's vertex the mean of
+    the points in it (over the whole mesh, so chunks meet without cracks), the triangles
+    whose corners fall in three bins."""
     import pyvista as pv
 
     from mpm3d.meshstream import chunks_of, point_chunks_of
 
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for p in point_chunks_of(mesh):
-        lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    lo, hi = (np.asarray(b, np.float64) for b in bounds)
     size = max(float((hi - lo).max()) / cells, 1e-6)
     n = np.floor((hi - lo) / size).astype(np.int64) + 1
 

@@ -198,13 +198,12 @@ class DiskMesh:
     """
 
     def __init__(self, folder, points: _Rows, triangles: _Rows, normals: _Rows, *,
-                 flipped: bool, row_starts: np.ndarray, field_data: dict) -> None:  # fmt: skip
+                 flipped: bool, field_data: dict) -> None:  # fmt: skip
         import weakref
 
         self.folder = folder
         self._points, self._triangles, self._normals = points, triangles, normals
         self.flipped = bool(flipped)
-        self.row_starts = row_starts
         self.field_data = field_data
         self.datum_depth_um: float | None = None
         self._finalizer = weakref.finalize(self, folder.close)
@@ -249,8 +248,7 @@ class DiskMesh:
         chunks)."""
 
         def normals():
-            for start in range(0, self.n_points, CHUNK):
-                yield self.normals(start, start + CHUNK)
+            return self._normals.chunks()
 
         def depth():
             for p in self.point_chunks():
@@ -359,7 +357,7 @@ def stream_isosurface(
     tick : callable, optional
         ``tick(done, total)`` over the contour's bands and the pieces' passes.
     """
-    from mpm3d.surface import _contour_band
+    from mpm3d.surface import _contour_band, outward_sign, smooth_mesh
     from mpm3d.tiled import check_triangles
 
     if plan.decimate > 0:
@@ -416,16 +414,12 @@ def stream_isosurface(
         for a in range(0, by, piece):
             part, core = _piece(points, tris, row_starts, a, min(a + piece, by), halo, by)
             if part is not None:
-                from mpm3d.surface import smooth_mesh
-
                 moved = smooth_mesh(part, plan, iterations=smooth_iterations, pass_band=pass_band)
                 smooth.put(core[0], np.asarray(moved.points)[core[1] : core[2]])
             done += 1
             tick(done, passes)
         points.path.unlink()
-    from mpm3d.surface import outward_sign
-
-    flipped = outward_sign(_chunked_triangles(smooth, tris)) > 0
+    flipped = outward_sign(_triangle_chunks(smooth.read, tris.read, len(tris))) > 0
     normals = _Rows(path / "normals.bin", np.float32, 3)
     for a in range(0, by, piece):
         part, core = _piece(smooth, tris, row_starts, a, min(a + piece, by), NORMAL_HALO, by,
@@ -446,8 +440,7 @@ def stream_isosurface(
         "spacing_um": np.array([dz, dy_, dx]),
         "lateral_bin": np.array([plan.bin]),
     }
-    return DiskMesh(folder, smooth, tris, normals, flipped=flipped, row_starts=row_starts,
-                    field_data=field_data)  # fmt: skip
+    return DiskMesh(folder, smooth, tris, normals, flipped=flipped, field_data=field_data)
 
 
 def _merge(band, open_points, open_tris, base: int, seam_y: float | None):
@@ -559,38 +552,26 @@ def _triangles_from(tris: _Rows, p0: int, p1: int) -> np.ndarray:
     return tris.read(first_at(p0), first_at(p1))
 
 
-def _chunked_triangles(points: _Rows, tris: _Rows) -> Iterator[tuple[np.ndarray, np.ndarray, int]]:
-    """As :func:`chunks_of` yields, from the files."""
-    for start in range(0, len(tris), CHUNK):
-        t = tris.read(start, start + CHUNK)
+def _triangle_chunks(points, triangles, n_triangles: int):
+    """``(points, triangles, first point)`` per fixed chunk of :data:`CHUNK` triangles:
+    ``triangles(a, b)`` read in order, the range of points they use as float64
+    (``points(lo, hi)``) and the triangles indexing it."""
+    for start in range(0, n_triangles, CHUNK):
+        t = triangles(start, start + CHUNK)
         lo, hi = int(t.min()), int(t.max()) + 1
-        yield np.asarray(points.read(lo, hi), np.float64), t - lo, lo
+        yield np.asarray(points(lo, hi), np.float64), t - lo, lo
 
 
-def chunks_of(mesh) -> Callable[[], Iterator[tuple[np.ndarray, np.ndarray]]]:
+def chunks_of(mesh) -> Callable[[], Iterator[tuple[np.ndarray, np.ndarray, int]]]:
     """For a :class:`DiskMesh` or an in-memory mesh: a callable yielding ``(points,
-    triangles, first point)`` per fixed chunk of :data:`CHUNK` triangles in the mesh's order (the
-    points a range the chunk uses, the triangles indexing it), so sums over a mesh
-    come out the same either way."""
+    triangles, first point)`` per fixed chunk of :data:`CHUNK` triangles in the mesh's
+    order (the points a range the chunk uses, the triangles indexing it), so sums over a
+    mesh come out the same either way."""
     if isinstance(mesh, DiskMesh):
-
-        def read():
-            for start in range(0, mesh.n_cells, CHUNK):
-                t = mesh.triangles(start, start + CHUNK)
-                lo, hi = int(t.min()), int(t.max()) + 1
-                yield np.asarray(mesh.points(lo, hi), np.float64), t - lo, lo
-
-        return read
+        return lambda: _triangle_chunks(mesh.points, mesh.triangles, mesh.n_cells)
     points = np.asarray(mesh.points)
     faces = np.asarray(mesh.regular_faces, np.int64)
-
-    def read_memory():
-        for start in range(0, len(faces), CHUNK):
-            t = faces[start : start + CHUNK]
-            lo, hi = int(t.min()), int(t.max()) + 1
-            yield np.asarray(points[lo:hi], np.float64), t - lo, lo
-
-    return read_memory
+    return lambda: _triangle_chunks(lambda a, b: points[a:b], lambda a, b: faces[a:b], len(faces))
 
 
 def point_chunks_of(mesh, size: int | None = None) -> Iterator[np.ndarray]:
@@ -602,3 +583,12 @@ def point_chunks_of(mesh, size: int | None = None) -> Iterator[np.ndarray]:
     points = np.asarray(mesh.points)
     for start in range(0, len(points), size):
         yield points[start : start + size]
+
+
+def bounds_of(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest and highest ``(x, y, z)`` of a mesh's points (on disk or in memory),
+    read once, a chunk at a time."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for p in point_chunks_of(mesh):
+        lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+    return lo, hi
