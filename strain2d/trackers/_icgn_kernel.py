@@ -420,13 +420,16 @@ def lattice_residual(
     f: np.ndarray,
     mean: float,
     mask: np.ndarray,
+    corner: np.ndarray,
+    frame_shape: np.ndarray,
 ):
     """The lattice field's residual at every sampled pixel of every cell, fused.
 
     Parameters
     ----------
-    coeff : (H, W) float
-        Cubic B-spline coefficients of the frame (mirror boundaries).
+    coeff : (h, w) float
+        Cubic B-spline coefficients of the frame, or of the part of it from
+        ``corner`` on that holds every position sampled (mirror boundaries).
     state : (nodes, 4) float
         Per node: displacement (u, v), gain and offset.
     cells : (cells, 4) int
@@ -443,6 +446,10 @@ def lattice_residual(
         The reference's mean (the gain multiplies the image about it).
     mask : (H, W) bool
         The frame's highlight pixels (a 0 x 0 array for none).
+    corner : (2,) int
+        Where ``coeff`` starts in the frame: its (x, y) (0, 0 for the whole frame).
+    frame_shape : (2,) int
+        The frame's (H, W).
 
     Returns
     -------
@@ -454,7 +461,8 @@ def lattice_residual(
     hidden : (cells, m) bool
         Where the nearest pixel of the position (clipped to the frame) is in ``mask``.
     """
-    H, W = coeff.shape
+    H, W = frame_shape[0], frame_shape[1]
+    cx0, cy0 = corner[0], corner[1]
     n_cells, m = f.shape
     has_mask = mask.shape[0] == H and mask.shape[1] == W
     r = np.zeros((n_cells, m))
@@ -486,7 +494,8 @@ def lattice_residual(
             if x < 1 or x > W - 2 or y < 1 or y > H - 2:
                 out[c, p] = True
                 continue
-            r[c, p] = f[c, p] - (1 + a) * (_bspline(coeff, x, y) - mean) - mean - b
+            g = _bspline(coeff, x - cx0, y - cy0)
+            r[c, p] = f[c, p] - (1 + a) * (g - mean) - mean - b
     return r, out, hidden
 
 

@@ -444,13 +444,26 @@ def _shape_functions(h: int, stride: int) -> np.ndarray:
     return np.stack([(1 - xi) * (1 - eta), xi * (1 - eta), (1 - xi) * eta, xi * eta], axis=1)
 
 
+#: px of the frame read around the positions a part's spline coefficients serve: the
+#: spline's support (2), a blur's reach (OpenCV's kernel: 4 standard deviations) and the
+#: B-spline prefilter's, whose pole (2 - sqrt 3) decays below 1e-13 in 24 px: there the
+#: part's coefficients are the whole frame's to round-off
+_PART_MARGIN = 2 + 24
+#: px added around the positions asked for, so that the next iterations' steps stay inside
+_PART_SLACK = 16
+#: a part over this share of the frame is made as the whole frame
+_PART_SHARE = 0.5
+
+
 class Frame:
     """A frame and what the solvers fitted to it compute from it once: the spline
-    coefficients of each blur, the bright blobs for each noise level."""
+    coefficients of each blur (of the whole frame, or of the parts a small field samples),
+    the bright blobs for each noise level."""
 
     def __init__(self, image: np.ndarray) -> None:
         self.image = np.asarray(image, dtype=np.float64)
         self._coefficients: dict[float, np.ndarray] = {}
+        self._parts: dict[float, list] = {}
         self._blobs: dict[float, np.ndarray] = {}
 
     @classmethod
@@ -458,10 +471,46 @@ class Frame:
         return frame if isinstance(frame, Frame) else cls(frame)
 
     def coefficients(self, blur: float) -> np.ndarray:
+        """The spline coefficients of the whole frame blurred by ``blur`` px."""
         if blur not in self._coefficients:
             g = _blur(self.image, blur) if blur > 0 else self.image
             self._coefficients[blur] = _coefficients(g)
         return self._coefficients[blur]
+
+    def part(self, blur: float, box) -> tuple[np.ndarray, np.ndarray]:
+        """Spline coefficients of the frame blurred by ``blur`` px that serve every position
+        in ``box`` (x0, y0, x1, y1; the frame's own where None), and where they start in
+        the frame (x, y): a part of the frame around the box, whose coefficients there
+        equal the whole frame's to round-off (see :data:`_PART_MARGIN`), or the whole
+        frame's. A field over a few points of a large frame samples a small part of it."""
+        H, W = self.image.shape
+        origin = np.zeros(2, np.int64)
+        if blur in self._coefficients or box is None:
+            return self.coefficients(blur), origin
+        # the positions sampled lie in the frame (the kernel samples none nearer its edge)
+        x0, x1 = np.clip([np.floor(box[0]), np.ceil(box[2])], 1, W - 2)
+        y0, y1 = np.clip([np.floor(box[1]), np.ceil(box[3])], 1, H - 2)
+        x1, y1 = max(x1, x0), max(y1, y0)
+        for (X0, Y0, _, _), inner, coefficients in self._parts.get(blur, []):
+            if inner[0] <= x0 and inner[1] <= y0 and x1 <= inner[2] and y1 <= inner[3]:
+                return coefficients, np.array([X0, Y0], np.int64)
+        reach = _PART_MARGIN + int(np.ceil(4 * blur)) + _PART_SLACK
+        X0, Y0 = int(max(x0 - reach, 0)), int(max(y0 - reach, 0))
+        X1, Y1 = int(min(x1 + reach + 1, W)), int(min(y1 + reach + 1, H))
+        if (X1 - X0) * (Y1 - Y0) > _PART_SHARE * H * W:
+            return self.coefficients(blur), origin
+        part = np.ascontiguousarray(self.image[Y0:Y1, X0:X1])
+        coefficients = _coefficients(_blur(part, blur) if blur > 0 else part)
+        # where the part's coefficients are the frame's: all of it along the frame's edges
+        margin = _PART_MARGIN + int(np.ceil(4 * blur))
+        inner = (
+            1 if X0 == 0 else X0 + margin,
+            1 if Y0 == 0 else Y0 + margin,
+            W - 2 if X1 == W else X1 - 1 - margin,
+            H - 2 if Y1 == H else Y1 - 1 - margin,
+        )
+        self._parts.setdefault(blur, []).append(((X0, Y0, X1, Y1), inner, coefficients))
+        return coefficients, np.array([X0, Y0], np.int64)
 
     def blobs(self, noise: float, window: tuple | None = None) -> np.ndarray:
         key = (noise, window)
@@ -516,12 +565,13 @@ class _Level:
         self.variance = self.f.var(axis=1)
 
     def prepare(self, frame, mask: np.ndarray | None = None):
-        """Spline coefficients of the blurred frame (a :class:`Frame` keeps them for every
-        solver fitted to it), and its highlight mask grown by the blur (or None)."""
-        coefficients = Frame.of(frame).coefficients(self.blur)
+        """The frame (a :class:`Frame`, which keeps the spline coefficients of the blurred
+        frame, or of its parts, for every solver fitted to it), and its highlight mask
+        grown by the blur (or None)."""
+        frame = Frame.of(frame)
         if mask is None or not mask.any():
-            return coefficients, None
-        return coefficients, _grown(mask, self.blur)
+            return frame, None
+        return frame, _grown(mask, self.blur)
 
 
 class LatticeSolver:
@@ -642,7 +692,8 @@ class LatticeSolver:
         from strain2d.trackers._icgn_kernel import lattice_residual
 
         level = self.levels[k]
-        coefficients, mask = coefficients
+        frame, mask = coefficients
+        coefficients, corner = frame.part(level.blur, self._sampled(state))
         with deferred_interrupt():  # Ctrl-C inside the kernel would surface as SystemError
             r, out, hidden = lattice_residual(
                 coefficients,
@@ -654,12 +705,28 @@ class LatticeSolver:
                 level.f,
                 self.mean,
                 _NO_MASK if mask is None else mask,
+                corner,
+                np.array(self.shape, np.int64),
             )
         if self._hidden_reference is not None:  # a highlight on the reference
             hidden |= self._hidden_reference[k]
         r[hidden] = 0.0
         masked = hidden.mean(axis=1) if hidden.any() else None
         return r, out.mean(axis=1) > 0.25, masked
+
+    def _sampled(self, state: np.ndarray) -> tuple[float, float, float, float] | None:
+        """The box (x0, y0, x1, y1) that holds every position the residual samples with the
+        node states ``state`` (the lattice's box, moved by the nodes' least and largest
+        displacement: a cell's pixels move by a mix of its corners'); None when no node's
+        displacement is finite."""
+        u = state[:, :2]
+        finite = np.isfinite(u).all(axis=1)
+        if not finite.any():
+            return None
+        lo, hi = u[finite].min(axis=0), u[finite].max(axis=0)
+        lat = self.lattice
+        return (lat.x0 + lo[0], lat.y0 + lo[1], lat.x0 + lat.nx * lat.h + hi[0],
+                lat.y0 + lat.ny * lat.h + hi[1])  # fmt: skip
 
     def _factorize(self, k: int, level: _Level, T: np.ndarray, w: np.ndarray):
         """Banded Cholesky of ``H + prior`` at level k (the lattice's node order keeps the

@@ -7,8 +7,11 @@ import pytest
 from scipy import ndimage
 
 from sample_data_synth.tissue import make_tissue_case
+from strain2d.trackers import _lattice as lattice
 from strain2d.trackers._icgn_kernel import lattice_gradient, lattice_residual
 from strain2d.trackers._lattice import _NO_MASK, Frame, LatticeSolver
+
+_WHOLE = np.zeros(2, np.int64)  # coefficients of the whole frame start at its corner
 
 
 def _oracle(solver, k, coefficients, mask, state):
@@ -52,13 +55,65 @@ def test_the_residual_is_the_numpy_one(solver, shift):
         for mask in (None, rng.random(solver.shape) < 0.02):
             r, out, hidden = lattice_residual(
                 coefficients, state, solver.cells, solver.origins, level.offsets, level.N,
-                level.f, solver.mean, _NO_MASK if mask is None else mask,
+                level.f, solver.mean, _NO_MASK if mask is None else mask, _WHOLE,
+                np.array(solver.shape),
             )  # fmt: skip
             r0, out0, hidden0 = _oracle(solver, k, coefficients, mask, state)
             np.testing.assert_array_equal(out, out0)
             np.testing.assert_array_equal(hidden, hidden0)
             np.testing.assert_allclose(r, r0, rtol=0, atol=1e-9)
     assert out.any() == (shift > 0)
+
+
+@pytest.mark.parametrize("shift", [0.0, 30.0, 150.0])
+def test_a_part_of_the_frame_gives_the_whole_frames_residual(shift, monkeypatch):
+    """A small field samples a part of a large frame: its coefficients (made on the part,
+    with a margin) give the residual the whole frame's give, to round-off, at every level,
+    inside the frame, near its edges and partly beyond them (the margin alone: no slack)."""
+    monkeypatch.setattr(lattice, "_PART_SLACK", 0)
+    video = make_tissue_case("vessels-contraction", size=400, rng=1)
+    rng = np.random.default_rng(int(shift))
+    for points in (
+        np.array([[200.0, 180.0], [230.0, 210.0]]),  # inside
+        np.array([[20.0, 20.0], [60.0, 50.0]]),  # at a corner
+        np.array([[360.0, 200.0], [385.0, 230.0]]),
+    ):  # at the right edge
+        solver = LatticeSolver(video.frames[0], points, spacing=16)
+        state = np.zeros_like(solver.state)
+        state[:, :2] = rng.normal(0, 2, (len(state), 2)) + shift
+        state[:, 2] = rng.normal(0, 0.05, len(state))
+        for level in solver.levels:
+            part = Frame.of(video.frames[3])
+            whole = Frame.of(video.frames[3])
+            coefficients, corner = part.part(level.blur, solver._sampled(state))
+            assert coefficients.size < whole.coefficients(level.blur).size / 2
+            args = (state, solver.cells, solver.origins, level.offsets, level.N, level.f,
+                    solver.mean, _NO_MASK)  # fmt: skip
+            r, out, _ = lattice_residual(coefficients, *args, corner, np.array(solver.shape))
+            r0, out0, _ = lattice_residual(
+                whole.coefficients(level.blur), *args, _WHOLE, np.array(solver.shape)
+            )
+            np.testing.assert_array_equal(out, out0)
+            np.testing.assert_allclose(r, r0, rtol=0, atol=1e-9)
+
+
+def test_a_small_fields_fit_on_parts_is_the_whole_frames():
+    """The whole fit (coarse to fine) on a frame's parts equals the fit on the whole frame's
+    coefficients (made first, so the parts are not used)."""
+    video = make_tissue_case("vessels-contraction", size=400, rng=2)
+    points = np.array([[190.0, 170.0], [220.0, 215.0]])
+    fits = []
+    for whole in (False, True):
+        solver = LatticeSolver(video.frames[0], points, spacing=16)
+        frame = Frame.of(video.frames[4])
+        if whole:
+            for level in solver.levels:
+                frame.coefficients(level.blur)
+        state, _ = solver.coarse(frame, solver.state.copy())
+        solver.refine(frame, state)
+        fits.append(solver.state.copy())
+        assert bool(frame._parts) != whole
+    np.testing.assert_allclose(fits[0], fits[1], rtol=0, atol=1e-8)
 
 
 def test_a_state_gone_wrong_gives_nan_not_a_number_from_elsewhere(solver):
@@ -68,7 +123,7 @@ def test_a_state_gone_wrong_gives_nan_not_a_number_from_elsewhere(solver):
     level = solver.levels[-1]
     r, _, _ = lattice_residual(
         Frame.of(video.frames[1]).coefficients(0.0), state, solver.cells, solver.origins,
-        level.offsets, level.N, level.f, solver.mean, _NO_MASK,
+        level.offsets, level.N, level.f, solver.mean, _NO_MASK, _WHOLE, np.array(solver.shape),
     )  # fmt: skip
     touched = (solver.cells == 0).any(axis=1)
     assert np.isnan(r[touched]).any() and np.isfinite(r[~touched]).all()
