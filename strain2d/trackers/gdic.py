@@ -970,6 +970,7 @@ class _Run:
         self.cached: dict = {}
         self.cached_hinv: dict = {}
         self.built: dict = {}
+        self._masked_samples: dict = {}  # (point, size): reference samples (_reference_samples)
         # state carried from frame to frame
         self.p = np.zeros((n, 6))  # each point's last affine warp (relative to its reference)
         self.last = points.copy()  # each point's last position where it was measured
@@ -1518,7 +1519,7 @@ class _Run:
         Returns what :meth:`_match` returns, then per row the index of the mask it was
         matched with (-1 where none left it pixels enough)."""
         from strain2d.trackers._icgn_kernel import icgn
-        from strain2d.trackers.dic import _sample, step_operator
+        from strain2d.trackers.dic import step_operator
         from tissue_core.interrupt import deferred_interrupt
 
         m = len(rows)
@@ -1548,13 +1549,7 @@ class _Run:
                 which[j] = -1
                 continue
             exk, eyk = ex[keep], ey[keep]
-            X, Y = cx + exk, cy + eyk
-            # the pixels and their four neighbours (central differences), in one call
-            f, right, left, down, up = _sample(
-                self.ref_coeff,
-                np.concatenate([X, X + 1, X - 1, X, X]),
-                np.concatenate([Y, Y, Y, Y + 1, Y - 1]),
-            ).reshape(5, -1)
+            f, right, left, down, up = self._reference_samples(i, corr)[:, keep]
             fx, fy = 0.5 * (right - left), 0.5 * (down - up)
             f_normed, norm, G = step_operator(f[None], fx[None], fy[None], exk, eyk)
             with deferred_interrupt():  # Ctrl-C inside the kernel would be a SystemError
@@ -1571,6 +1566,28 @@ class _Run:
             s2[j] = max(2 * (1 - zk[0]), 1e-12) * float(norm[0, 0]) ** 2 / max(count - 6, 1)
             hinv[j] = np.einsum("ks,ks->k", G[0, :2], G[0, :2])
         return p, z, ok, s2, hinv, n_px, which
+
+    def _reference_samples(self, i: int, corr: _Correlator) -> np.ndarray:
+        """The reference's spline at every pixel of point ``i``'s subset of ``corr``'s size
+        and at its four neighbours (for central differences), ``(5, S^2)``: what a subset
+        matched around highlights keeps some of, frame after frame (kept for
+        :data:`_MASKED_SAMPLES` points, the last used)."""
+        from strain2d.trackers.dic import _sample
+
+        key = (int(i), corr.size)
+        samples = self._masked_samples.pop(key, None)
+        if samples is None:
+            # the pixels and their four neighbours, in one call
+            X, Y = self.points[i, 0] + corr.ex, self.points[i, 1] + corr.ey
+            samples = _sample(
+                self.ref_coeff,
+                np.concatenate([X, X + 1, X - 1, X, X]),
+                np.concatenate([Y, Y, Y, Y + 1, Y - 1]),
+            ).reshape(5, -1)
+        self._masked_samples[key] = samples  # the last used last
+        while len(self._masked_samples) > _MASKED_SAMPLES:
+            self._masked_samples.pop(next(iter(self._masked_samples)))
+        return samples
 
     def _field(self, key, frame, t: int, p, ok, step, guess) -> LatticeSolver:
         """A global field fitted to frame ``t``: over every point (``key`` "all"), or over
@@ -1616,6 +1633,9 @@ class _Run:
 #: its square
 _MASKED_MIN_PIXELS = 200
 _MASKED_MIN_SHARE = 0.1
+#: the points whose reference samples are kept for matching around highlights (about
+#: 0.25 MB each for the largest subsets): the points near a highlight, frame after frame
+_MASKED_SAMPLES = 64
 
 #: px the warped subset keeps from the frame's edge beyond the spline margin (the motion
 #: between the guess and the match)
