@@ -177,10 +177,23 @@ def _blobs(image: np.ndarray, noise: float) -> np.ndarray:
     square = np.ones((5, 5), np.uint8)
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     opened = cv2.dilate(cv2.erode(core.astype(np.uint8), square, **zero), square, **zero)
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(opened, connectivity=4)
-    if count <= 1:
+    if not opened.any():
         return opened.astype(bool)
-    detail = image - _blur(image, 1.5)
+    # the patches are labelled in the box that holds them, and their fine detail read there
+    # with the blur's reach around it (OpenCV's kernel: 4 standard deviations; its values
+    # are the whole image's): each patch is kept or not on its own pixels
+    H, W = core.shape
+    (y0, y1), (x0, x1) = _box(opened)
+    count, part, stats, _ = cv2.connectedComponentsWithStats(
+        np.ascontiguousarray(opened[y0:y1, x0:x1]), connectivity=4
+    )
+    labels = np.zeros((H, W), part.dtype)
+    labels[y0:y1, x0:x1] = part
+    r = int(np.ceil(4 * 1.5))
+    Y0, Y1, X0, X1 = max(y0 - r, 0), min(y1 + r, H), max(x0 - r, 0), min(x1 + r, W)
+    near = np.ascontiguousarray(image[Y0:Y1, X0:X1])
+    detail = np.zeros((H, W))
+    detail[y0:y1, x0:x1] = (near - _blur(near, 1.5))[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
     inside = labels > 0
     which = labels[inside]
     n = np.bincount(which, minlength=count).astype(float)
@@ -211,6 +224,12 @@ def _blobs(image: np.ndarray, noise: float) -> np.ndarray:
     return blobs
 
 
+def _box(mask: np.ndarray) -> tuple[tuple[int, int], tuple[int, int]]:
+    """The rows and columns (start, stop) of the box that holds ``mask``'s pixels (some)."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    return (int(rows[0]), int(rows[-1]) + 1), (int(cols[0]), int(cols[-1]) + 1)
+
+
 def static_highlights(
     reference_blobs: np.ndarray, frame_blobs: np.ndarray, motion, *, with_tissue: bool = False
 ) -> tuple:
@@ -230,11 +249,21 @@ def static_highlights(
     if not reference_blobs.any() or not frame_blobs.any():
         return (empty, empty, empty.copy()) if with_tissue else (empty, empty)
     H, W = reference_blobs.shape
-    labels, _ = ndimage.label(reference_blobs)
+    # the blobs are labelled in the box that holds them all (a few spots of a large frame):
+    # each blob is decided on its own pixels, so the masks are those of the whole frame
+    (y0, y1), (x0, x1) = _box(reference_blobs | frame_blobs)
+    labels = np.zeros((H, W), np.int32)
+    frame_labels = np.zeros((H, W), np.int32)
+    labels[y0:y1, x0:x1] = ndimage.label(reference_blobs[y0:y1, x0:x1])[0]
+    frame_labels[y0:y1, x0:x1] = ndimage.label(frame_blobs[y0:y1, x0:x1])[0]
     ref_mask, frame_mask, tissue = empty.copy(), empty.copy(), empty.copy()
-    frame_labels, _ = ndimage.label(frame_blobs)
-    frame_boxes = ndimage.find_objects(frame_labels)
-    for k, box in enumerate(ndimage.find_objects(labels), start=1):
+
+    def shifted(boxes):  # the boxes of the labelled part, in the frame
+        return [(slice(b[0].start + y0, b[0].stop + y0), slice(b[1].start + x0, b[1].stop + x0))
+                for b in boxes]  # fmt: skip
+
+    frame_boxes = shifted(ndimage.find_objects(frame_labels[y0:y1, x0:x1]))
+    for k, box in enumerate(shifted(ndimage.find_objects(labels[y0:y1, x0:x1])), start=1):
         yy, xx = np.nonzero(labels[box] == k)
         yy, xx = yy + box[0].start, xx + box[1].start
         u = motion(np.array([[xx.mean(), yy.mean()]]))[0]
@@ -248,7 +277,7 @@ def static_highlights(
         if same > 0.6 and (same > moved + 0.1 or stays):
             ref_mask[yy, xx] = True
             hit = np.unique(frame_labels[yy, xx])
-            frame_mask |= np.isin(frame_labels, hit[hit > 0])
+            frame_mask[y0:y1, x0:x1] |= np.isin(frame_labels[y0:y1, x0:x1], hit[hit > 0])
         elif moved > 0.6 and (moved > same + 0.1 or goes):
             tissue[yy, xx] = True
     return (ref_mask, frame_mask, tissue) if with_tissue else (ref_mask, frame_mask)
