@@ -1256,6 +1256,10 @@ class _Run:
         field_sigma = np.full(n, np.nan)
         field_quality = np.zeros(n)
         need = np.flatnonzero(active & ~ok)
+        # a point whose subset holds a highlight and which a highlight found to stay put
+        # covers (a third of any cell of the field's lattice that may hold it) is seen by
+        # neither: no field is fitted for it
+        need = need[~(lit[need] & self._under_highlight(need))]
         # a few points: a small field around each group of neighbours (with their own
         # neighbours); many: one field
         if need.size > _LOCAL_FIELDS_UP_TO * max(rows.size, 1):
@@ -1567,6 +1571,29 @@ class _Run:
             hinv[j] = np.einsum("ks,ks->k", G[0, :2], G[0, :2])
         return p, z, ok, s2, hinv, n_px, which
 
+    def _under_highlight(self, rows: np.ndarray) -> np.ndarray:
+        """Whether the highlights found to stay put cover over :data:`_HIDDEN_CELL` of every
+        lattice cell (``spacing`` px square, in any placement) that holds each point of
+        ``rows``: a field's cell that a highlight covers so does not count in its fit
+        (:meth:`LatticeSolver.seen`), whatever the frame."""
+        out = np.zeros(len(rows), bool)
+        if not self.static.any() or not len(rows):
+            return out
+        h = self.spacing
+        H, W = self.shape
+        # the highlights' pixel count in the box [x, x + h) x [y, y + h) from an integral image
+        S = np.zeros((H + 1, W + 1))
+        S[1:, 1:] = self.static.cumsum(axis=0).cumsum(axis=1)
+        c = np.rint(self.points[rows]).astype(int)
+        d = np.arange(h)
+        x0 = c[:, 0, None, None] - d[None, None, :]  # (n, dy, dx) the cells' corners
+        y0 = c[:, 1, None, None] - d[None, :, None]
+        inside = (x0 >= 0) & (y0 >= 0) & (x0 + h <= W) & (y0 + h <= H)
+        x0, y0 = np.clip(x0, 0, W - h), np.clip(y0, 0, H - h)
+        count = S[y0 + h, x0 + h] - S[y0, x0 + h] - S[y0 + h, x0] + S[y0, x0]
+        share = np.where(inside, count / (h * h), np.inf)
+        return share.min(axis=(1, 2)) > _HIDDEN_CELL
+
     def _reference_samples(self, i: int, corr: _Correlator) -> np.ndarray:
         """The reference's spline at every pixel of point ``i``'s subset of ``corr``'s size
         and at its four neighbours (for central differences), ``(5, S^2)``: what a subset
@@ -1633,6 +1660,9 @@ class _Run:
 #: its square
 _MASKED_MIN_PIXELS = 200
 _MASKED_MIN_SHARE = 0.1
+#: the share of a field's cell that highlights must cover for the cell not to count in the
+#: fit (:meth:`strain2d.trackers._lattice.LatticeSolver._solve_level`: 0.3 of its pixels)
+_HIDDEN_CELL = 0.3
 #: the points whose reference samples are kept for matching around highlights (about
 #: 0.25 MB each for the largest subsets): the points near a highlight, frame after frame
 _MASKED_SAMPLES = 64

@@ -19,6 +19,7 @@ from sample_data_synth.tissue import make_tissue_case
 from strain2d import track
 from strain2d.errors import InputError
 from strain2d.pipeline import strain_from_tracks
+from strain2d.trackers import gdic as gdic_module
 from strain2d.trackers._lattice import (
     Lattice,
     LatticeSolver,
@@ -464,3 +465,36 @@ def test_a_plain_patch_inside_texture_is_surrounded_and_blank_background_beside_
     points = np.array([[150.0, 150.0], [400.0, 150.0]])
     assert np.all(texture_distance(image, points) > 15)
     assert surrounded(image, points, np.array([81, 81])).tolist() == [True, False]
+
+
+def test_no_field_is_fitted_for_a_point_that_a_static_highlight_hides(monkeypatch):
+    """A point whose subset holds a highlight and whose field cell (in any placement) a
+    highlight found to stay put covers by over 30 % gets no global field: the field would
+    not count that cell (it could not report the point) and a local match from it is not
+    taken under a highlight. On the vessels case (a spot over three grid points) the
+    rule skips some points; fitting their fields instead reports none of them on those
+    frames, and every point's visibility is the same."""
+    video = make_tissue_case("vessels-contraction", size=800, n_frames=8, rng=0)
+    points = video.truth.grid(tuple(video.truth.params["grid"]))
+    skipped, frame = [], [0]
+    rule, tracked = gdic_module._Run._under_highlight, gdic_module._Run.frame
+
+    def on_frame(self, image, t):
+        frame[0] = t
+        return tracked(self, image, t)
+
+    def recorded(self, rows):
+        hidden = rule(self, rows)
+        skipped.extend((frame[0], int(i)) for i in rows[hidden])
+        return hidden
+
+    monkeypatch.setattr(gdic_module._Run, "frame", on_frame)
+    monkeypatch.setattr(gdic_module._Run, "_under_highlight", recorded)
+    with_rule = track(video.frames, points, tracker="gdic")
+    assert skipped
+    monkeypatch.setattr(
+        gdic_module._Run, "_under_highlight", lambda self, rows: np.zeros(len(rows), bool)
+    )
+    fitted = track(video.frames, points, tracker="gdic")
+    np.testing.assert_array_equal(with_rule.visible, fitted.visible)
+    assert not any(fitted.visible[t, i] for t, i in skipped)
