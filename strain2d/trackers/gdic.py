@@ -590,11 +590,12 @@ def _reference_subsets(corr: _Correlator, coefficients, centers: np.ndarray):
     return _Subsets(*(out[k] for k in fields))
 
 
-def _subsets(corr: _Correlator, coefficients, centers: np.ndarray):
-    """Reference subsets (float64) of a few points, split over the threads allowed; the
-    same subsets whatever the thread count (each point's are built alone)."""
+def _subsets(corr: _Correlator, coefficients, centers: np.ndarray, *, least: int = 64):
+    """Reference subsets (float64) of a few points, split over the threads allowed from
+    ``least`` points; the same subsets whatever the thread count (each point's are built
+    alone)."""
     workers = worker_count()
-    if workers == 1 or len(centers) < 64:
+    if workers == 1 or len(centers) < max(least, 2):
         return corr.reference(coefficients, centers, 0)
     parts = np.array_split(np.arange(len(centers)), workers)
     built = parallel_map(lambda rows: corr.reference(coefficients, centers[rows], 0), parts)
@@ -1020,7 +1021,7 @@ class _Run:
             for size in np.unique(sizes[rows]):
                 k = rows[sizes[rows] == size]
                 corr = self._correlator(int(size), 1)
-                ref = corr.reference(copies[0], self.points[k], 0)
+                ref = _subsets(corr, copies[0], self.points[k], least=2)
                 pk, _, ck = corr.match(
                     copies[1], ref, np.arange(len(k)), np.zeros((len(k), 6)), self.tolerances[k]
                 )

@@ -152,3 +152,13 @@ def test_dilated_is_scipys_repeated_cross(steps):
         mask[0, 5] = mask[-1, -1] = True  # on the border
         assert np.array_equal(dilated(mask, steps), ndimage.binary_dilation(mask, iterations=steps))
     assert not dilated(np.zeros((9, 9), bool), steps).any()
+
+
+def test_the_solvers_percentile_is_numpys_bit_for_bit():
+    from strain2d.trackers._lattice import _percentile
+
+    rng = np.random.default_rng(3)
+    for n in [1, 2, 3, 7, 100, 101, 257, 4096]:
+        for a in (rng.random(n), rng.integers(0, 4, n).astype(float), np.full(n, 0.25)):
+            for q in (0, 1, 50, 90, 95, 99, 100):
+                assert _percentile(a, q) == np.percentile(a, q)
