@@ -29,9 +29,12 @@ order:
    take their start from the **global field** (:mod:`strain2d.trackers._lattice`:
    one regularized displacement field over the region, fitted to every
    pixel coarse to fine, with a brightness gain and offset per node), built
-   the first time it is needed and fitted only on those frames. Where even
+   the first time it is needed and fitted only on those frames (a small
+   field reads only the part of the frame its lattice samples). Where even
    that start gives no local match, the field's own value is reported if the
-   lattice cell under the point counted in its fit.
+   lattice cell under the point counted in its fit; a point that a highlight
+   found to stay put hides from the field (over 30 % of any cell that may
+   hold it) gets no field: it could not be reported.
 4. **Quadratic warp** where the field curves enough under a subset to bias
    an affine warp by half its noise or more: the Bayesian information criterion
    ``n ln(SSD / n) + k ln n`` picks the warp per point and frame.
