@@ -106,10 +106,12 @@ _NO_MASK = np.zeros((0, 0), dtype=bool)
 
 
 def _percentile(a: np.ndarray, q: float) -> float:
-    """``np.percentile(a, q)`` of finite values, bit for bit (its linear interpolation),
+    """``np.percentile(a, q)``, bit for bit (its linear interpolation),
     with one partition: the solvers ask it of small arrays on every iteration, where
     NumPy's general function costs several times the partition."""
     n = a.size
+    if np.isnan(a).any():  # NumPy's answer: not a number
+        return float(np.percentile(a, q))
     virtual = (n - 1) * (q / 100)
     lo = int(np.floor(virtual))
     hi = min(lo + 1, n - 1)
@@ -530,7 +532,8 @@ class Frame:
         frame's. A field over a few points of a large frame samples a small part of it."""
         H, W = self.image.shape
         origin = np.zeros(2, np.int64)
-        if blur in self._coefficients or box is None:
+        # a blur of 8 px or more is made at a quarter scale (:func:`_blur`): not local
+        if blur in self._coefficients or box is None or blur >= 8:
             return self.coefficients(blur), origin
         # the positions sampled lie in the frame (the kernel samples none nearer its edge)
         x0, x1 = (min(max(v, 1), W - 2) for v in (math.floor(box[0]), math.ceil(box[2])))
@@ -542,7 +545,10 @@ class Frame:
         reach = _PART_MARGIN + int(np.ceil(4 * blur)) + _PART_SLACK
         X0, Y0 = int(max(x0 - reach, 0)), int(max(y0 - reach, 0))
         X1, Y1 = int(min(x1 + reach + 1, W)), int(min(y1 + reach + 1, H))
-        if (X1 - X0) * (Y1 - Y0) > _PART_SHARE * H * W:
+        parts = self._parts.get(blur, [])
+        made = sum((b[2] - b[0]) * (b[3] - b[1]) for b, _, _ in parts)
+        # a large part, or parts that add up to the frame: the whole frame's
+        if (X1 - X0) * (Y1 - Y0) > _PART_SHARE * H * W or made > H * W:
             return self.coefficients(blur), origin
         part = np.ascontiguousarray(self.image[Y0:Y1, X0:X1])
         coefficients = _coefficients(_blur(part, blur) if blur > 0 else part)

@@ -82,6 +82,7 @@ from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._lattice import (
     Frame,
+    Lattice,
     LatticeSolver,
     blob_window,
     bright_blobs,
@@ -597,8 +598,8 @@ def _subsets(corr: _Correlator, coefficients, centers: np.ndarray, *, least: int
     """Reference subsets (float64) of a few points, split over the threads allowed from
     ``least`` points; the same subsets whatever the thread count (each point's are built
     alone)."""
-    workers = worker_count()
-    if workers == 1 or len(centers) < max(least, 2):
+    workers = min(worker_count(), len(centers))  # no thread without a point
+    if workers <= 1 or len(centers) < max(least, 2):
         return corr.reference(coefficients, centers, 0)
     parts = np.array_split(np.arange(len(centers)), workers)
     built = parallel_map(lambda rows: corr.reference(coefficients, centers[rows], 0), parts)
@@ -1577,26 +1578,43 @@ class _Run:
 
     def _under_highlight(self, rows: np.ndarray) -> np.ndarray:
         """Whether the highlights found to stay put cover over :data:`_HIDDEN_CELL` of every
-        lattice cell (``spacing`` px square, in any placement) that holds each point of
-        ``rows``: a field's cell that a highlight covers so does not count in its fit
-        (:meth:`LatticeSolver.seen`), whatever the frame."""
+        lattice cell (``spacing`` px square, in any placement in the frame) that holds each
+        point of ``rows``, and over that share of under a quarter of the cells of a field
+        around the point and its neighbours: such a field does not count that cell in its
+        fit (:meth:`LatticeSolver.seen`), which it does only while under a quarter of its
+        cells are that hidden (the frame's own highlights, the same spots where the image
+        holds them, add to the count)."""
         out = np.zeros(len(rows), bool)
         if not self.static.any() or not len(rows):
             return out
         h = self.spacing
         H, W = self.shape
+        if H < h or W < h:
+            return out
         # the highlights' pixel count in the box [x, x + h) x [y, y + h) from an integral image
         S = np.zeros((H + 1, W + 1))
         S[1:, 1:] = self.static.cumsum(axis=0).cumsum(axis=1)
-        c = np.rint(self.points[rows]).astype(int)
+
+        def shares(x0: np.ndarray, y0: np.ndarray) -> np.ndarray:
+            count = S[y0 + h, x0 + h] - S[y0, x0 + h] - S[y0 + h, x0] + S[y0, x0]
+            return count / (h * h)
+
+        # a cell [x0, x0 + h) holds x where x0 is one of floor(x) - h + 1 .. floor(x)
+        c = np.floor(self.points[rows]).astype(int)
         d = np.arange(h)
         x0 = c[:, 0, None, None] - d[None, None, :]  # (n, dy, dx) the cells' corners
         y0 = c[:, 1, None, None] - d[None, :, None]
         inside = (x0 >= 0) & (y0 >= 0) & (x0 + h <= W) & (y0 + h <= H)
-        x0, y0 = np.clip(x0, 0, W - h), np.clip(y0, 0, H - h)
-        count = S[y0 + h, x0 + h] - S[y0, x0 + h] - S[y0 + h, x0] + S[y0, x0]
-        share = np.where(inside, count / (h * h), np.inf)
-        return share.min(axis=(1, 2)) > _HIDDEN_CELL
+        share = np.where(inside, shares(np.clip(x0, 0, W - h), np.clip(y0, 0, H - h)), np.inf).min(
+            axis=(1, 2)
+        )
+        out = inside.any(axis=(1, 2)) & (share > _HIDDEN_CELL)
+        for j in np.flatnonzero(out):  # the field's cells that the highlights hide so
+            around = self.points[[rows[j], *self.near[rows[j]]]]
+            lattice = Lattice.around(around[np.isfinite(around).all(axis=1)], self.shape, h)
+            corners = lattice.cell_origins().astype(int)
+            out[j] = np.mean(shares(corners[:, 0], corners[:, 1]) > _HIDDEN_CELL) < 0.25
+        return out
 
     def _reference_samples(self, i: int, corr: _Correlator) -> np.ndarray:
         """The reference's spline at every pixel of point ``i``'s subset of ``corr``'s size

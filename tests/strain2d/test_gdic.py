@@ -498,3 +498,40 @@ def test_no_field_is_fitted_for_a_point_that_a_static_highlight_hides(monkeypatc
     fitted = track(video.frames, points, tracker="gdic")
     np.testing.assert_array_equal(with_rule.visible, fitted.visible)
     assert not any(fitted.visible[t, i] for t, i in skipped)
+
+
+def test_a_point_is_hidden_only_where_every_cell_that_holds_it_is():
+    """A cell [x0, x0 + h) holds x for x0 from floor(x) - h + 1 to floor(x): a point at
+    x = 100.6 beside a band of highlight over columns 97-105 lies in the cell from 85,
+    which the band covers by a quarter only (the nearest-pixel rounding took the cell from
+    101 instead, a third covered); a point off the frame (no cell of it in the frame) is
+    not hidden;
+    a band over every cell around the point and its neighbours is the frame's own, not a
+    highlight the field leaves out."""
+    from types import SimpleNamespace
+
+    static = np.zeros((200, 200), bool)
+    static[:, 97:106] = True
+    points = np.array([[100.6, 100.0], [101.0, 100.0], [-0.5, 100.0], [60.0, 60.0],
+                       [140.0, 60.0], [60.0, 140.0], [140.0, 140.0]])  # fmt: skip
+    near = np.array([[1, 3, 4, 5, 6], [0, 3, 4, 5, 6], [1, 0, 4, 6, 3]] + [[0, 1, 2, 3, 4]] * 4)
+    run = SimpleNamespace(static=static, spacing=16, shape=(200, 200), points=points, near=near)
+    hidden = gdic_module._Run._under_highlight(run, np.arange(3))
+    # x = 101: every cell from 86 to 101 holds 5-9 of its 16 columns in the band (>= 0.31)
+    assert hidden.tolist() == [False, True, False]
+    static[:] = False
+    static[40:160, 40:160] = True  # a blob over the whole field around the points
+    run.static = static
+    assert not gdic_module._Run._under_highlight(run, np.arange(2)).any()
+
+
+def test_many_threads_for_few_points_give_the_same_tracks(monkeypatch):
+    """More threads than the points of a subset size (16 on a 16-core machine): each
+    thread gets a point or none is started for it, and the tracks are the one thread's."""
+    video = make_tissue_case("vessels-contraction", size=400, n_frames=3, rng=0)
+    points = video.truth.grid((5, 5))
+    one = track(video.frames, points, tracker="gdic", options={"threads": 1})
+    monkeypatch.setattr(gdic_module, "worker_count", lambda: 16)
+    many = track(video.frames, points, tracker="gdic")
+    np.testing.assert_array_equal(one.positions, many.positions)
+    np.testing.assert_array_equal(one.visible, many.visible)

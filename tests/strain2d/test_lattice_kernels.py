@@ -162,3 +162,31 @@ def test_the_solvers_percentile_is_numpys_bit_for_bit():
         for a in (rng.random(n), rng.integers(0, 4, n).astype(float), np.full(n, 0.25)):
             for q in (0, 1, 50, 90, 95, 99, 100):
                 assert _percentile(a, q) == np.percentile(a, q)
+
+
+def test_the_solvers_percentile_of_nan_is_nan():
+    from strain2d.trackers._lattice import _percentile
+
+    assert np.isnan(_percentile(np.array([0.1, np.nan, 0.3]), 99))
+
+
+def test_a_blur_made_at_a_quarter_scale_is_taken_from_the_whole_frame():
+    """A blur of 8 px or more is made on a quarter-scale copy (not local): a part of the
+    frame would not give the whole frame's values, so the whole frame's are given."""
+    frame = Frame.of(make_tissue_case("vessels-contraction", size=400, rng=1).frames[0])
+    for blur in (8.0, 10.0):
+        coefficients, corner = frame.part(blur, (150.0, 150.0, 200.0, 200.0))
+        assert corner.tolist() == [0, 0]
+        np.testing.assert_array_equal(coefficients, frame.coefficients(blur))
+
+
+def test_parts_stop_at_the_frames_size_of_work():
+    """Parts that add up to the frame's area give way to the whole frame's coefficients."""
+    frame = Frame.of(make_tissue_case("vessels-contraction", size=400, rng=1).frames[0])
+    corners = []
+    for k in range(40):
+        x = 20.0 + (k % 8) * 45
+        y = 20.0 + (k // 8) * 70
+        corners.append(frame.part(0.0, (x, y, x + 30.0, y + 30.0))[1].tolist())
+    made = sum((b[2] - b[0]) * (b[3] - b[1]) for b, _, _ in frame._parts[0.0])
+    assert made <= 2 * 400 * 400 and [0, 0] in corners[-5:]
