@@ -710,6 +710,7 @@ class LatticeSolver:
         self.residual = np.zeros(self.lattice.n_cells)  # mean squared residual per cell
         self.outside = np.zeros(self.lattice.n_cells, bool)
         self._factors: dict = {}
+        self._diagonals: dict = {}
         self._anchor = self.state.copy()
         self.fitted_level = len(self.levels) - 1  # of the last fit: 0 is the coarsest
 
@@ -794,12 +795,30 @@ class LatticeSolver:
             minlength=self._prior_band.size,
         ).reshape(self._prior_band.shape)
         band[-1] += self._leash(k)
+        self._diagonals[k] = band[-1].copy()  # the normal matrix's diagonal (_settle)
         try:
             factor = linalg.cholesky_banded(band, lower=False, check_finite=False)
         except linalg.LinAlgError:
             factor = None
         self._factors[k] = (factor, T.copy(), w.copy())
         return factor
+
+    def _settle(self, k: int, tolerance: float) -> np.ndarray:
+        """Per node, the step (px) below which its fit at level ``k`` has settled: the
+        level's ``tolerance``, or where larger the node's own noise-limited standard
+        deviation ``sqrt(sigma^2 / H_ii)`` (of u and v, from the diagonal of the last
+        normal matrix factorized: a lower bound of its posterior one). A step smaller than
+        that moves the node within its noise: more iterations would not place it better,
+        and on weak texture, where the frame's noise makes the objective rough at that
+        scale, they wander there instead of converging."""
+        n = self.lattice.n_nodes
+        diagonal = self._diagonals.get(k)
+        if diagonal is None:
+            return np.full(n, tolerance)
+        d = diagonal.reshape(n, 4)
+        with np.errstate(divide="ignore"):
+            var = 0.5 * (1.0 / d[:, 0] + 1.0 / d[:, 1])
+        return np.maximum(tolerance, np.sqrt(self.sigma2 * np.nan_to_num(var, posinf=0.0)))
 
     def _leash(self, k: int) -> np.ndarray:
         """Per unknown, the weight that holds level ``k``'s displacement near where the
@@ -837,6 +856,7 @@ class LatticeSolver:
         ridge = np.tile(self.ridge, n) * self._anchor.ravel()
         leash, start = self._leash(k), state.ravel().copy()
         best, since = np.inf, 0  # the smallest step so far, and the iterations since
+        settle = None  # per node, the step below which it has settled (:meth:`_settle`)
         for _ in range(self.max_iterations):
             r, outside, masked = self._residual(k, coefficients, state)
             ms = np.mean(r**2, axis=1)
@@ -846,6 +866,8 @@ class LatticeSolver:
             T = self._transforms(state)
             if self._stale(k, T, w):
                 self._factorize(k, level, T, w)
+            if settle is None:
+                settle = self._settle(k, tolerance)
             g0 = lattice_gradient(level.N, r, w, level.q, T, float(level.stride**2))
             rhs = np.bincount(self._dof.ravel(), weights=g0.ravel(), minlength=4 * n)
             rhs -= self.prior @ state.ravel() - ridge + leash * (state.ravel() - start)
@@ -858,9 +880,9 @@ class LatticeSolver:
             limit = 2.0 + 2.0 * level.blur
             step *= np.minimum(1.0, limit / np.maximum(move, 1e-12))[:, None]
             state = state + step
-            move = np.minimum(move, limit)
+            move = np.minimum(move, limit) / settle
             size = _percentile(move, 99)
-            if size < tolerance and move.max() < 10 * tolerance:
+            if size < 1 and move.max() < 10:
                 converged = True
                 break
             # stalled: the steps have not shrunk for a while (a few nodes cycling between
