@@ -866,6 +866,7 @@ class LatticeSolver:
             T = self._transforms(state)
             if self._stale(k, T, w):
                 self._factorize(k, level, T, w)
+                settle = None  # from the matrix just factorized
             if settle is None:
                 settle = self._settle(k, tolerance)
             g0 = lattice_gradient(level.N, r, w, level.q, T, float(level.stride**2))
@@ -880,9 +881,10 @@ class LatticeSolver:
             limit = 2.0 + 2.0 * level.blur
             step *= np.minimum(1.0, limit / np.maximum(move, 1e-12))[:, None]
             state = state + step
+            cut = move.max() > limit  # a step the trust region cut has not settled
             move = np.minimum(move, limit) / settle
             size = _percentile(move, 99)
-            if size < 1 and move.max() < 10:
+            if size < 1 and move.max() < 10 and not cut:
                 converged = True
                 break
             # stalled: the steps have not shrunk for a while (a few nodes cycling between

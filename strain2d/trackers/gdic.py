@@ -1610,7 +1610,9 @@ class _Run:
         )
         out = inside.any(axis=(1, 2)) & (share > _HIDDEN_CELL)
         for j in np.flatnonzero(out):  # the field's cells that the highlights hide so
-            around = self.points[[rows[j], *self.near[rows[j]]]]
+            # the field's lattice covers the points in the reference frame (as _field's)
+            near = [i for i in (rows[j], *self.near[rows[j]]) if self.in_frame0[i]]
+            around = self.points[near]
             lattice = Lattice.around(around[np.isfinite(around).all(axis=1)], self.shape, h)
             corners = lattice.cell_origins().astype(int)
             out[j] = np.mean(shares(corners[:, 0], corners[:, 1]) > _HIDDEN_CELL) < 0.25

@@ -515,7 +515,10 @@ def test_a_point_is_hidden_only_where_every_cell_that_holds_it_is():
     points = np.array([[100.6, 100.0], [101.0, 100.0], [-0.5, 100.0], [60.0, 60.0],
                        [140.0, 60.0], [60.0, 140.0], [140.0, 140.0]])  # fmt: skip
     near = np.array([[1, 3, 4, 5, 6], [0, 3, 4, 5, 6], [1, 0, 4, 6, 3]] + [[0, 1, 2, 3, 4]] * 4)
-    run = SimpleNamespace(static=static, spacing=16, shape=(200, 200), points=points, near=near)
+    run = SimpleNamespace(
+        static=static, spacing=16, shape=(200, 200), points=points, near=near,
+        in_frame0=((points >= 0) & (points <= 199)).all(axis=1),
+    )  # fmt: skip
     hidden = gdic_module._Run._under_highlight(run, np.arange(3))
     # x = 101: every cell from 86 to 101 holds 5-9 of its 16 columns in the band (>= 0.31)
     assert hidden.tolist() == [False, True, False]
@@ -523,6 +526,17 @@ def test_a_point_is_hidden_only_where_every_cell_that_holds_it_is():
     static[40:160, 40:160] = True  # a blob over the whole field around the points
     run.static = static
     assert not gdic_module._Run._under_highlight(run, np.arange(2)).any()
+    # a neighbour off the frame is not in the field (its lattice would reach the frame's
+    # edge, and the blob's share of its cells would look smaller than the field's)
+    static = np.zeros((240, 240), bool)
+    static[60:130, 60:130] = True
+    points = np.array([[100.0, 100.0], [110.0, 100.0], [100.0, 110.0], [400.0, 400.0]])
+    run = SimpleNamespace(
+        static=static, spacing=16, shape=(240, 240), points=points,
+        near=np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]),
+        in_frame0=np.array([True, True, True, False]),
+    )  # fmt: skip
+    assert not gdic_module._Run._under_highlight(run, np.arange(1)).any()
 
 
 def test_many_threads_for_few_points_give_the_same_tracks(monkeypatch):
