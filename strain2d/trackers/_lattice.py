@@ -101,6 +101,12 @@ _BLOB_MARGIN = 100
 #: Gauss-Newton stops, unconverged
 _STALLED = 5
 
+#: a cell with over this share of its pixels under a highlight does not count in the fit,
+#: while under :data:`HIDDEN_CELLS` of the lattice's cells are that hidden (a highlight
+#: over most of the field is the frame's lighting, not a spot to leave out)
+HIDDEN_CELL = 0.3
+HIDDEN_CELLS = 0.25
+
 #: the kernel's "no highlight mask"
 _NO_MASK = np.zeros((0, 0), dtype=bool)
 
@@ -202,16 +208,13 @@ def _blobs(image: np.ndarray, noise: float) -> np.ndarray:
     # are the whole image's): each patch is kept or not on its own pixels
     H, W = core.shape
     (y0, y1), (x0, x1) = _box(opened)
-    count, part, stats, _ = cv2.connectedComponentsWithStats(
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
         np.ascontiguousarray(opened[y0:y1, x0:x1]), connectivity=4
     )
-    labels = np.zeros((H, W), part.dtype)
-    labels[y0:y1, x0:x1] = part
     r = int(np.ceil(4 * 1.5))
     Y0, Y1, X0, X1 = max(y0 - r, 0), min(y1 + r, H), max(x0 - r, 0), min(x1 + r, W)
     near = np.ascontiguousarray(image[Y0:Y1, X0:X1])
-    detail = np.zeros((H, W))
-    detail[y0:y1, x0:x1] = (near - _blur(near, 1.5))[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
+    detail = (near - _blur(near, 1.5))[y0 - Y0 : y1 - Y0, x0 - X0 : x1 - X0]
     inside = labels > 0
     which = labels[inside]
     n = np.bincount(which, minlength=count).astype(float)
@@ -220,17 +223,17 @@ def _blobs(image: np.ndarray, noise: float) -> np.ndarray:
     roughness = np.sqrt(np.maximum(mean2 - mean**2, 0.0))
     keep = (stats[:, cv2.CC_STAT_AREA] >= 30) & (roughness < 2.5 * noise)
     keep[0] = False
-    core = keep[labels]
+    core = np.zeros((H, W), bool)
+    core[y0:y1, x0:x1] = keep[labels]
     if not core.any():
         return core
     # the cores grown over their halos (40 steps of 4-connected growth inside the bright
     # pixels) and by 3 px, in the box that holds them (the growth reaches 43 px at most)
     bright = (excess > 2.5 * noise).astype(np.uint8)
     blobs = np.zeros_like(core)
-    H, W = core.shape
-    rows, cols = np.flatnonzero(core.any(axis=1)), np.flatnonzero(core.any(axis=0))
-    y0, y1 = max(rows[0] - 44, 0), min(rows[-1] + 45, H)
-    x0, x1 = max(cols[0] - 44, 0), min(cols[-1] + 45, W)
+    (y0, y1), (x0, x1) = _box(core)
+    y0, y1 = max(y0 - 44, 0), min(y1 + 44, H)
+    x0, x1 = max(x0 - 44, 0), min(x1 + 44, W)
     grown = core[y0:y1, x0:x1].astype(np.uint8)
     allowed = bright[y0:y1, x0:x1] | grown
     for _ in range(40):
@@ -861,8 +864,8 @@ class LatticeSolver:
             r, outside, masked = self._residual(k, coefficients, state)
             ms = np.mean(r**2, axis=1)
             w = self._robust_weights(ms, level, outside)
-            if masked is not None and np.mean(masked > 0.3) < 0.25:
-                w[masked > 0.3] = 0.0  # cells mostly under a highlight do not count
+            if masked is not None and np.mean(masked > HIDDEN_CELL) < HIDDEN_CELLS:
+                w[masked > HIDDEN_CELL] = 0.0  # cells mostly under a highlight do not count
             T = self._transforms(state)
             if self._stale(k, T, w):
                 self._factorize(k, level, T, w)

@@ -81,6 +81,8 @@ from scipy.spatial import cKDTree
 from strain2d.errors import InputError
 from strain2d.trackers import TrackerOption, register_tracker
 from strain2d.trackers._lattice import (
+    HIDDEN_CELL,
+    HIDDEN_CELLS,
     Frame,
     Lattice,
     LatticeSolver,
@@ -976,6 +978,7 @@ class _Run:
         self.cached_hinv: dict = {}
         self.built: dict = {}
         self._masked_samples: dict = {}  # (point, size): reference samples (_reference_samples)
+        self._static_integral = None  # (pixels, integral image) of self.static (_under_highlight)
         # state carried from frame to frame
         self.p = np.zeros((n, 6))  # each point's last affine warp (relative to its reference)
         self.last = points.copy()  # each point's last position where it was measured
@@ -1264,7 +1267,8 @@ class _Run:
         # a point whose subset holds a highlight and which a highlight found to stay put
         # covers (a third of any cell of the field's lattice that may hold it) is seen by
         # neither: no field is fitted for it
-        need = need[~(lit[need] & self._under_highlight(need))]
+        under = need[lit[need]]
+        need = np.setdiff1d(need, under[self._under_highlight(under)])
         # a few points: a small field around each group of neighbours (with their own
         # neighbours); many: one field
         if need.size > _LOCAL_FIELDS_UP_TO * max(rows.size, 1):
@@ -1577,7 +1581,7 @@ class _Run:
         return p, z, ok, s2, hinv, n_px, which
 
     def _under_highlight(self, rows: np.ndarray) -> np.ndarray:
-        """Whether the highlights found to stay put cover over :data:`_HIDDEN_CELL` of every
+        """Whether the highlights found to stay put cover over ``HIDDEN_CELL`` of every
         lattice cell (``spacing`` px square, in any placement in the frame) that holds each
         point of ``rows``, and over that share of under a quarter of the cells of a field
         around the point and its neighbours: such a field does not count that cell in its
@@ -1585,15 +1589,18 @@ class _Run:
         cells are that hidden (the frame's own highlights, the same spots where the image
         holds them, add to the count)."""
         out = np.zeros(len(rows), bool)
-        if not self.static.any() or not len(rows):
-            return out
         h = self.spacing
         H, W = self.shape
-        if H < h or W < h:
+        if not len(rows) or H < h or W < h or not self.static.any():
             return out
-        # the highlights' pixel count in the box [x, x + h) x [y, y + h) from an integral image
-        S = np.zeros((H + 1, W + 1))
-        S[1:, 1:] = self.static.cumsum(axis=0).cumsum(axis=1)
+        # the highlights' pixel count in the box [x, x + h) x [y, y + h) from an integral
+        # image, made again only when a highlight was added (the mask only grows)
+        count = int(self.static.sum())
+        if self._static_integral is None or self._static_integral[0] != count:
+            S = np.zeros((H + 1, W + 1))
+            S[1:, 1:] = self.static.cumsum(axis=0).cumsum(axis=1)
+            self._static_integral = (count, S)
+        S = self._static_integral[1]
 
         def shares(x0: np.ndarray, y0: np.ndarray) -> np.ndarray:
             count = S[y0 + h, x0 + h] - S[y0, x0 + h] - S[y0 + h, x0] + S[y0, x0]
@@ -1608,14 +1615,14 @@ class _Run:
         share = np.where(inside, shares(np.clip(x0, 0, W - h), np.clip(y0, 0, H - h)), np.inf).min(
             axis=(1, 2)
         )
-        out = inside.any(axis=(1, 2)) & (share > _HIDDEN_CELL)
+        out = inside.any(axis=(1, 2)) & (share > HIDDEN_CELL)
         for j in np.flatnonzero(out):  # the field's cells that the highlights hide so
             # the field's lattice covers the points in the reference frame (as _field's)
             near = [i for i in (rows[j], *self.near[rows[j]]) if self.in_frame0[i]]
             around = self.points[near]
             lattice = Lattice.around(around[np.isfinite(around).all(axis=1)], self.shape, h)
             corners = lattice.cell_origins().astype(int)
-            out[j] = np.mean(shares(corners[:, 0], corners[:, 1]) > _HIDDEN_CELL) < 0.25
+            out[j] = np.mean(shares(corners[:, 0], corners[:, 1]) > HIDDEN_CELL) < HIDDEN_CELLS
         return out
 
     def _reference_samples(self, i: int, corr: _Correlator) -> np.ndarray:
@@ -1684,9 +1691,6 @@ class _Run:
 #: its square
 _MASKED_MIN_PIXELS = 200
 _MASKED_MIN_SHARE = 0.1
-#: the share of a field's cell that highlights must cover for the cell not to count in the
-#: fit (:meth:`strain2d.trackers._lattice.LatticeSolver._solve_level`: 0.3 of its pixels)
-_HIDDEN_CELL = 0.3
 #: the points whose reference samples are kept for matching around highlights (about
 #: 0.25 MB each for the largest subsets): the points near a highlight, frame after frame
 _MASKED_SAMPLES = 64

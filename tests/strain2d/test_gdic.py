@@ -517,7 +517,7 @@ def test_a_point_is_hidden_only_where_every_cell_that_holds_it_is():
     near = np.array([[1, 3, 4, 5, 6], [0, 3, 4, 5, 6], [1, 0, 4, 6, 3]] + [[0, 1, 2, 3, 4]] * 4)
     run = SimpleNamespace(
         static=static, spacing=16, shape=(200, 200), points=points, near=near,
-        in_frame0=((points >= 0) & (points <= 199)).all(axis=1),
+        in_frame0=((points >= 0) & (points <= 199)).all(axis=1), _static_integral=None,
     )  # fmt: skip
     hidden = gdic_module._Run._under_highlight(run, np.arange(3))
     # x = 101: every cell from 86 to 101 holds 5-9 of its 16 columns in the band (>= 0.31)
@@ -534,7 +534,7 @@ def test_a_point_is_hidden_only_where_every_cell_that_holds_it_is():
     run = SimpleNamespace(
         static=static, spacing=16, shape=(240, 240), points=points,
         near=np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]),
-        in_frame0=np.array([True, True, True, False]),
+        in_frame0=np.array([True, True, True, False]), _static_integral=None,
     )  # fmt: skip
     assert not gdic_module._Run._under_highlight(run, np.arange(1)).any()
 
